@@ -1,0 +1,445 @@
+#!/usr/bin/env node
+// One entry point for a fresh machine and for every later run: `npm start`, `npm test`,
+// `npm run build` all come here. Each step checks whether its output is already up to date and
+// skips itself, so a second run with nothing changed takes a few seconds.
+//
+//   node scripts/setup.mjs build   set up everything, then stop
+//   node scripts/setup.mjs start   set up, then run the vite dev server (port 5173) in the foreground
+//   node scripts/setup.mjs test    set up (plus Chromium and the Python venv), then run every test
+//                                  suite, continuing after a failure; prints a summary table and
+//                                  a last line `N passed, M failed`; exits non-zero on any failure
+//
+// Environment:
+//   SETUP_SKIP=step,step   skip named steps: npm, rust-target, wasm-bindgen, wasm, cli, databases,
+//                          chromium, venv (for working on one part while another is broken)
+//   TEST_SUITES=a,b        run only these suites: cargo, vitest, pytest, playwright
+//
+// Node builtins only: this runs before node_modules exists.
+
+import { spawn, spawnSync } from 'node:child_process';
+import { createHash } from 'node:crypto';
+import fs from 'node:fs';
+import os from 'node:os';
+import path from 'node:path';
+import { fileURLToPath } from 'node:url';
+
+const ROOT = path.resolve(path.dirname(fileURLToPath(import.meta.url)), '..');
+const CORE = path.join(ROOT, 'wasm-core');
+const SHARED_MOCAP = path.resolve(ROOT, '..', 'shared', 'mocap');
+const WASM_TARGET = 'wasm32-unknown-unknown';
+const WASM_OUT = path.join(CORE, 'target', WASM_TARGET, 'release', 'mmcore.wasm');
+const PKG_DIR = path.join(ROOT, 'web', 'src', 'core', 'pkg');
+const MMDB_BIN = path.join(CORE, 'target', 'release', process.platform === 'win32' ? 'mmdb.exe' : 'mmdb');
+const VENV = path.join(ROOT, 'training', '.venv');
+
+const mode = process.argv[2] ?? 'build';
+if (!['build', 'start', 'test'].includes(mode)) {
+  console.error(`usage: node scripts/setup.mjs build|start|test   (got "${mode}")`);
+  process.exit(2);
+}
+const skipped = new Set((process.env.SETUP_SKIP ?? '').split(',').map((s) => s.trim()).filter(Boolean));
+
+// ---------------------------------------------------------------- helpers
+
+const t0All = performance.now();
+const secs = (t0) => `${((performance.now() - t0) / 1000).toFixed(1)}s`;
+const log = (msg) => console.log(`[setup] ${msg}`);
+
+class StepError extends Error {}
+
+/** mtime in ms, or -Infinity when the file does not exist. */
+function mtime(p) {
+  try {
+    return fs.statSync(p).mtimeMs;
+  } catch {
+    return -Infinity;
+  }
+}
+
+/** Newest mtime of any file under `dir` (recursive), or -Infinity. */
+function newestUnder(dir) {
+  let newest = -Infinity;
+  const walk = (d) => {
+    for (const e of fs.readdirSync(d, { withFileTypes: true })) {
+      const p = path.join(d, e.name);
+      if (e.isDirectory()) walk(p);
+      else newest = Math.max(newest, mtime(p));
+    }
+  };
+  if (fs.existsSync(dir)) walk(dir);
+  return newest;
+}
+
+/** Runs a command with output streamed to this terminal; throws StepError on failure. */
+function run(cmd, args, opts = {}) {
+  const shown = [cmd, ...args].map((a) => (/\s/.test(a) ? JSON.stringify(a) : a)).join(' ');
+  log(`  $ ${shown}${opts.cwd && opts.cwd !== ROOT ? `   (in ${path.relative(ROOT, opts.cwd)})` : ''}`);
+  return new Promise((resolve, reject) => {
+    const child = spawn(cmd, args, { cwd: ROOT, stdio: 'inherit', ...opts });
+    child.on('error', (e) => reject(new StepError(`${cmd}: ${e.message}`)));
+    child.on('close', (code, signal) => {
+      if (code === 0) resolve();
+      else reject(new StepError(`\`${shown}\` failed (${signal ?? `exit ${code}`})`));
+    });
+  });
+}
+
+/**
+ * Runs a command, streaming its output and also capturing it (for parsing test summaries).
+ * Resolves with { code, output }; never rejects.
+ */
+function runCapture(cmd, args, opts = {}) {
+  const shown = [cmd, ...args].join(' ');
+  log(`  $ ${shown}${opts.cwd && opts.cwd !== ROOT ? `   (in ${path.relative(ROOT, opts.cwd)})` : ''}`);
+  return new Promise((resolve) => {
+    let output = '';
+    let child;
+    try {
+      child = spawn(cmd, args, { cwd: ROOT, stdio: ['ignore', 'pipe', 'pipe'], ...opts });
+    } catch (e) {
+      resolve({ code: -1, output: String(e) });
+      return;
+    }
+    child.stdout.on('data', (b) => {
+      output += b;
+      process.stdout.write(b);
+    });
+    child.stderr.on('data', (b) => {
+      output += b;
+      process.stderr.write(b);
+    });
+    child.on('error', (e) => {
+      output += `\n${cmd}: ${e.message}\n`;
+      console.error(`${cmd}: ${e.message}`);
+    });
+    child.on('close', (code, signal) => resolve({ code: code ?? (signal ? 128 : -1), output }));
+  });
+}
+
+/** Synchronous, quiet command: { status, stdout } (status -1 when it cannot be started). */
+function probe(cmd, args, opts = {}) {
+  const r = spawnSync(cmd, args, { cwd: ROOT, encoding: 'utf8', ...opts });
+  if (r.error) return { status: -1, stdout: '' };
+  return { status: r.status, stdout: `${r.stdout ?? ''}${r.stderr ?? ''}` };
+}
+
+/**
+ * Runs one setup step. `fn` returns a string saying why it skipped (nothing to do), or
+ * undefined after doing the work.
+ */
+async function step(id, title, fn) {
+  const t0 = performance.now();
+  if (skipped.has(id)) {
+    log(`${title}: skipped (SETUP_SKIP=${id})`);
+    return;
+  }
+  const skipReason = await fn();
+  if (skipReason) log(`${title}: up to date, ${skipReason} (${secs(t0)})`);
+  else log(`${title}: done (${secs(t0)})`);
+}
+
+// ---------------------------------------------------------------- steps
+
+async function stepNpm() {
+  await step('npm', 'npm packages', async () => {
+    const marker = path.join(ROOT, 'node_modules', '.package-lock.json');
+    const lock = path.join(ROOT, 'package-lock.json');
+    const have = mtime(marker);
+    if (have >= mtime(lock) && have >= mtime(path.join(ROOT, 'package.json'))) {
+      return 'node_modules matches package-lock.json';
+    }
+    // `npm install`, not `npm ci`: the registry here lacks some other platforms' optional
+    // binaries (e.g. @rollup/rollup-darwin-*), so the lock file lists only the ones it served and
+    // `npm ci` rejects it as out of sync. `npm install` follows the lock all the same.
+    await run('npm', ['install', '--no-audit', '--no-fund']);
+    // npm may leave the marker's mtime untouched when nothing changed; touch it so the next
+    // run skips.
+    if (fs.existsSync(marker)) {
+      const now = new Date();
+      fs.utimesSync(marker, now, now);
+    }
+  });
+}
+
+async function stepRustTarget() {
+  await step('rust-target', `Rust target ${WASM_TARGET}`, async () => {
+    const r = probe('rustup', ['target', 'list', '--installed']);
+    if (r.status === 0 && r.stdout.split(/\s+/).includes(WASM_TARGET)) return 'installed';
+    if (r.status === -1) throw new StepError('rustup not found: install Rust from https://rustup.rs first');
+    await run('rustup', ['target', 'add', WASM_TARGET]);
+  });
+}
+
+/** The exact wasm-bindgen version pinned in wasm-core/Cargo.toml (`wasm-bindgen = "=X"`). */
+function pinnedWasmBindgenVersion() {
+  const toml = fs.readFileSync(path.join(CORE, 'Cargo.toml'), 'utf8');
+  const m =
+    toml.match(/^\s*wasm-bindgen\s*=\s*"=?\s*([0-9][0-9A-Za-z.+-]*)"/m) ??
+    toml.match(/^\s*wasm-bindgen\s*=\s*\{[^}\n]*version\s*=\s*"=?\s*([0-9][0-9A-Za-z.+-]*)"/m);
+  if (!m) throw new StepError('wasm-core/Cargo.toml has no `wasm-bindgen = "=X.Y.Z"` dependency line');
+  return m[1];
+}
+
+/** Path of the wasm-bindgen CLI: cargo's bin dir first (where `cargo install` puts it), else PATH. */
+function wasmBindgenBin() {
+  const cargoBin = path.join(process.env.CARGO_HOME ?? path.join(os.homedir(), '.cargo'), 'bin', 'wasm-bindgen');
+  return fs.existsSync(cargoBin) ? cargoBin : 'wasm-bindgen';
+}
+
+/** PIDs of other processes running `cargo install wasm-bindgen-cli` (Linux only). */
+function otherWasmBindgenInstalls() {
+  const pids = [];
+  try {
+    for (const pid of fs.readdirSync('/proc')) {
+      if (!/^\d+$/.test(pid) || Number(pid) === process.pid) continue;
+      try {
+        const cmd = fs.readFileSync(`/proc/${pid}/cmdline`, 'utf8').split('\0');
+        if (cmd.some((a) => /(^|\/)cargo$/.test(a)) && cmd.includes('install') && cmd.includes('wasm-bindgen-cli')) {
+          pids.push(Number(pid));
+        }
+      } catch {
+        /* process exited */
+      }
+    }
+  } catch {
+    /* no /proc */
+  }
+  return pids;
+}
+
+async function stepWasmBindgen() {
+  await step('wasm-bindgen', 'wasm-bindgen CLI', async () => {
+    const want = pinnedWasmBindgenVersion();
+    const current = () => probe(wasmBindgenBin(), ['--version']).stdout.trim().split(/\s+/)[1];
+    if (current() === want) return `version ${want}`;
+    // Another shell may be installing it right now: wait instead of compiling it twice.
+    let others = otherWasmBindgenInstalls();
+    if (others.length) {
+      log(`  another \`cargo install wasm-bindgen-cli\` is running (pid ${others.join(', ')}); waiting for it`);
+      while (others.length) {
+        await new Promise((r) => setTimeout(r, 5000));
+        others = otherWasmBindgenInstalls();
+      }
+      if (current() === want) return;
+    }
+    log(`  installing wasm-bindgen-cli ${want} (have: ${current() ?? 'none'}); this compiles it from source and takes ~8 minutes on a cold machine`);
+    await run('cargo', ['install', 'wasm-bindgen-cli', '--version', `=${want}`, '--locked']);
+    if (current() !== want) throw new StepError(`wasm-bindgen --version still does not report ${want} after install`);
+  });
+}
+
+async function stepWasm() {
+  await step('wasm', 'WASM build (cargo)', async () => {
+    // The flag goes in the target-specific variable, not RUSTFLAGS, so the native build (same
+    // target dir, host artifacts) is not invalidated by alternating flags.
+    const env = { ...process.env, CARGO_TARGET_WASM32_UNKNOWN_UNKNOWN_RUSTFLAGS: '-C target-feature=+simd128' };
+    if (process.env.RUSTFLAGS) log('  note: RUSTFLAGS is set and overrides the simd128 target flag');
+    await run('cargo', ['build', '--release', '--target', WASM_TARGET, '--lib'], { cwd: CORE, env });
+  });
+  await step('wasm', 'WASM bindings (wasm-bindgen)', async () => {
+    const out = path.join(PKG_DIR, 'mmcore_bg.wasm');
+    if (!fs.existsSync(WASM_OUT)) throw new StepError(`cargo produced no ${path.relative(ROOT, WASM_OUT)}`);
+    if (mtime(out) > mtime(WASM_OUT) && fs.existsSync(path.join(PKG_DIR, 'mmcore.js'))) {
+      return `${path.relative(ROOT, out)} is newer than the cargo output`;
+    }
+    await run(wasmBindgenBin(), ['--target', 'web', '--out-dir', PKG_DIR, '--out-name', 'mmcore', WASM_OUT]);
+  });
+}
+
+async function stepCli() {
+  await step('cli', 'native CLI (mmdb)', async () => {
+    await run('cargo', ['build', '--release', '--bin', 'mmdb'], { cwd: CORE });
+  });
+}
+
+async function stepDatabases() {
+  await step('databases', 'databases', async () => {
+    if (!fs.existsSync(SHARED_MOCAP)) {
+      throw new StepError(
+        `the mocap folder ${SHARED_MOCAP} is missing: the databases are built from ../shared/mocap ` +
+          '(the shared/ folder must sit beside this repository)',
+      );
+    }
+    const dir = path.join(ROOT, 'databases');
+    const configs = fs.existsSync(dir) ? fs.readdirSync(dir).filter((f) => f.endsWith('.json')).sort() : [];
+    if (configs.length === 0) return 'no databases/*.json configs';
+    if (!fs.existsSync(MMDB_BIN)) throw new StepError(`${path.relative(ROOT, MMDB_BIN)} is missing (the cli step builds it)`);
+    const inputsTime = Math.max(mtime(MMDB_BIN), newestUnder(SHARED_MOCAP));
+    const outDir = path.join(ROOT, 'public', 'databases');
+    fs.mkdirSync(outDir, { recursive: true });
+    let built = 0;
+    for (const cfg of configs) {
+      const name = cfg.replace(/\.json$/, '');
+      const out = path.join(outDir, `${name}.mmdb`);
+      const cfgPath = path.join(dir, cfg);
+      if (mtime(out) > Math.max(inputsTime, mtime(cfgPath))) continue;
+      const t0 = performance.now();
+      await run(MMDB_BIN, ['build', '--config', path.relative(ROOT, cfgPath), '-o', path.relative(ROOT, out)]);
+      log(`  built ${path.relative(ROOT, out)} (${secs(t0)})`);
+      built++;
+    }
+    if (built === 0) return `${configs.length} database(s) newer than their inputs`;
+  });
+}
+
+async function stepChromium() {
+  await step('chromium', 'Chromium (Debian package)', async () => {
+    if (fs.existsSync('/usr/bin/chromium')) return '/usr/bin/chromium exists';
+    const sudo = process.getuid?.() === 0 ? [] : ['sudo'];
+    const env = { ...process.env, DEBIAN_FRONTEND: 'noninteractive' };
+    const apt = (args) => (sudo.length ? run('sudo', ['apt-get', ...args], { env }) : run('apt-get', args, { env }));
+    await apt(['update']);
+    await apt(['install', '-y', '--no-install-recommends', 'chromium', 'fonts-liberation']);
+  });
+}
+
+async function stepVenv() {
+  await step('venv', 'Python venv (training/.venv)', async () => {
+    const req = path.join(ROOT, 'training', 'requirements.txt');
+    if (!fs.existsSync(req)) return 'no training/requirements.txt';
+    const hash = createHash('sha256').update(fs.readFileSync(req)).digest('hex');
+    const stamp = path.join(VENV, '.requirements.sha256');
+    const py = path.join(VENV, 'bin', 'python');
+    if (fs.existsSync(py) && fs.existsSync(stamp) && fs.readFileSync(stamp, 'utf8').trim() === hash) {
+      return 'requirements.txt unchanged';
+    }
+    if (!fs.existsSync(py)) await run('python3', ['-m', 'venv', VENV]);
+    await run(py, ['-m', 'pip', 'install', '--disable-pip-version-check', '-r', req]);
+    fs.writeFileSync(stamp, `${hash}\n`);
+  });
+}
+
+// ---------------------------------------------------------------- test suites
+
+const stripAnsi = (s) => s.replace(/\x1b\[[0-9;?]*[A-Za-z]/g, '');
+const num = (re, text) => {
+  const m = text.match(re);
+  return m ? Number(m[1]) : 0;
+};
+
+/** Each parser returns { passed, failed } from a runner's output, or null when it finds no summary. */
+const parsers = {
+  cargo(out) {
+    // One `test result:` line per test binary (unit, each integration file, doc tests).
+    const lines = [...out.matchAll(/test result: \w+\. (\d+) passed; (\d+) failed/g)];
+    if (lines.length === 0) return null;
+    return lines.reduce((a, m) => ({ passed: a.passed + Number(m[1]), failed: a.failed + Number(m[2]) }), { passed: 0, failed: 0 });
+  },
+  vitest(out) {
+    // "      Tests  1 failed | 12 passed (13)"
+    const m = out.match(/^\s*Tests\s+([^\n]*)\(\d+\)\s*$/m);
+    if (!m) return null;
+    return { passed: num(/(\d+) passed/, m[1]), failed: num(/(\d+) failed/, m[1]) };
+  },
+  pytest(out) {
+    // "3 passed, 1 failed, 2 errors in 0.41s" (possibly between ===== rules)
+    const lines = out.split('\n').filter((l) => /\b(passed|failed|errors?|no tests ran)\b.* in [\d.]+s/.test(l));
+    if (lines.length === 0) return null;
+    const last = lines[lines.length - 1];
+    if (/no tests ran/.test(last)) return null;
+    return { passed: num(/(\d+) passed/, last), failed: num(/(\d+) failed/, last) + num(/(\d+) errors?/, last) };
+  },
+  playwright(out) {
+    // list reporter: "  2 passed (8.1s)", "  1 failed", "  1 flaky" on their own lines
+    const passed = out.match(/^\s*(\d+) passed\b/m);
+    const failed = out.match(/^\s*(\d+) failed\s*$/m);
+    const flaky = out.match(/^\s*(\d+) flaky\s*$/m);
+    if (!passed && !failed && !flaky) return null;
+    return { passed: (passed ? Number(passed[1]) : 0) + (flaky ? Number(flaky[1]) : 0), failed: failed ? Number(failed[1]) : 0 };
+  },
+};
+
+async function runSuites() {
+  const only = new Set((process.env.TEST_SUITES ?? '').split(',').map((s) => s.trim()).filter(Boolean));
+  const bin = (name) => path.join(ROOT, 'node_modules', '.bin', name);
+  const suites = [
+    { id: 'cargo', title: 'cargo test (wasm-core)', cmd: 'cargo', args: ['test', '--release'], cwd: CORE },
+    { id: 'vitest', title: 'vitest', cmd: bin('vitest'), args: ['run'] },
+    { id: 'pytest', title: 'pytest (training)', cmd: path.join(VENV, 'bin', 'pytest'), args: ['-q'], cwd: path.join(ROOT, 'training') },
+    { id: 'playwright', title: 'playwright', cmd: bin('playwright'), args: ['test'] },
+  ].filter((s) => only.size === 0 || only.has(s.id));
+
+  const results = [];
+  for (const s of suites) {
+    const t0 = performance.now();
+    console.log(`\n[test] ===== ${s.title} =====`);
+    let code;
+    let output;
+    if (s.cwd && !fs.existsSync(s.cwd)) {
+      code = -1;
+      output = '';
+      console.log(`[test] ${path.relative(ROOT, s.cwd)}/ does not exist`);
+    } else if (path.isAbsolute(s.cmd) && !fs.existsSync(s.cmd)) {
+      code = -1;
+      output = '';
+      console.log(`[test] ${path.relative(ROOT, s.cmd)} does not exist`);
+    } else {
+      ({ code, output } = await runCapture(s.cmd, s.args, { cwd: s.cwd ?? ROOT }));
+    }
+    const counts = parsers[s.id](stripAnsi(output));
+    let note = '';
+    let passed = 0;
+    let failed = 0;
+    if (counts) {
+      ({ passed, failed } = counts);
+      if (code !== 0 && failed === 0) {
+        // The runner failed outside any test (compile error, pytest exit 5, crash): count it.
+        failed = 1;
+        note = `exit ${code}`;
+      }
+    } else {
+      failed = 1;
+      note = code === 0 ? 'no test summary found' : `exit ${code}, no test summary found`;
+    }
+    const ok = code === 0 && failed === 0;
+    results.push({ title: s.title, ok, passed, failed, time: secs(t0), note });
+    console.log(`[test] ${s.title}: ${ok ? 'passed' : 'FAILED'} (${passed} passed, ${failed} failed${note ? `; ${note}` : ''}) in ${secs(t0)}`);
+  }
+
+  // Summary table.
+  const rows = [['suite', 'result', 'passed', 'failed', 'time', 'note'], ...results.map((r) => [r.title, r.ok ? 'passed' : 'FAILED', String(r.passed), String(r.failed), r.time, r.note])];
+  const widths = rows[0].map((_, c) => Math.max(...rows.map((r) => r[c].length)));
+  const fmtRow = (r) => r.map((cell, c) => cell.padEnd(widths[c])).join('  ').trimEnd();
+  console.log('\n' + fmtRow(rows[0]));
+  console.log(widths.map((w) => '-'.repeat(w)).join('  '));
+  for (const r of rows.slice(1)) console.log(fmtRow(r));
+  const totalPassed = results.reduce((a, r) => a + r.passed, 0);
+  const totalFailed = results.reduce((a, r) => a + r.failed, 0);
+  console.log(`\ntotal time ${secs(t0All)}`);
+  console.log(`${totalPassed} passed, ${totalFailed} failed`);
+  return results.every((r) => r.ok) && totalFailed === 0 ? 0 : 1;
+}
+
+// ---------------------------------------------------------------- main
+
+async function main() {
+  log(`mode: ${mode}`);
+  await stepNpm();
+  await stepRustTarget();
+  await stepWasmBindgen();
+  await stepWasm();
+  await stepCli();
+  await stepDatabases();
+  if (mode === 'test') {
+    await stepChromium();
+    await stepVenv();
+  }
+  log(`setup finished in ${secs(t0All)}`);
+
+  if (mode === 'build') return 0;
+  if (mode === 'start') {
+    const child = spawn(path.join(ROOT, 'node_modules', '.bin', 'vite'), ['--host', '0.0.0.0', '--port', '5173'], { cwd: ROOT, stdio: 'inherit' });
+    for (const sig of ['SIGINT', 'SIGTERM']) process.on(sig, () => child.kill(sig));
+    return new Promise((resolve) => child.on('close', (code) => resolve(code ?? 0)));
+  }
+  return runSuites();
+}
+
+main().then(
+  (code) => process.exit(code),
+  (e) => {
+    if (e instanceof StepError) console.error(`\n[setup] ERROR: ${e.message}`);
+    else console.error(e);
+    process.exit(1);
+  },
+);

@@ -1,0 +1,159 @@
+import { execFileSync } from 'node:child_process';
+import fs from 'node:fs';
+import os from 'node:os';
+import path from 'node:path';
+import { beforeAll, describe, expect, it } from 'vitest';
+import { DatabaseBuilder } from '../../web/src/core/builder.ts';
+import { Database } from '../../web/src/core/database.ts';
+import { RawDatabase } from '../../web/src/core/pkg/mmcore.js';
+import { initWasmSync, wasmMemory } from '../../web/src/core/wasm.ts';
+
+const ROOT = path.resolve(import.meta.dirname, '../..');
+const MMDB = path.join(ROOT, 'wasm-core/target/release/mmdb');
+const DB_PATH = path.join(ROOT, 'public/databases/locomotion.mmdb');
+const BVH = path.resolve(ROOT, '../shared/mocap/cmu-asf/cmu_16_15.bvh');
+
+function inspect(file: string): Record<string, unknown> {
+  return JSON.parse(execFileSync(MMDB, ['inspect', file, '--json'], { encoding: 'utf8' })) as Record<string, unknown>;
+}
+
+beforeAll(() => {
+  initWasmSync(fs.readFileSync(path.join(ROOT, 'web/src/core/pkg/mmcore_bg.wasm')));
+});
+
+describe('Database (WASM in Node)', () => {
+  it('loads locomotion.mmdb with the frame count the native CLI reports', () => {
+    const db = Database.fromBytes(fs.readFileSync(DB_PATH));
+    try {
+      const cli = inspect(DB_PATH);
+      expect(db.numFrames).toBe(cli['num_frames']);
+      expect(db.numFrames).toBeGreaterThan(0);
+      expect(db.fps).toBeCloseTo(cli['fps'] as number, 5);
+      const inspected = db.inspect();
+      expect(inspected['num_frames']).toBe(cli['num_frames']);
+      expect(db.jointParents[0]).toBe(-1);
+      for (let j = 1; j < db.numJoints; j++) expect(db.jointParents[j]).toBeLessThan(j);
+      // Clips tile [0, F).
+      expect(db.clips[0].start).toBe(0);
+      expect(db.clips[db.numClips - 1].end).toBe(db.numFrames);
+      expect(db.clipAt(db.numFrames - 1)).toBe(db.numClips - 1);
+    } finally {
+      db.free();
+    }
+  });
+
+  it('exposes zero-copy views of the right lengths', () => {
+    const db = Database.fromBytes(fs.readFileSync(DB_PATH));
+    try {
+      const F = db.numFrames;
+      const J = db.numJoints;
+      expect(db.localPositions.length).toBe(F * J * 3);
+      expect(db.localRotations.length).toBe(F * J * 4);
+      expect(db.contacts.length).toBe(F * 2);
+      expect(db.features.length).toBe(F * db.numFeatures);
+      expect(db.localPositions.buffer).toBe(wasmMemory().buffer);
+      // Contacts are 0/1 and some frame has a foot down.
+      expect(db.contacts.every((c) => c === 0 || c === 1)).toBe(true);
+      expect(db.contacts.some((c) => c === 1)).toBe(true);
+      // Rotations are unit quaternions.
+      const q = db.localRotations;
+      for (let i = 0; i < Math.min(q.length, 4000); i += 4) {
+        expect(Math.hypot(q[i], q[i + 1], q[i + 2], q[i + 3])).toBeCloseTo(1, 3);
+      }
+    } finally {
+      db.free();
+    }
+  });
+
+  it('world positions of frame 0: virtual root on the floor, head above 1.3 m', () => {
+    const db = Database.fromBytes(fs.readFileSync(DB_PATH));
+    try {
+      const pos = db.worldPositions(0);
+      expect(pos.length).toBe(db.numJoints * 3);
+      expect(pos[1]).toBeCloseTo(0, 5); // joint 0, y
+      const head = db.jointNames.findIndex((n) => /head/i.test(n) && !/end|site|top/i.test(n));
+      expect(head, `no head joint in ${db.jointNames.join(', ')}`).toBeGreaterThan(0);
+      expect(pos[head * 3 + 1]).toBeGreaterThan(1.3);
+      // Feet near the floor.
+      const minY = Math.min(...Array.from({ length: db.numJoints - 1 }, (_, j) => pos[(j + 1) * 3 + 1]));
+      expect(minY).toBeGreaterThan(-0.05);
+      expect(minY).toBeLessThan(0.2);
+      // The same view is reused: no allocation per call.
+      const again = db.worldPositions(1);
+      expect(again).toBe(pos);
+      expect(db.worldRotations().length).toBe(db.numJoints * 4);
+    } finally {
+      db.free();
+    }
+  });
+
+  it('recreates views after WASM memory grows (old buffer detached)', () => {
+    const db = Database.fromBytes(fs.readFileSync(DB_PATH));
+    try {
+      const before = db.localPositions;
+      const first = Array.from(before.subarray(0, 12));
+      expect(db.localPositions).toBe(before); // cached while the buffer is unchanged
+      wasmMemory().grow(1);
+      expect(before.length).toBe(0); // detached
+      const after = db.localPositions;
+      expect(after).not.toBe(before);
+      expect(Array.from(after.subarray(0, 12))).toEqual(first);
+      expect(db.worldPositions(0).length).toBe(db.numJoints * 3);
+    } finally {
+      db.free();
+    }
+  });
+
+  it('rejects a corrupt file with a checksum error', () => {
+    const bytes = new Uint8Array(fs.readFileSync(DB_PATH));
+    bytes[Math.floor(bytes.length / 2)] ^= 0xff;
+    expect(() => Database.fromBytes(bytes)).toThrow(/checksum/i);
+    expect(() => new RawDatabase(bytes)).toThrow(/checksum/i);
+  });
+
+  it('rejects a truncated file', () => {
+    const bytes = new Uint8Array(fs.readFileSync(DB_PATH)).subarray(0, 20);
+    expect(() => Database.fromBytes(bytes)).toThrow();
+  });
+});
+
+describe('DatabaseBuilder (WASM in Node)', () => {
+  it('builds a BVH to the same frame count as the native CLI', () => {
+    const builder = new DatabaseBuilder({});
+    let bytes: Uint8Array;
+    try {
+      builder.addBvh(path.basename(BVH), fs.readFileSync(BVH));
+      bytes = builder.build();
+      expect(Array.isArray(builder.warnings())).toBe(true);
+    } finally {
+      builder.free();
+    }
+    const db = Database.fromBytes(bytes);
+    try {
+      // Native build of the same file with the same (default) options.
+      const dir = fs.mkdtempSync(path.join(os.tmpdir(), 'mmdb-test-'));
+      try {
+        const config = path.join(dir, 'one.json');
+        fs.writeFileSync(config, JSON.stringify({ clips: [{ file: BVH }] }));
+        const out = path.join(dir, 'one.mmdb');
+        execFileSync(MMDB, ['build', '--config', config, '-o', out], { stdio: 'pipe' });
+        expect(db.numFrames).toBe(inspect(out)['num_frames']);
+        expect(db.numJoints).toBe(inspect(out)['joints'] instanceof Array ? (inspect(out)['joints'] as unknown[]).length : db.numJoints);
+      } finally {
+        fs.rmSync(dir, { recursive: true, force: true });
+      }
+    } finally {
+      db.free();
+    }
+  });
+
+  it('reports a bad BVH with a file:line message', () => {
+    const builder = new DatabaseBuilder({});
+    try {
+      const bad = new TextEncoder().encode('HIERARCHY\nROOT Hips\n{\n  OFFSET 0 0 zero\n');
+      expect(() => builder.addBvh('bad.bvh', bad)).toThrow(/bad\.bvh:\d+/);
+    } finally {
+      builder.free();
+    }
+  });
+});

@@ -1,0 +1,429 @@
+"""Reader for the `.mmdb` motion database format, version 1 (numpy only).
+
+Written from `docs/mmdb-format.md` alone, without looking at the Rust writer, so that the
+tests comparing it with files the Rust CLI writes check the *document* as much as the code:
+if the two disagree, either the writer or the document is wrong.
+
+Everything the document's "Validation a reader must do" section lists is checked; a bad file
+raises `MmdbError` (a `ValueError`) whose message names the section and field at fault.
+
+Quaternions are `(x, y, z, w)` as in the file. `quat_mul` / `quat_rotate` are implemented
+here (vectorized over any leading axes) rather than imported, to keep this module a
+self-contained second implementation.
+"""
+
+from __future__ import annotations
+
+import os
+import struct
+import zlib
+from dataclasses import dataclass, field
+
+import numpy as np
+
+MAGIC = b"\x89MMDB\r\n\x1a"
+VERSION = 1
+HEADER_SIZE = 32
+ENTRY_SIZE = 24
+ALIGNMENT = 16
+
+REQUIRED_SECTIONS = (
+    "INFO", "SKEL", "CLIP", "TAGS", "LPOS", "LROT", "LVEL", "LAVL", "CONT", "FDSC", "FNRM",
+    "FEAT", "VALD",
+)
+
+KIND_POSITION, KIND_VELOCITY, KIND_DIRECTION = 0, 1, 2
+AXES_XYZ, AXES_XZ = 0, 1
+
+
+class MmdbError(ValueError):
+    """The bytes are not a valid version-1 `.mmdb` file; the message says why."""
+
+
+@dataclass
+class Clip:
+    name: str
+    source: str
+    start: int
+    end: int  # exclusive
+    mirrored: bool
+    source_fps: float
+    scale: float
+    root_scale: float
+
+
+@dataclass
+class FeatureGroup:
+    name: str
+    kind: int  # KIND_POSITION / KIND_VELOCITY / KIND_DIRECTION
+    trajectory: bool
+    axes: int  # AXES_XYZ / AXES_XZ
+    joint: int
+    direction: np.ndarray  # (3,) float32, meaningful for KIND_DIRECTION only
+    offsets: list[int]
+    weight: float
+    first_dim: int
+    num_dims: int
+
+
+@dataclass
+class Database:
+    fps: float
+    num_frames: int
+    flags: int
+    joint_names: list[str]
+    parents: np.ndarray  # (J,) int32, parents[0] == -1
+    rest_offsets: np.ndarray  # (J, 3) float32
+    sites: dict[str, tuple[int, np.ndarray]]  # name -> (joint or -1, (3,) offset)
+    clips: list[Clip]
+    tags: dict[str, list[tuple[int, int]]]
+    local_positions: np.ndarray  # (F, J, 3) float32
+    local_rotations: np.ndarray  # (F, J, 4) float32, (x, y, z, w)
+    local_velocities: np.ndarray  # (F, J, 3) float32
+    local_angular_velocities: np.ndarray  # (F, J, 3) float32
+    contacts: np.ndarray  # (F, 2) bool, [:, 0] left, [:, 1] right
+    feature_groups: list[FeatureGroup]
+    feature_mean: np.ndarray  # (D,) float32
+    feature_scale: np.ndarray  # (D,) float32
+    features: np.ndarray  # (F, D) float32, normalized
+    valid: np.ndarray  # (F,) bool
+    extra_sections: dict[str, bytes] = field(default_factory=dict)  # unknown tags, kept raw
+
+    @property
+    def num_joints(self) -> int:
+        return len(self.joint_names)
+
+    @property
+    def num_features(self) -> int:
+        return int(self.features.shape[1])
+
+
+class _Cursor:
+    """Sequential little-endian reads inside one section, with bounds checks that name it."""
+
+    def __init__(self, data: bytes, section: str):
+        self.data, self.section, self.pos = data, section, 0
+
+    def _take(self, n: int, what: str) -> bytes:
+        if self.pos + n > len(self.data):
+            raise MmdbError(
+                f"section {self.section}: {what} runs past the end of the section "
+                f"(needs {n} bytes at offset {self.pos}, section is {len(self.data)} bytes)"
+            )
+        out = self.data[self.pos:self.pos + n]
+        self.pos += n
+        return out
+
+    def u8(self, what: str) -> int:
+        return self._take(1, what)[0]
+
+    def u32(self, what: str) -> int:
+        return struct.unpack("<I", self._take(4, what))[0]
+
+    def i32(self, what: str) -> int:
+        return struct.unpack("<i", self._take(4, what))[0]
+
+    def f32(self, what: str) -> float:
+        return struct.unpack("<f", self._take(4, what))[0]
+
+    def vec3(self, what: str) -> np.ndarray:
+        return np.frombuffer(self._take(12, what), dtype="<f4").astype(np.float32)
+
+    def string(self, what: str) -> str:
+        n = self.u32(f"{what} length")
+        raw = self._take(n, what)
+        try:
+            return raw.decode("utf-8")
+        except UnicodeDecodeError as e:
+            raise MmdbError(f"section {self.section}: {what} is not valid UTF-8 ({e})") from None
+
+    def finish(self) -> None:
+        """Trailing bytes mean writer and reader disagree on the layout: reject them."""
+        if self.pos != len(self.data):
+            raise MmdbError(
+                f"section {self.section}: {len(self.data) - self.pos} unexpected trailing bytes "
+                f"(parsed {self.pos} of {len(self.data)})"
+            )
+
+
+def _read_bytes(path_or_bytes) -> bytes:
+    if isinstance(path_or_bytes, (bytes, bytearray, memoryview)):
+        return bytes(path_or_bytes)
+    with open(os.fspath(path_or_bytes), "rb") as f:
+        return f.read()
+
+
+def _check_header(data: bytes) -> int:
+    """Check magic, version, file_size and checksum; return the section count."""
+    if len(data) < HEADER_SIZE:
+        raise MmdbError(
+            f"truncated: file is {len(data)} bytes, shorter than the {HEADER_SIZE}-byte header"
+        )
+    if data[:8] != MAGIC:
+        raise MmdbError(f"header: bad magic {data[:8]!r}, expected {MAGIC!r} (not an .mmdb file)")
+    version, section_count, file_size, checksum, _reserved = struct.unpack_from("<IIQII", data, 8)
+    if version != VERSION:
+        raise MmdbError(f"header: unsupported version {version} (this reader reads version {VERSION})")
+    if file_size != len(data):
+        state = "truncated" if len(data) < file_size else "has trailing bytes"
+        raise MmdbError(
+            f"header: file size mismatch: header file_size is {file_size} bytes but the file is "
+            f"{len(data)} bytes (file {state})"
+        )
+    actual = zlib.crc32(memoryview(data)[HEADER_SIZE:]) & 0xFFFFFFFF
+    if actual != checksum:
+        raise MmdbError(
+            f"header: checksum mismatch: stored CRC-32 {checksum:#010x}, computed {actual:#010x} "
+            f"(file corrupted)"
+        )
+    return section_count
+
+
+def _read_section_table(data: bytes, section_count: int) -> dict[str, bytes]:
+    table_end = HEADER_SIZE + ENTRY_SIZE * section_count
+    if table_end > len(data):
+        raise MmdbError(
+            f"section table: {section_count} entries need {table_end} bytes, file is {len(data)}"
+        )
+    sections: dict[str, bytes] = {}
+    for i in range(section_count):
+        raw_tag, _reserved, offset, length = struct.unpack_from("<4sIQQ", data, HEADER_SIZE + ENTRY_SIZE * i)
+        tag = raw_tag.decode("ascii", errors="replace")
+        where = f"section table entry {i} ({tag!r})"
+        if offset < table_end:
+            raise MmdbError(f"{where}: offset {offset} is before the end of the section table ({table_end})")
+        if offset + length > len(data):
+            raise MmdbError(
+                f"{where}: data [{offset}, {offset + length}) lies outside the file ({len(data)} bytes)"
+            )
+        if offset % ALIGNMENT:
+            raise MmdbError(f"{where}: offset {offset} is not a multiple of {ALIGNMENT}")
+        if tag in sections:
+            raise MmdbError(f"{where}: duplicate section {tag}")
+        sections[tag] = data[offset:offset + length]
+    missing = [t for t in REQUIRED_SECTIONS if t not in sections]
+    if missing:
+        raise MmdbError(f"section table: missing required section(s) {', '.join(missing)}")
+    return sections
+
+
+def _array(sections: dict[str, bytes], tag: str, dtype: str, shape: tuple[int, ...]) -> np.ndarray:
+    """A fixed-size section as a (copied, native) array, after checking its byte length."""
+    itemsize = np.dtype(dtype).itemsize
+    expected = int(np.prod(shape, dtype=np.int64)) * itemsize
+    data = sections[tag]
+    if len(data) != expected:
+        raise MmdbError(
+            f"section {tag}: length {len(data)} bytes does not match INFO, which implies "
+            f"{' x '.join(map(str, shape))} x {itemsize} = {expected} bytes"
+        )
+    return np.frombuffer(data, dtype=dtype).reshape(shape).astype(np.dtype(dtype).newbyteorder("="))
+
+
+def _check_flags(tag: str, arr: np.ndarray) -> np.ndarray:
+    if arr.size and arr.max() > 1:
+        raise MmdbError(f"section {tag}: values must be 0 or 1, found {int(arr.max())}")
+    return arr.astype(bool)
+
+
+def _check_ranges(what: str, ranges: list[tuple[int, int]], num_frames: int) -> None:
+    """Ranges must be non-empty, sorted, disjoint and inside [0, F)."""
+    prev_end = 0
+    for start, end in ranges:
+        if not (start < end <= num_frames):
+            raise MmdbError(f"{what}: range [{start}, {end}) is empty or outside [0, {num_frames})")
+        if start < prev_end:
+            raise MmdbError(f"{what}: range [{start}, {end}) is unsorted or overlaps the previous one")
+        prev_end = end
+
+
+def load(path_or_bytes) -> Database:
+    """Read and validate a `.mmdb` file given as a path or as its bytes."""
+    data = _read_bytes(path_or_bytes)
+    sections = _read_section_table(data, _check_header(data))
+
+    info = sections["INFO"]
+    if len(info) != 32:
+        raise MmdbError(f"section INFO: length {len(info)} bytes, expected 32")
+    F, J, fps, D, num_clips, num_tags, G, flags = struct.unpack("<IIfIIIII", info)
+    if not (np.isfinite(fps) and fps > 0):
+        raise MmdbError(f"section INFO: fps must be positive and finite, got {fps}")
+    if flags & ~1:
+        raise MmdbError(f"section INFO: unknown flag bits set in flags {flags:#x}")
+
+    # SKEL
+    cur = _Cursor(sections["SKEL"], "SKEL")
+    names, parents, offsets = [], [], []
+    for j in range(J):
+        names.append(cur.string(f"joint {j} name"))
+        parent = cur.i32(f"joint {j} parent")
+        if (j == 0 and parent != -1) or (j > 0 and not 0 <= parent < j):
+            raise MmdbError(
+                f"section SKEL: joint {j} ({names[-1]!r}) has parent {parent}; parents must come "
+                f"first (0 <= parent < index), and only joint 0 has parent -1"
+            )
+        parents.append(parent)
+        offsets.append(cur.vec3(f"joint {j} rest offset"))
+    sites = {}
+    for s in range(cur.u32("site count")):
+        name = cur.string(f"site {s} name")
+        joint = cur.i32(f"site {s} joint")
+        if not -1 <= joint < J:
+            raise MmdbError(f"section SKEL: site {name!r} refers to joint {joint}, outside [-1, {J})")
+        sites[name] = (joint, cur.vec3(f"site {s} offset"))
+    cur.finish()
+
+    # CLIP
+    cur = _Cursor(sections["CLIP"], "CLIP")
+    count = cur.u32("clip count")
+    if count != num_clips:
+        raise MmdbError(f"section CLIP: count {count} differs from INFO num_clips {num_clips}")
+    clips = []
+    for c in range(count):
+        clips.append(Clip(
+            name=cur.string(f"clip {c} name"),
+            source=cur.string(f"clip {c} source"),
+            start=cur.u32(f"clip {c} start"),
+            end=cur.u32(f"clip {c} end"),
+            mirrored=bool(cur.u8(f"clip {c} mirrored")),
+            source_fps=cur.f32(f"clip {c} source_fps"),
+            scale=cur.f32(f"clip {c} scale"),
+            root_scale=cur.f32(f"clip {c} root_scale"),
+        ))
+    cur.finish()
+    _check_ranges("section CLIP", [(c.start, c.end) for c in clips], F)
+    if (clips[0].start if clips else 0) != 0 or (clips[-1].end if clips else 0) != F or any(
+        a.end != b.start for a, b in zip(clips, clips[1:])
+    ):
+        raise MmdbError(f"section CLIP: clips do not tile [0, {F}) exactly (gap between clips)")
+    if len({c.name for c in clips}) != len(clips):
+        raise MmdbError("section CLIP: clip names are not unique")
+    if bool(flags & 1) != any(c.mirrored for c in clips):
+        raise MmdbError("section INFO: flags bit 0 (has mirrored clips) disagrees with the CLIP records")
+
+    # TAGS
+    cur = _Cursor(sections["TAGS"], "TAGS")
+    count = cur.u32("tag count")
+    if count != num_tags:
+        raise MmdbError(f"section TAGS: count {count} differs from INFO num_tags {num_tags}")
+    tags = {}
+    for t in range(count):
+        name = cur.string(f"tag {t} name")
+        ranges = [(cur.u32(f"tag {name!r} start"), cur.u32(f"tag {name!r} end"))
+                  for _ in range(cur.u32(f"tag {name!r} range count"))]
+        _check_ranges(f"section TAGS: tag {name!r}", ranges, F)
+        if name in tags:
+            raise MmdbError(f"section TAGS: duplicate tag {name!r}")
+        tags[name] = ranges
+    cur.finish()
+
+    # FDSC
+    cur = _Cursor(sections["FDSC"], "FDSC")
+    count = cur.u32("group count")
+    if count != G:
+        raise MmdbError(f"section FDSC: count {count} differs from INFO num_feature_groups {G}")
+    groups, next_dim = [], 0
+    for g in range(count):
+        name = cur.string(f"group {g} name")
+        kind, trajectory, axes, _reserved = (cur.u8(f"group {name!r} {w}") for w in ("kind", "trajectory", "axes", "reserved"))
+        joint = cur.i32(f"group {name!r} joint")
+        direction = cur.vec3(f"group {name!r} direction")
+        offsets_k = [cur.i32(f"group {name!r} offset") for _ in range(cur.u32(f"group {name!r} offset count"))]
+        grp = FeatureGroup(name, kind, bool(trajectory), axes, joint, direction, offsets_k,
+                           weight=cur.f32(f"group {name!r} weight"),
+                           first_dim=cur.u32(f"group {name!r} first_dim"),
+                           num_dims=cur.u32(f"group {name!r} num_dims"))
+        if kind not in (0, 1, 2) or axes not in (0, 1) or not 0 <= joint < J:
+            raise MmdbError(f"section FDSC: group {name!r} has kind {kind}, axes {axes}, joint {joint} (invalid)")
+        if grp.num_dims != len(offsets_k) * (3 if axes == AXES_XYZ else 2):
+            raise MmdbError(f"section FDSC: group {name!r} has {grp.num_dims} dims for {len(offsets_k)} offsets")
+        if grp.first_dim != next_dim:
+            raise MmdbError(
+                f"section FDSC: group {name!r} starts at dim {grp.first_dim}, expected {next_dim} "
+                f"(groups must tile [0, {D}))"
+            )
+        next_dim += grp.num_dims
+        groups.append(grp)
+    cur.finish()
+    if next_dim != D:
+        raise MmdbError(f"section FDSC: groups cover [0, {next_dim}), expected to tile [0, {D})")
+
+    fnrm = _array(sections, "FNRM", "<f4", (2, D))
+    db = Database(
+        fps=fps, num_frames=F, flags=flags, joint_names=names,
+        parents=np.array(parents, dtype=np.int32),
+        rest_offsets=np.array(offsets, dtype=np.float32).reshape(J, 3),
+        sites=sites, clips=clips, tags=tags,
+        local_positions=_array(sections, "LPOS", "<f4", (F, J, 3)),
+        local_rotations=_array(sections, "LROT", "<f4", (F, J, 4)),
+        local_velocities=_array(sections, "LVEL", "<f4", (F, J, 3)),
+        local_angular_velocities=_array(sections, "LAVL", "<f4", (F, J, 3)),
+        contacts=_check_flags("CONT", _array(sections, "CONT", "u1", (F, 2))),
+        feature_groups=groups,
+        feature_mean=fnrm[0].copy(), feature_scale=fnrm[1].copy(),
+        features=_array(sections, "FEAT", "<f4", (F, D)),
+        valid=_check_flags("VALD", _array(sections, "VALD", "u1", (F,))),
+        extra_sections={t: d for t, d in sections.items() if t not in REQUIRED_SECTIONS},
+    )
+    return db
+
+
+# --- quaternions (x, y, z, w), vectorized over leading axes ------------------------------------
+
+def quat_mul(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Hamilton product a·b (apply b first, then a)."""
+    ax, ay, az, aw = np.moveaxis(np.asarray(a), -1, 0)
+    bx, by, bz, bw = np.moveaxis(np.asarray(b), -1, 0)
+    return np.stack([
+        aw * bx + ax * bw + ay * bz - az * by,
+        aw * by - ax * bz + ay * bw + az * bx,
+        aw * bz + ax * by - ay * bx + az * bw,
+        aw * bw - ax * bx - ay * by - az * bz,
+    ], axis=-1)
+
+
+def quat_rotate(q: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """Rotate vectors v by unit quaternions q: v + 2w(u×v) + 2u×(u×v), u = q.xyz."""
+    q, v = np.asarray(q), np.asarray(v)
+    u, w = q[..., :3], q[..., 3:]
+    t = 2.0 * np.cross(u, v)
+    return v + w * t + np.cross(u, t)
+
+
+def _fk(parents: np.ndarray, lpos: np.ndarray, lrot: np.ndarray, character_space: bool):
+    """FK over (N, J, .) local transforms, in float64, exactly as the format document states."""
+    lpos, lrot = lpos.astype(np.float64), lrot.astype(np.float64)
+    pos, rot = np.empty_like(lpos), np.empty_like(lrot)
+    if character_space:
+        pos[:, 0], rot[:, 0] = 0.0, (0.0, 0.0, 0.0, 1.0)
+    else:
+        pos[:, 0], rot[:, 0] = lpos[:, 0], lrot[:, 0]
+    for j in range(1, len(parents)):
+        p = parents[j]
+        rot[:, j] = quat_mul(rot[:, p], lrot[:, j])
+        pos[:, j] = pos[:, p] + quat_rotate(rot[:, p], lpos[:, j])
+    return pos, rot
+
+
+def world_transforms_all(db: Database, character_space: bool = False) -> tuple[np.ndarray, np.ndarray]:
+    """World (or character-space) positions (F, J, 3) and rotations (F, J, 4) of every frame.
+
+    rot[j] = rot[p]·LROT[j], pos[j] = pos[p] + rot[p]·LPOS[j], from pos[0] = LPOS[0],
+    rot[0] = LROT[0]. With `character_space`, joint 0's transform is replaced by the identity
+    (the space every feature is expressed in).
+    """
+    return _fk(db.parents, db.local_positions, db.local_rotations, character_space)
+
+
+def world_transforms(db: Database, frame: int, character_space: bool = False) -> tuple[np.ndarray, np.ndarray]:
+    """World (or character-space) positions (J, 3) and rotations (J, 4) of one frame."""
+    if not 0 <= frame < db.num_frames:
+        raise IndexError(f"frame {frame} outside [0, {db.num_frames})")
+    sl = slice(frame, frame + 1)
+    pos, rot = _fk(db.parents, db.local_positions[sl], db.local_rotations[sl], character_space)
+    return pos[0], rot[0]
+
+
+def world_positions(db: Database) -> np.ndarray:
+    """World joint positions of every frame, (F, J, 3) float64."""
+    return world_transforms_all(db)[0]

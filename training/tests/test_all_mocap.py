@@ -1,0 +1,42 @@
+"""Every shipped BVH file parses with the oracle and builds with the CLI on its own."""
+
+from concurrent.futures import ThreadPoolExecutor
+import os
+
+import numpy as np
+
+import bvh_reference
+import mmdb
+
+EXPECTED_FILES = 118
+
+
+def bvh_files(mocap):
+    files = sorted(mocap.glob("cmu-*/*.bvh"))
+    assert len(files) == EXPECTED_FILES, f"expected {EXPECTED_FILES} BVH files under {mocap}, found {len(files)}"
+    return files
+
+
+def test_every_bvh_parses(mocap):
+    for path in bvh_files(mocap):
+        parsed = bvh_reference.parse(path)
+        assert parsed.num_frames > 0 and np.isfinite(parsed.motion).all(), path
+        assert parsed.frame_time > 0, path
+
+
+def test_every_bvh_builds_alone(mocap, mmdb_cli, tmp_path):
+    def build(path):
+        out = tmp_path / f"{path.parent.name}-{path.stem}.mmdb"
+        proc = mmdb_cli("build", path, "-o", out)
+        if proc.returncode != 0:
+            return f"{path.name}: exit {proc.returncode}: {proc.stderr.strip()}"
+        try:
+            db = mmdb.load(out)
+        except mmdb.MmdbError as e:
+            return f"{path.name}: python reader rejects the output: {e}"
+        out.unlink()
+        return None if db.num_frames > 0 else f"{path.name}: empty database"
+
+    with ThreadPoolExecutor(max_workers=os.cpu_count() or 2) as pool:
+        failures = [f for f in pool.map(build, bvh_files(mocap)) if f]
+    assert not failures, "\n".join(failures)

@@ -1,0 +1,347 @@
+//! `mmdb`: build, inspect, search and benchmark motion databases from the command line.
+
+use mmcore::config::{AutoScale, BuildConfig, Scale};
+use mmcore::search::{self, SearchOptions};
+use mmcore::{format, inspect, Bvh, Error, Source};
+use std::path::{Path, PathBuf};
+use std::process::ExitCode;
+use std::time::Instant;
+
+const USAGE: &str = "usage:
+  mmdb build (--config CONFIG.json | FILE.bvh...) -o OUT.mmdb [--fps N] [--scale S|auto] [--no-mirror] [--json]
+  mmdb inspect DB.mmdb [--json]
+  mmdb search DB.mmdb (--frame N | --query v1,v2,...) [--normalized] [-k K] [--tag TAG]
+              [--beta-pose B] [--beta-trajectory B] [--exclude-radius R] [--json]
+  mmdb dump DB.mmdb            (every array as JSON)
+  mmdb bench FILE.bvh... [--json] [--seconds S]";
+
+fn main() -> ExitCode {
+    let args: Vec<String> = std::env::args().skip(1).collect();
+    let result = match args.first().map(String::as_str) {
+        Some("build") => build(&args[1..]),
+        Some("inspect") => inspect_cmd(&args[1..]),
+        Some("search") => search_cmd(&args[1..]),
+        Some("dump") => dump(&args[1..]),
+        Some("bench") => bench(&args[1..]),
+        Some("-h" | "--help" | "help") => {
+            println!("{USAGE}");
+            return ExitCode::SUCCESS;
+        }
+        _ => Err(Usage("expected a command".into()).into()),
+    };
+    match result {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(CliError::Usage(m)) => {
+            eprintln!("mmdb: {m}\n{USAGE}");
+            ExitCode::from(2)
+        }
+        Err(CliError::Failed(e)) => {
+            eprintln!("mmdb: error: {e}");
+            ExitCode::FAILURE
+        }
+    }
+}
+
+enum CliError {
+    Usage(String),
+    Failed(Error),
+}
+struct Usage(String);
+impl From<Usage> for CliError {
+    fn from(u: Usage) -> Self {
+        CliError::Usage(u.0)
+    }
+}
+impl From<Error> for CliError {
+    fn from(e: Error) -> Self {
+        CliError::Failed(e)
+    }
+}
+type CliResult = Result<(), CliError>;
+
+/// Flags and positional arguments of one command.
+struct Args {
+    positional: Vec<String>,
+    flags: Vec<(String, Option<String>)>,
+}
+
+impl Args {
+    /// `with_value` lists the flags that take a value.
+    fn parse(args: &[String], with_value: &[&str], switches: &[&str]) -> Result<Args, Usage> {
+        let mut out = Args { positional: Vec::new(), flags: Vec::new() };
+        let mut it = args.iter();
+        while let Some(a) = it.next() {
+            if with_value.contains(&a.as_str()) {
+                let v = it.next().ok_or_else(|| Usage(format!("{a} needs a value")))?;
+                out.flags.push((a.clone(), Some(v.clone())));
+            } else if switches.contains(&a.as_str()) {
+                out.flags.push((a.clone(), None));
+            } else if a.starts_with('-') && a.len() > 1 {
+                return Err(Usage(format!("unknown option {a}")));
+            } else {
+                out.positional.push(a.clone());
+            }
+        }
+        Ok(out)
+    }
+    fn get(&self, flag: &str) -> Option<&str> {
+        self.flags.iter().rev().find(|(f, _)| f == flag).and_then(|(_, v)| v.as_deref())
+    }
+    fn has(&self, flag: &str) -> bool {
+        self.flags.iter().any(|(f, _)| f == flag)
+    }
+    fn number<T: std::str::FromStr>(&self, flag: &str) -> Result<Option<T>, Usage> {
+        self.get(flag).map(|v| v.parse().map_err(|_| Usage(format!("{flag}: '{v}' is not a valid number")))).transpose()
+    }
+}
+
+fn read(path: &Path) -> Result<Vec<u8>, Error> {
+    std::fs::read(path).map_err(|e| Error::Io(format!("{}: {e}", path.display())))
+}
+
+fn parse_bvh(path: &Path) -> Result<Source, Error> {
+    let bytes = read(path)?;
+    let name = path.to_string_lossy().into_owned();
+    Ok(Source { bvh: Bvh::parse(&name, &bytes)?, name })
+}
+
+/// Files named by a config's clip entries, relative to the config, `*`/`?` in the file name.
+fn config_files(config: &BuildConfig, dir: &Path) -> Result<Vec<PathBuf>, Error> {
+    let mut files: Vec<PathBuf> = Vec::new();
+    for clip in &config.clips {
+        let pattern = dir.join(&clip.file);
+        let name = pattern.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
+        let parent = pattern.parent().unwrap_or(dir);
+        let mut matched: Vec<PathBuf> = if name.contains(['*', '?']) {
+            let entries = std::fs::read_dir(parent).map_err(|e| Error::Io(format!("{}: {e}", parent.display())))?;
+            entries
+                .filter_map(|e| e.ok().map(|e| e.path()))
+                .filter(|p| p.file_name().is_some_and(|n| mmcore::config::wildcard_match(&name, &n.to_string_lossy())))
+                .collect()
+        } else {
+            vec![pattern.clone()]
+        };
+        if matched.is_empty() {
+            return Err(Error::config(format!("clip file pattern '{}' matches no file in {}", clip.file, parent.display())));
+        }
+        matched.sort();
+        for m in matched {
+            if !files.contains(&m) {
+                files.push(m);
+            }
+        }
+    }
+    Ok(files)
+}
+
+fn build(args: &[String]) -> CliResult {
+    let a = Args::parse(args, &["-o", "--output", "--config", "--fps", "--scale"], &["--no-mirror", "--json"])?;
+    let output = a.get("-o").or(a.get("--output")).ok_or_else(|| Usage("build needs -o OUT.mmdb".into()))?;
+    let (mut config, files) = match a.get("--config") {
+        Some(path) => {
+            let path = Path::new(path);
+            let text = String::from_utf8_lossy(&read(path)?).into_owned();
+            let config = BuildConfig::from_json(&text).map_err(|e| match e {
+                Error::Config(m) => Error::Config(format!("{}: {m}", path.display())),
+                e => e,
+            })?;
+            let files = config_files(&config, path.parent().unwrap_or(Path::new(".")))?;
+            (config, files)
+        }
+        None => (BuildConfig::default(), a.positional.iter().map(PathBuf::from).collect()),
+    };
+    if files.is_empty() {
+        return Err(Usage("build needs BVH files or --config".into()).into());
+    }
+    if let Some(fps) = a.number::<f64>("--fps")? {
+        config.fps = fps;
+    }
+    if let Some(s) = a.get("--scale") {
+        config.scale = if s == "auto" {
+            Scale::Auto(AutoScale::Auto)
+        } else {
+            Scale::Fixed(s.parse().ok().filter(|v: &f64| *v > 0.0).ok_or_else(|| Usage(format!("--scale: '{s}' is not a positive number or 'auto'")))?)
+        };
+    }
+    if a.has("--no-mirror") {
+        config.mirror = false;
+        config.clips.iter_mut().for_each(|c| c.mirror = Some(false));
+    }
+    let started = Instant::now();
+    let sources = files.iter().map(|f| parse_bvh(f)).collect::<Result<Vec<_>, _>>()?;
+    let parsed = started.elapsed();
+    let out = mmcore::build(&config, &sources)?;
+    let bytes = format::to_bytes(&out.database);
+    if let Some(dir) = Path::new(output).parent().filter(|d| !d.as_os_str().is_empty()) {
+        std::fs::create_dir_all(dir).map_err(|e| Error::Io(format!("{}: {e}", dir.display())))?;
+    }
+    std::fs::write(output, &bytes).map_err(|e| Error::Io(format!("{output}: {e}")))?;
+    for w in &out.warnings {
+        eprintln!("mmdb: warning: {w}");
+    }
+    let db = &out.database;
+    if a.has("--json") {
+        println!("{}", inspect::summary(db, Some(bytes.len())));
+    } else {
+        println!(
+            "{output}: {} files → {} clips, {} frames at {} fps ({:.1} s), {} joints, {} features, {:.2} MB in {:.2} s (parse {:.2} s)",
+            sources.len(),
+            db.clips.len(),
+            db.num_frames,
+            db.fps,
+            db.duration(),
+            db.num_joints(),
+            db.num_features(),
+            bytes.len() as f64 / 1e6,
+            started.elapsed().as_secs_f64(),
+            parsed.as_secs_f64()
+        );
+    }
+    Ok(())
+}
+
+fn load(path: &str) -> Result<(mmcore::Database, usize), Error> {
+    let bytes = read(Path::new(path))?;
+    let db = format::from_bytes(&bytes).map_err(|e| Error::Format(format!("{path}: {e}")))?;
+    Ok((db, bytes.len()))
+}
+
+fn inspect_cmd(args: &[String]) -> CliResult {
+    let a = Args::parse(args, &[], &["--json"])?;
+    let [path] = a.positional.as_slice() else { return Err(Usage("inspect needs one .mmdb file".into()).into()) };
+    let (db, size) = load(path)?;
+    if a.has("--json") {
+        println!("{}", serde_json::to_string_pretty(&inspect::summary(&db, Some(size))).unwrap());
+    } else {
+        print!("{path}\n{}", inspect::text(&db, Some(size)));
+    }
+    Ok(())
+}
+
+fn dump(args: &[String]) -> CliResult {
+    let a = Args::parse(args, &[], &[])?;
+    let [path] = a.positional.as_slice() else { return Err(Usage("dump needs one .mmdb file".into()).into()) };
+    println!("{}", inspect::dump(&load(path)?.0));
+    Ok(())
+}
+
+fn search_cmd(args: &[String]) -> CliResult {
+    let a = Args::parse(
+        args,
+        &["--frame", "--query", "-k", "--tag", "--beta-pose", "--beta-trajectory", "--exclude-radius"],
+        &["--normalized", "--json"],
+    )?;
+    let [path] = a.positional.as_slice() else { return Err(Usage("search needs one .mmdb file".into()).into()) };
+    let (db, _) = load(path)?;
+    let radius = a.number::<usize>("--exclude-radius")?.unwrap_or(20);
+    let (query, exclude) = match (a.number::<usize>("--frame")?, a.get("--query")) {
+        (Some(f), None) => {
+            if f >= db.num_frames {
+                return Err(Usage(format!("--frame {f} is out of range (database has {} frames)", db.num_frames)).into());
+            }
+            (db.feature(f).to_vec(), Some((f.saturating_sub(radius), f + radius + 1)))
+        }
+        (None, Some(q)) => {
+            let values = q.split(',').map(|v| v.trim().parse::<f32>()).collect::<Result<Vec<_>, _>>().map_err(|_| Usage(format!("--query: '{q}' is not a comma-separated list of numbers")))?;
+            if values.len() != db.num_features() {
+                return Err(Usage(format!("--query has {} values, the database has {} feature dims", values.len(), db.num_features())).into());
+            }
+            (if a.has("--normalized") { values } else { search::normalize_query(&db, &values) }, None)
+        }
+        _ => return Err(Usage("search needs exactly one of --frame N or --query".into()).into()),
+    };
+    let mask = match a.get("--tag") {
+        Some(t) => Some(db.tag_mask(t).ok_or_else(|| Error::config(format!("no tag '{t}' (tags: {})", db.tags.iter().map(|t| t.name.as_str()).collect::<Vec<_>>().join(", "))))?),
+        None => None,
+    };
+    let options = SearchOptions {
+        beta_pose: a.number("--beta-pose")?.unwrap_or(1.0),
+        beta_trajectory: a.number("--beta-trajectory")?.unwrap_or(1.0),
+        exclude,
+        mask: mask.as_deref(),
+    };
+    let k = a.number::<usize>("-k")?.unwrap_or(5).max(1);
+    let started = Instant::now();
+    let best = search::brute_force(&db, &query, &options, k);
+    let elapsed = started.elapsed().as_secs_f64() * 1e3;
+    let results: Vec<serde_json::Value> = best
+        .iter()
+        .map(|&(f, cost)| {
+            let c = &db.clips[db.clip_at(f)];
+            serde_json::json!({"frame": f, "cost": cost, "clip": c.name, "clip_frame": f as u32 - c.start})
+        })
+        .collect();
+    if a.has("--json") {
+        println!("{}", serde_json::json!({"method": "brute_force", "ms": elapsed, "results": results}));
+    } else {
+        println!("brute force over {} frames in {elapsed:.3} ms", db.num_frames);
+        for r in &results {
+            println!("  frame {:>6}  cost {:>10.4}  {} +{}", r["frame"], r["cost"].as_f64().unwrap(), r["clip"].as_str().unwrap(), r["clip_frame"]);
+        }
+    }
+    Ok(())
+}
+
+/// Median of repeated timings of `f`, run for about `seconds`.
+fn median_seconds(seconds: f64, mut f: impl FnMut()) -> (f64, usize) {
+    let mut times = Vec::new();
+    let started = Instant::now();
+    while times.len() < 3 || (started.elapsed().as_secs_f64() < seconds && times.len() < 1000) {
+        let t = Instant::now();
+        f();
+        times.push(t.elapsed().as_secs_f64());
+    }
+    times.sort_by(f64::total_cmp);
+    (times[times.len() / 2], times.len())
+}
+
+fn bench(args: &[String]) -> CliResult {
+    let a = Args::parse(args, &["--seconds"], &["--json"])?;
+    if a.positional.is_empty() {
+        return Err(Usage("bench needs BVH files".into()).into());
+    }
+    let seconds = a.number::<f64>("--seconds")?.unwrap_or(2.0);
+    let files: Vec<(String, Vec<u8>)> =
+        a.positional.iter().map(|p| read(Path::new(p)).map(|b| (p.clone(), b))).collect::<Result<_, _>>()?;
+    let megabytes = files.iter().map(|(_, b)| b.len()).sum::<usize>() as f64 / 1e6;
+    let (parse, parse_runs) = median_seconds(seconds, || {
+        for (name, bytes) in &files {
+            std::hint::black_box(Bvh::parse(name, bytes).unwrap());
+        }
+    });
+    let sources: Vec<Source> = files.iter().map(|(n, b)| Source { name: n.clone(), bvh: Bvh::parse(n, b).unwrap() }).collect();
+    let source_frames: usize = sources.iter().map(|s| s.bvh.num_frames).sum();
+    let config = BuildConfig::default();
+    let mut output_frames = 0;
+    let (build, build_runs) = median_seconds(seconds, || {
+        let out = mmcore::build(&config, &sources).unwrap();
+        output_frames = out.database.num_frames;
+        std::hint::black_box(format::to_bytes(&out.database));
+    });
+    let result = serde_json::json!({
+        "runtime": "native",
+        "files": files.len(),
+        "megabytes": megabytes,
+        "parse_ms": parse * 1e3,
+        "parse_mb_per_s": megabytes / parse,
+        "parse_runs": parse_runs,
+        "source_frames": source_frames,
+        "database_frames": output_frames,
+        "build_ms": build * 1e3,
+        "build_source_frames_per_s": source_frames as f64 / build,
+        "build_database_frames_per_s": output_frames as f64 / build,
+        "build_runs": build_runs,
+    });
+    if a.has("--json") {
+        println!("{result}");
+    } else {
+        println!(
+            "native: parse {megabytes:.1} MB in {:.1} ms = {:.0} MB/s; build {source_frames} source frames → {output_frames} database frames in {:.1} ms = {:.0} source frames/s (medians of {parse_runs}/{build_runs} runs)",
+            parse * 1e3,
+            megabytes / parse,
+            build * 1e3,
+            source_frames as f64 / build
+        );
+    }
+    Ok(())
+}

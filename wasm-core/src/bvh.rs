@@ -1,0 +1,500 @@
+//! BVH (Biovision Hierarchy) import: text → skeleton + per-frame channel values.
+//!
+//! Accepts what real exporters write: any of the 6 Euler orders per joint, position channels
+//! on any joint (each present component *replaces* that component of the joint's OFFSET, as
+//! Blender and MotionBuilder read them), `End Site` blocks, CRLF line ends, tabs, names with
+//! spaces. Anything else is an [`Error::Bvh`] naming the line and what was expected.
+
+use crate::error::{Error, Result};
+use glam::{DQuat, DVec3};
+
+/// One animated degree of freedom of a joint, in file order.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Channel {
+    PosX,
+    PosY,
+    PosZ,
+    RotX,
+    RotY,
+    RotZ,
+}
+
+impl Channel {
+    fn from_name(name: &str) -> Option<Channel> {
+        Some(match name.to_ascii_lowercase().as_str() {
+            "xposition" => Channel::PosX,
+            "yposition" => Channel::PosY,
+            "zposition" => Channel::PosZ,
+            "xrotation" => Channel::RotX,
+            "yrotation" => Channel::RotY,
+            "zrotation" => Channel::RotZ,
+            _ => return None,
+        })
+    }
+}
+
+/// A joint of the BVH hierarchy.
+#[derive(Clone, Debug)]
+pub struct BvhJoint {
+    pub name: String,
+    /// Index of the parent joint, `None` for the root. Parents precede children.
+    pub parent: Option<usize>,
+    /// Rest position in the parent's space (file units).
+    pub offset: DVec3,
+    pub channels: Vec<Channel>,
+    /// Index of this joint's first channel within a frame's values.
+    pub first_channel: usize,
+    /// Offset of the `End Site` child, if the joint has one (file units).
+    pub end_site: Option<DVec3>,
+}
+
+/// A parsed BVH file. Motion values are kept as written (degrees, file units).
+#[derive(Clone, Debug)]
+pub struct Bvh {
+    pub joints: Vec<BvhJoint>,
+    pub num_channels: usize,
+    pub num_frames: usize,
+    /// Seconds per frame (`Frame Time`).
+    pub frame_time: f64,
+    /// `num_frames × num_channels` values, frame-major.
+    pub values: Vec<f64>,
+}
+
+impl Bvh {
+    /// Parses BVH text. `file` only names the input in error messages.
+    pub fn parse(file: &str, bytes: &[u8]) -> Result<Bvh> {
+        // Lossy keeps exotic (Latin-1) joint names readable; valid UTF-8 is borrowed, not copied.
+        let text = String::from_utf8_lossy(bytes);
+        Parser { file, text: &text, pos: 0, line: 1 }.parse()
+    }
+
+    /// Frames per second (`1 / Frame Time`).
+    pub fn fps(&self) -> f64 {
+        1.0 / self.frame_time
+    }
+
+    /// Channel values of one frame.
+    pub fn frame(&self, frame: usize) -> &[f64] {
+        &self.values[frame * self.num_channels..(frame + 1) * self.num_channels]
+    }
+
+    /// Local translation and rotation of `joint` at `frame`: the Euler channels composed in
+    /// file order (first listed = outermost, `R = R₁·R₂·R₃`), position channels replacing the
+    /// offset's components.
+    pub fn local_transform(&self, frame: usize, joint: usize) -> (DVec3, DQuat) {
+        let j = &self.joints[joint];
+        let values = &self.frame(frame)[j.first_channel..j.first_channel + j.channels.len()];
+        let mut translation = j.offset;
+        let mut rotation = DQuat::IDENTITY;
+        for (&channel, &v) in j.channels.iter().zip(values) {
+            match channel {
+                Channel::PosX => translation.x = v,
+                Channel::PosY => translation.y = v,
+                Channel::PosZ => translation.z = v,
+                Channel::RotX => rotation *= DQuat::from_rotation_x(v.to_radians()),
+                Channel::RotY => rotation *= DQuat::from_rotation_y(v.to_radians()),
+                Channel::RotZ => rotation *= DQuat::from_rotation_z(v.to_radians()),
+            }
+        }
+        (translation, rotation)
+    }
+}
+
+struct Parser<'a> {
+    file: &'a str,
+    text: &'a str,
+    pos: usize,
+    line: usize,
+}
+
+impl<'a> Parser<'a> {
+    fn error(&self, message: impl Into<String>) -> Error {
+        Error::bvh(self.file, self.line, message)
+    }
+
+    fn error_at(&self, line: usize, message: impl Into<String>) -> Error {
+        Error::bvh(self.file, line, message)
+    }
+
+    /// Skips whitespace (counting lines) and returns the next token with its line, or `None`
+    /// at end of input.
+    fn token(&mut self) -> Option<(&'a str, usize)> {
+        let bytes = self.text.as_bytes();
+        while self.pos < bytes.len() && bytes[self.pos].is_ascii_whitespace() {
+            if bytes[self.pos] == b'\n' {
+                self.line += 1;
+            }
+            self.pos += 1;
+        }
+        if self.pos >= bytes.len() {
+            return None;
+        }
+        let start = self.pos;
+        while self.pos < bytes.len() && !bytes[self.pos].is_ascii_whitespace() {
+            self.pos += 1;
+        }
+        Some((&self.text[start..self.pos], self.line))
+    }
+
+    fn expect_token(&mut self, what: &str) -> Result<(&'a str, usize)> {
+        match self.token() {
+            Some(t) => Ok(t),
+            None => Err(Error::bvh(self.file, 0, format!("expected {what}, found end of file"))),
+        }
+    }
+
+    fn expect_keyword(&mut self, keyword: &str) -> Result<usize> {
+        let (token, line) = self.expect_token(&format!("'{keyword}'"))?;
+        if token.eq_ignore_ascii_case(keyword) {
+            Ok(line)
+        } else {
+            Err(self.error_at(line, format!("expected '{keyword}', found '{token}'")))
+        }
+    }
+
+    /// The rest of the current line, trimmed (joint names may contain spaces).
+    fn rest_of_line(&mut self) -> &'a str {
+        let bytes = self.text.as_bytes();
+        let start = self.pos;
+        while self.pos < bytes.len() && bytes[self.pos] != b'\n' {
+            self.pos += 1;
+        }
+        self.text[start..self.pos].trim()
+    }
+
+    fn number(&mut self, what: &str) -> Result<f64> {
+        let (token, line) = self.expect_token(what)?;
+        parse_finite(token).ok_or_else(|| self.error_at(line, format!("expected {what}, found '{token}'")))
+    }
+
+    fn parse(mut self) -> Result<Bvh> {
+        self.expect_keyword("HIERARCHY")?;
+        let mut joints = Vec::new();
+        let (root, line) = self.expect_token("'ROOT'")?;
+        if !root.eq_ignore_ascii_case("ROOT") {
+            return Err(self.error_at(line, format!("expected 'ROOT', found '{root}'")));
+        }
+        let mut num_channels = 0;
+        self.joint(None, line, &mut joints, &mut num_channels)?;
+
+        let (token, line) = self.expect_token("'MOTION'")?;
+        if token.eq_ignore_ascii_case("ROOT") {
+            return Err(self.error_at(line, "a second ROOT hierarchy is not supported (one skeleton per file)"));
+        }
+        if !token.eq_ignore_ascii_case("MOTION") {
+            return Err(self.error_at(line, format!("expected 'MOTION' after the hierarchy, found '{token}'")));
+        }
+        let frames_line = self.expect_keyword("Frames:")?;
+        let frames = self.number("the frame count after 'Frames:'")?;
+        if frames < 0.0 || frames.fract() != 0.0 {
+            return Err(self.error_at(frames_line, format!("'Frames:' must be a whole number ≥ 0, found {frames}")));
+        }
+        let num_frames = frames as usize;
+        let time_line = self.expect_keyword("Frame")?;
+        let (time, _) = self.expect_token("'Time:'")?;
+        if !time.eq_ignore_ascii_case("Time:") {
+            return Err(self.error_at(time_line, format!("expected 'Frame Time:', found 'Frame {time}'")));
+        }
+        let frame_time = self.number("the frame time in seconds after 'Frame Time:'")?;
+        if frame_time <= 0.0 {
+            return Err(self.error_at(time_line, format!("'Frame Time:' must be > 0 seconds, found {frame_time}")));
+        }
+        let values = self.motion(num_frames, num_channels, frames_line)?;
+        Ok(Bvh { joints, num_channels, num_frames, frame_time, values })
+    }
+
+    /// Parses a `ROOT`/`JOINT` block whose keyword was just read at `line`.
+    fn joint(&mut self, parent: Option<usize>, line: usize, joints: &mut Vec<BvhJoint>, num_channels: &mut usize) -> Result<()> {
+        let mut name = self.rest_of_line();
+        let mut brace_on_line = false;
+        if let Some(stripped) = name.strip_suffix('{') {
+            name = stripped.trim_end();
+            brace_on_line = true;
+        }
+        if name.is_empty() {
+            return Err(self.error_at(line, "joint has no name"));
+        }
+        if joints.iter().any(|j: &BvhJoint| j.name == name) {
+            return Err(self.error_at(line, format!("duplicate joint name '{name}'")));
+        }
+        if !brace_on_line {
+            self.expect_keyword("{")?;
+        }
+        let index = joints.len();
+        joints.push(BvhJoint {
+            name: name.to_string(),
+            parent,
+            offset: DVec3::ZERO,
+            channels: Vec::new(),
+            first_channel: *num_channels,
+            end_site: None,
+        });
+        let mut seen_offset = false;
+        loop {
+            let (token, line) = self.expect_token(&format!("'}}' closing joint '{name}'"))?;
+            match token.to_ascii_uppercase().as_str() {
+                "OFFSET" => {
+                    joints[index].offset = self.vec3("OFFSET")?;
+                    seen_offset = true;
+                }
+                "CHANNELS" => {
+                    if !joints[index].channels.is_empty() {
+                        return Err(self.error_at(line, format!("joint '{name}' has a second CHANNELS line")));
+                    }
+                    let count = self.number("the channel count after 'CHANNELS'")?;
+                    if !(0.0..=6.0).contains(&count) || count.fract() != 0.0 {
+                        return Err(self.error_at(line, format!("CHANNELS count must be 0 to 6, found {count}")));
+                    }
+                    let mut channels = Vec::with_capacity(count as usize);
+                    for _ in 0..count as usize {
+                        let (channel, cline) = self.expect_token("a channel name")?;
+                        let channel = Channel::from_name(channel).ok_or_else(|| {
+                            self.error_at(cline, format!("expected a channel name (Xposition … Zrotation), found '{channel}'"))
+                        })?;
+                        if channels.contains(&channel) {
+                            return Err(self.error_at(cline, format!("channel {channel:?} listed twice for joint '{name}'")));
+                        }
+                        channels.push(channel);
+                    }
+                    *num_channels += channels.len();
+                    joints[index].channels = channels;
+                }
+                "JOINT" => {
+                    if !seen_offset {
+                        return Err(self.error_at(line, format!("joint '{name}' needs an OFFSET before its children")));
+                    }
+                    self.joint(Some(index), line, joints, num_channels)?;
+                }
+                "END" => {
+                    let (site, sline) = self.expect_token("'Site'")?;
+                    if !site.eq_ignore_ascii_case("Site") && !site.eq_ignore_ascii_case("Site{") {
+                        return Err(self.error_at(sline, format!("expected 'End Site', found 'End {site}'")));
+                    }
+                    if !site.ends_with('{') {
+                        self.expect_keyword("{")?;
+                    }
+                    self.expect_keyword("OFFSET")?;
+                    let offset = self.vec3("End Site OFFSET")?;
+                    self.expect_keyword("}")?;
+                    joints[index].end_site = Some(offset);
+                }
+                "}" => {
+                    if !seen_offset {
+                        return Err(self.error_at(line, format!("joint '{name}' has no OFFSET")));
+                    }
+                    return Ok(());
+                }
+                _ => {
+                    return Err(self.error_at(
+                        line,
+                        format!("expected OFFSET, CHANNELS, JOINT, End Site or '}}' in joint '{name}', found '{token}'"),
+                    ))
+                }
+            }
+        }
+    }
+
+    fn vec3(&mut self, what: &str) -> Result<DVec3> {
+        let x = self.number(&format!("{what} x"))?;
+        let y = self.number(&format!("{what} y"))?;
+        let z = self.number(&format!("{what} z"))?;
+        Ok(DVec3::new(x, y, z))
+    }
+
+    /// Reads `num_frames` lines of `num_channels` numbers. Counting per line (rather than as
+    /// one stream) lets a short or long line be reported where it is.
+    fn motion(&mut self, num_frames: usize, num_channels: usize, frames_line: usize) -> Result<Vec<f64>> {
+        let mut values = Vec::with_capacity(num_frames * num_channels);
+        let bytes = self.text.as_bytes();
+        // Finish the 'Frame Time' line.
+        self.rest_of_line();
+        let mut frame = 0;
+        while self.pos < bytes.len() {
+            // Now at a '\n' (or the start of a line after it).
+            if bytes[self.pos] == b'\n' {
+                self.pos += 1;
+                self.line += 1;
+            }
+            let start = self.pos;
+            let line = self.rest_of_line();
+            if line.is_empty() {
+                continue;
+            }
+            if frame == num_frames {
+                return Err(self.error(format!(
+                    "more frame lines than the {num_frames} declared by 'Frames:' on line {frames_line}"
+                )));
+            }
+            let before = values.len();
+            for token in line.split_ascii_whitespace() {
+                let v = parse_finite(token).ok_or_else(|| {
+                    let column = token.as_ptr() as usize - self.text[start..].as_ptr() as usize + 1;
+                    self.error(format!("frame {frame}: expected a number, found '{token}' (column {column})"))
+                })?;
+                values.push(v);
+            }
+            let found = values.len() - before;
+            if found != num_channels {
+                return Err(self.error(format!(
+                    "frame {frame} has {found} values, expected {num_channels} (the total of the CHANNELS lines)"
+                )));
+            }
+            frame += 1;
+        }
+        if frame < num_frames {
+            return Err(Error::bvh(
+                self.file,
+                0,
+                format!("'Frames:' on line {frames_line} declares {num_frames} frames but only {frame} frame lines follow"),
+            ));
+        }
+        Ok(values)
+    }
+}
+
+/// Parses a finite decimal number (`nan`/`inf` are rejected: they would poison every pose).
+fn parse_finite(token: &str) -> Option<f64> {
+    token.parse::<f64>().ok().filter(|v| v.is_finite())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    pub(crate) const TWO_JOINTS: &str = "HIERARCHY\nROOT Hips\n{\n  OFFSET 0 0 0\n  CHANNELS 6 Xposition Yposition Zposition Zrotation Xrotation Yrotation\n  JOINT Chest\n  {\n    OFFSET 0 0.5 0\n    CHANNELS 3 Zrotation Xrotation Yrotation\n    End Site\n    {\n      OFFSET 0 0.3 0\n    }\n  }\n}\nMOTION\nFrames: 2\nFrame Time: 0.0333333\n0 1 0 0 0 0 0 0 0\n1 1 0 90 0 0 0 0 45\n";
+
+    fn err(text: &str) -> String {
+        match Bvh::parse("bad.bvh", text.as_bytes()) {
+            Ok(_) => panic!("expected an error for:\n{text}"),
+            Err(e) => e.to_string(),
+        }
+    }
+
+    #[test]
+    fn parses_hierarchy_and_motion() {
+        let bvh = Bvh::parse("t.bvh", TWO_JOINTS.as_bytes()).unwrap();
+        assert_eq!(bvh.joints.len(), 2);
+        assert_eq!(bvh.joints[1].parent, Some(0));
+        assert_eq!(bvh.joints[1].end_site, Some(DVec3::new(0.0, 0.3, 0.0)));
+        assert_eq!(bvh.num_channels, 9);
+        assert_eq!(bvh.num_frames, 2);
+        assert!((bvh.fps() - 30.0).abs() < 1e-3);
+        let (t, r) = bvh.local_transform(1, 0);
+        assert_eq!(t, DVec3::new(1.0, 1.0, 0.0));
+        assert!(r.angle_between(DQuat::from_rotation_z(std::f64::consts::FRAC_PI_2)) < 1e-12);
+    }
+
+    #[test]
+    fn crlf_tabs_and_spaces_in_names() {
+        let text = TWO_JOINTS.replace("\n", "\r\n").replace("  ", "\t").replace("JOINT Chest", "JOINT Upper Chest");
+        let bvh = Bvh::parse("t.bvh", text.as_bytes()).unwrap();
+        assert_eq!(bvh.joints[1].name, "Upper Chest");
+        assert_eq!(bvh.num_frames, 2);
+    }
+
+    #[test]
+    fn position_channels_replace_offset_components() {
+        let text = TWO_JOINTS.replace(
+            "OFFSET 0 0.5 0\n    CHANNELS 3 Zrotation Xrotation Yrotation",
+            "OFFSET 7 0.5 9\n    CHANNELS 4 Yposition Zrotation Xrotation Yrotation",
+        );
+        let text = text.replace("0 1 0 0 0 0 0 0 0\n1 1 0 90 0 0 0 0 45", "0 1 0 0 0 0 2 0 0 0\n1 1 0 90 0 0 3 0 0 45");
+        let bvh = Bvh::parse("t.bvh", text.as_bytes()).unwrap();
+        assert_eq!(bvh.local_transform(1, 1).0, DVec3::new(7.0, 3.0, 9.0));
+    }
+
+    /// Every Euler order composes as R = R(first) · R(second) · R(third), checked against
+    /// rotation matrices built independently by Rodrigues' formula.
+    #[test]
+    fn all_six_rotation_orders() {
+        use glam::DMat3;
+        let rodrigues = |axis: DVec3, deg: f64| {
+            let (s, c) = deg.to_radians().sin_cos();
+            let k = DMat3::from_cols(
+                DVec3::new(0.0, axis.z, -axis.y),
+                DVec3::new(-axis.z, 0.0, axis.x),
+                DVec3::new(axis.y, -axis.x, 0.0),
+            );
+            DMat3::IDENTITY + k * s + k * k * (1.0 - c)
+        };
+        let angles = [23.0, -71.0, 118.0];
+        for order in ["XYZ", "XZY", "YXZ", "YZX", "ZXY", "ZYX"] {
+            let channels: Vec<String> = order.chars().map(|c| format!("{c}rotation")).collect();
+            let text = format!(
+                "HIERARCHY\nROOT a\n{{\nOFFSET 0 0 0\nCHANNELS 3 {}\n}}\nMOTION\nFrames: 1\nFrame Time: 0.01\n{} {} {}\n",
+                channels.join(" "),
+                angles[0],
+                angles[1],
+                angles[2]
+            );
+            let bvh = Bvh::parse("t.bvh", text.as_bytes()).unwrap();
+            let expected = order.chars().zip(angles).fold(DMat3::IDENTITY, |m, (c, a)| {
+                let axis = match c {
+                    'X' => DVec3::X,
+                    'Y' => DVec3::Y,
+                    _ => DVec3::Z,
+                };
+                m * rodrigues(axis, a)
+            });
+            let got = DMat3::from_quat(bvh.local_transform(0, 0).1);
+            assert!((got - expected).to_cols_array().iter().all(|d| d.abs() < 1e-12), "order {order}");
+        }
+    }
+
+    /// Malformed inputs: each must fail with the right line number and say what was expected.
+    #[test]
+    fn malformed_inputs_name_the_line() {
+        let cases: &[(&str, &str, &str)] = &[
+            ("empty", "", "end of file: expected 'HIERARCHY'"),
+            ("no hierarchy", "ROOT x\n", ":1: expected 'HIERARCHY'"),
+            ("no root", "HIERARCHY\nJOINT x\n", ":2: expected 'ROOT'"),
+            ("missing brace", "HIERARCHY\nROOT x\nOFFSET 0 0 0\n", ":3: expected '{'"),
+            ("bad offset", "HIERARCHY\nROOT x\n{\nOFFSET 0 zero 0\n", ":4: expected OFFSET y, found 'zero'"),
+            ("unknown channel", "HIERARCHY\nROOT x\n{\nOFFSET 0 0 0\nCHANNELS 1 Wrotation\n", ":5: expected a channel name"),
+            ("too many channels", "HIERARCHY\nROOT x\n{\nOFFSET 0 0 0\nCHANNELS 7 Xrotation\n", ":5: CHANNELS count must be 0 to 6"),
+            ("duplicate channel", "HIERARCHY\nROOT x\n{\nOFFSET 0 0 0\nCHANNELS 2 Xrotation\nXrotation\n", ":6: channel RotX listed twice"),
+            ("unknown keyword", "HIERARCHY\nROOT x\n{\nOFFSET 0 0 0\nROTATION 1 2 3\n", ":5: expected OFFSET, CHANNELS, JOINT, End Site or '}'"),
+            ("no offset", "HIERARCHY\nROOT x\n{\nCHANNELS 0\n}\n", ":5: joint 'x' has no OFFSET"),
+            ("unnamed joint", "HIERARCHY\nROOT x\n{\nOFFSET 0 0 0\nJOINT\n{\n", ":5: joint has no name"),
+            ("duplicate joint", "HIERARCHY\nROOT x\n{\nOFFSET 0 0 0\nJOINT x\n", ":5: duplicate joint name 'x'"),
+            ("bad end site", "HIERARCHY\nROOT x\n{\nOFFSET 0 0 0\nEnd Effector\n", ":5: expected 'End Site'"),
+            ("unclosed", "HIERARCHY\nROOT x\n{\nOFFSET 0 0 0\n", "end of file: expected '}' closing joint 'x'"),
+            ("no motion", "HIERARCHY\nROOT x\n{\nOFFSET 0 0 0\n}\nFRAMES\n", ":6: expected 'MOTION'"),
+            ("two roots", "HIERARCHY\nROOT x\n{\nOFFSET 0 0 0\n}\nROOT y\n", ":6: a second ROOT"),
+            ("bad frames", "HIERARCHY\nROOT x\n{\nOFFSET 0 0 0\n}\nMOTION\nFrames: 2.5\n", ":7: 'Frames:' must be a whole number"),
+            ("no frame time", "HIERARCHY\nROOT x\n{\nOFFSET 0 0 0\n}\nMOTION\nFrames: 1\nTime: 1\n", ":8: expected 'Frame'"),
+            ("zero frame time", "HIERARCHY\nROOT x\n{\nOFFSET 0 0 0\n}\nMOTION\nFrames: 1\nFrame Time: 0\n", ":8: 'Frame Time:' must be > 0"),
+            (
+                "short frame",
+                "HIERARCHY\nROOT x\n{\nOFFSET 0 0 0\nCHANNELS 3 Xrotation Yrotation Zrotation\n}\nMOTION\nFrames: 2\nFrame Time: 0.01\n1 2 3\n1 2\n",
+                ":11: frame 1 has 2 values, expected 3",
+            ),
+            (
+                "not a number",
+                "HIERARCHY\nROOT x\n{\nOFFSET 0 0 0\nCHANNELS 3 Xrotation Yrotation Zrotation\n}\nMOTION\nFrames: 1\nFrame Time: 0.01\n1 2.0.1 3\n",
+                ":10: frame 0: expected a number, found '2.0.1' (column 3)",
+            ),
+            (
+                "nan value",
+                "HIERARCHY\nROOT x\n{\nOFFSET 0 0 0\nCHANNELS 1 Xrotation\n}\nMOTION\nFrames: 1\nFrame Time: 0.01\nnan\n",
+                ":10: frame 0: expected a number, found 'nan'",
+            ),
+            (
+                "missing frames",
+                "HIERARCHY\nROOT x\n{\nOFFSET 0 0 0\nCHANNELS 1 Xrotation\n}\nMOTION\nFrames: 3\nFrame Time: 0.01\n1\n2\n",
+                "end of file: 'Frames:' on line 8 declares 3 frames but only 2",
+            ),
+            (
+                "extra frames",
+                "HIERARCHY\nROOT x\n{\nOFFSET 0 0 0\nCHANNELS 1 Xrotation\n}\nMOTION\nFrames: 1\nFrame Time: 0.01\n1\n2\n",
+                ":11: more frame lines than the 1 declared",
+            ),
+        ];
+        assert!(cases.len() >= 15);
+        for (what, text, expected) in cases {
+            let message = err(text);
+            assert!(message.contains(expected), "{what}: got '{message}', expected it to contain '{expected}'");
+            assert!(message.starts_with("bad.bvh"), "{what}: message must name the file: {message}");
+        }
+    }
+}

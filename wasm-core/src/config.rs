@@ -1,0 +1,229 @@
+//! Database build configuration, read from JSON (`mmdb build --config`, the in-page builder).
+//! Unknown keys are errors, so a typo never silently falls back to a default.
+
+use crate::database::{Axes, FeatureKind};
+use crate::error::{Error, Result};
+use serde::Deserialize;
+use std::collections::HashMap;
+
+/// How source units become metres.
+#[derive(Clone, Copy, Debug, PartialEq, Deserialize)]
+#[serde(untagged)]
+pub enum Scale {
+    /// Metres per source unit.
+    Fixed(f64),
+    /// `"auto"`: the unit (m, cm, mm, inch) that puts the standing hip height nearest 0.95 m.
+    Auto(AutoScale),
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum AutoScale {
+    Auto,
+}
+
+/// Which world axis is up in the source.
+#[derive(Clone, Copy, Debug, PartialEq, Deserialize, Default)]
+#[serde(rename_all = "lowercase")]
+pub enum UpAxis {
+    /// Detected from the rest pose (hips → head direction).
+    #[default]
+    Auto,
+    Y,
+    Z,
+}
+
+/// Everything that decides how a database is built. `Default` is the product's defaults.
+#[derive(Clone, Debug, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct BuildConfig {
+    /// Database frame rate; sources are resampled to it.
+    pub fps: f64,
+    /// Add a left/right mirrored copy of every clip.
+    pub mirror: bool,
+    pub scale: Scale,
+    pub up: UpAxis,
+    /// Source file whose skeleton the others are normalized onto (default: the first).
+    pub reference: Option<String>,
+    /// Role → joint name overrides (`{"left_toe": "LeftToe_End"}`), see `joint_map::ROLES`.
+    pub roles: HashMap<String, String>,
+    /// Toe speed below which a foot is in contact (m/s).
+    pub contact_speed: f64,
+    /// Median filter radius for contacts, seconds (6 frames at 60 fps).
+    pub contact_filter: f64,
+    /// Savitzky–Golay windows for the virtual root, seconds (31 and 61 frames at 60 fps).
+    pub root_position_window: f64,
+    pub root_facing_window: f64,
+    /// Feature groups; `None` = the 27-float locomotion set (THESIS_NOTES §2).
+    pub features: Option<Vec<FeatureSpec>>,
+    pub clips: Vec<ClipSpec>,
+}
+
+impl Default for BuildConfig {
+    fn default() -> Self {
+        BuildConfig {
+            fps: 60.0,
+            mirror: true,
+            scale: Scale::Auto(AutoScale::Auto),
+            up: UpAxis::Auto,
+            reference: None,
+            roles: HashMap::new(),
+            contact_speed: 0.15,
+            contact_filter: 0.1,
+            root_position_window: 0.5,
+            root_facing_window: 1.0,
+            features: None,
+            clips: Vec::new(),
+        }
+    }
+}
+
+/// One feature group as configured. `joint` is a role (`left_foot`, `hips`), a joint name, or
+/// `root` for the virtual root (trajectory).
+#[derive(Clone, Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct FeatureSpec {
+    pub name: String,
+    pub kind: FeatureKind,
+    pub joint: String,
+    #[serde(default = "default_offsets")]
+    pub offsets: Vec<i32>,
+    /// Default: `xz` for the root, `xyz` otherwise.
+    pub axes: Option<Axes>,
+    #[serde(default = "default_weight")]
+    pub weight: f32,
+    /// Direction axis in joint space (default forward, +Z).
+    #[serde(default = "default_axis")]
+    pub axis: [f32; 3],
+}
+
+fn default_offsets() -> Vec<i32> {
+    vec![0]
+}
+fn default_weight() -> f32 {
+    1.0
+}
+fn default_axis() -> [f32; 3] {
+    [0.0, 0.0, 1.0]
+}
+
+/// Source files and how to cut and tag them. `file` is relative to the config file and may
+/// use `*`/`?` in its last component.
+#[derive(Clone, Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ClipSpec {
+    pub file: String,
+    /// Tags for the whole clip.
+    #[serde(default)]
+    pub tags: Vec<String>,
+    /// `[start, end)` in source frames; default the whole take.
+    pub frames: Option<[usize; 2]>,
+    /// Tags for sub-ranges, in source frames.
+    #[serde(default)]
+    pub ranges: Vec<RangeSpec>,
+    /// Per-file overrides.
+    pub scale: Option<Scale>,
+    pub mirror: Option<bool>,
+}
+
+#[derive(Clone, Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RangeSpec {
+    pub frames: [usize; 2],
+    pub tags: Vec<String>,
+}
+
+impl BuildConfig {
+    /// Parses a JSON configuration; the error names the line, column and key.
+    pub fn from_json(text: &str) -> Result<BuildConfig> {
+        let config: BuildConfig = serde_json::from_str(text).map_err(|e| Error::config(e.to_string()))?;
+        config.validate()?;
+        Ok(config)
+    }
+
+    fn validate(&self) -> Result<()> {
+        if !(self.fps > 0.0 && self.fps <= 1000.0) {
+            return Err(Error::config(format!("fps must be in (0, 1000], found {}", self.fps)));
+        }
+        if let Scale::Fixed(s) = self.scale {
+            if !(s > 0.0 && s.is_finite()) {
+                return Err(Error::config(format!("scale must be > 0 or \"auto\", found {s}")));
+            }
+        }
+        for (key, v) in [
+            ("contact_speed", self.contact_speed),
+            ("contact_filter", self.contact_filter),
+            ("root_position_window", self.root_position_window),
+            ("root_facing_window", self.root_facing_window),
+        ] {
+            if !(v >= 0.0 && v.is_finite()) {
+                return Err(Error::config(format!("{key} must be ≥ 0, found {v}")));
+            }
+        }
+        for c in &self.clips {
+            if let Some([s, e]) = c.frames {
+                if e <= s {
+                    return Err(Error::config(format!("clip '{}': frames [{s}, {e}] is empty", c.file)));
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// The spec for a source file: the first clip entry whose `file` pattern matches its name
+    /// (compared on the last path component).
+    pub fn clip_spec(&self, file_name: &str) -> Option<&ClipSpec> {
+        let base = |p: &str| p.rsplit(['/', '\\']).next().unwrap_or(p).to_string();
+        let name = base(file_name);
+        self.clips.iter().find(|c| wildcard_match(&base(&c.file), &name))
+    }
+}
+
+/// `*` (any run) and `?` (any one character) matching on a file name.
+pub fn wildcard_match(pattern: &str, name: &str) -> bool {
+    let (p, n): (Vec<char>, Vec<char>) = (pattern.chars().collect(), name.chars().collect());
+    let (mut pi, mut ni, mut star, mut mark) = (0, 0, None, 0);
+    while ni < n.len() {
+        if pi < p.len() && (p[pi] == '?' || p[pi] == n[ni]) {
+            pi += 1;
+            ni += 1;
+        } else if pi < p.len() && p[pi] == '*' {
+            star = Some(pi);
+            mark = ni;
+            pi += 1;
+        } else if let Some(s) = star {
+            pi = s + 1;
+            mark += 1;
+            ni = mark;
+        } else {
+            return false;
+        }
+    }
+    p[pi..].iter().all(|&c| c == '*')
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn parses_and_rejects_typos() {
+        let c = BuildConfig::from_json(r#"{"fps": 30, "scale": "auto", "clips": [{"file": "a/*.bvh", "tags": ["walk"]}]}"#).unwrap();
+        assert_eq!(c.fps, 30.0);
+        assert!(c.mirror);
+        assert!(c.clip_spec("x/y/a_1.bvh").is_some());
+        let e = BuildConfig::from_json("{\n \"mirorr\": true}").unwrap_err().to_string();
+        assert!(e.contains("unknown field `mirorr`") && e.contains("line 2"), "{e}");
+        let e = BuildConfig::from_json(r#"{"scale": -1}"#).unwrap_err().to_string();
+        assert!(e.contains("scale must be > 0"), "{e}");
+        assert_eq!(BuildConfig::from_json(r#"{"scale": 0.01}"#).unwrap().scale, Scale::Fixed(0.01));
+    }
+
+    #[test]
+    fn wildcards() {
+        assert!(wildcard_match("cmu_16_*.bvh", "cmu_16_15.bvh"));
+        assert!(wildcard_match("cmu_1?_15.bvh", "cmu_16_15.bvh"));
+        assert!(!wildcard_match("cmu_16_*.bvh", "cmu_127_15.bvh"));
+        assert!(wildcard_match("*", "anything"));
+    }
+}

@@ -1,0 +1,200 @@
+//! The motion database: skeleton, one pose per frame (SoA arrays), contacts, clips, tags and
+//! the normalized feature matrix (THESIS_NOTES §1–2). Built by [`crate::builder`], stored by
+//! [`crate::format`], searched by [`crate::search`].
+
+use glam::{Quat, Vec3};
+
+/// The joint hierarchy. Joint 0 is the virtual root; parents precede children.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Skeleton {
+    pub names: Vec<String>,
+    /// Parent index per joint, `-1` for joint 0.
+    pub parents: Vec<i32>,
+    /// Rest position of each joint in its parent's space (rest rotations are the identity).
+    pub offsets: Vec<Vec3>,
+    /// Named points on the body (`hips`, `left_toe`, …), see [`crate::joint_map::ROLES`].
+    pub sites: Vec<Site>,
+}
+
+/// A point rigidly attached to a joint.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Site {
+    pub name: String,
+    /// Joint index, `-1` when the skeleton has no such part.
+    pub joint: i32,
+    /// Offset in the joint's space.
+    pub offset: Vec3,
+}
+
+impl Skeleton {
+    pub fn num_joints(&self) -> usize {
+        self.names.len()
+    }
+
+    /// Index of the joint with this exact name.
+    pub fn joint_index(&self, name: &str) -> Option<usize> {
+        self.names.iter().position(|n| n == name)
+    }
+
+    /// The site with this name, if its part was found.
+    pub fn site(&self, name: &str) -> Option<&Site> {
+        self.sites.iter().find(|s| s.name == name && s.joint >= 0)
+    }
+}
+
+/// A contiguous range of frames from one source take.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Clip {
+    pub name: String,
+    pub source: String,
+    /// First frame (inclusive).
+    pub start: u32,
+    /// End frame (exclusive).
+    pub end: u32,
+    pub mirrored: bool,
+    pub source_fps: f32,
+    /// Metres per source unit.
+    pub scale: f32,
+    /// Root-motion scale from bone-length normalization (1 for the reference skeleton).
+    pub root_scale: f32,
+}
+
+/// A named set of frame ranges (`walk`, `run`, `idle`…), usable as a search mask.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Tag {
+    pub name: String,
+    /// `[start, end)` frame ranges, sorted and disjoint.
+    pub ranges: Vec<(u32, u32)>,
+}
+
+/// What a feature group measures.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum FeatureKind {
+    Position = 0,
+    Velocity = 1,
+    Direction = 2,
+}
+
+/// Which components of a 3D quantity a feature keeps.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Axes {
+    Xyz = 0,
+    /// Ground plane (x, z): trajectory features.
+    Xz = 1,
+}
+
+impl Axes {
+    pub fn num_dims(self) -> usize {
+        match self {
+            Axes::Xyz => 3,
+            Axes::Xz => 2,
+        }
+    }
+}
+
+/// One group of feature dimensions sharing a normalization scale and a weight.
+#[derive(Clone, Debug, PartialEq)]
+pub struct FeatureGroup {
+    pub name: String,
+    pub kind: FeatureKind,
+    /// Trajectory groups are scaled by β_r at search time, pose groups by β_q.
+    pub is_trajectory: bool,
+    pub axes: Axes,
+    pub joint: usize,
+    /// Axis in joint space for [`FeatureKind::Direction`].
+    pub axis: Vec3,
+    /// Frame offsets relative to the current frame.
+    pub offsets: Vec<i32>,
+    pub weight: f32,
+    pub first_dim: usize,
+    pub num_dims: usize,
+}
+
+/// A built motion database. All per-frame arrays are frame-major and flat so they can be
+/// viewed from JS without copying.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Database {
+    pub skeleton: Skeleton,
+    pub fps: f32,
+    pub num_frames: usize,
+    pub clips: Vec<Clip>,
+    pub tags: Vec<Tag>,
+    /// `F×J` local positions (joint 0: world position of the virtual root).
+    pub local_positions: Vec<Vec3>,
+    /// `F×J` local rotations (joint 0: world yaw of the virtual root).
+    pub local_rotations: Vec<Quat>,
+    pub local_velocities: Vec<Vec3>,
+    pub local_angular_velocities: Vec<Vec3>,
+    /// `F×2` foot contacts (left, right), 0 or 1.
+    pub contacts: Vec<u8>,
+    pub groups: Vec<FeatureGroup>,
+    /// `D` per-dimension mean and scale: stored = (raw − mean) / scale.
+    pub feature_mean: Vec<f32>,
+    pub feature_scale: Vec<f32>,
+    /// `F×D` normalized features.
+    pub features: Vec<f32>,
+    /// `F` 1 where a search may land.
+    pub valid: Vec<u8>,
+}
+
+impl Database {
+    pub fn num_joints(&self) -> usize {
+        self.skeleton.num_joints()
+    }
+
+    pub fn num_features(&self) -> usize {
+        self.feature_mean.len()
+    }
+
+    pub fn duration(&self) -> f32 {
+        self.num_frames as f32 / self.fps
+    }
+
+    /// Index of the clip containing `frame`.
+    ///
+    /// # Panics
+    /// If `frame >= num_frames`.
+    pub fn clip_at(&self, frame: usize) -> usize {
+        assert!(frame < self.num_frames, "frame {frame} out of range 0..{}", self.num_frames);
+        self.clips.partition_point(|c| c.end as usize <= frame)
+    }
+
+    /// Normalized feature vector of `frame`.
+    pub fn feature(&self, frame: usize) -> &[f32] {
+        let d = self.num_features();
+        &self.features[frame * d..(frame + 1) * d]
+    }
+
+    /// Frames carrying `tag` as a per-frame mask, or `None` if there is no such tag.
+    pub fn tag_mask(&self, tag: &str) -> Option<Vec<bool>> {
+        let tag = self.tags.iter().find(|t| t.name == tag)?;
+        let mut mask = vec![false; self.num_frames];
+        for &(s, e) in &tag.ranges {
+            mask[s as usize..e as usize].fill(true);
+        }
+        Some(mask)
+    }
+
+    /// World positions and rotations of every joint at `frame` by forward kinematics, written
+    /// into the caller's buffers (no allocation). With `character_space` the virtual root's
+    /// transform is skipped, giving positions relative to the character.
+    ///
+    /// # Panics
+    /// If the buffers are shorter than the joint count or `frame` is out of range.
+    pub fn forward_kinematics(&self, frame: usize, character_space: bool, positions: &mut [Vec3], rotations: &mut [Quat]) {
+        let j = self.num_joints();
+        let lp = &self.local_positions[frame * j..(frame + 1) * j];
+        let lr = &self.local_rotations[frame * j..(frame + 1) * j];
+        for (i, &parent) in self.skeleton.parents.iter().enumerate() {
+            if parent < 0 {
+                (positions[i], rotations[i]) = if character_space { (Vec3::ZERO, Quat::IDENTITY) } else { (lp[i], lr[i]) };
+            } else {
+                let p = parent as usize;
+                positions[i] = positions[p] + rotations[p] * lp[i];
+                rotations[i] = rotations[p] * lr[i];
+            }
+        }
+    }
+}

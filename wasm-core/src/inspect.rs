@@ -1,0 +1,113 @@
+//! Human- and machine-readable summaries of a database (`mmdb inspect`, `mmdb dump`, and the
+//! same JSON from WASM so pages and tests see exactly what the CLI reports).
+
+use crate::database::Database;
+use serde_json::{json, Value};
+
+/// Counts, ranges, clips, tags and features of a database as JSON. `size_bytes` is the file
+/// size when known.
+pub fn summary(db: &Database, size_bytes: Option<usize>) -> Value {
+    let d = db.num_features();
+    let mut lo = vec![f32::INFINITY; d];
+    let mut hi = vec![f32::NEG_INFINITY; d];
+    for row in db.features.chunks_exact(d) {
+        for i in 0..d {
+            lo[i] = lo[i].min(row[i]);
+            hi[i] = hi[i].max(row[i]);
+        }
+    }
+    let share = |side: usize| db.contacts.iter().skip(side).step_by(2).filter(|&&c| c != 0).count() as f64 / db.num_frames.max(1) as f64;
+    json!({
+        "format_version": crate::format::VERSION,
+        "num_frames": db.num_frames,
+        "fps": db.fps,
+        "duration_s": db.duration(),
+        "num_joints": db.num_joints(),
+        "num_features": d,
+        "num_valid_frames": db.valid.iter().filter(|&&v| v != 0).count(),
+        "size_bytes": size_bytes,
+        "joints": db.skeleton.names.iter().zip(&db.skeleton.parents).map(|(n, p)| json!({"name": n, "parent": p})).collect::<Vec<_>>(),
+        "sites": db.skeleton.sites.iter().map(|s| json!({"name": s.name, "joint": s.joint, "offset": s.offset.to_array()})).collect::<Vec<_>>(),
+        "features": db.groups.iter().map(|g| json!({
+            "name": g.name, "kind": g.kind, "trajectory": g.is_trajectory, "axes": g.axes,
+            "joint": db.skeleton.names[g.joint], "offsets": g.offsets, "weight": g.weight,
+            "dims": [g.first_dim, g.first_dim + g.num_dims],
+            "mean": &db.feature_mean[g.first_dim..g.first_dim + g.num_dims],
+            "scale": db.feature_scale[g.first_dim],
+        })).collect::<Vec<_>>(),
+        "feature_range": lo.iter().zip(&hi).map(|(l, h)| [l, h]).collect::<Vec<_>>(),
+        "clips": db.clips.iter().map(|c| json!({
+            "name": c.name, "source": c.source, "start": c.start, "end": c.end, "mirrored": c.mirrored,
+            "source_fps": c.source_fps, "scale": c.scale, "root_scale": c.root_scale,
+        })).collect::<Vec<_>>(),
+        "tags": db.tags.iter().map(|t| json!({
+            "name": t.name, "ranges": t.ranges, "frames": t.ranges.iter().map(|(s, e)| e - s).sum::<u32>(),
+        })).collect::<Vec<_>>(),
+        "contact_share": [share(0), share(1)],
+    })
+}
+
+/// Every array of the database as JSON (for cross-language tests). f32 values print as the
+/// shortest decimal that reads back to the same f32.
+pub fn dump(db: &Database) -> Value {
+    let flat3 = |v: &[glam::Vec3]| v.iter().flat_map(|x| x.to_array()).collect::<Vec<f32>>();
+    json!({
+        "num_frames": db.num_frames,
+        "num_joints": db.num_joints(),
+        "fps": db.fps,
+        "num_features": db.num_features(),
+        "joint_names": db.skeleton.names,
+        "parents": db.skeleton.parents,
+        "offsets": flat3(&db.skeleton.offsets),
+        "local_positions": flat3(&db.local_positions),
+        "local_rotations": db.local_rotations.iter().flat_map(|q| q.to_array()).collect::<Vec<f32>>(),
+        "local_velocities": flat3(&db.local_velocities),
+        "local_angular_velocities": flat3(&db.local_angular_velocities),
+        "contacts": db.contacts,
+        "features": db.features,
+        "feature_mean": db.feature_mean,
+        "feature_scale": db.feature_scale,
+        "valid": db.valid,
+        "clips": summary(db, None)["clips"],
+        "tags": summary(db, None)["tags"],
+    })
+}
+
+/// A readable text report of [`summary`].
+pub fn text(db: &Database, size_bytes: Option<usize>) -> String {
+    let s = summary(db, size_bytes);
+    let mut out = format!(
+        "frames {} ({} valid) at {} fps = {:.1} s · {} joints · {} feature dims",
+        db.num_frames, s["num_valid_frames"], db.fps, db.duration(), db.num_joints(), db.num_features()
+    );
+    if let Some(b) = size_bytes {
+        out += &format!(" · {:.2} MB", b as f64 / 1e6);
+    }
+    out += &format!(
+        "\ncontacts: left {:.0}% right {:.0}% of frames\njoints: {}\n",
+        100.0 * s["contact_share"][0].as_f64().unwrap_or(0.0),
+        100.0 * s["contact_share"][1].as_f64().unwrap_or(0.0),
+        db.skeleton.names.join(" ")
+    );
+    out += "sites:";
+    for site in &db.skeleton.sites {
+        let j = if site.joint >= 0 { db.skeleton.names[site.joint as usize].as_str() } else { "-" };
+        out += &format!(" {}={}", site.name, j);
+    }
+    out += "\nfeatures:\n";
+    for (g, f) in db.groups.iter().zip(s["features"].as_array().unwrap()) {
+        out += &format!(
+            "  {:<24} {:<9} {:<12} offsets {:?} weight {} dims {}..{}\n",
+            g.name, f["kind"].as_str().unwrap_or(""), db.skeleton.names[g.joint], g.offsets, g.weight, g.first_dim, g.first_dim + g.num_dims
+        );
+    }
+    out += &format!("clips ({}):\n", db.clips.len());
+    for c in &db.clips {
+        out += &format!("  {:<28} frames {:>6}..{:<6} ({:.1} s){}\n", c.name, c.start, c.end, (c.end - c.start) as f32 / db.fps, if c.mirrored { " mirrored" } else { "" });
+    }
+    out += &format!("tags ({}):\n", db.tags.len());
+    for t in &db.tags {
+        out += &format!("  {:<12} {} frames in {} ranges\n", t.name, t.ranges.iter().map(|(s, e)| e - s).sum::<u32>(), t.ranges.len());
+    }
+    out
+}

@@ -1,0 +1,22 @@
+//! Motion matching core: BVH import, motion database build, the `.mmdb` format and search.
+//! The pure core never touches wasm-bindgen; `bindings` is the only JS-facing file.
+
+pub mod builder;
+pub mod bvh;
+pub mod config;
+pub mod database;
+pub mod error;
+pub mod format;
+pub mod inspect;
+pub mod joint_map;
+pub mod search;
+pub mod smoothing;
+
+#[cfg(target_arch = "wasm32")]
+mod bindings;
+
+pub use builder::{build, BuildOutput, Source};
+pub use bvh::Bvh;
+pub use config::BuildConfig;
+pub use database::Database;
+pub use error::{Error, Result};
