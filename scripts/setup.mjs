@@ -223,7 +223,14 @@ async function stepWasmBindgen() {
       if (current() === want) return;
     }
     log(`  installing wasm-bindgen-cli ${want} (have: ${current() ?? 'none'}); this compiles it from source and takes ~8 minutes on a cold machine`);
-    await run('cargo', ['install', 'wasm-bindgen-cli', '--version', `=${want}`, '--locked']);
+    // --locked first (reproducible); the registry here lacks one crate version the CLI's lockfile
+    // pins (webpki-roots 1.0.11), so fall back to resolving compatible versions.
+    try {
+      await run('cargo', ['install', 'wasm-bindgen-cli', '--version', `=${want}`, '--locked']);
+    } catch {
+      log('  --locked install failed; retrying with freshly resolved dependencies');
+      await run('cargo', ['install', 'wasm-bindgen-cli', '--version', `=${want}`]);
+    }
     if (current() !== want) throw new StepError(`wasm-bindgen --version still does not report ${want} after install`);
   });
 }

@@ -70,3 +70,17 @@ test('a missing database shows an error in the page', async ({ page }) => {
   expect(state.error).toContain('missing.mmdb');
   expect(state.ready).toBe(false);
 });
+
+test('a corrupt database shows the checksum error in the page', async ({ page }) => {
+  const bytes = fs.readFileSync(DB);
+  bytes[Math.floor(bytes.length / 2)] ^= 0xff;
+  await page.route('**/databases/corrupt.mmdb', (route) =>
+    route.fulfill({ status: 200, contentType: 'application/octet-stream', body: bytes }),
+  );
+  await page.goto('/?db=databases/corrupt.mmdb');
+  const box = page.locator('#error-box');
+  await expect(box).toBeVisible();
+  await expect(box).toContainText(/checksum/i);
+  await expect(page.locator('#hud')).toHaveText('no database loaded');
+  expect((await viewer(page)).ready).toBe(false);
+});

@@ -96,7 +96,7 @@ describe('Database (WASM in Node)', () => {
       wasmMemory().grow(1);
       expect(before.length).toBe(0); // detached
       const after = db.localPositions;
-      expect(after).not.toBe(before);
+      expect(after === before).toBe(false);
       expect(Array.from(after.subarray(0, 12))).toEqual(first);
       expect(db.worldPositions(0).length).toBe(db.numJoints * 3);
     } finally {
@@ -137,8 +137,10 @@ describe('DatabaseBuilder (WASM in Node)', () => {
         fs.writeFileSync(config, JSON.stringify({ clips: [{ file: BVH }] }));
         const out = path.join(dir, 'one.mmdb');
         execFileSync(MMDB, ['build', '--config', config, '-o', out], { stdio: 'pipe' });
-        expect(db.numFrames).toBe(inspect(out)['num_frames']);
-        expect(db.numJoints).toBe(inspect(out)['joints'] instanceof Array ? (inspect(out)['joints'] as unknown[]).length : db.numJoints);
+        const cli = inspect(out);
+        expect(db.numFrames).toBe(cli['num_frames']);
+        expect(db.numJoints).toBe(cli['num_joints']);
+        expect(db.numFrames).toBeGreaterThan(0);
       } finally {
         fs.rmSync(dir, { recursive: true, force: true });
       }

@@ -87,6 +87,10 @@ impl Bvh {
         let mut translation = j.offset;
         let mut rotation = DQuat::IDENTITY;
         for (&channel, &v) in j.channels.iter().zip(values) {
+            // Many joints carry all-zero channels (CMU's hip joints, fingers): skip the trig.
+            if v == 0.0 && !matches!(channel, Channel::PosX | Channel::PosY | Channel::PosZ) {
+                continue;
+            }
             match channel {
                 Channel::PosX => translation.x = v,
                 Channel::PosY => translation.y = v,

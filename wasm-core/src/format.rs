@@ -5,6 +5,9 @@ use crate::database::{Axes, Clip, Database, FeatureGroup, FeatureKind, Site, Ske
 use crate::error::{Error, Result};
 use glam::{Quat, Vec3};
 
+#[cfg(target_endian = "big")]
+compile_error!("the .mmdb writer and reader assume a little-endian target");
+
 pub const MAGIC: [u8; 8] = *b"\x89MMDB\r\n\x1a";
 pub const VERSION: u32 = 1;
 const HEADER_LEN: usize = 32;
@@ -17,83 +20,21 @@ const TAGS: [&[u8; 4]; 13] =
 
 /// Serializes a database.
 pub fn to_bytes(db: &Database) -> Vec<u8> {
-    let mut sections: Vec<(&[u8; 4], Vec<u8>)> = Vec::with_capacity(TAGS.len());
+    // The big arrays are borrowed as bytes (the format is little-endian like every target we
+    // build for, checked above) and copied once, into the output.
+    let mut sections: Vec<(&[u8; 4], std::borrow::Cow<[u8]>)> = Vec::with_capacity(TAGS.len());
     for tag in TAGS {
-        let mut w = Vec::new();
-        match tag {
-            b"INFO" => {
-                put_u32(&mut w, db.num_frames as u32);
-                put_u32(&mut w, db.num_joints() as u32);
-                put_f32(&mut w, db.fps);
-                put_u32(&mut w, db.num_features() as u32);
-                put_u32(&mut w, db.clips.len() as u32);
-                put_u32(&mut w, db.tags.len() as u32);
-                put_u32(&mut w, db.groups.len() as u32);
-                put_u32(&mut w, db.clips.iter().any(|c| c.mirrored) as u32);
-            }
-            b"SKEL" => {
-                let s = &db.skeleton;
-                for j in 0..s.num_joints() {
-                    put_str(&mut w, &s.names[j]);
-                    put_i32(&mut w, s.parents[j]);
-                    put_vec3(&mut w, s.offsets[j]);
-                }
-                put_u32(&mut w, s.sites.len() as u32);
-                for site in &s.sites {
-                    put_str(&mut w, &site.name);
-                    put_i32(&mut w, site.joint);
-                    put_vec3(&mut w, site.offset);
-                }
-            }
-            b"CLIP" => {
-                put_u32(&mut w, db.clips.len() as u32);
-                for c in &db.clips {
-                    put_str(&mut w, &c.name);
-                    put_str(&mut w, &c.source);
-                    put_u32(&mut w, c.start);
-                    put_u32(&mut w, c.end);
-                    w.push(c.mirrored as u8);
-                    put_f32(&mut w, c.source_fps);
-                    put_f32(&mut w, c.scale);
-                    put_f32(&mut w, c.root_scale);
-                }
-            }
-            b"TAGS" => {
-                put_u32(&mut w, db.tags.len() as u32);
-                for t in &db.tags {
-                    put_str(&mut w, &t.name);
-                    put_u32(&mut w, t.ranges.len() as u32);
-                    for &(s, e) in &t.ranges {
-                        put_u32(&mut w, s);
-                        put_u32(&mut w, e);
-                    }
-                }
-            }
-            b"LPOS" => db.local_positions.iter().for_each(|&v| put_vec3(&mut w, v)),
-            b"LROT" => db.local_rotations.iter().for_each(|q| q.to_array().iter().for_each(|&x| put_f32(&mut w, x))),
-            b"LVEL" => db.local_velocities.iter().for_each(|&v| put_vec3(&mut w, v)),
-            b"LAVL" => db.local_angular_velocities.iter().for_each(|&v| put_vec3(&mut w, v)),
-            b"CONT" => w.extend_from_slice(&db.contacts),
-            b"FDSC" => {
-                put_u32(&mut w, db.groups.len() as u32);
-                for g in &db.groups {
-                    put_str(&mut w, &g.name);
-                    w.extend_from_slice(&[g.kind as u8, g.is_trajectory as u8, g.axes as u8, 0]);
-                    put_i32(&mut w, g.joint as i32);
-                    put_vec3(&mut w, g.axis);
-                    put_u32(&mut w, g.offsets.len() as u32);
-                    g.offsets.iter().for_each(|&o| put_i32(&mut w, o));
-                    put_f32(&mut w, g.weight);
-                    put_u32(&mut w, g.first_dim as u32);
-                    put_u32(&mut w, g.num_dims as u32);
-                }
-            }
-            b"FNRM" => db.feature_mean.iter().chain(&db.feature_scale).for_each(|&x| put_f32(&mut w, x)),
-            b"FEAT" => db.features.iter().for_each(|&x| put_f32(&mut w, x)),
-            b"VALD" => w.extend_from_slice(&db.valid),
-            _ => unreachable!(),
-        }
-        sections.push((tag, w));
+        let data: std::borrow::Cow<[u8]> = match tag {
+            b"LPOS" => bytemuck::cast_slice(&db.local_positions).into(),
+            b"LROT" => bytemuck::cast_slice(&db.local_rotations).into(),
+            b"LVEL" => bytemuck::cast_slice(&db.local_velocities).into(),
+            b"LAVL" => bytemuck::cast_slice(&db.local_angular_velocities).into(),
+            b"CONT" => db.contacts.as_slice().into(),
+            b"FEAT" => bytemuck::cast_slice(&db.features).into(),
+            b"VALD" => db.valid.as_slice().into(),
+            _ => small_section(db, tag).into(),
+        };
+        sections.push((tag, data));
     }
 
     let mut offset = align(HEADER_LEN + ENTRY_LEN * sections.len());
@@ -122,6 +63,81 @@ pub fn to_bytes(db: &Database) -> Vec<u8> {
     let crc = crc32fast::hash(&out[HEADER_LEN..]);
     out[24..28].copy_from_slice(&crc.to_le_bytes());
     out
+}
+
+/// The sections made of counts, names and small records.
+fn small_section(db: &Database, tag: &[u8; 4]) -> Vec<u8> {
+    let mut w = Vec::new();
+    match tag {
+        b"INFO" => {
+            put_u32(&mut w, db.num_frames as u32);
+            put_u32(&mut w, db.num_joints() as u32);
+            put_f32(&mut w, db.fps);
+            put_u32(&mut w, db.num_features() as u32);
+            put_u32(&mut w, db.clips.len() as u32);
+            put_u32(&mut w, db.tags.len() as u32);
+            put_u32(&mut w, db.groups.len() as u32);
+            put_u32(&mut w, db.clips.iter().any(|c| c.mirrored) as u32);
+        }
+        b"SKEL" => {
+            let s = &db.skeleton;
+            for j in 0..s.num_joints() {
+                put_str(&mut w, &s.names[j]);
+                put_i32(&mut w, s.parents[j]);
+                put_vec3(&mut w, s.offsets[j]);
+            }
+            put_u32(&mut w, s.sites.len() as u32);
+            for site in &s.sites {
+                put_str(&mut w, &site.name);
+                put_i32(&mut w, site.joint);
+                put_vec3(&mut w, site.offset);
+            }
+        }
+        b"CLIP" => {
+            put_u32(&mut w, db.clips.len() as u32);
+            for c in &db.clips {
+                put_str(&mut w, &c.name);
+                put_str(&mut w, &c.source);
+                put_u32(&mut w, c.start);
+                put_u32(&mut w, c.end);
+                w.push(c.mirrored as u8);
+                put_f32(&mut w, c.source_fps);
+                put_f32(&mut w, c.scale);
+                put_f32(&mut w, c.root_scale);
+            }
+        }
+        b"TAGS" => {
+            put_u32(&mut w, db.tags.len() as u32);
+            for t in &db.tags {
+                put_str(&mut w, &t.name);
+                put_u32(&mut w, t.ranges.len() as u32);
+                for &(s, e) in &t.ranges {
+                    put_u32(&mut w, s);
+                    put_u32(&mut w, e);
+                }
+            }
+        }
+        b"FDSC" => {
+            put_u32(&mut w, db.groups.len() as u32);
+            for g in &db.groups {
+                put_str(&mut w, &g.name);
+                w.extend_from_slice(&[g.kind as u8, g.is_trajectory as u8, g.axes as u8, 0]);
+                put_i32(&mut w, g.joint as i32);
+                put_vec3(&mut w, g.axis);
+                put_u32(&mut w, g.offsets.len() as u32);
+                g.offsets.iter().for_each(|&o| put_i32(&mut w, o));
+                put_f32(&mut w, g.weight);
+                put_u32(&mut w, g.first_dim as u32);
+                put_u32(&mut w, g.num_dims as u32);
+            }
+        }
+        b"FNRM" => {
+            w.extend_from_slice(bytemuck::cast_slice(&db.feature_mean));
+            w.extend_from_slice(bytemuck::cast_slice(&db.feature_scale));
+        }
+        _ => unreachable!("unknown section {tag:?}"),
+    }
+    w
 }
 
 /// Parses and validates `.mmdb` bytes.
@@ -265,7 +281,7 @@ pub fn from_bytes(bytes: &[u8]) -> Result<Database> {
 
     let fj = num_frames.checked_mul(num_joints).ok_or_else(|| Error::format("INFO counts overflow"))?;
     let local_positions = section(b"LPOS")?.vec3s(fj)?;
-    let local_rotations = section(b"LROT")?.f32s(fj * 4)?.chunks_exact(4).map(Quat::from_slice).collect();
+    let local_rotations: Vec<Quat> = section(b"LROT")?.pods(fj)?;
     let local_velocities = section(b"LVEL")?.vec3s(fj)?;
     let local_angular_velocities = section(b"LAVL")?.vec3s(fj)?;
     let contacts = section(b"CONT")?.bytes(num_frames * 2)?;
@@ -406,6 +422,9 @@ impl<'a> Reader<'a> {
     }
     /// The whole section as exactly `n` bytes (fixed-size arrays must match INFO exactly).
     fn bytes(&mut self, n: usize) -> Result<Vec<u8>> {
+        Ok(self.exact(n)?.to_vec())
+    }
+    fn exact(&self, n: usize) -> Result<&'a [u8]> {
         if self.data.len() != n {
             return Err(Error::format(format!(
                 "section {} is {} bytes but INFO implies {n}",
@@ -413,13 +432,17 @@ impl<'a> Reader<'a> {
                 self.data.len()
             )));
         }
-        Ok(self.data.to_vec())
+        Ok(self.data)
+    }
+    /// `n` plain-old-data values filling the whole section (copied, so alignment is free).
+    fn pods<T: bytemuck::Pod>(&mut self, n: usize) -> Result<Vec<T>> {
+        Ok(bytemuck::pod_collect_to_vec(self.exact(n * std::mem::size_of::<T>())?))
     }
     fn f32s(&mut self, n: usize) -> Result<Vec<f32>> {
-        Ok(self.bytes(n * 4)?.chunks_exact(4).map(|c| f32::from_le_bytes(c.try_into().unwrap())).collect())
+        self.pods(n)
     }
     fn vec3s(&mut self, n: usize) -> Result<Vec<Vec3>> {
-        Ok(self.f32s(n * 3)?.chunks_exact(3).map(Vec3::from_slice).collect())
+        self.pods(n)
     }
 }
 

@@ -17,8 +17,13 @@ pub fn savitzky_golay(values: &mut [f64], dim: usize, window: usize, order: usiz
     }
     let half = window / 2;
     // weights[t][i]: the fitted polynomial's value at window position t, as a linear
-    // combination of the window's samples i.
-    let weights: Vec<Vec<f64>> = (0..window).map(|t| fit_weights(window, order, t)).collect();
+    // combination of the window's samples i. Cached: every clip uses the same few windows.
+    thread_local! {
+        static CACHE: std::cell::RefCell<std::collections::HashMap<(usize, usize), std::rc::Rc<Vec<Vec<f64>>>>> = Default::default();
+    }
+    let weights = CACHE.with(|c| {
+        c.borrow_mut().entry((window, order)).or_insert_with(|| std::rc::Rc::new((0..window).map(|t| fit_weights(window, order, t)).collect())).clone()
+    });
     let source = values.to_vec();
     for frame in 0..len {
         let start = frame.saturating_sub(half).min(len - window);

@@ -23,6 +23,12 @@ function fail(message: string): void {
   hook.error = hook.error ? `${hook.error}\n${message}` : message;
   showError(message);
   console.warn(`[viewer] ${message}`);
+  if (!hook.ready) {
+    // Nothing to play: say so in the toolbar instead of "loading…".
+    (document.getElementById('play') as HTMLButtonElement).disabled = true;
+    (document.getElementById('scrubber') as HTMLInputElement).disabled = true;
+    (document.getElementById('hud') as HTMLElement).textContent = 'no database loaded';
+  }
 }
 
 window.addEventListener('error', (e) => fail(`error: ${e.message}`));
@@ -87,6 +93,7 @@ async function main(): Promise<void> {
       drawnFrame = frame;
     }
     camera.follow(rootX, rootZ, dt);
+    stage.grid.follow(rootX, rootZ);
     const clipName = db.clips[db.clipAt(frame)]?.name ?? '';
     controls.update(clipName);
     stage.render();

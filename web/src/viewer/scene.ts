@@ -1,10 +1,12 @@
 /** The viewer's three.js stage: renderer, camera, lights, a 1 m floor grid, resize handling. */
 import * as THREE from 'three';
+import { FloorGrid } from './floor-grid.ts';
 
 export class ViewerScene {
   readonly renderer: THREE.WebGLRenderer;
   readonly scene = new THREE.Scene();
   readonly camera: THREE.PerspectiveCamera;
+  readonly grid = new FloorGrid(20);
 
   constructor(private readonly container: HTMLElement) {
     this.renderer = new THREE.WebGLRenderer({ antialias: true, preserveDrawingBuffer: true });
@@ -13,10 +15,10 @@ export class ViewerScene {
     container.appendChild(this.renderer.domElement);
 
     this.scene.background = new THREE.Color(0x1d2126);
-    this.scene.fog = new THREE.Fog(0x1d2126, 12, 40);
+    this.scene.fog = new THREE.Fog(0x1d2126, 8, 20);
 
     this.camera = new THREE.PerspectiveCamera(45, 1, 0.05, 200);
-    this.camera.position.set(2.5, 1.6, 3.5);
+    this.camera.position.set(2.0, 1.7, 3.0);
 
     const hemi = new THREE.HemisphereLight(0xdde8ff, 0x30281e, 1.4);
     this.scene.add(hemi);
@@ -24,11 +26,7 @@ export class ViewerScene {
     sun.position.set(3, 6, 4);
     this.scene.add(sun);
 
-    // 1 m cells over 40 m, plus a brighter line every 5 m for scale.
-    const fine = new THREE.GridHelper(40, 40, 0x3c444c, 0x3c444c);
-    const coarse = new THREE.GridHelper(40, 8, 0x5a646e, 0x5a646e);
-    coarse.position.y = 0.001;
-    this.scene.add(fine, coarse);
+    this.scene.add(this.grid.object);
 
     this.resize();
     window.addEventListener('resize', () => this.resize());

@@ -1,0 +1,11 @@
+import { chromium } from '@playwright/test';
+const b = await chromium.launch({ executablePath: '/usr/bin/chromium', args: ['--headless','--no-sandbox','--disable-gpu','--use-angle=swiftshader','--enable-unsafe-swiftshader'] });
+const p = await b.newPage({ viewport: { width: 1280, height: 720 } });
+p.on('console', m => console.log('console', m.type(), m.text()));
+await p.goto(process.argv[2] ?? 'http://127.0.0.1:5198/');
+await p.waitForFunction(() => window.__viewer?.ready || window.__viewer?.error);
+await p.waitForTimeout(Number(process.argv[4] ?? 1500));
+console.log(await p.evaluate(() => JSON.stringify(window.__viewer)));
+if (process.argv[5]) console.log(await p.evaluate(process.argv[5]));
+await p.screenshot({ path: process.argv[3] ?? '/tmp/shot.png' });
+await b.close();
