@@ -349,7 +349,7 @@ const parsers = {
   playwright(out) {
     // list reporter: "  2 passed (8.1s)", "  1 failed", "  1 flaky" on their own lines
     const passed = out.match(/^\s*(\d+) passed\b/m);
-    const failed = out.match(/^\s*(\d+) failed\s*$/m);
+    const failed = out.match(/^\s*(\d+) (?:failed|interrupted)\s*$/m);
     const flaky = out.match(/^\s*(\d+) flaky\s*$/m);
     if (!passed && !failed && !flaky) return null;
     return { passed: (passed ? Number(passed[1]) : 0) + (flaky ? Number(flaky[1]) : 0), failed: failed ? Number(failed[1]) : 0 };
@@ -360,7 +360,7 @@ async function runSuites() {
   const only = new Set((process.env.TEST_SUITES ?? '').split(',').map((s) => s.trim()).filter(Boolean));
   const bin = (name) => path.join(ROOT, 'node_modules', '.bin', name);
   const suites = [
-    { id: 'cargo', title: 'cargo test (wasm-core)', cmd: 'cargo', args: ['test', '--release'], cwd: CORE },
+    { id: 'cargo', title: 'cargo test (wasm-core)', cmd: 'cargo', args: ['test', '--release', '--no-fail-fast'], cwd: CORE },
     { id: 'vitest', title: 'vitest', cmd: bin('vitest'), args: ['run'] },
     { id: 'pytest', title: 'pytest (training)', cmd: path.join(VENV, 'bin', 'pytest'), args: ['-q'], cwd: path.join(ROOT, 'training') },
     { id: 'playwright', title: 'playwright', cmd: bin('playwright'), args: ['test'] },

@@ -95,69 +95,101 @@ pub fn build(config: &BuildConfig, sources: &[Source]) -> Result<BuildOutput> {
     let groups = feature_groups(config, &skeleton, &roles)?;
     let num_dims: usize = groups.iter().map(|g| g.num_dims).sum();
     let fps = config.fps;
-    let mut out = Accumulator::default();
-    let mut tag_ranges: BTreeMap<String, Vec<(u32, u32)>> = BTreeMap::new();
-
-    // Reserve the output once: regrowing arrays of tens of MB dominates otherwise.
-    let rows: usize = takes.iter().map(|t| t.num_out(fps) * if t.mirror { 2 } else { 1 }).sum();
-    out.reserve(rows, names.len() + 1, num_dims);
-    for (take, source) in takes.iter().zip(sources) {
-        let root_scale = if std::ptr::eq(take, ref_take) { 1.0 } else { ref_leg / leg_length(&take.offsets, &parents, &roles) };
-        let locals = take.resample(&source.bvh, fps, &ref_offsets, &animated_translation, root_scale, std::ptr::eq(take, ref_take));
-        let num_out = locals.len() / names.len();
-        if num_out < 2 {
-            warnings.push(format!("{}: skipped, fewer than 2 frames at {fps} fps", source.name));
+    // Every take's row count is known before any work, so the output arrays are allocated
+    // once and split into disjoint per-clip slices that the takes fill independently (on
+    // all cores natively; WASM has one thread). The result is identical either way.
+    let mut plans = Vec::new();
+    let mut num_frames = 0usize;
+    for (t, take) in takes.iter().enumerate() {
+        let n = take.num_out(fps);
+        if n < 2 {
+            warnings.push(format!("{}: skipped, fewer than 2 frames at {fps} fps", sources[t].name));
             continue;
         }
-        let mirrors: &[bool] = if take.mirror { &[false, true] } else { &[false] };
-        for &mirrored in mirrors {
-            let mirrored_locals;
-            let locals = if mirrored {
-                mirrored_locals = mirror(&locals, &pairs, &animated_translation);
-                &mirrored_locals
+        for mirrored in [false, true].into_iter().take(if take.mirror { 2 } else { 1 }) {
+            plans.push((t, mirrored, num_frames, n));
+            num_frames += n;
+        }
+    }
+    if num_frames == 0 {
+        return Err(Error::config("no frames to build from (every take is shorter than 2 frames)"));
+    }
+    let nd = names.len() + 1;
+    let mut out = Accumulator {
+        num_frames,
+        positions: vec![Vec3::ZERO; num_frames * nd],
+        rotations: vec![Quat::IDENTITY; num_frames * nd],
+        velocities: vec![Vec3::ZERO; num_frames * nd],
+        angular_velocities: vec![Vec3::ZERO; num_frames * nd],
+        contacts: vec![0; num_frames * 2],
+        features: vec![0.0; num_frames * num_dims],
+        clips: Vec::new(),
+    };
+    let clip_builder = ClipBuilder {
+        config,
+        fps,
+        parents: &parents,
+        hips: roles["hips"],
+        forward_rest,
+        toe_sites: &toe_sites,
+        groups: &groups,
+        num_dims,
+    };
+    let root_scales: Vec<f64> = takes
+        .iter()
+        .enumerate()
+        .map(|(t, take)| if t == reference { 1.0 } else { ref_leg / leg_length(&take.offsets, &parents, &roles) })
+        .collect();
+    // A take and its mirror are one job (the mirror reuses the resampled take).
+    let mut jobs: Vec<(usize, Vec<Rows>)> = Vec::new();
+    let mut rest_rows = out.rows();
+    for &(t, mirrored, _, n) in &plans {
+        let (rows, tail) = rest_rows.split_at(n, nd, num_dims);
+        rest_rows = tail;
+        match jobs.last_mut() {
+            Some((last, list)) if *last == t && mirrored => list.push(rows),
+            _ => jobs.push((t, vec![rows])),
+        }
+    }
+    crate::parallel::for_each(jobs, |(t, rows)| {
+        let take = &takes[t];
+        let locals = take.resample(&sources[t].bvh, fps, &ref_offsets, &animated_translation, root_scales[t], t == reference);
+        for (i, rows) in rows.into_iter().enumerate() {
+            if i == 0 {
+                clip_builder.append(&locals, names.len(), rows);
             } else {
-                &locals
-            };
-            let start = out.num_frames as u32;
-            let clip = ClipBuilder {
-                config,
-                fps,
-                parents: &parents,
-                hips: roles["hips"],
-                forward_rest,
-                toe_sites: &toe_sites,
-                groups: &groups,
-                num_dims,
-            };
-            clip.append(locals, names.len(), &mut out);
-            let name = if mirrored { format!("{} (mirror)", take.clip_name) } else { take.clip_name.clone() };
-            out.clips.push(Clip {
-                name,
-                source: base_name(&source.name).to_string(),
-                start,
-                end: out.num_frames as u32,
-                mirrored,
-                source_fps: take.source_fps as f32,
-                scale: take.scale as f32,
-                root_scale: root_scale as f32,
-            });
-            // Tags: whole clip, then source-frame ranges mapped to database frames.
-            let to_db = |s: usize| start + ((s.saturating_sub(take.frames.0)) as f64 * fps / take.source_fps).round().min(num_out as f64) as u32;
-            for t in &take.tags {
-                tag_ranges.entry(t.clone()).or_default().push((start, start + num_out as u32));
+                clip_builder.append(&mirror(&locals, &pairs, &animated_translation), names.len(), rows);
             }
-            for r in &take.ranges {
-                let (s, e) = (to_db(r.frames[0]), to_db(r.frames[1]));
-                if e > s {
-                    for t in &r.tags {
-                        tag_ranges.entry(t.clone()).or_default().push((s, e));
-                    }
+        }
+    });
+    let mut tag_ranges: BTreeMap<String, Vec<(u32, u32)>> = BTreeMap::new();
+    for &(t, mirrored, start, num_out) in &plans {
+        let (take, source) = (&takes[t], &sources[t]);
+        let start = start as u32;
+        let name = if mirrored { format!("{} (mirror)", take.clip_name) } else { take.clip_name.clone() };
+        out.clips.push(Clip {
+            name,
+            source: base_name(&source.name).to_string(),
+            start,
+            end: start + num_out as u32,
+            mirrored,
+            source_fps: take.source_fps as f32,
+            scale: take.scale as f32,
+            root_scale: root_scales[t] as f32,
+        });
+        // Tags: whole clip, then source-frame ranges mapped to database frames.
+        let to_db = |s: usize| start + ((s.saturating_sub(take.frames.0)) as f64 * fps / take.source_fps).round().min(num_out as f64) as u32;
+        for tag in &take.tags {
+            tag_ranges.entry(tag.clone()).or_default().push((start, start + num_out as u32));
+        }
+        for r in &take.ranges {
+            let (s, e) = (to_db(r.frames[0]), to_db(r.frames[1]));
+            if e > s {
+                for tag in &r.tags {
+                    tag_ranges.entry(tag.clone()).or_default().push((s, e));
                 }
             }
         }
-    }
-    if out.num_frames == 0 {
-        return Err(Error::config("no frames to build from (every take is shorter than 2 frames)"));
     }
     ensure_unique_names(&mut out.clips);
 
@@ -446,13 +478,41 @@ struct Accumulator {
 }
 
 impl Accumulator {
-    fn reserve(&mut self, frames: usize, joints: usize, dims: usize) {
-        self.positions.reserve_exact(frames * joints);
-        self.rotations.reserve_exact(frames * joints);
-        self.velocities.reserve_exact(frames * joints);
-        self.angular_velocities.reserve_exact(frames * joints);
-        self.contacts.reserve_exact(frames * 2);
-        self.features.reserve_exact(frames * dims);
+    fn rows(&mut self) -> Rows<'_> {
+        Rows {
+            positions: &mut self.positions,
+            rotations: &mut self.rotations,
+            velocities: &mut self.velocities,
+            angular_velocities: &mut self.angular_velocities,
+            contacts: &mut self.contacts,
+            features: &mut self.features,
+        }
+    }
+}
+
+/// Mutable views of consecutive database frames, written by one clip.
+struct Rows<'a> {
+    positions: &'a mut [Vec3],
+    rotations: &'a mut [Quat],
+    velocities: &'a mut [Vec3],
+    angular_velocities: &'a mut [Vec3],
+    contacts: &'a mut [u8],
+    features: &'a mut [f32],
+}
+
+impl<'a> Rows<'a> {
+    /// The first `frames` frames, and the rest.
+    fn split_at(self, frames: usize, joints: usize, dims: usize) -> (Rows<'a>, Rows<'a>) {
+        let (p, p2) = self.positions.split_at_mut(frames * joints);
+        let (r, r2) = self.rotations.split_at_mut(frames * joints);
+        let (v, v2) = self.velocities.split_at_mut(frames * joints);
+        let (a, a2) = self.angular_velocities.split_at_mut(frames * joints);
+        let (c, c2) = self.contacts.split_at_mut(frames * 2);
+        let (f, f2) = self.features.split_at_mut(frames * dims);
+        (
+            Rows { positions: p, rotations: r, velocities: v, angular_velocities: a, contacts: c, features: f },
+            Rows { positions: p2, rotations: r2, velocities: v2, angular_velocities: a2, contacts: c2, features: f2 },
+        )
     }
 }
 
@@ -469,7 +529,7 @@ struct ClipBuilder<'a> {
 }
 
 impl ClipBuilder<'_> {
-    fn append(&self, locals: &[(DVec3, DQuat)], num_bvh_joints: usize, out: &mut Accumulator) {
+    fn append(&self, locals: &[(DVec3, DQuat)], num_bvh_joints: usize, out: Rows) {
         let n = locals.len() / num_bvh_joints;
         let nj = num_bvh_joints;
         let dt = 1.0 / self.fps;
@@ -548,11 +608,12 @@ impl ClipBuilder<'_> {
             let (a, b) = span(f);
             let inv_h = self.fps / (b - a) as f64;
             for j in 0..nd {
-                out.positions.push(lp[f * nd + j].as_vec3());
-                out.rotations.push(lr[f * nd + j].as_quat());
-                out.velocities.push(((lp[b * nd + j] - lp[a * nd + j]) * inv_h).as_vec3());
+                let i = f * nd + j;
+                out.positions[i] = lp[i].as_vec3();
+                out.rotations[i] = lr[i].as_quat();
+                out.velocities[i] = ((lp[b * nd + j] - lp[a * nd + j]) * inv_h).as_vec3();
                 let dq = lr[b * nd + j] * lr[a * nd + j].conjugate();
-                out.angular_velocities.push((scaled_axis(dq) * inv_h).as_vec3());
+                out.angular_velocities[i] = (scaled_axis(dq) * inv_h).as_vec3();
             }
         }
 
@@ -586,13 +647,12 @@ impl ClipBuilder<'_> {
             let (a, b) = (f.saturating_sub(radius), (f + radius).min(n - 1));
             for side in 0..2 {
                 let on = (a..=b).filter(|&g| raw[g][side]).count();
-                out.contacts.push((2 * on > b - a + 1) as u8);
+                out.contacts[2 * f + side] = (2 * on > b - a + 1) as u8;
             }
         }
 
         // Raw features, in the character space of the current frame.
-        let mut row = vec![0.0f32; self.num_dims];
-        for f in 0..n {
+        for (f, row) in out.features.chunks_exact_mut(self.num_dims).enumerate() {
             let (rp, rq) = root[f];
             let inv = rq.conjugate();
             for g in self.groups {
@@ -612,9 +672,7 @@ impl ClipBuilder<'_> {
                     }
                 }
             }
-            out.features.extend_from_slice(&row);
         }
-        out.num_frames += n;
     }
 }
 

@@ -9,6 +9,7 @@ pub mod error;
 pub mod format;
 pub mod inspect;
 pub mod joint_map;
+pub mod parallel;
 pub mod search;
 pub mod smoothing;
 
