@@ -397,6 +397,7 @@ async function runSuites() {
     } else {
       failed = 1;
       note = code === 0 ? 'no test summary found' : `exit ${code}, no test summary found`;
+      if (s.id === 'pytest' && code === 5) note = 'exit 5: no tests collected';
     }
     const ok = code === 0 && failed === 0;
     results.push({ title: s.title, ok, passed, failed, time: secs(t0), note });

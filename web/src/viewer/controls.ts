@@ -7,6 +7,8 @@ export class ViewerControls {
   private readonly hud: HTMLElement;
   private shownFrame = -1;
   private shownPlaying: boolean | null = null;
+  /** True while the user holds the scrubber's thumb: playback must not move it under them. */
+  private dragging = false;
 
   constructor(
     private readonly playback: Playback,
@@ -20,6 +22,8 @@ export class ViewerControls {
     this.scrubber.min = '0';
     this.scrubber.max = String(Math.max(0, playback.numFrames - 1));
     this.button.addEventListener('click', () => this.toggle());
+    this.scrubber.addEventListener('pointerdown', () => (this.dragging = true));
+    window.addEventListener('pointerup', () => (this.dragging = false));
     this.scrubber.addEventListener('input', () => {
       playback.seek(Number(this.scrubber.value));
       onSeek();
@@ -50,7 +54,7 @@ export class ViewerControls {
       this.shownPlaying = playing;
     }
     if (frame !== this.shownFrame) {
-      if (document.activeElement !== this.scrubber) this.scrubber.value = String(frame);
+      if (!this.dragging) this.scrubber.value = String(frame);
       this.hud.textContent = `clip ${clipName} · frame ${frame} / ${numFrames} · ${fps} fps`;
       this.shownFrame = frame;
     }

@@ -1,8 +1,6 @@
 /** The virtual root (joint 0) drawn on the floor: a disc and an arrow along its facing (+Z). */
 import * as THREE from 'three';
 
-const _q = new THREE.Quaternion();
-
 export class RootMarker {
   readonly object = new THREE.Group();
 
@@ -29,7 +27,6 @@ export class RootMarker {
    */
   update(worldPositions: Float32Array, worldRotations: Float32Array): void {
     this.object.position.set(worldPositions[0], worldPositions[1] + 0.004, worldPositions[2]);
-    _q.set(worldRotations[0], worldRotations[1], worldRotations[2], worldRotations[3]);
-    this.object.quaternion.copy(_q);
+    this.object.quaternion.set(worldRotations[0], worldRotations[1], worldRotations[2], worldRotations[3]);
   }
 }
