@@ -3,6 +3,7 @@
 // speed (frames/s), native (the mmdb CLI) and WASM in Node, on the same files in one run so
 // the two are comparable under the same machine noise. Medians of repeated runs.
 import fs from 'node:fs';
+import os from 'node:os';
 import path from 'node:path';
 import { execFileSync } from 'node:child_process';
 import { fileURLToPath } from 'node:url';
@@ -42,7 +43,10 @@ function time(fn) {
   return { ms: median(times), runs: times.length };
 }
 
-const native = JSON.parse(execFileSync(mmdb, ['bench', ...files, '--json', '--seconds', String(seconds)], { encoding: 'utf8' }));
+const nativeBench = (env = {}) =>
+  JSON.parse(execFileSync(mmdb, ['bench', ...files, '--json', '--seconds', String(seconds)], { encoding: 'utf8', env: { ...process.env, ...env } }));
+const native = nativeBench();
+const native1 = nativeBench({ MMDB_THREADS: '1' });
 
 const wasm = await import(path.join(pkg, 'mmcore.js'));
 wasm.initSync({ module: fs.readFileSync(path.join(pkg, 'mmcore_bg.wasm')) });
@@ -67,6 +71,7 @@ builder.free();
 
 const rows = [
   { runtime: 'native', parse_mb_per_s: native.parse_mb_per_s, build_ms: native.build_ms, build_frames_per_s: native.build_source_frames_per_s },
+  { runtime: 'native 1 thread', parse_mb_per_s: native1.parse_mb_per_s, build_ms: native1.build_ms, build_frames_per_s: native1.build_source_frames_per_s },
   {
     runtime: 'wasm (node)',
     parse_mb_per_s: megabytes / (parse.ms / 1000),
@@ -90,11 +95,11 @@ if (json) {
     `database build benchmark: ${files.length} BVH files (CMU subject 16), ${megabytes.toFixed(1)} MB, ` +
       `${native.source_frames} source frames at 120 fps → ${native.database_frames} database frames (60 fps, mirrored); medians`,
   );
-  console.log('runtime        parse MB/s   build ms   build frames/s (source frames)');
+  console.log('runtime          parse MB/s   build ms   build frames/s (source frames)');
   for (const r of rows) {
     console.log(
-      `${r.runtime.padEnd(14)} ${r.parse_mb_per_s.toFixed(0).padStart(10)} ${r.build_ms.toFixed(1).padStart(10)} ${Math.round(r.build_frames_per_s).toString().padStart(16)}`,
+      `${r.runtime.padEnd(16)} ${r.parse_mb_per_s.toFixed(0).padStart(10)} ${r.build_ms.toFixed(1).padStart(10)} ${Math.round(r.build_frames_per_s).toString().padStart(16)}`,
     );
   }
-  console.log(`target: ≥ 200000 frames/s native build → ${rows[0].build_frames_per_s >= 200000 ? 'met' : 'MISSED'}`);
+  console.log(`target: ≥ 200000 frames/s native build (all ${os.availableParallelism()} cores) → ${rows[0].build_frames_per_s >= 200000 ? 'met' : 'MISSED'}`);
 }

@@ -63,8 +63,12 @@ pub struct Bvh {
 impl Bvh {
     /// Parses BVH text. `file` only names the input in error messages.
     pub fn parse(file: &str, bytes: &[u8]) -> Result<Bvh> {
-        // Lossy keeps exotic (Latin-1) joint names readable; valid UTF-8 is borrowed, not copied.
-        let text = String::from_utf8_lossy(bytes);
+        // Valid UTF-8 is borrowed as is (fast validation); otherwise exotic (Latin-1) joint
+        // names are kept readable with replacement characters.
+        let text = match std::str::from_utf8(bytes) {
+            Ok(t) => std::borrow::Cow::Borrowed(t),
+            Err(_) => String::from_utf8_lossy(bytes),
+        };
         Parser { file, text: &text, pos: 0, line: 1 }.parse()
     }
 
@@ -306,45 +310,60 @@ impl<'a> Parser<'a> {
     }
 
     /// Reads `num_frames` lines of `num_channels` numbers. Counting per line (rather than as
-    /// one stream) lets a short or long line be reported where it is.
+    /// one stream) lets a short or long line be reported where it is. This is the hot loop of
+    /// the importer, so it works on bytes.
     fn motion(&mut self, num_frames: usize, num_channels: usize, frames_line: usize) -> Result<Vec<f64>> {
         let mut values = Vec::with_capacity(num_frames * num_channels);
         let bytes = self.text.as_bytes();
+        let n = bytes.len();
         // Finish the 'Frame Time' line.
         self.rest_of_line();
+        let mut pos = self.pos;
         let mut frame = 0;
-        while self.pos < bytes.len() {
-            // Now at a '\n' (or the start of a line after it).
-            if bytes[self.pos] == b'\n' {
-                self.pos += 1;
+        while pos < n {
+            if bytes[pos] == b'\n' {
+                pos += 1;
                 self.line += 1;
             }
-            let start = self.pos;
-            let line = self.rest_of_line();
-            if line.is_empty() {
-                continue;
-            }
-            if frame == num_frames {
-                return Err(self.error(format!(
-                    "more frame lines than the {num_frames} declared by 'Frames:' on line {frames_line}"
-                )));
-            }
+            let line_start = pos;
             let before = values.len();
-            for token in line.split_ascii_whitespace() {
-                let v = parse_finite(token).ok_or_else(|| {
-                    let column = token.as_ptr() as usize - self.text[start..].as_ptr() as usize + 1;
-                    self.error(format!("frame {frame}: expected a number, found '{token}' (column {column})"))
-                })?;
-                values.push(v);
+            loop {
+                while pos < n && matches!(bytes[pos], b' ' | b'\t' | b'\r' | b'\x0c' | b'\x0b') {
+                    pos += 1;
+                }
+                if pos >= n || bytes[pos] == b'\n' {
+                    break;
+                }
+                if frame == num_frames {
+                    return Err(self.error(format!(
+                        "more frame lines than the {num_frames} declared by 'Frames:' on line {frames_line}"
+                    )));
+                }
+                let (value, end) = match parse_decimal(bytes, pos) {
+                    Some(parsed) => parsed,
+                    None => {
+                        let end = pos + bytes[pos..].iter().position(|b| b.is_ascii_whitespace()).unwrap_or(n - pos);
+                        let token = &self.text[pos..end];
+                        let v = parse_finite(token).ok_or_else(|| {
+                            self.error(format!("frame {frame}: expected a number, found '{token}' (column {})", pos - line_start + 1))
+                        })?;
+                        (v, end)
+                    }
+                };
+                values.push(value);
+                pos = end;
             }
             let found = values.len() - before;
-            if found != num_channels {
+            if found != 0 && found != num_channels {
                 return Err(self.error(format!(
                     "frame {frame} has {found} values, expected {num_channels} (the total of the CHANNELS lines)"
                 )));
             }
-            frame += 1;
+            if found != 0 {
+                frame += 1;
+            }
         }
+        self.pos = pos;
         if frame < num_frames {
             return Err(Error::bvh(
                 self.file,
@@ -354,6 +373,51 @@ impl<'a> Parser<'a> {
         }
         Ok(values)
     }
+}
+
+/// Fast path for the plain decimals mocap files are made of (`-12.345678`): when the digits
+/// fit in 2⁵³ and there are at most 22 after the point, `mantissa / 10^k` is one correctly
+/// rounded IEEE division of two exact values — the same f64 `str::parse` returns (Clinger
+/// 1990). Anything else (exponents, long mantissas, junk) returns `None` for the slow path.
+fn parse_decimal(bytes: &[u8], start: usize) -> Option<(f64, usize)> {
+    const POW10: [f64; 23] = [
+        1e0, 1e1, 1e2, 1e3, 1e4, 1e5, 1e6, 1e7, 1e8, 1e9, 1e10, 1e11, 1e12, 1e13, 1e14, 1e15, 1e16, 1e17, 1e18, 1e19, 1e20, 1e21, 1e22,
+    ];
+    let mut i = start;
+    let negative = match bytes[i] {
+        b'-' => {
+            i += 1;
+            true
+        }
+        b'+' => {
+            i += 1;
+            false
+        }
+        _ => false,
+    };
+    let (mut mantissa, mut digits, mut fraction) = (0u64, 0u32, 0usize);
+    let mut seen_point = false;
+    while i < bytes.len() {
+        match bytes[i] {
+            d @ b'0'..=b'9' => {
+                if digits == 19 {
+                    return None;
+                }
+                mantissa = mantissa * 10 + (d - b'0') as u64;
+                digits += 1;
+                fraction += seen_point as usize;
+            }
+            b'.' if !seen_point => seen_point = true,
+            b if b.is_ascii_whitespace() => break,
+            _ => return None,
+        }
+        i += 1;
+    }
+    if digits == 0 || mantissa >= 1 << 53 || fraction > 22 {
+        return None;
+    }
+    let v = mantissa as f64 / POW10[fraction];
+    Some((if negative { -v } else { v }, i))
 }
 
 /// Parses a finite decimal number (`nan`/`inf` are rejected: they would poison every pose).
@@ -443,6 +507,36 @@ mod tests {
             let got = DMat3::from_quat(bvh.local_transform(0, 0).1);
             assert!((got - expected).to_cols_array().iter().all(|d| d.abs() < 1e-12), "order {order}");
         }
+    }
+
+    /// The decimal fast path returns exactly what `str::parse` returns, or defers to it.
+    #[test]
+    fn decimal_fast_path_is_bit_identical_to_std() {
+        let mut seed = 0x9E3779B97F4A7C15u64;
+        let mut next = || {
+            seed ^= seed << 13;
+            seed ^= seed >> 7;
+            seed ^= seed << 17;
+            seed
+        };
+        let mut fast = 0;
+        for i in 0..200_000 {
+            let int = next() % [10, 1000, 100_000, 10_000_000_000][i % 4];
+            let frac = next() % 10u64.pow((i % 9) as u32 + 1);
+            let sign = if next() % 2 == 0 { "-" } else { "" };
+            let text = format!("{sign}{int}.{frac:0width$} ", width = (i % 9) + 1);
+            let expected: f64 = text.trim().parse().unwrap();
+            if let Some((v, end)) = parse_decimal(text.as_bytes(), 0) {
+                assert_eq!(v.to_bits(), expected.to_bits(), "{text}");
+                assert_eq!(end, text.len() - 1);
+                fast += 1;
+            }
+        }
+        assert!(fast > 150_000, "the fast path should take most plain decimals ({fast})");
+        for odd in ["1e5", "1.5E-3", "12345678901234567890.5", "0.12345678901234567890123", "--1", "1.2.3", "nan", "inf", "."] {
+            assert!(parse_decimal(odd.as_bytes(), 0).is_none(), "{odd} must take the slow path");
+        }
+        assert_eq!(parse_decimal(b"-0.000000\n", 0), Some((-0.0, 9)));
     }
 
     /// Malformed inputs: each must fail with the right line number and say what was expected.

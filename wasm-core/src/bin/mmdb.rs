@@ -202,7 +202,10 @@ fn build(args: &[String]) -> CliResult {
 
 fn load(path: &str) -> Result<(mmcore::Database, usize), Error> {
     let bytes = read(Path::new(path))?;
-    let db = format::from_bytes(&bytes).map_err(|e| Error::Format(format!("{path}: {e}")))?;
+    let db = format::from_bytes(&bytes).map_err(|e| match e {
+        Error::Format(m) => Error::Format(format!("{path}: {m}")),
+        e => e,
+    })?;
     Ok((db, bytes.len()))
 }
 
