@@ -1,7 +1,8 @@
 /**
  * Database viewer: loads a `.mmdb` (default `databases/locomotion.mmdb`, or `?db=<url>`) in WASM
  * and plays its frames in order as a skeleton, with the virtual root, foot contacts, a scrubber
- * and a HUD. State for tests is on `window.__viewer`.
+ * and a HUD. `?frame=N` starts at frame N and `?paused` starts paused (links to a moment).
+ * State for tests is on `window.__viewer`.
  */
 import { Database } from '../core/database.ts';
 import { initWasm } from '../core/wasm.ts';
@@ -35,7 +36,8 @@ window.addEventListener('error', (e) => fail(`error: ${e.message}`));
 window.addEventListener('unhandledrejection', (e) => fail(`error: ${errorMessage(e.reason)}`));
 
 async function main(): Promise<void> {
-  const dbUrl = new URLSearchParams(location.search).get('db') ?? DEFAULT_DB;
+  const params = new URLSearchParams(location.search);
+  const dbUrl = params.get('db') ?? DEFAULT_DB;
 
   let stage: ViewerScene;
   try {
@@ -66,6 +68,8 @@ async function main(): Promise<void> {
   stage.scene.add(skeleton.object, root.object);
 
   const playback = new Playback(db.numFrames, db.fps);
+  playback.seek(Number(params.get('frame') ?? 0) || 0);
+  if (params.has('paused')) playback.toggle();
   let drawnFrame = -1;
   let rootX = 0;
   let rootZ = 0;

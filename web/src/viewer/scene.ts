@@ -18,7 +18,7 @@ export class ViewerScene {
     this.scene.fog = new THREE.Fog(0x1d2126, 8, 20);
 
     this.camera = new THREE.PerspectiveCamera(45, 1, 0.05, 200);
-    this.camera.position.set(2.0, 1.7, 3.0);
+    this.camera.position.set(1.5, 1.4, 2.3);
 
     const hemi = new THREE.HemisphereLight(0xdde8ff, 0x30281e, 1.4);
     this.scene.add(hemi);
