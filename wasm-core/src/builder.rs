@@ -151,16 +151,25 @@ pub fn build(config: &BuildConfig, sources: &[Source]) -> Result<BuildOutput> {
             _ => jobs.push((t, vec![rows])),
         }
     }
+    // Scratch buffers are reused across jobs: fresh ones per clip add up to ~100 MB of f64
+    // temporaries for the default database, and WASM memory never shrinks once grown.
+    let pool = std::sync::Mutex::new(Vec::<Scratch>::new());
     crate::parallel::for_each(jobs, |(t, rows)| {
+        let mut scratch = pool.lock().unwrap().pop().unwrap_or_default();
         let take = &takes[t];
-        let locals = take.resample(&sources[t].bvh, fps, &ref_offsets, &animated_translation, root_scales[t], t == reference);
+        let mut locals = std::mem::take(&mut scratch.locals);
+        take.resample(&sources[t].bvh, fps, &ref_offsets, &animated_translation, root_scales[t], t == reference, &mut locals);
+        let mut mirrored = std::mem::take(&mut scratch.mirrored);
         for (i, rows) in rows.into_iter().enumerate() {
             if i == 0 {
-                clip_builder.append(&locals, names.len(), rows);
+                clip_builder.append(&locals, names.len(), rows, &mut scratch);
             } else {
-                clip_builder.append(&mirror(&locals, &pairs, &animated_translation), names.len(), rows);
+                mirror(&locals, &pairs, &animated_translation, &mut mirrored);
+                clip_builder.append(&mirrored, names.len(), rows, &mut scratch);
             }
         }
+        (scratch.locals, scratch.mirrored) = (locals, mirrored);
+        pool.lock().unwrap().push(scratch);
     });
     let mut tag_ranges: BTreeMap<String, Vec<(u32, u32)>> = BTreeMap::new();
     for &(t, mirrored, start, num_out) in &plans {
@@ -363,11 +372,13 @@ impl Take {
     /// Local transforms (BVH joints, metres, Y up) resampled to `fps`, frame-major. Takes other
     /// than the reference get the reference's bone lengths; their animated translations (root
     /// motion) are scaled by the leg-length ratio so the feet keep their stride.
-    fn resample(&self, bvh: &Bvh, fps: f64, ref_offsets: &[DVec3], animated: &[bool], root_scale: f64, is_reference: bool) -> Vec<(DVec3, DQuat)> {
+    #[allow(clippy::too_many_arguments)]
+    fn resample(&self, bvh: &Bvh, fps: f64, ref_offsets: &[DVec3], animated: &[bool], root_scale: f64, is_reference: bool, out: &mut Vec<(DVec3, DQuat)>) {
         let num_joints = bvh.joints.len();
         let count = self.frames.1 - self.frames.0;
         let num_out = self.num_out(fps);
-        let mut out = Vec::with_capacity(num_out * num_joints);
+        out.clear();
+        out.reserve(num_out * num_joints);
         let convert = self.up != DQuat::IDENTITY;
         let sample = |frame: usize, j: usize| {
             let (t, q) = bvh.local_transform(self.frames.0 + frame, j);
@@ -388,7 +399,6 @@ impl Take {
                 }
             }
         }
-        out
     }
 }
 
@@ -451,9 +461,10 @@ fn database_skeleton(
 /// The mirror image of a take across the YZ plane, left and right joints swapped: positions
 /// `(x, y, z) → (−x, y, z)`, rotations `(x, y, z, w) → (x, −y, −z, w)`. Non-animated
 /// translations keep the skeleton's own offsets so every clip shares one skeleton.
-fn mirror(locals: &[(DVec3, DQuat)], pairs: &[usize], animated: &[bool]) -> Vec<(DVec3, DQuat)> {
+fn mirror(locals: &[(DVec3, DQuat)], pairs: &[usize], animated: &[bool], out: &mut Vec<(DVec3, DQuat)>) {
     let n = pairs.len();
-    let mut out = Vec::with_capacity(locals.len());
+    out.clear();
+    out.reserve(locals.len());
     for frame in locals.chunks_exact(n) {
         for j in 0..n {
             let (t, q) = frame[pairs[j]];
@@ -461,7 +472,6 @@ fn mirror(locals: &[(DVec3, DQuat)], pairs: &[usize], animated: &[bool]) -> Vec<
             out.push((t, DQuat::from_xyzw(q.x, -q.y, -q.z, q.w)));
         }
     }
-    out
 }
 
 /// Database arrays accumulated clip by clip.
@@ -516,6 +526,20 @@ impl<'a> Rows<'a> {
     }
 }
 
+/// Per-thread temporaries of [`ClipBuilder::append`] and the resampling, kept between clips.
+#[derive(Default)]
+struct Scratch {
+    locals: Vec<(DVec3, DQuat)>,
+    mirrored: Vec<(DVec3, DQuat)>,
+    world: Vec<(DVec3, DQuat)>,
+    root_xz: Vec<f64>,
+    facing: Vec<f64>,
+    root: Vec<(DVec3, DQuat)>,
+    lp: Vec<DVec3>,
+    lr: Vec<DQuat>,
+    contacts: Vec<[bool; 2]>,
+}
+
 /// Turns one take's local transforms into database rows.
 struct ClipBuilder<'a> {
     config: &'a BuildConfig,
@@ -529,13 +553,14 @@ struct ClipBuilder<'a> {
 }
 
 impl ClipBuilder<'_> {
-    fn append(&self, locals: &[(DVec3, DQuat)], num_bvh_joints: usize, out: Rows) {
+    fn append(&self, locals: &[(DVec3, DQuat)], num_bvh_joints: usize, out: Rows, scratch: &mut Scratch) {
         let n = locals.len() / num_bvh_joints;
         let nj = num_bvh_joints;
         let dt = 1.0 / self.fps;
 
         // World transforms of the source joints.
-        let mut world: Vec<(DVec3, DQuat)> = Vec::with_capacity(locals.len());
+        let world = &mut scratch.world;
+        world.clear();
         for f in 0..n {
             for j in 0..nj {
                 let (t, q) = locals[f * nj + j];
@@ -552,8 +577,9 @@ impl ClipBuilder<'_> {
 
         // Virtual root: hips projected on the floor, facing = hips forward projected; both
         // smoothed (Savitzky–Golay, cubic) so the trajectory ignores the hips' sway.
-        let mut root_xz: Vec<f64> = Vec::with_capacity(2 * n);
-        let mut facing: Vec<f64> = Vec::with_capacity(2 * n);
+        let (root_xz, facing) = (&mut scratch.root_xz, &mut scratch.facing);
+        root_xz.clear();
+        facing.clear();
         let mut last = DVec3::Z;
         for f in 0..n {
             let (p, q) = world[f * nj + self.hips];
@@ -563,20 +589,22 @@ impl ClipBuilder<'_> {
             facing.extend([last.x, last.z]);
         }
         let window = |seconds: f64| 2 * (seconds * self.fps / 2.0).round() as usize + 1;
-        savitzky_golay(&mut root_xz, 2, window(self.config.root_position_window), 3);
-        savitzky_golay(&mut facing, 2, window(self.config.root_facing_window), 3);
-        let root: Vec<(DVec3, DQuat)> = (0..n)
-            .map(|f| {
-                let (x, z) = (facing[2 * f], facing[2 * f + 1]);
-                let yaw = if x == 0.0 && z == 0.0 { 0.0 } else { x.atan2(z) };
-                (DVec3::new(root_xz[2 * f], 0.0, root_xz[2 * f + 1]), DQuat::from_rotation_y(yaw))
-            })
-            .collect();
+        savitzky_golay(root_xz, 2, window(self.config.root_position_window), 3);
+        savitzky_golay(facing, 2, window(self.config.root_facing_window), 3);
+        let root = &mut scratch.root;
+        root.clear();
+        root.extend((0..n).map(|f| {
+            let (x, z) = (facing[2 * f], facing[2 * f + 1]);
+            let yaw = if x == 0.0 && z == 0.0 { 0.0 } else { x.atan2(z) };
+            (DVec3::new(root_xz[2 * f], 0.0, root_xz[2 * f + 1]), DQuat::from_rotation_y(yaw))
+        }));
+        let (root, world) = (&*root, &*world);
 
         // Local pose rows: joint 0 = root (world), source root re-expressed under it.
         let nd = nj + 1;
-        let mut lp: Vec<DVec3> = Vec::with_capacity(n * nd);
-        let mut lr: Vec<DQuat> = Vec::with_capacity(n * nd);
+        let (lp, lr) = (&mut scratch.lp, &mut scratch.lr);
+        lp.clear();
+        lr.clear();
         for f in 0..n {
             let (rp, rq) = root[f];
             lp.push(rp);
@@ -635,7 +663,9 @@ impl ClipBuilder<'_> {
         // Contacts: toe speed under a threshold, then a median filter (a majority vote over
         // 2r+1 frames) to remove flicker.
         let radius = (self.config.contact_filter * self.fps).round() as usize;
-        let mut raw = vec![[false; 2]; n];
+        let raw = &mut scratch.contacts;
+        raw.clear();
+        raw.resize(n, [false; 2]);
         for (side, site) in self.toe_sites.iter().enumerate() {
             if let Some(site) = site {
                 for (f, r) in raw.iter_mut().enumerate() {
