@@ -215,3 +215,36 @@ fn compare(at: &str, a: &serde_json::Value, b: &serde_json::Value, diffs: &mut V
         _ => diffs.push(format!("{at}: {a} → {b}")),
     }
 }
+
+/// β_q / β_r scale the pose and trajectory groups' cost without rebuilding, and the brute
+/// force returns the k best valid frames in order.
+#[test]
+fn search_weights_and_masks() {
+    use mmcore::search::{brute_force, SearchOptions};
+    let db = build(&BuildConfig::default(), &[source("cmu-asf/cmu_16_15.bvh"), source("cmu-asf/cmu_16_35.bvh")]).unwrap().database;
+    let query = db.feature(40).to_vec();
+    let cost = |f: usize, bq: f32, br: f32| -> f32 {
+        db.groups
+            .iter()
+            .flat_map(|g| (g.first_dim..g.first_dim + g.num_dims).map(move |d| (d, if g.is_trajectory { br } else { bq })))
+            .map(|(d, w)| w * (query[d] - db.feature(f)[d]).powi(2))
+            .sum()
+    };
+    for (bq, br) in [(1.0, 1.0), (0.0, 1.0), (1.0, 0.0), (2.5, 0.5)] {
+        let options = SearchOptions { beta_pose: bq, beta_trajectory: br, exclude: Some((20, 61)), mask: None };
+        let best = brute_force(&db, &query, &options, 10);
+        assert_eq!(best.len(), 10);
+        let expected = (0..db.num_frames)
+            .filter(|&f| db.valid[f] == 1 && !(20..61).contains(&f))
+            .map(|f| cost(f, bq, br))
+            .fold(f32::INFINITY, f32::min);
+        assert!((best[0].1 - expected).abs() <= 1e-5 * expected.max(1.0), "β=({bq},{br}): {} vs {expected}", best[0].1);
+        assert!(best.windows(2).all(|w| w[0].1 <= w[1].1));
+        assert!(best.iter().all(|&(f, c)| db.valid[f] == 1 && !(20..61).contains(&f) && (c - cost(f, bq, br)).abs() <= 1e-4 * c.max(1.0)));
+    }
+    // A mask keeps results inside it.
+    let run = &db.clips[2];
+    let mask: Vec<bool> = (0..db.num_frames).map(|f| f >= run.start as usize && f < run.end as usize).collect();
+    let best = brute_force(&db, &query, &SearchOptions { mask: Some(&mask), ..Default::default() }, 5);
+    assert!(!best.is_empty() && best.iter().all(|&(f, _)| mask[f]));
+}
