@@ -1,17 +1,24 @@
-//! Motion matching core: BVH import, motion database build, the `.mmdb` format and search.
+//! Motion matching core: BVH import, motion database build, the `.mmdb` format, search and
+//! the runtime (springs, trajectory, inertialization, IK).
 //! The pure core never touches wasm-bindgen; `bindings` is the only JS-facing file.
 
+pub mod aabb;
 pub mod builder;
 pub mod bvh;
 pub mod config;
+pub mod controller;
 pub mod database;
 pub mod error;
 pub mod format;
+pub mod ik;
+pub mod inertialize;
 pub mod inspect;
 pub mod joint_map;
+pub mod lanes;
 pub mod parallel;
 pub mod search;
 pub mod smoothing;
+pub mod spring;
 
 #[cfg(target_arch = "wasm32")]
 mod bindings;

@@ -1,0 +1,1 @@
+//! Critically damped springs parametrized by half-life (Holden, spring-roll-call).
