@@ -1,7 +1,13 @@
 #!/usr/bin/env node
-// `npm run bench [-- --json] [-- --seconds S]`: BVH parse speed (MB/s) and database build
-// speed (frames/s), native (the mmdb CLI) and WASM in Node, on the same files in one run so
-// the two are comparable under the same machine noise. Medians of repeated runs.
+// `npm run bench [-- --json] [-- --seconds S] [-- --queries N] [-- --search-only]`:
+// 1. BVH parse speed (MB/s) and database build speed (frames/s), native (the mmdb CLI) and WASM
+//    in Node, on the same files in one run so the two are comparable under the same machine
+//    noise. Medians of repeated runs.
+// 2. Motion-matching search: median and p95 per-search time of the scalar, SIMD and AABB
+//    searches (WASM) in Node and in headless Chromium, on locomotion.mmdb and on a ~53k-frame
+//    database (public/databases/bench53k.mmdb, built here from all of ../shared/mocap/cmu-asf
+//    when missing). Queries: a database frame with its trajectory turned (web/src/bench/).
+//    Chromium gets the page web/bench.html from a vite server started here on a free port.
 import fs from 'node:fs';
 import os from 'node:os';
 import path from 'node:path';
@@ -13,6 +19,8 @@ const MOCAP = path.resolve(ROOT, '..', 'shared', 'mocap', 'cmu-asf');
 const args = process.argv.slice(2);
 const json = args.includes('--json');
 const seconds = Number(args[args.indexOf('--seconds') + 1]) || 2;
+const searchOnly = args.includes('--search-only');
+const numQueries = args.includes('--queries') ? Number(args[args.indexOf('--queries') + 1]) : 400;
 
 const mmdb = path.join(ROOT, 'wasm-core', 'target', 'release', 'mmdb');
 const pkg = path.join(ROOT, 'web', 'src', 'core', 'pkg');
@@ -43,57 +51,62 @@ function time(fn) {
   return { ms: median(times), runs: times.length };
 }
 
-const nativeBench = (env = {}) =>
-  JSON.parse(execFileSync(mmdb, ['bench', ...files, '--json', '--seconds', String(seconds)], { encoding: 'utf8', env: { ...process.env, ...env } }));
-const native = nativeBench();
-const native1 = nativeBench({ MMDB_THREADS: '1' });
-
 const wasm = await import(path.join(pkg, 'mmcore.js'));
-wasm.initSync({ module: fs.readFileSync(path.join(pkg, 'mmcore_bg.wasm')) });
-const inputs = files.map((f) => [path.basename(f), new Uint8Array(fs.readFileSync(f))]);
-const megabytes = inputs.reduce((n, [, b]) => n + b.length, 0) / 1e6;
-const parse = time(() => {
-  for (const [name, bytes] of inputs) wasm.bvh_info(name, bytes);
-});
-// Parse once into a builder, then time build() (build + serialize), as the native bench does.
-const builder = new wasm.RawBuilder('{}');
-for (const [name, bytes] of inputs) builder.add_bvh(name, bytes);
-let databaseFrames = 0;
-const build = time(() => {
-  const bytes = builder.build();
-  if (!databaseFrames) {
-    const db = new wasm.RawDatabase(bytes);
-    databaseFrames = db.num_frames();
-    db.free();
-  }
-});
-builder.free();
+const wasmExports = wasm.initSync({ module: fs.readFileSync(path.join(pkg, 'mmcore_bg.wasm')) });
 
-const rows = [
-  { runtime: 'native', parse_mb_per_s: native.parse_mb_per_s, build_ms: native.build_ms, build_frames_per_s: native.build_source_frames_per_s },
-  { runtime: 'native 1 thread', parse_mb_per_s: native1.parse_mb_per_s, build_ms: native1.build_ms, build_frames_per_s: native1.build_source_frames_per_s },
-  {
-    runtime: 'wasm (node)',
-    parse_mb_per_s: megabytes / (parse.ms / 1000),
-    build_ms: build.ms,
-    build_frames_per_s: native.source_frames / (build.ms / 1000),
-  },
-];
-const result = {
-  files: files.length,
-  megabytes,
-  source_frames: native.source_frames,
-  database_frames: native.database_frames,
-  wasm_database_frames: databaseFrames,
-  rows,
-  target_native_build_frames_per_s: 200000,
-};
-if (json) {
-  console.log(JSON.stringify(result, null, 2));
-} else {
+/** Parse and build speeds, native and WASM (the first table). */
+function buildBenchmark() {
+  const nativeBench = (env = {}) =>
+    JSON.parse(execFileSync(mmdb, ['bench', ...files, '--json', '--seconds', String(seconds)], { encoding: 'utf8', env: { ...process.env, ...env } }));
+  const native = nativeBench();
+  const native1 = nativeBench({ MMDB_THREADS: '1' });
+
+  const inputs = files.map((f) => [path.basename(f), new Uint8Array(fs.readFileSync(f))]);
+  const megabytes = inputs.reduce((n, [, b]) => n + b.length, 0) / 1e6;
+  const parse = time(() => {
+    for (const [name, bytes] of inputs) wasm.bvh_info(name, bytes);
+  });
+  // Parse once into a builder, then time build() (build + serialize), as the native bench does.
+  const builder = new wasm.RawBuilder('{}');
+  for (const [name, bytes] of inputs) builder.add_bvh(name, bytes);
+  let databaseFrames = 0;
+  const build = time(() => {
+    const bytes = builder.build();
+    if (!databaseFrames) {
+      const db = new wasm.RawDatabase(bytes);
+      databaseFrames = db.num_frames();
+      db.free();
+    }
+  });
+  builder.free();
+
+  const rows = [
+    { runtime: 'native', parse_mb_per_s: native.parse_mb_per_s, build_ms: native.build_ms, build_frames_per_s: native.build_source_frames_per_s },
+    { runtime: 'native 1 thread', parse_mb_per_s: native1.parse_mb_per_s, build_ms: native1.build_ms, build_frames_per_s: native1.build_source_frames_per_s },
+    {
+      runtime: 'wasm (node)',
+      parse_mb_per_s: megabytes / (parse.ms / 1000),
+      build_ms: build.ms,
+      build_frames_per_s: native.source_frames / (build.ms / 1000),
+    },
+  ];
+  const result = {
+    files: files.length,
+    megabytes,
+    source_frames: native.source_frames,
+    database_frames: native.database_frames,
+    wasm_database_frames: databaseFrames,
+    rows,
+    target_native_build_frames_per_s: 200000,
+  };
+  return result;
+}
+
+function printBuildBenchmark(result) {
+  const { megabytes, rows } = result;
   console.log(
-    `database build benchmark: ${files.length} BVH files (CMU subject 16), ${megabytes.toFixed(1)} MB, ` +
-      `${native.source_frames} source frames at 120 fps → ${native.database_frames} database frames (60 fps, mirrored); medians`,
+    `database build benchmark: ${result.files} BVH files (CMU subject 16), ${megabytes.toFixed(1)} MB, ` +
+      `${result.source_frames} source frames at 120 fps → ${result.database_frames} database frames (60 fps, mirrored); medians`,
   );
   console.log('runtime          parse MB/s   build ms   build frames/s (source frames)');
   for (const r of rows) {
@@ -103,3 +116,141 @@ if (json) {
   }
   console.log(`target: ≥ 200000 frames/s native build (all ${os.availableParallelism()} cores) → ${rows[0].build_frames_per_s >= 200000 ? 'met' : 'MISSED'}`);
 }
+
+// ---------------------------------------------------------------- search benchmark
+
+const DATABASES = path.join(ROOT, 'public', 'databases');
+const SEARCH_DATABASES = ['locomotion.mmdb', 'bench53k.mmdb'];
+const BENCH_PORT = 5197;
+const CHROMIUM = '/usr/bin/chromium';
+/** Targets for the AABB median in Chromium, ms. */
+const AABB_TARGETS_MS = { 'locomotion.mmdb': 0.02, 'bench53k.mmdb': 0.06 };
+
+/**
+ * Builds public/databases/bench53k.mmdb when missing: all 77 takes of ../shared/mocap/cmu-asf,
+ * mirrored, resampled to 104 fps so the total is ≈ 53k frames (30,550 source frames at 120 fps
+ * × 104/120 × 2). The config lives in a temp dir; its paths are relative to that dir.
+ */
+function ensureBigDatabase(log) {
+  const out = path.join(DATABASES, 'bench53k.mmdb');
+  if (fs.existsSync(out)) return;
+  const dir = fs.mkdtempSync(path.join(os.tmpdir(), 'mm-bench-'));
+  try {
+    const config = path.join(dir, 'bench53k.json');
+    const clips = [{ file: `${path.relative(dir, MOCAP).split(path.sep).join('/')}/*.bvh` }];
+    fs.writeFileSync(config, JSON.stringify({ fps: 104, mirror: true, scale: 'auto', reference: 'cmu_16_15.bvh', clips }, null, 2));
+    fs.mkdirSync(DATABASES, { recursive: true });
+    const t = performance.now();
+    // Its warnings (repaired rotation spikes…) are the builder's business; shown only on failure.
+    execFileSync(mmdb, ['build', '--config', config, '-o', out], { stdio: ['ignore', 'ignore', 'pipe'] });
+    const info = JSON.parse(execFileSync(mmdb, ['inspect', out, '--json'], { encoding: 'utf8', maxBuffer: 1 << 28 }));
+    log(`built ${path.relative(ROOT, out)}: ${info.num_frames} frames (${info.clips.length} clips) in ${((performance.now() - t) / 1000).toFixed(1)} s`);
+    if (Math.abs(info.num_frames - 53000) > 2000) log(`warning: bench53k.mmdb has ${info.num_frames} frames, expected ≈ 53000`);
+  } finally {
+    fs.rmSync(dir, { recursive: true, force: true });
+  }
+}
+
+/** Starts vite on 127.0.0.1 (from port 5197 up), cross-origin isolated for the 5 µs timer. */
+async function startVite() {
+  const { createServer } = await import('vite');
+  const server = await createServer({
+    root: ROOT,
+    configFile: path.join(ROOT, 'vite.config.ts'),
+    logLevel: 'error',
+    clearScreen: false,
+    server: {
+      host: '127.0.0.1',
+      port: BENCH_PORT,
+      strictPort: false,
+      hmr: false,
+      headers: { 'Cross-Origin-Opener-Policy': 'same-origin', 'Cross-Origin-Embedder-Policy': 'require-corp' },
+    },
+  });
+  await server.listen();
+  return server;
+}
+
+/** Runs web/bench.html in headless Chromium; returns the page's `window.__searchBench`. */
+async function chromiumSearchBench(baseUrl, names) {
+  const { chromium } = await import('playwright-core');
+  // The flags of playwright.config.ts, minus the WebGL ones (no rendering here).
+  const browser = await chromium.launch({
+    executablePath: CHROMIUM,
+    args: ['--headless', '--no-sandbox', '--disable-gpu', '--disable-quic', '--no-first-run', '--disable-background-networking', '--disable-component-update', '--disable-sync'],
+  });
+  try {
+    const page = await browser.newPage();
+    const pageErrors = [];
+    page.on('pageerror', (e) => pageErrors.push(e.message));
+    await page.goto(`${baseUrl}web/bench.html?db=${names.join(',')}&queries=${numQueries}`);
+    await page.waitForFunction(() => window.__searchBench?.done, null, { timeout: 600_000, polling: 250 });
+    const hook = await page.evaluate(() => window.__searchBench);
+    if (hook.error || pageErrors.length) throw new Error(`bench page: ${[hook.error, ...pageErrors].filter(Boolean).join('\n')}`);
+    return { ...hook, version: browser.version() };
+  } finally {
+    await browser.close();
+  }
+}
+
+async function searchBenchmark(log) {
+  ensureBigDatabase(log);
+  const names = SEARCH_DATABASES.filter((n) => fs.existsSync(path.join(DATABASES, n)));
+  if (names.length < SEARCH_DATABASES.length) log(`warning: missing ${SEARCH_DATABASES.filter((n) => !names.includes(n)).join(', ')} (run \`npm run build\`)`);
+  const server = await startVite();
+  try {
+    // The same TypeScript as the page, loaded through vite (Node 20 cannot strip types).
+    const { benchSearch } = await server.ssrLoadModule('/web/src/bench/search-bench.ts');
+    const api = { RawDatabase: wasm.RawDatabase, RawSearchIndex: wasm.RawSearchIndex, memory: wasmExports.memory };
+    const node = names.map((name) => benchSearch(api, name, new Uint8Array(fs.readFileSync(path.join(DATABASES, name))), { queries: numQueries }));
+    let chromiumRun = null;
+    if (fs.existsSync(CHROMIUM)) chromiumRun = await chromiumSearchBench(server.resolvedUrls.local[0], names);
+    else log(`warning: ${CHROMIUM} missing, Chromium search benchmark skipped`);
+    const runtimes = [{ runtime: 'wasm (node)', version: process.version, results: node }];
+    if (chromiumRun) {
+      runtimes.push({ runtime: 'wasm (chromium)', version: chromiumRun.version, cross_origin_isolated: chromiumRun.crossOriginIsolated, results: chromiumRun.results });
+    }
+    const targets = Object.entries(AABB_TARGETS_MS).map(([database, target_ms]) => {
+      const r = chromiumRun?.results.find((x) => x.database === database);
+      const median_ms = r?.methods.find((m) => m.method === 'aabb').median_ms ?? null;
+      return { runtime: 'wasm (chromium)', database, method: 'aabb', target_median_ms: target_ms, median_ms, met: median_ms !== null && median_ms <= target_ms };
+    });
+    return {
+      queries: numQueries,
+      query: 'a valid database frame with its trajectory turned by up to ±135° and its speed scaled 0.6–1.4; exclude ±20 frames around it; β = 1; bar = +inf',
+      runtimes,
+      targets,
+    };
+  } finally {
+    await server.close();
+  }
+}
+
+function printSearchBenchmark(search) {
+  const ms = (v) => (v < 0.1 ? v.toFixed(4) : v.toFixed(3));
+  console.log(`\nsearch benchmark: ${search.queries} queries per database (${search.query}); per-search ms, median / p95`);
+  console.log('runtime          database           frames  index ms   scalar med / p95     simd med / p95       aabb med / p95   ok');
+  for (const rt of search.runtimes) {
+    for (const r of rt.results) {
+      const m = Object.fromEntries(r.methods.map((x) => [x.method, x]));
+      const cell = (x) => `${ms(x.median_ms).padStart(8)} / ${ms(x.p95_ms).padEnd(8)}`;
+      console.log(
+        `${rt.runtime.padEnd(16)} ${r.database.padEnd(17)} ${String(r.frames).padStart(7)} ${r.index_build_ms.toFixed(1).padStart(9)}  ` +
+          `${cell(m.scalar)} ${cell(m.simd)} ${cell(m.aabb)} ${r.mismatches === 0 ? 'yes' : `${r.mismatches} mismatches`}`,
+      );
+    }
+  }
+  const chromium = search.runtimes.find((r) => r.runtime === 'wasm (chromium)');
+  if (chromium) console.log(`chromium ${chromium.version}, timer ${chromium.cross_origin_isolated ? '5 µs (cross-origin isolated)' : '100 µs'}; backend ${chromium.results[0]?.backend}`);
+  for (const t of search.targets) {
+    const verdict = t.median_ms === null ? 'not measured' : t.met ? 'met' : `MISSED by ${(t.median_ms - t.target_median_ms).toFixed(4)} ms (${((t.median_ms / t.target_median_ms - 1) * 100).toFixed(0)}%)`;
+    console.log(`target: AABB median ≤ ${t.target_median_ms} ms on ${t.database} in Chromium → ${t.median_ms === null ? '' : `${ms(t.median_ms)} ms, `}${verdict}`);
+  }
+}
+
+const log = (m) => console.error(`[bench] ${m}`);
+const result = searchOnly ? {} : buildBenchmark();
+if (!json && !searchOnly) printBuildBenchmark(result);
+result.search = await searchBenchmark(log);
+if (json) console.log(JSON.stringify(result, null, 2));
+else printSearchBenchmark(result.search);

@@ -154,11 +154,18 @@ pub fn build(config: &BuildConfig, sources: &[Source]) -> Result<BuildOutput> {
     // Scratch buffers are reused across jobs: fresh ones per clip add up to ~100 MB of f64
     // temporaries for the default database, and WASM memory never shrinks once grown.
     let pool = std::sync::Mutex::new(Vec::<Scratch>::new());
+    let spike_warnings = std::sync::Mutex::new(Vec::<String>::new());
     crate::parallel::for_each(jobs, |(t, rows)| {
         let mut scratch = pool.lock().unwrap().pop().unwrap_or_default();
         let take = &takes[t];
         let mut locals = std::mem::take(&mut scratch.locals);
         take.resample(&sources[t].bvh, fps, &ref_offsets, &animated_translation, root_scales[t], t == reference, &mut locals);
+        let repaired = repair_spikes(&mut locals, names.len());
+        if !repaired.is_empty() {
+            let list: Vec<String> = repaired.iter().take(5).map(|&(j, f)| format!("{} at frame {f}", names[j])).collect();
+            let more = if repaired.len() > 5 { format!(" and {} more", repaired.len() - 5) } else { String::new() };
+            spike_warnings.lock().unwrap().push(format!("{}: repaired {} rotation spike(s): {}{more}", sources[t].name, repaired.len(), list.join(", ") ));
+        }
         let mut mirrored = std::mem::take(&mut scratch.mirrored);
         for (i, rows) in rows.into_iter().enumerate() {
             if i == 0 {
@@ -171,6 +178,9 @@ pub fn build(config: &BuildConfig, sources: &[Source]) -> Result<BuildOutput> {
         (scratch.locals, scratch.mirrored) = (locals, mirrored);
         pool.lock().unwrap().push(scratch);
     });
+    let mut spike_warnings = spike_warnings.into_inner().unwrap();
+    spike_warnings.sort();
+    warnings.extend(spike_warnings);
     let mut tag_ranges: BTreeMap<String, Vec<(u32, u32)>> = BTreeMap::new();
     for &(t, mirrored, start, num_out) in &plans {
         let (take, source) = (&takes[t], &sources[t]);
@@ -822,6 +832,64 @@ fn validity(clips: &[Clip], groups: &[FeatureGroup], num_frames: usize) -> Vec<u
     valid
 }
 
+/// Longest run of glitched frames [`repair_spikes`] bridges.
+const MAX_SPIKE_FRAMES: usize = 3;
+/// A spike leaves by more than this (rad) …
+const SPIKE_DEPARTURE: f64 = 0.5;
+/// … and the frames on either side of it agree within this per bridged frame (rad).
+const SPIKE_BRIDGE_PER_FRAME: f64 = 0.1;
+
+/// Repairs single- to three-frame rotation glitches of optical mocap (a joint flips to another
+/// Euler solution or to the rest pose and back: CMU 16_15 starts with the humerus at rest,
+/// 16_16 flips a thumb for two frames). A glitch *leaves and comes back*: the frames on either
+/// side agree while the frames between are far from both — which real fast motion never does,
+/// as it does not return. Glitched frames are replaced by slerp across them (or by the first
+/// good frame at a take's start). Returns the repaired (joint, frame) pairs.
+fn repair_spikes(locals: &mut [(DVec3, DQuat)], num_joints: usize) -> Vec<(usize, usize)> {
+    let n = locals.len() / num_joints;
+    let angle = |a: DQuat, b: DQuat| 2.0 * a.dot(b).abs().min(1.0).acos();
+    let mut repaired = Vec::new();
+    for j in 0..num_joints {
+        let q = |f: usize, l: &[(DVec3, DQuat)]| l[f * num_joints + j].1;
+        // A glitched start: frames 0..k far from frame k, which agrees with frame k+1.
+        for k in 1..=MAX_SPIKE_FRAMES.min(n.saturating_sub(2)) {
+            let good = q(k, locals);
+            if angle(good, q(k + 1, locals)) < SPIKE_BRIDGE_PER_FRAME && (0..k).all(|f| angle(q(f, locals), good) > SPIKE_DEPARTURE) {
+                for f in 0..k {
+                    locals[f * num_joints + j].1 = good;
+                    repaired.push((j, f));
+                }
+                break;
+            }
+        }
+        let mut f = 1;
+        while f + 1 < n {
+            let before = q(f - 1, locals);
+            if angle(q(f, locals), before) > SPIKE_DEPARTURE {
+                for len in 1..=MAX_SPIKE_FRAMES {
+                    let after_frame = f + len;
+                    if after_frame >= n {
+                        break;
+                    }
+                    let after = q(after_frame, locals);
+                    let bridged = angle(before, after) < SPIKE_BRIDGE_PER_FRAME * (len + 1) as f64;
+                    if bridged && (f..after_frame).all(|g| angle(q(g, locals), before) > SPIKE_DEPARTURE && angle(q(g, locals), after) > SPIKE_DEPARTURE) {
+                        for g in f..after_frame {
+                            let u = (g + 1 - f) as f64 / (len + 1) as f64;
+                            locals[g * num_joints + j].1 = before.slerp(after, u);
+                            repaired.push((j, g));
+                        }
+                        f = after_frame;
+                        break;
+                    }
+                }
+            }
+            f += 1;
+        }
+    }
+    repaired
+}
+
 /// Rotation vector (axis × angle) of a unit quaternion, taking the short way. Same value as
 /// `to_scaled_axis` but without `atan2` for the small rotations between nearby frames:
 /// angle = 2·atan(x), x = |v|/w, by its Taylor series when x < 0.1 (truncation error
@@ -871,6 +939,25 @@ fn ensure_unique_names(clips: &mut [Clip]) {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn spikes_that_leave_and_return_are_repaired_and_fast_motion_is_not() {
+        let q = |a: f64| (DVec3::ZERO, DQuat::from_rotation_z(a));
+        // Smooth motion at 0.05 rad/frame, a 2-frame flip at 10, a bad first frame.
+        let mut frames: Vec<(DVec3, DQuat)> = (0..30).map(|f| q(0.05 * f as f64)).collect();
+        frames[0] = q(2.5);
+        frames[10] = q(3.0);
+        frames[11] = q(-2.0);
+        let repaired = repair_spikes(&mut frames, 1);
+        assert_eq!(repaired, vec![(0, 0), (0, 10), (0, 11)]);
+        for (f, (_, r)) in frames.iter().enumerate() {
+            let expected = DQuat::from_rotation_z(0.05 * if f == 0 { 1.0 } else { f as f64 });
+            assert!(r.angle_between(expected) < 1e-6, "frame {f}");
+        }
+        // A fast, real swing (0.8 rad/frame that does not come back) is left alone.
+        let mut swing: Vec<(DVec3, DQuat)> = (0..10).map(|f| q(if f < 5 { 0.0 } else { 0.8 * (f - 4) as f64 })).collect();
+        assert!(repair_spikes(&mut swing, 1).is_empty());
+    }
 
     #[test]
     fn scaled_axis_is_exact_for_small_and_large_rotations() {

@@ -185,16 +185,31 @@ impl Database {
     /// If the buffers are shorter than the joint count or `frame` is out of range.
     pub fn forward_kinematics(&self, frame: usize, character_space: bool, positions: &mut [Vec3], rotations: &mut [Quat]) {
         let j = self.num_joints();
-        let lp = &self.local_positions[frame * j..(frame + 1) * j];
-        let lr = &self.local_rotations[frame * j..(frame + 1) * j];
-        for (i, &parent) in self.skeleton.parents.iter().enumerate() {
-            if parent < 0 {
-                (positions[i], rotations[i]) = if character_space { (Vec3::ZERO, Quat::IDENTITY) } else { (lp[i], lr[i]) };
-            } else {
-                let p = parent as usize;
-                positions[i] = positions[p] + rotations[p] * lp[i];
-                rotations[i] = rotations[p] * lr[i];
-            }
+        let r = frame * j..(frame + 1) * j;
+        forward_kinematics(&self.skeleton.parents, &self.local_positions[r.clone()], &self.local_rotations[r], character_space, positions, rotations);
+    }
+}
+
+/// Forward kinematics of one pose (joint 0's local transform is its world transform, or the
+/// identity with `character_space`): `rot[j] = rot[p]·local[j]`, `pos[j] = pos[p] + rot[p]·t[j]`.
+///
+/// # Panics
+/// If any slice is shorter than `parents`.
+pub fn forward_kinematics(
+    parents: &[i32],
+    local_positions: &[Vec3],
+    local_rotations: &[Quat],
+    character_space: bool,
+    positions: &mut [Vec3],
+    rotations: &mut [Quat],
+) {
+    for (i, &parent) in parents.iter().enumerate() {
+        if parent < 0 {
+            (positions[i], rotations[i]) = if character_space { (Vec3::ZERO, Quat::IDENTITY) } else { (local_positions[i], local_rotations[i]) };
+        } else {
+            let p = parent as usize;
+            positions[i] = positions[p] + rotations[p] * local_positions[i];
+            rotations[i] = rotations[p] * local_rotations[i];
         }
     }
 }

@@ -1,1 +1,863 @@
 //! Inertialization (Bollo 2017, offset form): transitions without pops, decayed by springs.
+//!
+//! THESIS_NOTES §5. At a transition from the pose that was playing (source) to a new database
+//! frame (target) we store, per joint, the *offset* between them; every frame the offset decays
+//! to zero with a critically damped spring (THESIS_NOTES §4) and is applied to the pose that is
+//! now playing. Only one pose is evaluated per frame and the output is continuous (position and
+//! velocity) across the transition.
+//!
+//! Conventions (same as Holden's `inertialize_transition/update` in `spring.h`):
+//! - The **source** of a transition is the *raw* pose that was fed to the last [`Inertializer::update`]
+//!   (the database frame that was playing), not the inertialized output: the current offsets are
+//!   folded in by the transition itself, `d_r' = abs(d_r · s_r · t_r⁻¹)`. When only the output is
+//!   at hand (e.g. after a database switch), [`Inertializer::transition_from_output`] does the same
+//!   from the output pose.
+//! - Rotation offsets act on the left, `out_r = d_r · in_r`; angular velocities are in the
+//!   parent's space with the convention ω = scaled axis of `q_i · q_{i−1}⁻¹` / dt (THESIS_NOTES §1),
+//!   so `out_ω = d_ω + d_r · in_ω`.
+//! - Positions and velocities add: `out_p = in_p + d_p`, `out_v = in_v + d_v`.
+//!
+//! The root (joint 0) stores a *world* position and yaw that jump arbitrarily between takes, so
+//! it must not be inertialized like the other joints: [`RootInertializer`] re-anchors the new
+//! take's root at the character's current world transform and inertializes only the velocity
+//! mismatch (Holden's `transition_src/dst` scheme). [`Inertializer`] treats joint 0 like any
+//! other joint; overwrite its output with the root inertializer's.
+
+use glam::{Quat, Vec3};
+
+/// Smallest half-life used, so a half-life of 0 means "snap" instead of a division by zero.
+const MIN_HALFLIFE: f32 = 1e-5;
+
+/// The spring's decay rate y = 4·ln2 / h / 2 = 2·ln2 / h (THESIS_NOTES §4).
+#[inline]
+fn halflife_to_decay(halflife: f32) -> f32 {
+    2.0 * std::f32::consts::LN_2 / halflife.max(MIN_HALFLIFE)
+}
+
+/// Exact step of a critically damped spring decaying a scalar `x` (velocity `v`) toward 0 over
+/// `dt` seconds; returns the new `(x, v)`. THESIS_NOTES §4 with goal ŷ = 0:
+/// `j0 = x; j1 = v + j0·y; e = exp(−y·dt); x' = e·(j0 + j1·dt); v' = e·(v − j1·y·dt)`.
+///
+/// "Half-life" is the spring's parameter in Holden's sense: with zero initial velocity the value
+/// after one half-life is `(1 + 2 ln2)/4 ≈ 0.597·x`, after 7 half-lives < 0.1 %. The step is
+/// exact, so one step of `dt` equals many smaller steps summing to `dt`.
+///
+/// Preconditions: `dt ≥ 0`; `halflife ≥ 0` (values below 1e-5 s act as 1e-5 s).
+#[inline]
+pub fn decay_spring(x: f32, v: f32, halflife: f32, dt: f32) -> (f32, f32) {
+    let y = halflife_to_decay(halflife);
+    let j1 = v + x * y;
+    let e = (-y * dt).exp();
+    (e * (x + j1 * dt), e * (v - j1 * y * dt))
+}
+
+/// [`decay_spring`] for a vector (each component independently, one decay rate).
+#[inline]
+pub fn decay_spring_vec3(x: Vec3, v: Vec3, halflife: f32, dt: f32) -> (Vec3, Vec3) {
+    let y = halflife_to_decay(halflife);
+    let j1 = v + x * y;
+    let e = (-y * dt).exp();
+    (e * (x + j1 * dt), e * (v - j1 * (y * dt)))
+}
+
+/// [`decay_spring`] for a rotation offset: the offset's scaled axis-angle is decayed with
+/// `w` (radians/s) as its velocity, and converted back (THESIS_NOTES §4, "via scaled axis-angle").
+/// Returns the new `(offset, w)`; the offset is unit length.
+///
+/// Preconditions: `x` is unit length; as for [`decay_spring`].
+#[inline]
+pub fn decay_spring_quat(x: Quat, w: Vec3, halflife: f32, dt: f32) -> (Quat, Vec3) {
+    let (r, w) = decay_spring_vec3(x.to_scaled_axis(), w, halflife, dt);
+    (Quat::from_scaled_axis(r), w)
+}
+
+/// The same rotation in the hemisphere w ≥ 0, so its scaled axis-angle is the short way (≤ π).
+#[inline]
+pub fn quat_abs(q: Quat) -> Quat {
+    if q.w < 0.0 {
+        -q
+    } else {
+        q
+    }
+}
+
+/// Transition of one vector channel (THESIS_NOTES §5, additive form): folds the jump from the raw
+/// source `(src, src_vel)` to the target `(dst, dst_vel)` into the offset:
+/// `d' = (d + s) − t`, `d_v' = (d_v + s_v) − t_v`.
+#[inline]
+pub fn inertialize_transition_vec3(
+    offset: &mut Vec3,
+    offset_vel: &mut Vec3,
+    src: Vec3,
+    src_vel: Vec3,
+    dst: Vec3,
+    dst_vel: Vec3,
+) {
+    *offset = (*offset + src) - dst;
+    *offset_vel = (*offset_vel + src_vel) - dst_vel;
+}
+
+/// Update of one vector channel: decays the offset over `dt` and returns the output
+/// `(input + d, input_vel + d_v)`.
+#[inline]
+pub fn inertialize_update_vec3(
+    offset: &mut Vec3,
+    offset_vel: &mut Vec3,
+    input: Vec3,
+    input_vel: Vec3,
+    halflife: f32,
+    dt: f32,
+) -> (Vec3, Vec3) {
+    (*offset, *offset_vel) = decay_spring_vec3(*offset, *offset_vel, halflife, dt);
+    (input + *offset, input_vel + *offset_vel)
+}
+
+/// Transition of one rotation channel (THESIS_NOTES §5): `d_r' = abs(d_r · s_r · t_r⁻¹)`, so that
+/// `d_r' · t_r = d_r · s_r` (the output does not move), and the angular velocity offset that keeps
+/// the output's angular velocity `d_ω + d_r · ω` continuous: `d_ω' = d_ω + d_r·s_ω − d_r'·t_ω`.
+///
+/// The thesis/Holden write `d_ω' = (d_ω + s_ω) − t_ω`, which is the same when the offset is small;
+/// the rotated form here is exact for the update's `out_ω = d_ω + d_r · in_ω`.
+///
+/// Preconditions: `src` and `dst` are unit quaternions (`offset` is kept unit by this module).
+#[inline]
+pub fn inertialize_transition_quat(
+    offset: &mut Quat,
+    offset_vel: &mut Vec3,
+    src: Quat,
+    src_vel: Vec3,
+    dst: Quat,
+    dst_vel: Vec3,
+) {
+    // Normalizing costs little and keeps repeated transitions from accumulating drift.
+    let new_offset = quat_abs((*offset * src * dst.inverse()).normalize());
+    *offset_vel = (*offset_vel + *offset * src_vel) - new_offset * dst_vel;
+    *offset = new_offset;
+}
+
+/// Update of one rotation channel: decays the offset over `dt` ([`decay_spring_quat`]) and returns
+/// the output `(d_r · input, d_ω + d_r · input_vel)`.
+#[inline]
+pub fn inertialize_update_quat(
+    offset: &mut Quat,
+    offset_vel: &mut Vec3,
+    input: Quat,
+    input_vel: Vec3,
+    halflife: f32,
+    dt: f32,
+) -> (Quat, Vec3) {
+    (*offset, *offset_vel) = decay_spring_quat(*offset, *offset_vel, halflife, dt);
+    (*offset * input, *offset_vel + *offset * input_vel)
+}
+
+/// Per-joint inertialization offsets for a whole pose (local positions, velocities, rotations and
+/// angular velocities, as stored in [`crate::Database`]). Allocates only in [`Inertializer::new`].
+///
+/// Per frame:
+/// 1. on a jump to a new frame `t` (or another database with the same skeleton), call
+///    [`Inertializer::transition`] with the pose that was playing (the last `update` input) as
+///    source and `t` as target;
+/// 2. call [`Inertializer::update`] with the pose now playing.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Inertializer {
+    offset_positions: Vec<Vec3>,
+    offset_velocities: Vec<Vec3>,
+    offset_rotations: Vec<Quat>,
+    offset_angular_velocities: Vec<Vec3>,
+}
+
+impl Inertializer {
+    /// Zero offsets for `num_joints` joints.
+    pub fn new(num_joints: usize) -> Self {
+        Inertializer {
+            offset_positions: vec![Vec3::ZERO; num_joints],
+            offset_velocities: vec![Vec3::ZERO; num_joints],
+            offset_rotations: vec![Quat::IDENTITY; num_joints],
+            offset_angular_velocities: vec![Vec3::ZERO; num_joints],
+        }
+    }
+
+    pub fn num_joints(&self) -> usize {
+        self.offset_positions.len()
+    }
+
+    /// Drops every offset: the next `update` outputs its input unchanged (a hard cut).
+    pub fn reset(&mut self) {
+        self.offset_positions.fill(Vec3::ZERO);
+        self.offset_velocities.fill(Vec3::ZERO);
+        self.offset_rotations.fill(Quat::IDENTITY);
+        self.offset_angular_velocities.fill(Vec3::ZERO);
+    }
+
+    /// Current position offsets `d_p` (local space of each joint's parent).
+    pub fn offset_positions(&self) -> &[Vec3] {
+        &self.offset_positions
+    }
+
+    pub fn offset_velocities(&self) -> &[Vec3] {
+        &self.offset_velocities
+    }
+
+    /// Current rotation offsets `d_r` (unit, w ≥ 0 right after a transition).
+    pub fn offset_rotations(&self) -> &[Quat] {
+        &self.offset_rotations
+    }
+
+    pub fn offset_angular_velocities(&self) -> &[Vec3] {
+        &self.offset_angular_velocities
+    }
+
+    /// Records a jump from the source pose `src_*` to the target pose `dst_*` (THESIS_NOTES §5).
+    ///
+    /// `src_*` is the **raw** pose that was the input of the last [`Inertializer::update`] (the
+    /// database frame that was playing, without offsets); the existing offsets are folded in, so
+    /// transitions can follow each other at any rate. `dst_*` is the new frame, possibly from another
+    /// database with the same skeleton. After this, `update(dst_*, halflife, 0.0, …)` outputs
+    /// exactly the previous output.
+    ///
+    /// # Panics
+    /// If any slice's length differs from [`Inertializer::num_joints`].
+    #[allow(clippy::too_many_arguments)]
+    pub fn transition(
+        &mut self,
+        src_pos: &[Vec3],
+        src_vel: &[Vec3],
+        src_rot: &[Quat],
+        src_angvel: &[Vec3],
+        dst_pos: &[Vec3],
+        dst_vel: &[Vec3],
+        dst_rot: &[Quat],
+        dst_angvel: &[Vec3],
+    ) {
+        let n = self.num_joints();
+        for (name, len) in [
+            ("src_pos", src_pos.len()),
+            ("src_vel", src_vel.len()),
+            ("src_rot", src_rot.len()),
+            ("src_angvel", src_angvel.len()),
+            ("dst_pos", dst_pos.len()),
+            ("dst_vel", dst_vel.len()),
+            ("dst_rot", dst_rot.len()),
+            ("dst_angvel", dst_angvel.len()),
+        ] {
+            assert_eq!(len, n, "Inertializer::transition: {name} has {len} joints, expected {n}");
+        }
+        for i in 0..n {
+            inertialize_transition_vec3(
+                &mut self.offset_positions[i],
+                &mut self.offset_velocities[i],
+                src_pos[i],
+                src_vel[i],
+                dst_pos[i],
+                dst_vel[i],
+            );
+            inertialize_transition_quat(
+                &mut self.offset_rotations[i],
+                &mut self.offset_angular_velocities[i],
+                src_rot[i],
+                src_angvel[i],
+                dst_rot[i],
+                dst_angvel[i],
+            );
+        }
+    }
+
+    /// The same transition as [`Inertializer::transition`], computed from the current **output**
+    /// pose `out_*` (what the last `update` wrote) instead of the raw source: the offsets become
+    /// `d_p = out_p − t_p`, `d_v = out_v − t_v`, `d_r = abs(out_r · t_r⁻¹)`,
+    /// `d_ω = out_ω − d_r · t_ω`. Equivalent when `out_*` is unmodified.
+    ///
+    /// # Panics
+    /// If any slice's length differs from [`Inertializer::num_joints`].
+    #[allow(clippy::too_many_arguments)]
+    pub fn transition_from_output(
+        &mut self,
+        out_pos: &[Vec3],
+        out_vel: &[Vec3],
+        out_rot: &[Quat],
+        out_angvel: &[Vec3],
+        dst_pos: &[Vec3],
+        dst_vel: &[Vec3],
+        dst_rot: &[Quat],
+        dst_angvel: &[Vec3],
+    ) {
+        self.reset();
+        // With zero offsets the raw transition's source is the output itself.
+        self.transition(out_pos, out_vel, out_rot, out_angvel, dst_pos, dst_vel, dst_rot, dst_angvel);
+    }
+
+    /// Decays the offsets over `dt` seconds (critically damped, THESIS_NOTES §4) and writes the
+    /// inertialized pose: `out_p = in_p + d_p`, `out_v = in_v + d_v`, `out_r = d_r · in_r`,
+    /// `out_ω = d_ω + d_r · in_ω`. `in_*` is the raw pose playing now (usually a database frame).
+    ///
+    /// Preconditions: `dt ≥ 0`, `halflife ≥ 0` (THESIS default 0.1 s), unit input rotations.
+    ///
+    /// # Panics
+    /// If any slice's length differs from [`Inertializer::num_joints`].
+    #[allow(clippy::too_many_arguments)]
+    pub fn update(
+        &mut self,
+        in_pos: &[Vec3],
+        in_vel: &[Vec3],
+        in_rot: &[Quat],
+        in_angvel: &[Vec3],
+        halflife: f32,
+        dt: f32,
+        out_pos: &mut [Vec3],
+        out_vel: &mut [Vec3],
+        out_rot: &mut [Quat],
+        out_angvel: &mut [Vec3],
+    ) {
+        let n = self.num_joints();
+        for (name, len) in [
+            ("in_pos", in_pos.len()),
+            ("in_vel", in_vel.len()),
+            ("in_rot", in_rot.len()),
+            ("in_angvel", in_angvel.len()),
+            ("out_pos", out_pos.len()),
+            ("out_vel", out_vel.len()),
+            ("out_rot", out_rot.len()),
+            ("out_angvel", out_angvel.len()),
+        ] {
+            assert_eq!(len, n, "Inertializer::update: {name} has {len} joints, expected {n}");
+        }
+        for i in 0..n {
+            (out_pos[i], out_vel[i]) = inertialize_update_vec3(
+                &mut self.offset_positions[i],
+                &mut self.offset_velocities[i],
+                in_pos[i],
+                in_vel[i],
+                halflife,
+                dt,
+            );
+            (out_rot[i], out_angvel[i]) = inertialize_update_quat(
+                &mut self.offset_rotations[i],
+                &mut self.offset_angular_velocities[i],
+                in_rot[i],
+                in_angvel[i],
+                halflife,
+                dt,
+            );
+        }
+    }
+}
+
+/// Inertialization of the root (joint 0: world position and yaw of the virtual root) in world
+/// space, after Holden's `transition_src/dst` scheme.
+///
+/// Database root transforms are where each take happened to be recorded, so a jump cannot be
+/// blended in world space. Instead the playing take is mapped into the world by an *anchor*: the
+/// database root transform `(src_position, src_rotation)` is placed at the world transform
+/// `(dst_position, dst_rotation)`:
+/// `world_p(x) = dst_p + dst_r · src_r⁻¹ · (x − src_p)`, `world_r(q) = dst_r · src_r⁻¹ · q`
+/// (velocities are rotated by `dst_r · src_r⁻¹`). At a transition the anchor is moved to the new
+/// frame and the character's current world transform, so position and rotation are continuous by
+/// construction and only the velocity mismatch is inertialized (it decays like
+/// [`inertialize_update_vec3`]/[`inertialize_update_quat`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct RootInertializer {
+    src_position: Vec3,
+    src_rotation: Quat,
+    dst_position: Vec3,
+    dst_rotation: Quat,
+    offset_position: Vec3,
+    offset_velocity: Vec3,
+    offset_rotation: Quat,
+    offset_angular_velocity: Vec3,
+    /// Last raw input (database root), to re-anchor in [`RootInertializer::adjust`].
+    input_position: Vec3,
+    input_rotation: Quat,
+    position: Vec3,
+    velocity: Vec3,
+    rotation: Quat,
+    angular_velocity: Vec3,
+}
+
+impl RootInertializer {
+    /// Starts playing with the database root `(db_position, db_rotation)` placed at the world
+    /// transform `(world_position, world_rotation)`, zero offsets and zero velocity.
+    pub fn new(world_position: Vec3, world_rotation: Quat, db_position: Vec3, db_rotation: Quat) -> Self {
+        RootInertializer {
+            src_position: db_position,
+            src_rotation: db_rotation,
+            dst_position: world_position,
+            dst_rotation: world_rotation,
+            offset_position: Vec3::ZERO,
+            offset_velocity: Vec3::ZERO,
+            offset_rotation: Quat::IDENTITY,
+            offset_angular_velocity: Vec3::ZERO,
+            input_position: db_position,
+            input_rotation: db_rotation,
+            position: world_position,
+            velocity: Vec3::ZERO,
+            rotation: world_rotation,
+            angular_velocity: Vec3::ZERO,
+        }
+    }
+
+    /// World root position output by the last `update`/`adjust`.
+    pub fn position(&self) -> Vec3 {
+        self.position
+    }
+
+    pub fn velocity(&self) -> Vec3 {
+        self.velocity
+    }
+
+    pub fn rotation(&self) -> Quat {
+        self.rotation
+    }
+
+    pub fn angular_velocity(&self) -> Vec3 {
+        self.angular_velocity
+    }
+
+    /// Maps a database root velocity (linear or angular) into the world.
+    #[inline]
+    fn world_vector(&self, v: Vec3) -> Vec3 {
+        self.dst_rotation * (self.src_rotation.inverse() * v)
+    }
+
+    /// Jump to a new frame whose database root is `dst_*` (position, velocity, rotation, angular
+    /// velocity as stored for joint 0). The new take is anchored at the current output transform;
+    /// the velocity mismatch becomes the offset velocities (THESIS_NOTES §5, additive form).
+    pub fn transition(&mut self, dst_pos: Vec3, dst_vel: Vec3, dst_rot: Quat, dst_angvel: Vec3) {
+        self.src_position = dst_pos;
+        self.src_rotation = dst_rot;
+        self.dst_position = self.position;
+        self.dst_rotation = self.rotation;
+        // Position and rotation offsets are folded into the anchor (it sits at the output), so
+        // they restart at zero/identity; the velocity offsets keep the output velocity.
+        self.offset_position = Vec3::ZERO;
+        self.offset_rotation = Quat::IDENTITY;
+        self.offset_velocity = self.velocity - self.world_vector(dst_vel);
+        self.offset_angular_velocity = self.angular_velocity - self.world_vector(dst_angvel);
+    }
+
+    /// Decays the offsets over `dt` and returns the world root `(position, velocity, rotation,
+    /// angular velocity)` for the database root `in_*` playing now.
+    ///
+    /// Preconditions: as for [`Inertializer::update`].
+    pub fn update(
+        &mut self,
+        in_pos: Vec3,
+        in_vel: Vec3,
+        in_rot: Quat,
+        in_angvel: Vec3,
+        halflife: f32,
+        dt: f32,
+    ) -> (Vec3, Vec3, Quat, Vec3) {
+        self.input_position = in_pos;
+        self.input_rotation = in_rot;
+        let world_pos = self.dst_position + self.world_vector(in_pos - self.src_position);
+        // Normalized: `dst · src⁻¹ · q` of nearly equal rotations drifts off unit length over time.
+        let world_rot = (self.dst_rotation * self.src_rotation.inverse() * in_rot).normalize();
+        let (world_vel, world_angvel) = (self.world_vector(in_vel), self.world_vector(in_angvel));
+        (self.position, self.velocity) = inertialize_update_vec3(
+            &mut self.offset_position,
+            &mut self.offset_velocity,
+            world_pos,
+            world_vel,
+            halflife,
+            dt,
+        );
+        (self.rotation, self.angular_velocity) = inertialize_update_quat(
+            &mut self.offset_rotation,
+            &mut self.offset_angular_velocity,
+            world_rot,
+            world_angvel,
+            halflife,
+            dt,
+        );
+        (self.position, self.velocity, self.rotation, self.angular_velocity)
+    }
+
+    /// Moves the output root to `(position, rotation)` and keeps it there for the following frames
+    /// (adjustment toward the controller and clamping, THESIS_NOTES §6): the anchor is moved so the
+    /// take continues from the new transform, turning about the new position.
+    ///
+    /// Precondition: `rotation` is unit length.
+    pub fn adjust(&mut self, position: Vec3, rotation: Quat) {
+        // Re-anchor at the last input (same mapping), so a rotation of the anchor pivots about
+        // the character's current position instead of the old anchor point.
+        self.dst_position += self.world_vector(self.input_position - self.src_position);
+        self.src_position = self.input_position;
+        self.dst_position += position - self.position;
+        // Output rotation = d_r · world_r; choose the world rotation change Δ with d_r·Δ·world_r = rotation.
+        let world_rot = self.dst_rotation * self.src_rotation.inverse() * self.input_rotation;
+        let delta = (self.offset_rotation.inverse() * rotation * world_rot.inverse()).normalize();
+        self.dst_rotation = (delta * self.dst_rotation).normalize();
+        // Velocities follow the rotated take: out_v = world_v + d_v with world_v rotated by Δ.
+        self.velocity = delta * (self.velocity - self.offset_velocity) + self.offset_velocity;
+        let world_w = self.offset_rotation.inverse() * (self.angular_velocity - self.offset_angular_velocity);
+        self.angular_velocity = self.offset_angular_velocity + self.offset_rotation * (delta * world_w);
+        self.position = position;
+        self.rotation = rotation;
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// SplitMix64: deterministic, dependency-free randomness for property tests.
+    struct Rng(u64);
+
+    impl Rng {
+        fn next_u64(&mut self) -> u64 {
+            self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
+            let mut z = self.0;
+            z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+            z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+            z ^ (z >> 31)
+        }
+        fn uniform(&mut self, lo: f32, hi: f32) -> f32 {
+            lo + (hi - lo) * ((self.next_u64() >> 40) as f32 / (1u64 << 24) as f32)
+        }
+        fn vec3(&mut self, r: f32) -> Vec3 {
+            Vec3::new(self.uniform(-r, r), self.uniform(-r, r), self.uniform(-r, r))
+        }
+        fn quat(&mut self) -> Quat {
+            loop {
+                let v = glam::Vec4::new(
+                    self.uniform(-1.0, 1.0),
+                    self.uniform(-1.0, 1.0),
+                    self.uniform(-1.0, 1.0),
+                    self.uniform(-1.0, 1.0),
+                );
+                let l = v.length();
+                if l > 0.1 && l <= 1.0 {
+                    return Quat::from_vec4(v / l);
+                }
+            }
+        }
+    }
+
+    /// Exact angle between two rotations (glam's `angle_between` uses an approximate acos).
+    fn angle(a: Quat, b: Quat) -> f32 {
+        let d = a.inverse() * b;
+        2.0 * d.xyz().length().atan2(d.w.abs())
+    }
+
+    struct Pose {
+        pos: Vec<Vec3>,
+        vel: Vec<Vec3>,
+        rot: Vec<Quat>,
+        angvel: Vec<Vec3>,
+    }
+
+    impl Pose {
+        fn random(rng: &mut Rng, n: usize) -> Pose {
+            Pose {
+                pos: (0..n).map(|_| rng.vec3(1.0)).collect(),
+                vel: (0..n).map(|_| rng.vec3(2.0)).collect(),
+                rot: (0..n).map(|_| rng.quat()).collect(),
+                angvel: (0..n).map(|_| rng.vec3(5.0)).collect(),
+            }
+        }
+        fn zeroed(n: usize) -> Pose {
+            Pose { pos: vec![Vec3::ZERO; n], vel: vec![Vec3::ZERO; n], rot: vec![Quat::IDENTITY; n], angvel: vec![Vec3::ZERO; n] }
+        }
+    }
+
+    fn update(inert: &mut Inertializer, input: &Pose, halflife: f32, dt: f32, out: &mut Pose) {
+        inert.update(
+            &input.pos,
+            &input.vel,
+            &input.rot,
+            &input.angvel,
+            halflife,
+            dt,
+            &mut out.pos,
+            &mut out.vel,
+            &mut out.rot,
+            &mut out.angvel,
+        );
+    }
+
+    fn transition(inert: &mut Inertializer, src: &Pose, dst: &Pose) {
+        inert.transition(&src.pos, &src.vel, &src.rot, &src.angvel, &dst.pos, &dst.vel, &dst.rot, &dst.angvel);
+    }
+
+    /// Largest difference between two poses (rotations compared up to sign, as rotations).
+    fn max_diff(a: &Pose, b: &Pose) -> f32 {
+        let mut m = 0.0f32;
+        for i in 0..a.pos.len() {
+            m = m.max((a.pos[i] - b.pos[i]).abs().max_element());
+            m = m.max((a.vel[i] - b.vel[i]).abs().max_element());
+            m = m.max((a.angvel[i] - b.angvel[i]).abs().max_element());
+            m = m.max(1.0 - a.rot[i].dot(b.rot[i]).abs());
+        }
+        m
+    }
+
+    #[test]
+    fn decay_spring_scalar_is_monotonic_and_never_overshoots() {
+        let h = 0.1;
+        let dt = 1.0 / 60.0;
+        let (mut x, mut v) = (1.0f32, 0.0f32);
+        let mut t = 0.0;
+        while t < 1.0 {
+            let (nx, nv) = decay_spring(x, v, h, dt);
+            assert!(nx <= x && nx >= 0.0, "x went {x} -> {nx} at t = {t}");
+            assert!(nv <= 0.0);
+            (x, v) = (nx, nv);
+            t += dt;
+        }
+        // Analytic value after one half-life with zero initial velocity: e^(−2ln2)·(1 + 2ln2).
+        let (x_h, _) = decay_spring(1.0, 0.0, h, h);
+        let ln2 = std::f32::consts::LN_2;
+        assert!((x_h - 0.25 * (1.0 + 2.0 * ln2)).abs() < 1e-6, "{x_h}");
+        assert!(decay_spring(1.0, 0.0, h, 7.0 * h).0 < 0.01);
+        // Halflife 0 snaps without NaN, also with dt = 0.
+        assert_eq!(decay_spring(1.0, 3.0, 0.0, 0.0), (1.0, 3.0));
+        let (x0, v0) = decay_spring(1.0, 3.0, 0.0, dt);
+        assert!(x0.abs() < 1e-6 && v0.is_finite());
+    }
+
+    #[test]
+    fn decay_spring_is_exact_under_substepping() {
+        let mut rng = Rng(7);
+        for _ in 0..200 {
+            let (x, v) = (rng.vec3(1.0), rng.vec3(10.0));
+            let h = rng.uniform(0.05, 0.5);
+            let dt = rng.uniform(0.0, 0.1);
+            let (x1, v1) = decay_spring_vec3(x, v, h, dt);
+            let (mut x2, mut v2) = (x, v);
+            for _ in 0..10 {
+                (x2, v2) = decay_spring_vec3(x2, v2, h, dt / 10.0);
+            }
+            assert!((x1 - x2).length() < 1e-5 && (v1 - v2).length() < 1e-4, "{x1} {x2} {v1} {v2}");
+        }
+    }
+
+    #[test]
+    fn transition_keeps_the_output() {
+        let mut rng = Rng(1);
+        let n = 24;
+        let mut inert = Inertializer::new(n);
+        let mut out = Pose::zeroed(n);
+        let mut out_after = Pose::zeroed(n);
+        let mut src = Pose::random(&mut rng, n);
+        for step in 0..300 {
+            // Build up non-zero offsets from earlier transitions, then check the invariant.
+            update(&mut inert, &src, 0.1, rng.uniform(0.0, 0.05), &mut out);
+            let dst = Pose::random(&mut rng, n);
+            transition(&mut inert, &src, &dst);
+            update(&mut inert, &dst, 0.1, 0.0, &mut out_after);
+            let d = max_diff(&out, &out_after);
+            assert!(d < 1e-5, "step {step}: output moved by {d} at a transition");
+            for q in &out_after.rot {
+                assert!((q.length() - 1.0).abs() < 1e-5);
+            }
+            src = dst;
+        }
+    }
+
+    #[test]
+    fn transition_from_output_equals_raw_transition() {
+        let mut rng = Rng(2);
+        let n = 10;
+        let (mut a, mut b) = (Inertializer::new(n), Inertializer::new(n));
+        let (mut out_a, mut out_b) = (Pose::zeroed(n), Pose::zeroed(n));
+        let mut src = Pose::random(&mut rng, n);
+        for _ in 0..100 {
+            update(&mut a, &src, 0.15, 1.0 / 60.0, &mut out_a);
+            update(&mut b, &src, 0.15, 1.0 / 60.0, &mut out_b);
+            let dst = Pose::random(&mut rng, n);
+            transition(&mut a, &src, &dst);
+            b.transition_from_output(&out_b.pos, &out_b.vel, &out_b.rot, &out_b.angvel, &dst.pos, &dst.vel, &dst.rot, &dst.angvel);
+            update(&mut a, &dst, 0.15, 1.0 / 60.0, &mut out_a);
+            update(&mut b, &dst, 0.15, 1.0 / 60.0, &mut out_b);
+            assert!(max_diff(&out_a, &out_b) < 1e-4, "{}", max_diff(&out_a, &out_b));
+            src = dst;
+        }
+    }
+
+    /// A pose moving with constant velocities from `base` after `t` seconds.
+    fn animate(base: &Pose, t: f32, out: &mut Pose) {
+        for i in 0..base.pos.len() {
+            out.pos[i] = base.pos[i] + base.vel[i] * t;
+            out.vel[i] = base.vel[i];
+            out.rot[i] = Quat::from_scaled_axis(base.angvel[i] * t) * base.rot[i];
+            out.angvel[i] = base.angvel[i];
+        }
+    }
+
+    #[test]
+    fn quick_transitions_stay_continuous_and_decay() {
+        let mut rng = Rng(3);
+        let n = 8;
+        let h = 0.1;
+        let y = 2.0 * std::f32::consts::LN_2 / h;
+        let dt = 1.0 / 600.0; // fine steps so continuity can be judged from consecutive outputs
+        for _ in 0..20 {
+            let clips: Vec<Pose> = (0..3).map(|_| Pose::random(&mut rng, n)).collect();
+            let mut inert = Inertializer::new(n);
+            let (mut input, mut prev, mut out, mut dst) = (Pose::zeroed(n), Pose::zeroed(n), Pose::zeroed(n), Pose::zeroed(n));
+            let (mut clip, mut t) = (0usize, 0.0f32);
+            animate(&clips[clip], t, &mut input);
+            update(&mut inert, &input, h, 0.0, &mut prev);
+            // Per joint: the bound x0 + v0/y on the offsets left by the second transition.
+            let mut bound = vec![(0.0f32, 0.0f32); n];
+            let second = 22;
+            let frames = second + (7.0 * h / dt).ceil() as usize;
+            for frame in 0..frames {
+                // Two transitions 20 ms apart (the second one with live offsets), each to a random
+                // time of another clip; the source is the raw pose that was playing.
+                if frame == 10 || frame == second {
+                    clip = (clip + 1) % 3;
+                    t = rng.uniform(0.0, 1.0);
+                    animate(&clips[clip], t, &mut dst);
+                    transition(&mut inert, &input, &dst);
+                    std::mem::swap(&mut input, &mut dst);
+                    update(&mut inert, &input, h, 0.0, &mut out);
+                    assert!(max_diff(&out, &prev) < 1e-5, "frame {frame}: output moved at the transition");
+                    for (i, b) in bound.iter_mut().enumerate() {
+                        let r = inert.offset_rotations()[i].to_scaled_axis().length();
+                        *b = (
+                            inert.offset_positions()[i].length() + inert.offset_velocities()[i].length() / y,
+                            r + inert.offset_angular_velocities()[i].length() / y,
+                        );
+                    }
+                }
+                t += dt;
+                animate(&clips[clip], t, &mut input);
+                update(&mut inert, &input, h, dt, &mut out);
+                // Output speed is bounded (input speed + offset spring speed): no pops.
+                let mut step = 0.0f32;
+                for i in 0..n {
+                    step = step.max((out.pos[i] - prev.pos[i]).length());
+                    step = step.max(angle(out.rot[i], prev.rot[i]));
+                    assert!((out.rot[i].length() - 1.0).abs() < 1e-5);
+                }
+                assert!(step < 0.06, "frame {frame}: output jumped by {step}");
+                std::mem::swap(&mut prev, &mut out);
+            }
+            // 7 half-lives after the second transition: x(t) = e^(−yt)·(x0 + (v0 + x0·y)·t) is
+            // below 0.07 % of x0 + v0/y, so < 1 % holds with margin.
+            for (i, &(bp, br)) in bound.iter().enumerate() {
+                assert!(inert.offset_positions()[i].length() <= 0.01 * bp + 1e-6);
+                assert!(inert.offset_rotations()[i].to_scaled_axis().length() <= 0.01 * br + 1e-5);
+            }
+        }
+    }
+
+    #[test]
+    fn offsets_decay_monotonically_below_one_percent_after_seven_halflives() {
+        let mut rng = Rng(4);
+        let n = 16;
+        let h = 0.2f32;
+        let mut inert = Inertializer::new(n);
+        let src = Pose::random(&mut rng, n);
+        let mut dst = Pose::random(&mut rng, n);
+        // Equal velocities so the offsets start as pure position/rotation offsets (v0 = 0).
+        dst.vel.copy_from_slice(&src.vel);
+        dst.angvel.copy_from_slice(&src.angvel);
+        let mut out = Pose::zeroed(n);
+        transition(&mut inert, &src, &dst);
+        let before: Vec<(f32, f32)> =
+            (0..n).map(|i| (inert.offset_positions()[i].length(), inert.offset_rotations()[i].to_scaled_axis().length())).collect();
+        let mut prev = before.clone();
+        let dt = 1.0f32 / 60.0;
+        for _ in 0..(7.0 * h / dt).ceil() as usize {
+            update(&mut inert, &dst, h, dt, &mut out);
+            for (i, p) in prev.iter_mut().enumerate() {
+                // Zero initial offset velocity: the critically damped decay never overshoots.
+                let now = (inert.offset_positions()[i].length(), inert.offset_rotations()[i].to_scaled_axis().length());
+                assert!(now.0 <= p.0 + 1e-7 && now.1 <= p.1 + 1e-6, "joint {i}: {p:?} -> {now:?}");
+                *p = now;
+            }
+        }
+        for i in 0..n {
+            assert!(prev[i].0 <= 0.01 * before[i].0 + 1e-6);
+            assert!(prev[i].1 <= 0.01 * before[i].1 + 1e-5);
+            assert!((out.rot[i].length() - 1.0).abs() < 1e-5);
+        }
+    }
+
+    #[test]
+    fn reset_drops_offsets() {
+        let mut rng = Rng(5);
+        let mut inert = Inertializer::new(3);
+        let (a, b) = (Pose::random(&mut rng, 3), Pose::random(&mut rng, 3));
+        transition(&mut inert, &a, &b);
+        inert.reset();
+        let mut out = Pose::zeroed(3);
+        update(&mut inert, &b, 0.1, 1.0 / 60.0, &mut out);
+        assert!(max_diff(&out, &b) < 1e-6);
+    }
+
+    #[test]
+    #[should_panic(expected = "dst_rot has 2 joints, expected 3")]
+    fn transition_checks_lengths() {
+        let mut inert = Inertializer::new(3);
+        let p = Pose::zeroed(3);
+        let q = Pose::zeroed(2);
+        inert.transition(&p.pos, &p.vel, &p.rot, &p.angvel, &p.pos, &p.vel, &q.rot, &p.angvel);
+    }
+
+    #[test]
+    fn root_transition_is_continuous_and_follows_the_new_take() {
+        let mut rng = Rng(6);
+        let dt = 1.0 / 60.0;
+        let h = 0.1;
+        for _ in 0..100 {
+            let yaw = |r: &mut Rng| Quat::from_rotation_y(r.uniform(-3.1, 3.1));
+            // Take A: walks along its own +Z at 1.2 m/s, turning at 0.5 rad/s.
+            let (a_p, a_r) = (rng.vec3(10.0).with_y(0.0), yaw(&mut rng));
+            let (a_v, a_w) = (a_r * Vec3::new(0.0, 0.0, 1.2), Vec3::new(0.0, 0.5, 0.0));
+            let mut root = RootInertializer::new(rng.vec3(5.0).with_y(0.0), yaw(&mut rng), a_p, a_r);
+            let mut t = 0.0;
+            for _ in 0..30 {
+                t += dt;
+                root.update(a_p + a_v * t, a_v, Quat::from_scaled_axis(a_w * t) * a_r, a_w, h, dt);
+            }
+            let (p0, v0, r0, w0) = (root.position(), root.velocity(), root.rotation(), root.angular_velocity());
+            // Jump to take B somewhere else, standing still.
+            let (b_p, b_r) = (rng.vec3(10.0).with_y(0.0), yaw(&mut rng));
+            root.transition(b_p, Vec3::ZERO, b_r, Vec3::ZERO);
+            let (p1, v1, r1, w1) = root.update(b_p, Vec3::ZERO, b_r, Vec3::ZERO, h, 0.0);
+            assert!((p1 - p0).length() < 1e-5 && (v1 - v0).length() < 1e-5);
+            assert!(angle(r1, r0) < 1e-5 && (w1 - w0).length() < 1e-5);
+            // Then take B walks along its own +X: after the offsets decay the world motion is
+            // B's motion rotated by the anchor (r0 · b_r⁻¹).
+            let b_v = b_r * Vec3::new(0.8, 0.0, 0.0);
+            let mut t = 0.0;
+            for _ in 0..120 {
+                t += dt;
+                root.update(b_p + b_v * t, b_v, b_r, Vec3::ZERO, h, dt);
+            }
+            let expected_v = r0 * (b_r.inverse() * b_v);
+            assert!((root.velocity() - expected_v).length() < 1e-3, "{} vs {expected_v}", root.velocity());
+            assert!((root.rotation().length() - 1.0).abs() < 1e-5);
+        }
+    }
+
+    #[test]
+    fn root_adjust_moves_the_output_and_persists() {
+        let mut rng = Rng(8);
+        let dt = 1.0 / 60.0;
+        for _ in 0..100 {
+            let (a_p, a_r) = (rng.vec3(3.0).with_y(0.0), Quat::from_rotation_y(rng.uniform(-3.0, 3.0)));
+            let a_v = a_r * Vec3::new(0.0, 0.0, 1.0);
+            let mut root = RootInertializer::new(Vec3::ZERO, Quat::IDENTITY, a_p, a_r);
+            let mut t = 0.0;
+            for k in 0..20 {
+                t += dt;
+                if k == 5 {
+                    root.transition(a_p + a_v * t, a_v, a_r, Vec3::Y * 2.0);
+                }
+                root.update(a_p + a_v * t, a_v, a_r, Vec3::ZERO, 0.1, dt);
+            }
+            let target_p = root.position() + rng.vec3(0.2).with_y(0.0);
+            let target_r = Quat::from_rotation_y(rng.uniform(-0.3, 0.3)) * root.rotation();
+            root.adjust(target_p, target_r);
+            assert!((root.position() - target_p).length() < 1e-6 && angle(root.rotation(), target_r) < 1e-5);
+            // Same input again with dt = 0: stays where it was put.
+            let (p, _, r, _) = root.update(a_p + a_v * t, a_v, a_r, Vec3::ZERO, 0.1, 0.0);
+            assert!((p - target_p).length() < 1e-5, "{p} vs {target_p}");
+            assert!(angle(r, target_r) < 1e-5);
+        }
+    }
+}

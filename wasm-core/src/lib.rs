@@ -5,6 +5,7 @@
 pub mod aabb;
 pub mod builder;
 pub mod bvh;
+pub mod character;
 pub mod config;
 pub mod controller;
 pub mod database;
@@ -16,6 +17,7 @@ pub mod inspect;
 pub mod joint_map;
 pub mod lanes;
 pub mod parallel;
+pub mod quality;
 pub mod search;
 pub mod smoothing;
 pub mod spring;

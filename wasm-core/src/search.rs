@@ -1,7 +1,11 @@
 //! Finding the database frame whose features best match a query (THESIS_NOTES §3).
-//! This is the scalar brute-force reference; the accelerated searches must equal it.
+//! [`brute_force`] is the scalar reference; [`SearchIndex`] runs the same search fast (SIMD
+//! lanes and two-level bounding boxes) and must equal it exactly.
 
+use crate::aabb::{BoxBounds, LARGE_BOX, SMALL_BOX};
 use crate::database::Database;
+use crate::lanes::{as_f32_slice, F32x4};
+use crate::{Error, Result};
 
 /// Per-search options. `Default` is β_q = β_r = 1, no exclusion, no tag mask.
 #[derive(Clone, Debug)]
@@ -57,4 +61,469 @@ pub fn brute_force(db: &Database, query: &[f32], options: &SearchOptions, k: usi
         }
     }
     best
+}
+
+// ------------------------------------------------------------------------------------------
+// The search index: the same search, fast.
+// ------------------------------------------------------------------------------------------
+
+/// Largest feature dimension count a [`SearchIndex`] accepts. The per-search splatted query
+/// and weights live on the stack (2 × 2 KiB) so a search never allocates; the default feature
+/// set has 27 dims.
+pub const MAX_DIMS: usize = 128;
+
+/// Which search algorithm to run; all return the same result.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum SearchMethod {
+    /// One frame at a time, in frame order (the reference, on the index's layout).
+    Scalar = 0,
+    /// Four frames per lane vector, every frame.
+    Simd = 1,
+    /// Two-level bounding boxes, SIMD inside the 16-frame boxes that survive.
+    Aabb = 2,
+}
+
+impl SearchMethod {
+    pub const ALL: [SearchMethod; 3] = [SearchMethod::Scalar, SearchMethod::Simd, SearchMethod::Aabb];
+
+    /// The method numbered `index` (0 scalar, 1 SIMD, 2 AABB).
+    pub fn from_index(index: u32) -> Option<Self> {
+        Self::ALL.get(index as usize).copied()
+    }
+
+    pub fn name(self) -> &'static str {
+        match self {
+            SearchMethod::Scalar => "scalar",
+            SearchMethod::Simd => "simd",
+            SearchMethod::Aabb => "aabb",
+        }
+    }
+}
+
+/// How a dimension is weighted: the rule of [`dimension_weights`], kept per dimension so the
+/// β's can change per search without a rebuild.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum DimWeight {
+    Pose,
+    Trajectory,
+    /// Dims outside every group (not produced by the builder) weigh 1.
+    One,
+}
+
+/// A database's feature matrix laid out for fast exact search, built once (see
+/// [`SearchIndex::new`]) and then searched without allocating.
+///
+/// Frames are stored in blocks of four, transposed: block `b` holds, for each dimension `d`,
+/// one lane vector with dimension `d` of frames `4b .. 4b + 4`. A kernel then computes four
+/// frame costs with one lane operation per step, each lane doing exactly the scalar steps of
+/// [`brute_force`] — so all three methods return the very same `(frame, cost)`, bit for bit.
+/// The frame count is padded to a multiple of 256 (four 64-frame boxes) with invalid frames.
+///
+/// Search semantics (all methods): among the frames that are valid, outside
+/// `options.exclude` and inside `options.mask`, the one with the lowest cost if that cost is
+/// strictly below `bar`; the earliest frame wins a tie. `bar` is the current frame's cost in
+/// the runtime (jump only to something strictly better), `f32::INFINITY` to always get the best.
+#[derive(Clone, Debug)]
+pub struct SearchIndex {
+    num_frames: usize,
+    num_dims: usize,
+    dim_weights: Vec<DimWeight>,
+    /// Per padded frame; false for the padding.
+    valid: Vec<bool>,
+    /// `[block·D + d]`, lane `l` = frame `4·block + l`.
+    lanes: Vec<F32x4>,
+    bounds: BoxBounds,
+}
+
+/// A query and its per-dimension weights splatted across lanes, on the stack.
+struct LaneQuery {
+    query: [F32x4; MAX_DIMS],
+    weights: [F32x4; MAX_DIMS],
+}
+
+impl SearchIndex {
+    /// Builds the index of `db`'s normalized features (~0.6 ms for 19k frames natively, see
+    /// [`crate::aabb`] for why it is rebuilt rather than stored).
+    ///
+    /// # Errors
+    /// If the database has no feature dims or more than [`MAX_DIMS`], or a non-finite feature
+    /// (whose cost could not be compared).
+    pub fn new(db: &Database) -> Result<Self> {
+        let d = db.num_features();
+        if d == 0 || d > MAX_DIMS {
+            return Err(Error::format(format!("{d} feature dims; the search supports 1 to {MAX_DIMS}")));
+        }
+        // A branch-free pass first (it vectorizes); find the culprit only for the message.
+        if !db.features.iter().fold(true, |ok, f| ok & f.is_finite()) {
+            let i = db.features.iter().position(|f| !f.is_finite()).unwrap_or(0);
+            return Err(Error::format(format!("FEAT: frame {} dim {} is {} (features must be finite)", i / d, i % d, db.features[i])));
+        }
+        let mut dim_weights = vec![DimWeight::One; d];
+        for g in &db.groups {
+            dim_weights[g.first_dim..g.first_dim + g.num_dims].fill(if g.is_trajectory { DimWeight::Trajectory } else { DimWeight::Pose });
+        }
+        // Padded to whole groups of four large boxes, so every box the search may visit exists.
+        let padded = db.num_frames.div_ceil(4 * LARGE_BOX) * 4 * LARGE_BOX;
+        let mut valid: Vec<bool> = db.valid.iter().map(|&v| v != 0).collect();
+        valid.resize(padded, false);
+        // Transpose 4 rows at a time; the padding frames are zeros (and invalid).
+        fn transpose(four: &[f32], d: usize, lanes: &mut Vec<F32x4>) {
+            lanes.extend((0..d).map(|i| F32x4::from_array([four[i], four[d + i], four[2 * d + i], four[3 * d + i]])));
+        }
+        let mut lanes = Vec::with_capacity(padded / 4 * d);
+        let mut rows = db.features.chunks_exact(4 * d);
+        for four in rows.by_ref() {
+            transpose(four, d, &mut lanes);
+        }
+        if !rows.remainder().is_empty() {
+            let mut four = vec![0.0; 4 * d];
+            four[..rows.remainder().len()].copy_from_slice(rows.remainder());
+            transpose(&four, d, &mut lanes);
+        }
+        lanes.resize(padded / 4 * d, F32x4::ZERO);
+        let bounds = BoxBounds::from_lanes(&lanes, &valid, d);
+        Ok(SearchIndex { num_frames: db.num_frames, num_dims: d, dim_weights, valid, lanes, bounds })
+    }
+
+    pub fn num_frames(&self) -> usize {
+        self.num_frames
+    }
+
+    pub fn num_dims(&self) -> usize {
+        self.num_dims
+    }
+
+    /// Whether a search may return `frame` (the database's validity; false out of range).
+    pub fn is_valid(&self, frame: usize) -> bool {
+        frame < self.num_frames && self.valid[frame]
+    }
+
+    /// The bounding boxes (for inspection and tests).
+    pub fn bounds(&self) -> &BoxBounds {
+        &self.bounds
+    }
+
+    /// Cost of `frame` for a normalized `query` with `options`' β's (exclusion and mask do not
+    /// apply): the `bar` to pass when searching from `frame`. Same arithmetic as the searches.
+    ///
+    /// # Panics
+    /// If `frame ≥ num_frames()` or `query.len() != num_dims()`.
+    pub fn cost(&self, frame: usize, query: &[f32], options: &SearchOptions) -> f32 {
+        assert!(frame < self.num_frames, "frame {frame} out of range 0..{}", self.num_frames);
+        self.check_query(query, options);
+        self.scalar_cost(frame, query, options)
+    }
+
+    /// Runs `method`; see the type's docs for the semantics.
+    pub fn search(&self, method: SearchMethod, query: &[f32], options: &SearchOptions, bar: f32) -> Option<(usize, f32)> {
+        match method {
+            SearchMethod::Scalar => self.search_scalar(query, options, bar),
+            SearchMethod::Simd => self.search_simd(query, options, bar),
+            SearchMethod::Aabb => self.search_aabb(query, options, bar),
+        }
+    }
+
+    /// The reference algorithm on this layout: every allowed frame's cost, one at a time.
+    ///
+    /// Preconditions (all methods): `query` normalized like the features and finite, β's ≥ 0
+    /// (the box bounds need non-negative weights).
+    ///
+    /// # Panics
+    /// If `query.len() != num_dims()` or a mask is shorter than `num_frames()`.
+    pub fn search_scalar(&self, query: &[f32], options: &SearchOptions, bar: f32) -> Option<(usize, f32)> {
+        self.check_query(query, options);
+        let mut best = (usize::MAX, bar);
+        for frame in 0..self.num_frames {
+            if !self.is_allowed(frame, options) {
+                continue;
+            }
+            let cost = self.scalar_cost(frame, query, options);
+            if cost < best.1 {
+                best = (frame, cost);
+            }
+        }
+        (best.0 != usize::MAX).then_some(best)
+    }
+
+    /// Every frame, four at a time. Same preconditions and panics as [`Self::search_scalar`].
+    pub fn search_simd(&self, query: &[f32], options: &SearchOptions, bar: f32) -> Option<(usize, f32)> {
+        self.check_query(query, options);
+        let q = self.lane_query(query, options);
+        let mut best = (usize::MAX, bar);
+        for span in 0..self.lanes.len() / (4 * self.num_dims) {
+            self.search_span(4 * span, &q, options, &mut best);
+        }
+        (best.0 != usize::MAX).then_some(best)
+    }
+
+    /// Pruned by the 64/16-frame boxes, SIMD inside the 16-frame boxes it visits. Same
+    /// preconditions and panics as [`Self::search_scalar`].
+    pub fn search_aabb(&self, query: &[f32], options: &SearchOptions, bar: f32) -> Option<(usize, f32)> {
+        self.check_query(query, options);
+        let q = self.lane_query(query, options);
+        let (qs, ws) = (&q.query[..self.num_dims], &q.weights[..self.num_dims]);
+        let mut best = (usize::MAX, bar);
+        // Boxes in frame order, like the scalar loop, so ties resolve to the earliest frame.
+        for group in 0..self.bounds.num_large_boxes() / 4 {
+            let large_bounds = self.bounds.large_lower_bounds(group, qs, ws);
+            let mut candidates = large_bounds.cmplt(F32x4::splat(best.1)).bitmask();
+            let large_bounds = large_bounds.to_array();
+            while candidates != 0 {
+                let l = candidates.trailing_zeros() as usize;
+                candidates &= candidates - 1;
+                // The best may have dropped while visiting an earlier box of this group.
+                if !(large_bounds[l] < best.1) {
+                    continue;
+                }
+                let large = 4 * group + l;
+                let small_bounds = self.bounds.small_lower_bounds(large, qs, ws);
+                let mut smalls = small_bounds.cmplt(F32x4::splat(best.1)).bitmask();
+                let small_bounds = small_bounds.to_array();
+                while smalls != 0 {
+                    let s = smalls.trailing_zeros() as usize;
+                    smalls &= smalls - 1;
+                    if small_bounds[s] < best.1 {
+                        self.search_span((LARGE_BOX * large + SMALL_BOX * s) / 4, &q, options, &mut best);
+                    }
+                }
+            }
+        }
+        (best.0 != usize::MAX).then_some(best)
+    }
+
+    fn check_query(&self, query: &[f32], options: &SearchOptions) {
+        assert_eq!(query.len(), self.num_dims, "query has {} dims, the index {}", query.len(), self.num_dims);
+        if let Some(mask) = options.mask {
+            assert!(mask.len() >= self.num_frames, "mask has {} frames, the index {}", mask.len(), self.num_frames);
+        }
+        debug_assert!(options.beta_pose >= 0.0 && options.beta_trajectory >= 0.0, "β's must be ≥ 0");
+    }
+
+    #[inline(always)]
+    fn is_allowed(&self, frame: usize, options: &SearchOptions) -> bool {
+        self.valid[frame]
+            && !options.exclude.is_some_and(|(a, b)| (a..b).contains(&frame))
+            && options.mask.is_none_or(|m| m[frame])
+    }
+
+    #[inline(always)]
+    fn weight(&self, dim: usize, options: &SearchOptions) -> f32 {
+        match self.dim_weights[dim] {
+            DimWeight::Pose => options.beta_pose,
+            DimWeight::Trajectory => options.beta_trajectory,
+            DimWeight::One => 1.0,
+        }
+    }
+
+    /// [`brute_force`]'s cost expression, term for term, reading the transposed layout.
+    #[inline(always)]
+    fn scalar_cost(&self, frame: usize, query: &[f32], options: &SearchOptions) -> f32 {
+        let d = self.num_dims;
+        let floats = as_f32_slice(&self.lanes);
+        let column = &floats[(frame / 4) * d * 4 + frame % 4..];
+        let mut cost = 0.0;
+        for (dim, &q) in query.iter().enumerate() {
+            let f = column[4 * dim];
+            cost += self.weight(dim, options) * (q - f) * (q - f);
+        }
+        cost
+    }
+
+    fn lane_query(&self, query: &[f32], options: &SearchOptions) -> LaneQuery {
+        let mut q = LaneQuery { query: [F32x4::ZERO; MAX_DIMS], weights: [F32x4::ZERO; MAX_DIMS] };
+        for (dim, &v) in query.iter().enumerate() {
+            q.query[dim] = F32x4::splat(v);
+            q.weights[dim] = F32x4::splat(self.weight(dim, options));
+        }
+        q
+    }
+
+    /// Costs of the 16 frames of blocks `first_block .. first_block + 4`, folded into `best`.
+    /// Four independent accumulators so the lane additions pipeline instead of waiting on one
+    /// dependency chain.
+    #[inline(always)]
+    fn search_span(&self, first_block: usize, q: &LaneQuery, options: &SearchOptions, best: &mut (usize, f32)) {
+        let d = self.num_dims;
+        let rows = &self.lanes[first_block * d..(first_block + 4) * d];
+        let (r0, r1, r2, r3) = (&rows[..d], &rows[d..2 * d], &rows[2 * d..3 * d], &rows[3 * d..]);
+        let (qs, ws) = (&q.query[..d], &q.weights[..d]);
+        let mut acc = [F32x4::ZERO; 4];
+        for i in 0..d {
+            let (qd, wd) = (qs[i], ws[i]);
+            // Same steps as the scalar cost: (w · (q − f)) · (q − f), summed in dim order.
+            let diff = [qd - r0[i], qd - r1[i], qd - r2[i], qd - r3[i]];
+            for k in 0..4 {
+                acc[k] += wd * diff[k] * diff[k];
+            }
+        }
+        for (k, costs) in acc.into_iter().enumerate() {
+            let better = costs.cmplt(F32x4::splat(best.1)).bitmask();
+            if better != 0 {
+                self.fold_block(first_block + k, costs, better, options, best);
+            }
+        }
+    }
+
+    /// The rare path: lanes of one block that beat the best; check that those frames may be
+    /// returned, in frame order (the earliest frame wins a tie, as in the scalar loop).
+    #[inline(never)]
+    fn fold_block(&self, block: usize, costs: F32x4, mut lanes: u32, options: &SearchOptions, best: &mut (usize, f32)) {
+        let costs = costs.to_array();
+        while lanes != 0 {
+            let l = lanes.trailing_zeros() as usize;
+            lanes &= lanes - 1;
+            let frame = 4 * block + l;
+            if costs[l] < best.1 && self.is_allowed(frame, options) {
+                *best = (frame, costs[l]);
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::database::{Axes, FeatureGroup, FeatureKind, Skeleton};
+    use glam::Vec3;
+
+    /// Deterministic SplitMix64.
+    struct Rng(u64);
+    impl Rng {
+        fn next_u64(&mut self) -> u64 {
+            self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
+            let mut z = self.0;
+            z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+            z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+            z ^ (z >> 31)
+        }
+        fn below(&mut self, n: usize) -> usize {
+            (self.next_u64() % n as u64) as usize
+        }
+        fn unit(&mut self) -> f32 {
+            (self.next_u64() >> 40) as f32 / (1u64 << 24) as f32
+        }
+    }
+
+    fn group(name: &str, is_trajectory: bool, first_dim: usize, num_dims: usize) -> FeatureGroup {
+        FeatureGroup { name: name.into(), kind: FeatureKind::Position, is_trajectory, axes: Axes::Xyz, joint: 0, axis: Vec3::Z, offsets: vec![0], weight: 1.0, first_dim, num_dims }
+    }
+
+    /// Only what the search reads: features (on a coarse grid, so exact ties are common),
+    /// validity, and groups (dims 0..3 pose, 3..5 trajectory, 5 in no group).
+    fn synthetic(num_frames: usize, rng: &mut Rng) -> Database {
+        let d = 6;
+        Database {
+            skeleton: Skeleton { names: vec!["root".into()], parents: vec![-1], offsets: vec![Vec3::ZERO], sites: vec![] },
+            fps: 60.0,
+            num_frames,
+            clips: vec![],
+            tags: vec![],
+            local_positions: vec![],
+            local_rotations: vec![],
+            local_velocities: vec![],
+            local_angular_velocities: vec![],
+            contacts: vec![],
+            groups: vec![group("pose", false, 0, 3), group("trajectory", true, 3, 2)],
+            feature_mean: vec![0.0; d],
+            feature_scale: vec![1.0; d],
+            features: (0..num_frames * d).map(|_| (rng.below(5) as f32 - 2.0) * 0.5).collect(),
+            valid: (0..num_frames).map(|_| (rng.below(4) != 0) as u8).collect(),
+        }
+    }
+
+    fn reference(db: &Database, query: &[f32], options: &SearchOptions, bar: f32) -> Option<(usize, f32)> {
+        brute_force(db, query, options, 1).first().copied().filter(|&(_, c)| c < bar)
+    }
+
+    #[test]
+    fn every_method_equals_brute_force_bit_for_bit_ties_included() {
+        let mut rng = Rng(7);
+        // Sizes around the padding boundaries (4, 16, 64, 256 frames).
+        for num_frames in [1, 3, 4, 17, 63, 64, 65, 255, 256, 257, 1000] {
+            let db = synthetic(num_frames, &mut rng);
+            let index = SearchIndex::new(&db).unwrap();
+            let mask: Vec<bool> = (0..num_frames).map(|_| rng.below(3) != 0).collect();
+            for round in 0..300 {
+                // Grid queries make exact cost ties between frames likely.
+                let query: Vec<f32> = (0..6).map(|_| (rng.below(7) as f32 - 3.0) * 0.5).collect();
+                let a = rng.below(num_frames);
+                let options = SearchOptions {
+                    beta_pose: [0.0, 0.5, 1.0, 2.0][rng.below(4)],
+                    beta_trajectory: [0.0, 1.0, 3.0][rng.below(3)],
+                    exclude: (round % 2 == 0).then(|| (a, a + rng.below(40))),
+                    mask: (round % 3 == 0).then_some(mask.as_slice()),
+                };
+                let best = reference(&db, &query, &options, f32::INFINITY);
+                let bars = [f32::INFINITY, best.map_or(1.0, |b| b.1), best.map_or(1.0, |b| b.1 + 0.25), 0.0];
+                for bar in bars {
+                    let expected = reference(&db, &query, &options, bar);
+                    for method in SearchMethod::ALL {
+                        let got = index.search(method, &query, &options, bar);
+                        assert_eq!(
+                            got.map(|(f, c)| (f, c.to_bits())),
+                            expected.map(|(f, c)| (f, c.to_bits())),
+                            "{} frames, {method:?}, bar {bar}, {options:?}, query {query:?}",
+                            num_frames
+                        );
+                    }
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn the_bar_is_strict_and_cost_matches_the_search() {
+        let mut rng = Rng(3);
+        let db = synthetic(500, &mut rng);
+        let index = SearchIndex::new(&db).unwrap();
+        let query = [0.3, -0.2, 0.9, 1.1, -0.4, 0.05];
+        let options = SearchOptions { beta_pose: 1.5, beta_trajectory: 0.5, ..Default::default() };
+        let (frame, cost) = index.search_aabb(&query, &options, f32::INFINITY).unwrap();
+        assert_eq!(index.cost(frame, &query, &options).to_bits(), cost.to_bits());
+        for method in SearchMethod::ALL {
+            assert_eq!(index.search(method, &query, &options, cost), None, "{method:?}: equal to the bar is not better");
+            assert_eq!(index.search(method, &query, &options, cost.next_up()), Some((frame, cost)));
+        }
+    }
+
+    #[test]
+    fn nothing_allowed_means_none() {
+        let mut rng = Rng(5);
+        let mut db = synthetic(300, &mut rng);
+        let index = SearchIndex::new(&db).unwrap();
+        let query = [0.0; 6];
+        let none = SearchOptions { exclude: Some((0, 300)), ..Default::default() };
+        let mask = vec![false; 300];
+        let masked = SearchOptions { mask: Some(&mask), ..Default::default() };
+        for method in SearchMethod::ALL {
+            assert_eq!(index.search(method, &query, &none, f32::INFINITY), None);
+            assert_eq!(index.search(method, &query, &masked, f32::INFINITY), None);
+        }
+        db.valid.fill(0);
+        let index = SearchIndex::new(&db).unwrap();
+        for method in SearchMethod::ALL {
+            assert_eq!(index.search(method, &query, &SearchOptions::default(), f32::INFINITY), None);
+        }
+    }
+
+    #[test]
+    fn rejects_what_it_cannot_search() {
+        let mut rng = Rng(9);
+        let mut db = synthetic(10, &mut rng);
+        db.features[13] = f32::NAN;
+        let e = SearchIndex::new(&db).unwrap_err().to_string();
+        assert!(e.contains("frame 2 dim 1"), "{e}");
+        let wide = Database { feature_mean: vec![0.0; MAX_DIMS + 1], feature_scale: vec![1.0; MAX_DIMS + 1], features: vec![0.0; 10 * (MAX_DIMS + 1)], groups: vec![], ..db };
+        assert!(SearchIndex::new(&wide).unwrap_err().to_string().contains("1 to 128"));
+    }
+
+    #[test]
+    fn methods_are_numbered_for_the_bindings() {
+        for (i, m) in SearchMethod::ALL.iter().enumerate() {
+            assert_eq!(SearchMethod::from_index(i as u32), Some(*m));
+            assert_eq!(*m as u32, i as u32);
+        }
+        assert_eq!(SearchMethod::from_index(3), None);
+        assert_eq!(SearchMethod::Aabb.name(), "aabb");
+    }
 }

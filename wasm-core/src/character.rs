@@ -1,0 +1,519 @@
+//! One motion-matched character (THESIS_NOTES §3–7): each update moves the simulated
+//! character from the input, searches the database on a timer / sharp input change / clip
+//! end, plays the database at its own rate, inertializes transitions, keeps the root with the
+//! simulated character (adjustment and clamping) and writes the pose to preallocated buffers.
+
+use crate::controller::{desired_rotation, desired_velocity, yaw_facing, ChangeDetector, ControllerSettings, Input, Path, Simulation};
+use crate::database::{Axes, Database, FeatureKind};
+use crate::inertialize::Inertializer;
+use crate::search::SearchOptions;
+use crate::spring::{decay_spring_damper_exact, quat_abs};
+use glam::{Quat, Vec3};
+
+/// Everything a user can tune live (the demo's lil-gui knobs).
+#[derive(Clone, Debug, PartialEq)]
+pub struct CharacterSettings {
+    pub controller: ControllerSettings,
+    /// Database frames between searches (10 at 60 fps).
+    pub search_interval: u32,
+    /// β_q (pose / quality) and β_r (trajectory / responsiveness).
+    pub beta_pose: f32,
+    pub beta_trajectory: f32,
+    /// Frames around the current one a search may not return.
+    pub exclude_radius: usize,
+    /// Sharp-change triggers: rate of change of the desired velocity (m/s²) and facing (rad/s).
+    pub velocity_change_threshold: f32,
+    pub rotation_change_threshold: f32,
+    pub inertialize: bool,
+    pub inertialization_halflife: f32,
+    pub adjustment: bool,
+    pub adjustment_position_halflife: f32,
+    pub adjustment_rotation_halflife: f32,
+    /// Adjustment per frame is capped at this × the character's speed × dt, so a standing
+    /// character never slides (THESIS_NOTES §6).
+    pub adjustment_max_ratio: f32,
+    pub clamping: bool,
+    /// α: the root never ends farther than this from the simulated character (m).
+    pub clamp_distance: f32,
+    /// Database playback rate multiplier.
+    pub playback_speed: f32,
+}
+
+impl Default for CharacterSettings {
+    fn default() -> Self {
+        CharacterSettings {
+            controller: ControllerSettings::default(),
+            search_interval: 10,
+            beta_pose: 1.0,
+            beta_trajectory: 1.0,
+            exclude_radius: 20,
+            velocity_change_threshold: 50.0,
+            rotation_change_threshold: 50.0,
+            inertialize: true,
+            inertialization_halflife: 0.1,
+            adjustment: true,
+            adjustment_position_halflife: 0.1,
+            adjustment_rotation_halflife: 0.2,
+            adjustment_max_ratio: 0.5,
+            clamping: true,
+            clamp_distance: 0.15,
+            playback_speed: 1.0,
+        }
+    }
+}
+
+/// Where a trajectory feature dimension comes from.
+#[derive(Clone, Copy, Debug)]
+struct TrajectorySlot {
+    first_dim: usize,
+    kind: FeatureKind,
+    axes: Axes,
+    axis: Vec3,
+    /// Index into the prediction times.
+    time: usize,
+}
+
+/// Counters and the last search, for debug views and the quality harness.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct CharacterStats {
+    pub searches: u64,
+    pub transitions: u64,
+    /// Cost of the current frame at the last search, and of the frame it chose.
+    pub current_cost: f32,
+    pub best_cost: f32,
+}
+
+/// A character playing one database. Owns every buffer it needs: `update` never allocates.
+pub struct Character {
+    pub settings: CharacterSettings,
+    pub simulation: Simulation,
+    pub stats: CharacterStats,
+    /// Current database frame.
+    frame: usize,
+    /// Fraction of a database frame accumulated toward the next one.
+    frame_fraction: f32,
+    frames_since_search: u32,
+    force_search: bool,
+    velocity_change: ChangeDetector,
+    rotation_change: ChangeDetector,
+    desired_velocity: Vec3,
+    desired_rotation: Quat,
+    path: Option<Path>,
+    path_time: f32,
+    /// World transform and motion of the character's root (joint 0).
+    root_position: Vec3,
+    root_rotation: Quat,
+    root_velocity: Vec3,
+    root_angular_velocity: Vec3,
+    /// Inertialization offsets of the root's velocity and yaw rate (world space).
+    root_velocity_offset: Vec3,
+    root_velocity_offset_rate: Vec3,
+    root_angular_offset: Vec3,
+    root_angular_offset_rate: Vec3,
+    inertializer: Inertializer,
+    /// Output pose: joint 0 holds the root's world transform, the others local transforms.
+    pose_positions: Vec<Vec3>,
+    pose_rotations: Vec<Quat>,
+    pose_velocities: Vec<Vec3>,
+    pose_angular_velocities: Vec<Vec3>,
+    contacts: [u8; 2],
+    // Query construction.
+    query: Vec<f32>,
+    mask: Option<Vec<bool>>,
+    slots: Vec<TrajectorySlot>,
+    times: Vec<f32>,
+    predicted_positions: Vec<Vec3>,
+    predicted_rotations: Vec<Quat>,
+}
+
+impl Character {
+    /// A character standing at the origin facing +Z, playing from the first valid frame.
+    pub fn new(db: &Database, settings: CharacterSettings) -> Character {
+        let j = db.num_joints();
+        let mut times: Vec<f32> = Vec::new();
+        let mut slots = Vec::new();
+        for g in db.groups.iter().filter(|g| g.is_trajectory) {
+            for (k, &offset) in g.offsets.iter().enumerate() {
+                // Past offsets would need a history of the simulation; they are taken from the
+                // database frame like pose features (documented limitation).
+                if offset <= 0 {
+                    continue;
+                }
+                let t = offset as f32 / db.fps;
+                let time = times.iter().position(|&x| x == t).unwrap_or_else(|| {
+                    times.push(t);
+                    times.len() - 1
+                });
+                slots.push(TrajectorySlot { first_dim: g.first_dim + k * g.axes.num_dims(), kind: g.kind, axes: g.axes, axis: g.axis, time });
+            }
+        }
+        let frame = db.valid.iter().position(|&v| v != 0).unwrap_or(0);
+        let mut c = Character {
+            settings,
+            simulation: Simulation::default(),
+            stats: CharacterStats::default(),
+            frame,
+            frame_fraction: 0.0,
+            frames_since_search: 0,
+            force_search: true,
+            velocity_change: ChangeDetector::default(),
+            rotation_change: ChangeDetector::default(),
+            desired_velocity: Vec3::ZERO,
+            desired_rotation: Quat::IDENTITY,
+            path: None,
+            path_time: 0.0,
+            root_position: Vec3::ZERO,
+            root_rotation: Quat::IDENTITY,
+            root_velocity: Vec3::ZERO,
+            root_angular_velocity: Vec3::ZERO,
+            root_velocity_offset: Vec3::ZERO,
+            root_velocity_offset_rate: Vec3::ZERO,
+            root_angular_offset: Vec3::ZERO,
+            root_angular_offset_rate: Vec3::ZERO,
+            inertializer: Inertializer::new(j - 1),
+            pose_positions: vec![Vec3::ZERO; j],
+            pose_rotations: vec![Quat::IDENTITY; j],
+            pose_velocities: vec![Vec3::ZERO; j],
+            pose_angular_velocities: vec![Vec3::ZERO; j],
+            contacts: [0; 2],
+            query: vec![0.0; db.num_features()],
+            mask: None,
+            predicted_positions: vec![Vec3::ZERO; times.len()],
+            predicted_rotations: vec![Quat::IDENTITY; times.len()],
+            slots,
+            times,
+        };
+        c.write_pose(db, 0.0);
+        c
+    }
+
+    /// Places the character (and its simulated twin) at a world position and yaw.
+    pub fn teleport(&mut self, position: Vec3, rotation: Quat) {
+        self.root_position = Vec3::new(position.x, 0.0, position.z);
+        self.root_rotation = rotation;
+        self.simulation = Simulation { position: self.root_position, rotation, ..Simulation::default() };
+        self.force_search = true;
+    }
+
+    /// Follow `path` from its start (or `None` to return to input control).
+    pub fn set_path(&mut self, path: Option<Path>) {
+        self.path = path;
+        self.path_time = 0.0;
+        self.force_search = true;
+    }
+
+    /// Restrict searches to frames where `mask` is true (e.g. a tag), or lift it with `None`.
+    ///
+    /// # Panics
+    /// If the mask's length is not the database's frame count.
+    pub fn set_mask(&mut self, db: &Database, mask: Option<Vec<bool>>) {
+        assert!(mask.as_ref().is_none_or(|m| m.len() == db.num_frames), "mask length must equal the frame count");
+        self.mask = mask;
+        self.force_search = true;
+    }
+
+    /// Forces a search at the next update (e.g. after switching to another database that
+    /// shares this skeleton: the transition is inertialized like any other).
+    pub fn request_search(&mut self) {
+        self.force_search = true;
+    }
+
+    pub fn frame(&self) -> usize {
+        self.frame
+    }
+    pub fn root_position(&self) -> Vec3 {
+        self.root_position
+    }
+    pub fn root_rotation(&self) -> Quat {
+        self.root_rotation
+    }
+    /// Joint 0: root world transform; others: local transforms (inertialized).
+    pub fn pose_positions(&self) -> &[Vec3] {
+        &self.pose_positions
+    }
+    pub fn pose_rotations(&self) -> &[Quat] {
+        &self.pose_rotations
+    }
+    /// Foot contacts of the current frame (left, right).
+    pub fn contacts(&self) -> [u8; 2] {
+        self.contacts
+    }
+    /// The last query (normalized features) and the predicted trajectory (world space).
+    pub fn query(&self) -> &[f32] {
+        &self.query
+    }
+    pub fn predicted_positions(&self) -> &[Vec3] {
+        &self.predicted_positions
+    }
+    pub fn predicted_rotations(&self) -> &[Quat] {
+        &self.predicted_rotations
+    }
+
+    /// Advances the character by `dt` seconds of real time under `input` (ignored while
+    /// following a path). `db` must be the database the character was created for, or another
+    /// with the same skeleton and features (call [`Self::request_search`] after switching).
+    pub fn update(&mut self, db: &Database, input: &Input, dt: f32) {
+        let dt = dt.max(0.0);
+        self.update_simulation(input, dt);
+
+        // Search on a timer, on a sharp input change, or when the clip is about to end.
+        let clip_end = db.clips[db.clip_at(self.frame)].end as usize;
+        let at_clip_end = self.frame + 1 >= clip_end;
+        if self.force_search || self.frames_since_search >= self.settings.search_interval || at_clip_end {
+            self.search(db);
+        }
+
+        // Play the database at its own rate, whatever the render rate.
+        self.frame_fraction += dt * self.settings.playback_speed * db.fps;
+        while self.frame_fraction >= 1.0 {
+            self.frame_fraction -= 1.0;
+            self.step_frame(db);
+        }
+        self.write_pose(db, dt);
+        self.keep_with_simulation(dt);
+    }
+
+    fn update_simulation(&mut self, input: &Input, dt: f32) {
+        let settings = self.settings.controller;
+        let (velocity, rotation) = match &self.path {
+            Some(path) => {
+                // The simulated character rides the path exactly; its facing follows the
+                // path direction through the rotation spring.
+                self.path_time += dt;
+                let (p, v) = path.sample(self.path_time);
+                self.simulation.position = p;
+                self.simulation.velocity = v;
+                self.simulation.acceleration = Vec3::ZERO;
+                (v, yaw_facing(v).unwrap_or(self.simulation.rotation))
+            }
+            None => {
+                let v = desired_velocity(input, self.simulation.rotation, &settings);
+                (v, desired_rotation(input, v, self.simulation.rotation))
+            }
+        };
+        let velocity_jump = (velocity - self.desired_velocity).length();
+        let rotation_jump = quat_abs(rotation * self.desired_rotation.inverse()).to_scaled_axis().length();
+        let sharp_velocity = self.velocity_change.update(velocity_jump, dt, self.settings.velocity_change_threshold);
+        let sharp_rotation = self.rotation_change.update(rotation_jump, dt, self.settings.rotation_change_threshold);
+        self.force_search |= sharp_velocity || sharp_rotation;
+        self.desired_velocity = velocity;
+        self.desired_rotation = rotation;
+        if self.path.is_none() {
+            self.simulation.update(velocity, rotation, &settings, dt);
+        } else {
+            let mut unused = self.simulation;
+            unused.update(velocity, rotation, &settings, dt);
+            self.simulation.rotation = unused.rotation;
+            self.simulation.angular_velocity = unused.angular_velocity;
+        }
+    }
+
+    /// Predicts the trajectory and fills the query: pose features copied from the current
+    /// frame, trajectory features from the prediction, relative to the character's root.
+    fn build_query(&mut self) {
+        let settings = self.settings.controller;
+        match &self.path {
+            Some(path) => {
+                for (i, &t) in self.times.iter().enumerate() {
+                    let (p, v) = path.sample(self.path_time + t);
+                    self.predicted_positions[i] = p;
+                    let mut q = self.simulation.rotation;
+                    let mut w = self.simulation.angular_velocity;
+                    let goal = yaw_facing(v).unwrap_or(q);
+                    crate::spring::spring_damper_exact_quat(&mut q, &mut w, goal, settings.rotation_halflife, t);
+                    self.predicted_rotations[i] = q;
+                }
+            }
+            None => self.simulation.predict(
+                self.desired_velocity,
+                self.desired_rotation,
+                &settings,
+                &self.times,
+                &mut self.predicted_positions,
+                &mut self.predicted_rotations,
+            ),
+        }
+        let inv = self.root_rotation.inverse();
+        for slot in &self.slots {
+            let v = match slot.kind {
+                FeatureKind::Position => inv * (self.predicted_positions[slot.time] - self.root_position),
+                FeatureKind::Direction => inv * (self.predicted_rotations[slot.time] * slot.axis),
+                // The simulation has one velocity; use it for any velocity-at-offset feature.
+                FeatureKind::Velocity => inv * self.simulation.velocity,
+            };
+            let d = slot.first_dim;
+            match slot.axes {
+                Axes::Xyz => self.query[d..d + 3].copy_from_slice(&[v.x, v.y, v.z]),
+                Axes::Xz => self.query[d..d + 2].copy_from_slice(&[v.x, v.z]),
+            }
+        }
+    }
+
+    fn search(&mut self, db: &Database) {
+        self.force_search = false;
+        self.frames_since_search = 0;
+        // Pose part: the current frame's own (normalized) features.
+        self.query.copy_from_slice(db.feature(self.frame));
+        self.build_query();
+        for slot in &self.slots {
+            let n = slot.axes.num_dims();
+            for d in slot.first_dim..slot.first_dim + n {
+                self.query[d] = (self.query[d] - db.feature_mean[d]) / db.feature_scale[d];
+            }
+        }
+        let weights_cost = |frame: usize, query: &[f32]| -> f32 {
+            db.groups
+                .iter()
+                .map(|g| {
+                    let beta = if g.is_trajectory { self.settings.beta_trajectory } else { self.settings.beta_pose };
+                    let row = &db.feature(frame)[g.first_dim..g.first_dim + g.num_dims];
+                    beta * row.iter().zip(&query[g.first_dim..g.first_dim + g.num_dims]).map(|(f, q)| (q - f) * (q - f)).sum::<f32>()
+                })
+                .sum()
+        };
+        // The current frame is the bar: jump only to something strictly better.
+        let valid_now = db.valid[self.frame] != 0 && self.mask.as_ref().is_none_or(|m| m[self.frame]);
+        let bar = if valid_now { weights_cost(self.frame, &self.query) } else { f32::INFINITY };
+        let r = self.settings.exclude_radius;
+        let options = SearchOptions {
+            beta_pose: self.settings.beta_pose,
+            beta_trajectory: self.settings.beta_trajectory,
+            exclude: Some((self.frame.saturating_sub(r), self.frame + r + 1)),
+            mask: self.mask.as_deref(),
+        };
+        let best = crate::search::brute_force(db, &self.query, &options, 1);
+        self.stats.searches += 1;
+        self.stats.current_cost = bar;
+        if let Some(&(frame, cost)) = best.first().filter(|&&(_, cost)| cost < bar) {
+            self.stats.best_cost = cost;
+            self.transition(db, frame);
+        }
+    }
+
+    /// Jumps to `frame`, inertializing from what is being output now.
+    fn transition(&mut self, db: &Database, frame: usize) {
+        self.stats.transitions += 1;
+        if self.settings.inertialize {
+            let j = db.num_joints();
+            let (lp, lr, lv, lw) = frame_slices(db, frame);
+            self.inertializer.transition_from_output(
+                &self.pose_positions[1..],
+                &self.pose_velocities[1..],
+                &self.pose_rotations[1..],
+                &self.pose_angular_velocities[1..],
+                &lp[1..j],
+                &lv[1..j],
+                &lr[1..j],
+                &lw[1..j],
+            );
+            // Root: velocity and yaw rate in world space. What is output now already includes
+            // the old offset, so the new offset is simply output − target (Bollo's form).
+            let (new_velocity, new_angular) = self.root_motion(db, frame);
+            self.root_velocity_offset = self.root_velocity - new_velocity;
+            self.root_angular_offset = self.root_angular_velocity - new_angular;
+        } else {
+            self.inertializer.reset();
+            self.root_velocity_offset = Vec3::ZERO;
+            self.root_angular_offset = Vec3::ZERO;
+        }
+        self.frame = frame;
+    }
+
+    /// World velocity and angular velocity of the database root at `frame`, carried into the
+    /// character's frame.
+    fn root_motion(&self, db: &Database, frame: usize) -> (Vec3, Vec3) {
+        let j = db.num_joints();
+        let to_world = self.root_rotation * db.local_rotations[frame * j].inverse();
+        (to_world * db.local_velocities[frame * j], to_world * db.local_angular_velocities[frame * j])
+    }
+
+    /// Advances one database frame and moves the root by the database's root motion.
+    fn step_frame(&mut self, db: &Database) {
+        let j = db.num_joints();
+        let clip_end = db.clips[db.clip_at(self.frame)].end as usize;
+        let next = if self.frame + 1 < clip_end { self.frame + 1 } else { self.frame };
+        let (p0, r0) = (db.local_positions[self.frame * j], db.local_rotations[self.frame * j]);
+        let (p1, r1) = (db.local_positions[next * j], db.local_rotations[next * j]);
+        let frame_dt = 1.0 / db.fps;
+        // Root motion as a delta in the database root's own frame, applied to ours, plus the
+        // decaying inertialization offsets of velocity and yaw rate.
+        let delta_position = self.root_rotation * (r0.inverse() * (p1 - p0));
+        let delta_rotation = r0.inverse() * r1;
+        self.root_position += delta_position + self.root_velocity_offset * frame_dt;
+        self.root_rotation = (Quat::from_scaled_axis(self.root_angular_offset * frame_dt) * self.root_rotation * delta_rotation).normalize();
+        let halflife = self.settings.inertialization_halflife;
+        decay_spring_damper_exact(&mut self.root_velocity_offset, &mut self.root_velocity_offset_rate, halflife, frame_dt);
+        decay_spring_damper_exact(&mut self.root_angular_offset, &mut self.root_angular_offset_rate, halflife, frame_dt);
+        self.frame = next;
+        self.frames_since_search += 1;
+        let (v, w) = self.root_motion(db, self.frame);
+        self.root_velocity = v + self.root_velocity_offset;
+        self.root_angular_velocity = w + self.root_angular_offset;
+    }
+
+    /// Writes the current frame's pose, inertialized, into the output buffers.
+    fn write_pose(&mut self, db: &Database, dt: f32) {
+        let (lp, lr, lv, lw) = frame_slices(db, self.frame);
+        if self.settings.inertialize {
+            self.inertializer.update(
+                &lp[1..],
+                &lv[1..],
+                &lr[1..],
+                &lw[1..],
+                self.settings.inertialization_halflife,
+                dt,
+                &mut self.pose_positions[1..],
+                &mut self.pose_velocities[1..],
+                &mut self.pose_rotations[1..],
+                &mut self.pose_angular_velocities[1..],
+            );
+        } else {
+            self.pose_positions[1..].copy_from_slice(&lp[1..]);
+            self.pose_rotations[1..].copy_from_slice(&lr[1..]);
+            self.pose_velocities[1..].copy_from_slice(&lv[1..]);
+            self.pose_angular_velocities[1..].copy_from_slice(&lw[1..]);
+        }
+        self.pose_positions[0] = self.root_position;
+        self.pose_rotations[0] = self.root_rotation;
+        self.contacts = [db.contacts[2 * self.frame], db.contacts[2 * self.frame + 1]];
+    }
+
+    /// Adjustment toward the simulated character, then clamping at α (THESIS_NOTES §6).
+    fn keep_with_simulation(&mut self, dt: f32) {
+        let s = &self.settings;
+        if s.adjustment && dt > 0.0 {
+            // Exact exponential approach with the given half-life, capped by the character's
+            // own speed so that an idle character is never dragged.
+            let target = Vec3::new(self.simulation.position.x, 0.0, self.simulation.position.z);
+            let mut step = (target - self.root_position) * (1.0 - (-dt / s.adjustment_position_halflife).exp2());
+            let cap = s.adjustment_max_ratio * self.root_velocity.length() * dt;
+            if step.length() > cap {
+                step = step.normalize_or_zero() * cap;
+            }
+            self.root_position += step;
+            let offset = quat_abs(self.simulation.rotation * self.root_rotation.inverse());
+            let mut turn = offset.to_scaled_axis() * (1.0 - (-dt / s.adjustment_rotation_halflife).exp2());
+            let cap = s.adjustment_max_ratio * self.root_angular_velocity.length() * dt;
+            if turn.length() > cap {
+                turn = turn.normalize_or_zero() * cap;
+            }
+            self.root_rotation = (Quat::from_scaled_axis(turn) * self.root_rotation).normalize();
+        }
+        if s.clamping {
+            let target = Vec3::new(self.simulation.position.x, 0.0, self.simulation.position.z);
+            let offset = self.root_position - target;
+            if offset.length() > s.clamp_distance {
+                self.root_position = target + offset.normalize() * s.clamp_distance;
+            }
+        }
+        self.pose_positions[0] = self.root_position;
+        self.pose_rotations[0] = self.root_rotation;
+    }
+}
+
+/// Local positions, rotations, velocities and angular velocities of one frame.
+fn frame_slices(db: &Database, frame: usize) -> (&[Vec3], &[Quat], &[Vec3], &[Vec3]) {
+    let j = db.num_joints();
+    let r = frame * j..(frame + 1) * j;
+    (&db.local_positions[r.clone()], &db.local_rotations[r.clone()], &db.local_velocities[r.clone()], &db.local_angular_velocities[r])
+}

@@ -1,0 +1,165 @@
+//! The quality harness: deterministic scripted inputs simulated at a fixed dt, measuring how
+//! well the character follows its controller and how clean its motion is (issue 3).
+
+use crate::character::{Character, CharacterSettings};
+use crate::controller::{Input, Path};
+use crate::database::{forward_kinematics, Database};
+use glam::{Quat, Vec2, Vec3};
+use serde::Serialize;
+
+/// Toe height under which a foot counts as touching the floor for skating (3.3 cm).
+pub const SKATING_HEIGHT: f32 = 0.033;
+
+/// A named input script: the input at time `t` (seconds), or a path to follow.
+pub struct Script {
+    pub name: &'static str,
+    pub input: fn(f32) -> Input,
+    pub path: Option<fn() -> Path>,
+}
+
+fn walk(direction: Vec2) -> Input {
+    Input { direction, ..Default::default() }
+}
+
+/// The scripts of the issue: straight walk, run, zig-zag, circles, stop-and-go, strafe, and a
+/// 4 m path square.
+pub fn scripts() -> Vec<Script> {
+    vec![
+        Script { name: "straight walk", input: |_| walk(Vec2::Y), path: None },
+        Script { name: "run", input: |_| Input { run: true, ..walk(Vec2::Y) }, path: None },
+        Script {
+            name: "zig-zag",
+            input: |t| walk(if (t / 2.0) as i32 % 2 == 0 { Vec2::new(0.7, 0.7) } else { Vec2::new(-0.7, 0.7) }),
+            path: None,
+        },
+        Script { name: "circles", input: |t| walk(Vec2::new((0.6 * t).sin(), (0.6 * t).cos())), path: None },
+        Script { name: "stop-and-go", input: |t| walk(if t % 5.0 < 3.0 { Vec2::Y } else { Vec2::ZERO }), path: None },
+        Script {
+            name: "strafe",
+            input: |t| Input {
+                direction: if (t / 3.0) as i32 % 2 == 0 { Vec2::X } else { -Vec2::X },
+                facing: Vec2::Y,
+                strafe: true,
+                run: false,
+            },
+            path: None,
+        },
+        Script {
+            name: "path square",
+            input: |_| Input::default(),
+            path: Some(|| {
+                let square = [Vec3::ZERO, Vec3::new(0.0, 0.0, 4.0), Vec3::new(-4.0, 0.0, 4.0), Vec3::new(-4.0, 0.0, 0.0)];
+                Path::new(&square, &[1.5; 4], true).unwrap()
+            }),
+        },
+    ]
+}
+
+/// What one script measured.
+#[derive(Clone, Debug, Serialize)]
+pub struct Report {
+    pub script: String,
+    pub seconds: f32,
+    /// Root ↔ simulated character distance on the ground (m).
+    pub mean_distance: f32,
+    pub max_distance: f32,
+    /// For path scripts: the largest distance of the root from the path (m).
+    pub max_path_distance: Option<f32>,
+    /// Foot skating, m per second of animation, summed over both toes:
+    /// `s = d_xz·(2 − 2^(h/H))` for frames with toe height h < H.
+    pub skating: f32,
+    pub searches_per_second: f32,
+    pub transitions_per_second: f32,
+    /// Largest angular speed of any joint between consecutive output poses (rad/s).
+    pub max_angular_speed: f32,
+    /// Pop detector: the largest ratio, over joints, of the output's angular speed to the
+    /// fastest that joint ever turns in the database. Above 1 the character moved a joint
+    /// faster than any recorded motion did.
+    pub pop_ratio: f32,
+    /// Distance the root travelled (m), to see that it moved at all.
+    pub travelled: f32,
+}
+
+/// Runs `script` for `seconds` at time step `dt` and measures it.
+pub fn run(db: &Database, settings: &CharacterSettings, script: &Script, seconds: f32, dt: f32) -> Report {
+    let mut character = Character::new(db, settings.clone());
+    let path = script.path.map(|p| p());
+    if let Some(p) = &path {
+        let (start, velocity) = p.sample(0.0);
+        let facing = crate::controller::yaw_facing(velocity).unwrap_or(Quat::IDENTITY);
+        character.teleport(start, facing);
+        character.set_path(Some(p.clone()));
+    }
+    let j = db.num_joints();
+    let toes: Vec<(usize, Vec3)> = ["left_toe", "right_toe"]
+        .iter()
+        .filter_map(|n| db.skeleton.site(n).map(|s| (s.joint as usize, s.offset)))
+        .collect();
+    let (mut positions, mut rotations) = (vec![Vec3::ZERO; j], vec![Quat::IDENTITY; j]);
+    let mut previous_toes = [Vec3::ZERO; 2];
+    let mut previous_rotations = vec![Quat::IDENTITY; j];
+    let joint_limits = joint_max_angular_speeds(db);
+    let mut pop_ratio = 0.0f32;
+    let steps = (seconds / dt).round() as usize;
+    let (mut sum_distance, mut max_distance, mut max_path, mut skating, mut max_speed, mut travelled) = (0.0, 0.0f32, 0.0f32, 0.0, 0.0f32, 0.0);
+    let mut last_root = character.root_position();
+    for step in 0..steps {
+        let t = step as f32 * dt;
+        character.update(db, &(script.input)(t), dt);
+        let root = character.root_position();
+        let sim = character.simulation.position;
+        let distance = Vec2::new(root.x - sim.x, root.z - sim.z).length();
+        sum_distance += distance;
+        max_distance = max_distance.max(distance);
+        if let Some(p) = &path {
+            max_path = max_path.max(p.distance_to(root));
+        }
+        travelled += (root - last_root).length();
+        last_root = root;
+        forward_kinematics(&db.skeleton.parents, character.pose_positions(), character.pose_rotations(), false, &mut positions, &mut rotations);
+        for (k, &(joint, offset)) in toes.iter().enumerate() {
+            let toe = positions[joint] + rotations[joint] * offset;
+            if step > 0 && toe.y < SKATING_HEIGHT {
+                let d = Vec2::new(toe.x - previous_toes[k].x, toe.z - previous_toes[k].z).length();
+                skating += d * (2.0 - (toe.y / SKATING_HEIGHT).exp2());
+            }
+            previous_toes[k] = toe;
+        }
+        if step > 0 {
+            for k in 1..j {
+                let (q, p) = (character.pose_rotations()[k], previous_rotations[k]);
+                let speed = crate::spring::quat_abs(q * p.inverse()).to_scaled_axis().length() / dt;
+                max_speed = max_speed.max(speed);
+                pop_ratio = pop_ratio.max(speed / joint_limits[k].max(1.0));
+            }
+        }
+        previous_rotations.copy_from_slice(character.pose_rotations());
+    }
+    let stats = character.stats;
+    Report {
+        script: script.name.to_string(),
+        seconds,
+        mean_distance: sum_distance / steps as f32,
+        max_distance,
+        max_path_distance: path.as_ref().map(|_| max_path),
+        skating: skating / seconds,
+        searches_per_second: stats.searches as f32 / seconds,
+        transitions_per_second: stats.transitions as f32 / seconds,
+        max_angular_speed: max_speed,
+        pop_ratio,
+        travelled,
+    }
+}
+
+/// The fastest each joint turns anywhere in the database (rad/s): what recorded motion
+/// reaches (after the builder's spike repair), the yardstick of the pop detector. Joint 0 is 0.
+pub fn joint_max_angular_speeds(db: &Database) -> Vec<f32> {
+    let j = db.num_joints();
+    let mut max = vec![0.0f32; j];
+    for f in 0..db.num_frames {
+        for k in 1..j {
+            max[k] = max[k].max(db.local_angular_velocities[f * j + k].length());
+        }
+    }
+    max
+}

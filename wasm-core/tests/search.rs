@@ -1,0 +1,166 @@
+//! The accelerated searches against the scalar brute force on a real database: 10,000 seeded
+//! random queries (database rows plus noise, far-away vectors, random β's, exclusion windows,
+//! tag masks, finite bars). Uses `public/databases/locomotion.mmdb` when it has been built
+//! (`npm run build`), else builds a smaller database from `../shared/mocap`.
+
+use mmcore::config::BuildConfig;
+use mmcore::search::{self, SearchIndex, SearchMethod, SearchOptions};
+use mmcore::{build, format, Bvh, Database, Source};
+use std::path::Path;
+use std::time::Instant;
+
+/// Deterministic SplitMix64 (no `rand` dependency for one test).
+struct Rng(u64);
+
+impl Rng {
+    fn next_u64(&mut self) -> u64 {
+        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
+        let mut z = self.0;
+        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+        z ^ (z >> 31)
+    }
+    fn below(&mut self, n: usize) -> usize {
+        (self.next_u64() % n as u64) as usize
+    }
+    /// Uniform in [0, 1).
+    fn unit(&mut self) -> f32 {
+        (self.next_u64() >> 40) as f32 / (1u64 << 24) as f32
+    }
+    fn range(&mut self, lo: f32, hi: f32) -> f32 {
+        lo + (hi - lo) * self.unit()
+    }
+    /// Roughly normal (sum of four uniforms, unit variance).
+    fn normal(&mut self) -> f32 {
+        ((0..4).map(|_| self.unit()).sum::<f32>() - 2.0) * 3f32.sqrt()
+    }
+}
+
+fn database() -> (Database, &'static str) {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("..");
+    let path = root.join("public/databases/locomotion.mmdb");
+    if let Ok(bytes) = std::fs::read(&path) {
+        return (format::from_bytes(&bytes).expect("locomotion.mmdb parses"), "locomotion.mmdb");
+    }
+    let files = ["cmu_16_15.bvh", "cmu_16_17.bvh", "cmu_16_35.bvh", "cmu_16_41.bvh", "cmu_127_13.bvh"];
+    let sources: Vec<Source> = files
+        .iter()
+        .map(|f| {
+            let p = root.join("../shared/mocap/cmu-asf").join(f);
+            let bytes = std::fs::read(&p).unwrap_or_else(|e| panic!("{}: {e} (is ../shared beside the repo?)", p.display()));
+            Source { name: f.to_string(), bvh: Bvh::parse(f, &bytes).unwrap() }
+        })
+        .collect();
+    let config = BuildConfig::from_json(r#"{"mirror": true}"#).unwrap();
+    (build(&config, &sources).unwrap().database, "5 files of ../shared/mocap (locomotion.mmdb not built)")
+}
+
+fn reference(db: &Database, query: &[f32], options: &SearchOptions, bar: f32) -> Option<(usize, f32)> {
+    search::brute_force(db, query, options, 1).first().copied().filter(|&(_, c)| c < bar)
+}
+
+/// Same frame, or a cost equal within 1e-5 relative (a tie), and `None` exactly together.
+fn agrees(got: Option<(usize, f32)>, expected: Option<(usize, f32)>) -> bool {
+    match (got, expected) {
+        (None, None) => true,
+        (Some((f, c)), Some((ef, ec))) => f == ef || (c - ec).abs() <= 1e-5 * ec.abs().max(f32::MIN_POSITIVE),
+        _ => false,
+    }
+}
+
+#[test]
+fn aabb_and_simd_equal_brute_force_on_10000_random_queries() {
+    let (db, what) = database();
+    let index = SearchIndex::new(&db).unwrap();
+    let (f, d) = (db.num_frames, db.num_features());
+    let valid: Vec<usize> = (0..f).filter(|&i| db.valid[i] != 0).collect();
+    let trajectory: Vec<bool> = {
+        let mut t = vec![false; d];
+        for g in db.groups.iter().filter(|g| g.is_trajectory) {
+            t[g.first_dim..g.first_dim + g.num_dims].fill(true);
+        }
+        t
+    };
+    let masks: Vec<Vec<bool>> = db.tags.iter().map(|t| db.tag_mask(&t.name).unwrap()).collect();
+    let mut rng = Rng(0x5EED);
+    let (mut exact, mut ties, mut nones) = (0, 0, 0);
+    let mut query = vec![0.0f32; d];
+    for i in 0..10_000 {
+        let source = valid[rng.below(valid.len())];
+        match rng.below(10) {
+            // Far away: uniform in a large box, or huge.
+            0 => query.iter_mut().for_each(|q| *q = rng.range(-20.0, 20.0)),
+            1 => query.iter_mut().for_each(|q| *q = rng.range(-1e3, 1e3)),
+            // A user changing direction: the row with only its trajectory part moved.
+            2 | 3 => {
+                query.copy_from_slice(db.feature(source));
+                let s = rng.range(0.1, 2.0);
+                query.iter_mut().zip(&trajectory).filter(|(_, &t)| t).for_each(|(q, _)| *q += s * rng.normal());
+            }
+            // A row plus noise of a random scale, sometimes none (an exact self-match).
+            _ => {
+                let s = [0.0, 0.01, 0.1, 0.5, 1.0][rng.below(5)];
+                query.iter_mut().zip(db.feature(source)).for_each(|(q, &x)| *q = x + s * rng.normal());
+            }
+        }
+        let pick = |rng: &mut Rng| match rng.below(8) {
+            0 => 0.0,
+            1 => 1.0,
+            _ => rng.range(0.0, 3.0),
+        };
+        let (beta_pose, beta_trajectory) = (pick(&mut rng), pick(&mut rng));
+        let exclude = match rng.below(4) {
+            0 => None,
+            1 => {
+                let a = rng.below(f);
+                Some((a, (a + rng.below(2000)).min(f)))
+            }
+            _ => Some((source.saturating_sub(20), source + 21)),
+        };
+        let mask = (!masks.is_empty() && rng.below(5) == 0).then(|| masks[rng.below(masks.len())].as_slice());
+        let options = SearchOptions { beta_pose, beta_trajectory, exclude, mask };
+        let best = reference(&db, &query, &options, f32::INFINITY);
+        let bar = match rng.below(10) {
+            // The runtime's bar: the cost of the frame playing now.
+            0..=2 => index.cost(source, &query, &options),
+            // Exactly the best cost (strictly-less ⇒ None), or just above / below it.
+            3 => best.map_or(1.0, |b| b.1),
+            4 => best.map_or(1.0, |b| b.1 * 1.001 + 1e-6),
+            5 => best.map_or(1.0, |b| b.1 * 0.999),
+            _ => f32::INFINITY,
+        };
+        let expected = reference(&db, &query, &options, bar);
+        nones += expected.is_none() as usize;
+        for method in SearchMethod::ALL {
+            let got = index.search(method, &query, &options, bar);
+            assert!(
+                agrees(got, expected),
+                "query {i} ({method:?}): got {got:?}, brute force {expected:?}; bar {bar}, β {beta_pose}/{beta_trajectory}, exclude {exclude:?}, mask {}",
+                mask.is_some()
+            );
+            if got.map(|(f, c)| (f, c.to_bits())) == expected.map(|(f, c)| (f, c.to_bits())) {
+                exact += 1;
+            } else {
+                ties += 1;
+            }
+        }
+    }
+    println!("{what}: {f} frames; 10000 queries × 3 methods: {exact} bit-identical, {ties} ties on another frame; {nones} expected None");
+    assert!(nones > 500 && nones < 9500, "the bars should give a mix of None and Some ({nones})");
+}
+
+#[test]
+fn index_build_time() {
+    let (db, what) = database();
+    let mut times: Vec<f64> = (0..7)
+        .map(|_| {
+            let t = Instant::now();
+            std::hint::black_box(SearchIndex::new(&db).unwrap());
+            t.elapsed().as_secs_f64() * 1e3
+        })
+        .collect();
+    times.sort_by(f64::total_cmp);
+    println!("SearchIndex::new on {what} ({} frames × {} dims): median {:.2} ms", db.num_frames, db.num_features(), times[3]);
+    // Generous: the point is "a few ms, rebuild at load" (see aabb.rs).
+    assert!(times[3] < 100.0, "index build took {} ms", times[3]);
+}
