@@ -164,6 +164,85 @@ pub fn bvh_info(name: &str, bytes: &[u8]) -> Result<String, JsError> {
     .to_string())
 }
 
+// ---- character bindings
+
+/// Characters animated by motion matching on one database (one character is a crowd of one).
+/// Pose buffers live in WASM memory: read them through the `*_ptr` views, no copies.
+#[wasm_bindgen]
+pub struct RawCrowd {
+    db: crate::Database,
+    index: crate::search::SearchIndex,
+    crowd: crate::crowd::Crowd,
+}
+
+#[wasm_bindgen]
+impl RawCrowd {
+    /// Loads `.mmdb` bytes and places `count` characters on a 2 m grid.
+    #[wasm_bindgen(constructor)]
+    pub fn new(bytes: &[u8], count: usize) -> Result<RawCrowd, JsError> {
+        let db = format::from_bytes(bytes).map_err(js_error)?;
+        let index = crate::search::SearchIndex::new(&db).map_err(js_error)?;
+        let crowd = crate::crowd::Crowd::new(&db, count, &crate::character::CharacterSettings::default());
+        Ok(RawCrowd { db, index, crowd })
+    }
+
+    pub fn num_characters(&self) -> usize {
+        self.crowd.characters.len()
+    }
+    pub fn num_joints(&self) -> usize {
+        self.db.num_joints()
+    }
+
+    /// Input of character `i`: move direction (x, z) with length 0–1, facing (x, z) used when
+    /// strafing, run and strafe flags. Out-of-range `i` is ignored.
+    #[allow(clippy::too_many_arguments)]
+    pub fn set_input(&mut self, i: usize, move_x: f32, move_z: f32, face_x: f32, face_z: f32, run: bool, strafe: bool) {
+        if let Some(input) = self.crowd.inputs.get_mut(i) {
+            *input = crate::controller::Input {
+                direction: glam::Vec2::new(move_x, move_z),
+                facing: glam::Vec2::new(face_x, face_z),
+                run,
+                strafe,
+            };
+        }
+    }
+
+    /// Search method of every character: 0 scalar, 1 SIMD, 2 AABB (default).
+    pub fn set_search_method(&mut self, method: u32) {
+        if let Some(m) = crate::search::SearchMethod::from_index(method) {
+            self.crowd.characters.iter_mut().for_each(|c| c.settings.search_method = m);
+        }
+    }
+
+    /// Advances every character by `dt` seconds.
+    pub fn update(&mut self, dt: f32) {
+        self.crowd.update(&self.db, &self.index, dt);
+    }
+
+    /// `J×3` f32: joint 0 the root's world position, others local positions.
+    pub fn pose_positions_ptr(&self, i: usize) -> *const f32 {
+        self.crowd.characters[i].pose_positions().as_ptr().cast()
+    }
+    /// `J×4` f32 (x, y, z, w): joint 0 the root's world rotation, others local rotations.
+    pub fn pose_rotations_ptr(&self, i: usize) -> *const f32 {
+        self.crowd.characters[i].pose_rotations().as_ptr().cast()
+    }
+    pub fn frame(&self, i: usize) -> usize {
+        self.crowd.characters[i].frame()
+    }
+    /// Contacts of character `i` as bits: 1 left, 2 right.
+    pub fn contacts(&self, i: usize) -> u32 {
+        let [l, r] = self.crowd.characters[i].contacts();
+        l as u32 | (r as u32) << 1
+    }
+    pub fn searches(&self, i: usize) -> f64 {
+        self.crowd.characters[i].stats.searches as f64
+    }
+    pub fn transitions(&self, i: usize) -> f64 {
+        self.crowd.characters[i].stats.transitions as f64
+    }
+}
+
 // ---- search bindings (begin)
 // Motion-matching search (crate::search::SearchIndex). JS writes the normalized query into a
 // Float32Array over `query_ptr()`, then calls `search(...)`: no allocation and no copy per call.

@@ -6,7 +6,7 @@
 use crate::controller::{desired_rotation, desired_velocity, yaw_facing, ChangeDetector, ControllerSettings, Input, Path, Simulation};
 use crate::database::{Axes, Database, FeatureKind};
 use crate::inertialize::Inertializer;
-use crate::search::SearchOptions;
+use crate::search::{SearchIndex, SearchMethod, SearchOptions};
 use crate::spring::{decay_spring_damper_exact, quat_abs};
 use glam::{Quat, Vec3};
 
@@ -37,6 +37,8 @@ pub struct CharacterSettings {
     pub clamp_distance: f32,
     /// Database playback rate multiplier.
     pub playback_speed: f32,
+    /// All methods return the same frame; AABB is the fast one, the others are for comparison.
+    pub search_method: SearchMethod,
 }
 
 impl Default for CharacterSettings {
@@ -58,6 +60,7 @@ impl Default for CharacterSettings {
             clamping: true,
             clamp_distance: 0.15,
             playback_speed: 1.0,
+            search_method: SearchMethod::Aabb,
         }
     }
 }
@@ -252,7 +255,9 @@ impl Character {
     /// Advances the character by `dt` seconds of real time under `input` (ignored while
     /// following a path). `db` must be the database the character was created for, or another
     /// with the same skeleton and features (call [`Self::request_search`] after switching).
-    pub fn update(&mut self, db: &Database, input: &Input, dt: f32) {
+    ///
+    /// `index` must be built from `db`.
+    pub fn update(&mut self, db: &Database, index: &SearchIndex, input: &Input, dt: f32) {
         let dt = dt.max(0.0);
         self.update_simulation(input, dt);
 
@@ -260,7 +265,7 @@ impl Character {
         let clip_end = db.clips[db.clip_at(self.frame)].end as usize;
         let at_clip_end = self.frame + 1 >= clip_end;
         if self.force_search || self.frames_since_search >= self.settings.search_interval || at_clip_end {
-            self.search(db);
+            self.search(db, index);
         }
 
         // Play the database at its own rate, whatever the render rate.
@@ -349,7 +354,7 @@ impl Character {
         }
     }
 
-    fn search(&mut self, db: &Database) {
+    fn search(&mut self, db: &Database, index: &SearchIndex) {
         self.force_search = false;
         self.frames_since_search = 0;
         // Pose part: the current frame's own (normalized) features.
@@ -361,19 +366,6 @@ impl Character {
                 self.query[d] = (self.query[d] - db.feature_mean[d]) / db.feature_scale[d];
             }
         }
-        let weights_cost = |frame: usize, query: &[f32]| -> f32 {
-            db.groups
-                .iter()
-                .map(|g| {
-                    let beta = if g.is_trajectory { self.settings.beta_trajectory } else { self.settings.beta_pose };
-                    let row = &db.feature(frame)[g.first_dim..g.first_dim + g.num_dims];
-                    beta * row.iter().zip(&query[g.first_dim..g.first_dim + g.num_dims]).map(|(f, q)| (q - f) * (q - f)).sum::<f32>()
-                })
-                .sum()
-        };
-        // The current frame is the bar: jump only to something strictly better.
-        let valid_now = db.valid[self.frame] != 0 && self.mask.as_ref().is_none_or(|m| m[self.frame]);
-        let bar = if valid_now { weights_cost(self.frame, &self.query) } else { f32::INFINITY };
         let r = self.settings.exclude_radius;
         let options = SearchOptions {
             beta_pose: self.settings.beta_pose,
@@ -381,10 +373,13 @@ impl Character {
             exclude: Some((self.frame.saturating_sub(r), self.frame + r + 1)),
             mask: self.mask.as_deref(),
         };
-        let best = crate::search::brute_force(db, &self.query, &options, 1);
+        // The current frame is the bar: jump only to something strictly better.
+        let valid_now = index.is_valid(self.frame) && self.mask.as_ref().is_none_or(|m| m[self.frame]);
+        let bar = if valid_now { index.cost(self.frame, &self.query, &options) } else { f32::INFINITY };
+        let best = index.search(self.settings.search_method, &self.query, &options, bar);
         self.stats.searches += 1;
         self.stats.current_cost = bar;
-        if let Some(&(frame, cost)) = best.first().filter(|&&(_, cost)| cost < bar) {
+        if let Some((frame, cost)) = best {
             self.stats.best_cost = cost;
             self.transition(db, frame);
         }

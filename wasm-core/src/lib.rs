@@ -8,6 +8,7 @@ pub mod bvh;
 pub mod character;
 pub mod config;
 pub mod controller;
+pub mod crowd;
 pub mod database;
 pub mod error;
 pub mod format;

@@ -82,6 +82,7 @@ pub struct Report {
 
 /// Runs `script` for `seconds` at time step `dt` and measures it.
 pub fn run(db: &Database, settings: &CharacterSettings, script: &Script, seconds: f32, dt: f32) -> Report {
+    let index = crate::search::SearchIndex::new(db).expect("a searchable database");
     let mut character = Character::new(db, settings.clone());
     let path = script.path.map(|p| p());
     if let Some(p) = &path {
@@ -105,7 +106,7 @@ pub fn run(db: &Database, settings: &CharacterSettings, script: &Script, seconds
     let mut last_root = character.root_position();
     for step in 0..steps {
         let t = step as f32 * dt;
-        character.update(db, &(script.input)(t), dt);
+        character.update(db, &index, &(script.input)(t), dt);
         let root = character.root_position();
         let sim = character.simulation.position;
         let distance = Vec2::new(root.x - sim.x, root.z - sim.z).length();

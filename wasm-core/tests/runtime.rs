@@ -5,9 +5,15 @@ use glam::{Quat, Vec2, Vec3};
 use mmcore::character::{Character, CharacterSettings};
 use mmcore::config::BuildConfig;
 use mmcore::controller::Input;
+use mmcore::search::SearchIndex;
 use mmcore::{build, quality, Bvh, Database, Source};
 use std::path::Path;
 use std::sync::OnceLock;
+
+fn index() -> &'static SearchIndex {
+    static INDEX: OnceLock<SearchIndex> = OnceLock::new();
+    INDEX.get_or_init(|| SearchIndex::new(db()).unwrap())
+}
 
 /// A small locomotion database: walks, turns, runs and a stop of subject 16, mirrored.
 fn db() -> &'static Database {
@@ -46,14 +52,14 @@ fn a_transition_does_not_change_the_output() {
     let mut checked = 0;
     for step in 0..1200 {
         let t = step as f32 / 60.0;
-        c.update(db, &input_at(t), 1.0 / 60.0);
+        c.update(db, index(), &input_at(t), 1.0 / 60.0);
         if step % 7 == 3 {
             let before_p = c.pose_positions().to_vec();
             let before_r = c.pose_rotations().to_vec();
             let transitions = c.stats.transitions;
             // A search with the input flipped around, applied without advancing time.
             c.request_search();
-            c.update(db, &Input { direction: Vec2::new(0.0, -1.0), run: true, ..Default::default() }, 0.0);
+            c.update(db, index(), &Input { direction: Vec2::new(0.0, -1.0), run: true, ..Default::default() }, 0.0);
             if c.stats.transitions > transitions {
                 checked += 1;
                 for (j, (a, b)) in before_p.iter().zip(c.pose_positions()).enumerate() {
@@ -77,7 +83,7 @@ fn two_runs_are_bit_identical() {
         for step in 0..900 {
             // An uneven render rate, like a real browser.
             let dt = if step % 3 == 0 { 1.0 / 50.0 } else { 1.0 / 75.0 };
-            c.update(db, &input_at(step as f32 * dt), dt);
+            c.update(db, index(), &input_at(step as f32 * dt), dt);
             trace.extend(c.pose_rotations().iter().flat_map(|q| q.to_array()).map(f32::to_bits));
             trace.extend(c.root_position().to_array().map(f32::to_bits));
         }
@@ -97,7 +103,7 @@ fn the_root_stays_within_alpha_of_the_simulation() {
         let mut c = Character::new(db, settings);
         c.teleport(Vec3::new(3.0, 0.0, -2.0), Quat::from_rotation_y(1.0));
         for step in 0..1800 {
-            c.update(db, &input_at(step as f32 / 60.0), 1.0 / 60.0);
+            c.update(db, index(), &input_at(step as f32 / 60.0), 1.0 / 60.0);
             let (r, s) = (c.root_position(), c.simulation.position);
             let d = Vec2::new(r.x - s.x, r.z - s.z).length();
             assert!(d <= alpha + 1e-5, "α {alpha}: distance {d} at step {step}");

@@ -13,7 +13,8 @@ const USAGE: &str = "usage:
   mmdb search DB.mmdb (--frame N | --query v1,v2,...) [--normalized] [-k K] [--tag TAG]
               [--beta-pose B] [--beta-trajectory B] [--exclude-radius R] [--json]
   mmdb dump DB.mmdb            (every array as JSON)
-  mmdb bench FILE.bvh... [--json] [--seconds S]";
+  mmdb bench FILE.bvh... [--json] [--seconds S]
+  mmdb bench-runtime DB.mmdb [--json]   (per-character update time, characters per 4 ms)";
 
 fn main() -> ExitCode {
     let args: Vec<String> = std::env::args().skip(1).collect();
@@ -23,6 +24,7 @@ fn main() -> ExitCode {
         Some("search") => search_cmd(&args[1..]),
         Some("dump") => dump(&args[1..]),
         Some("bench") => bench(&args[1..]),
+        Some("bench-runtime") => bench_runtime(&args[1..]),
         Some("-h" | "--help" | "help") => {
             println!("{USAGE}");
             return ExitCode::SUCCESS;
@@ -344,6 +346,66 @@ fn bench(args: &[String]) -> CliResult {
             megabytes / parse,
             build * 1e3,
             source_frames as f64 / build
+        );
+    }
+    Ok(())
+}
+
+/// Per-character update cost (one character following a zig-zag with runs and stops) and
+/// how many characters fit in a 4 ms budget (a crowd of 256, per-character cost × 256).
+fn bench_runtime(args: &[String]) -> CliResult {
+    use mmcore::character::CharacterSettings;
+    use mmcore::controller::Input;
+    let a = Args::parse(args, &[], &["--json"])?;
+    let [path] = a.positional.as_slice() else { return Err(Usage("bench-runtime needs one .mmdb file".into()).into()) };
+    let (db, _) = load(path)?;
+    let index = mmcore::search::SearchIndex::new(&db)?;
+    let input = |step: usize| {
+        let t = step as f32 / 60.0;
+        let phase = (t / 2.0) as usize % 4;
+        Input {
+            direction: [glam::Vec2::new(0.7, 0.7), glam::Vec2::new(-0.7, 0.7), glam::Vec2::new(0.0, -1.0), glam::Vec2::ZERO][phase],
+            run: phase == 2,
+            ..Default::default()
+        }
+    };
+    let mut crowd = mmcore::crowd::Crowd::new(&db, 1, &CharacterSettings::default());
+    let mut times = Vec::with_capacity(3600);
+    for step in 0..3600 {
+        crowd.inputs[0] = input(step);
+        let t = Instant::now();
+        crowd.update(&db, &index, 1.0 / 60.0);
+        times.push(t.elapsed().as_secs_f64() * 1e3);
+    }
+    times.sort_by(f64::total_cmp);
+    let (median, p95) = (times[times.len() / 2], times[times.len() * 95 / 100]);
+    let n = 256;
+    let mut crowd = mmcore::crowd::Crowd::new(&db, n, &CharacterSettings::default());
+    let mut crowd_times = Vec::new();
+    for step in 0..240 {
+        for (i, inp) in crowd.inputs.iter_mut().enumerate() {
+            *inp = input(step + 37 * i);
+        }
+        let t = Instant::now();
+        crowd.update(&db, &index, 1.0 / 60.0);
+        crowd_times.push(t.elapsed().as_secs_f64() * 1e3);
+    }
+    crowd_times.sort_by(f64::total_cmp);
+    let per_character = crowd_times[crowd_times.len() / 2] / n as f64;
+    let result = serde_json::json!({
+        "runtime": "native",
+        "database_frames": db.num_frames,
+        "update_ms_median": median,
+        "update_ms_p95": p95,
+        "crowd_ms_per_character": per_character,
+        "characters_in_4ms": (4.0 / per_character).floor(),
+    });
+    if a.has("--json") {
+        println!("{result}");
+    } else {
+        println!(
+            "native: update median {median:.4} ms, p95 {p95:.4} ms; crowd of {n}: {per_character:.4} ms per character → {} characters in 4 ms",
+            (4.0 / per_character).floor()
         );
     }
     Ok(())
