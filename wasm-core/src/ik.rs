@@ -403,7 +403,8 @@ impl FootLock {
         }
         self.contact = contact;
 
-        let (input, input_velocity) = if self.locked { (self.lock_position, Vec3::ZERO) } else { (animated_toe_pos, animated_toe_vel) };
+        let (input, input_velocity) =
+            if self.locked { (self.lock_position, Vec3::ZERO) } else { (animated_toe_pos, animated_toe_vel) };
         (self.offset, self.offset_velocity) = decay_spring_vec3(self.offset, self.offset_velocity, halflife, dt);
         self.position = input + self.offset;
         self.velocity = input_velocity + self.offset_velocity;
@@ -548,7 +549,8 @@ mod tests {
     fn two_bone_ik_handles_straight_and_folded_chains() {
         // Straight leg hanging down, target pulled up: the knee bends toward the pole (+Z).
         let (a, b, c) = (Vec3::new(0.0, 1.0, 0.0), Vec3::new(0.0, 0.55, 0.0), Vec3::new(0.0, 0.1, 0.0));
-        let (lr_a, lr_b) = two_bone_ik(a, b, c, Vec3::new(0.0, 0.3, 0.0), Vec3::Z, Quat::IDENTITY, Quat::IDENTITY, Quat::IDENTITY, 1e-3);
+        let (lr_a, lr_b) =
+            two_bone_ik(a, b, c, Vec3::new(0.0, 0.3, 0.0), Vec3::Z, Quat::IDENTITY, Quat::IDENTITY, Quat::IDENTITY, 1e-3);
         let b_new = a + lr_a * (b - a);
         let c_new = b_new + lr_a * lr_b * (c - b);
         assert!((c_new - Vec3::new(0.0, 0.3, 0.0)).length() < 1e-5);
@@ -627,6 +629,36 @@ mod tests {
             }
         }
         assert!(reachable > 1500, "only {reachable} reachable cases");
+    }
+
+    #[test]
+    fn leg_ik_lifts_the_heel_and_respects_the_floor() {
+        let (parents, offsets) = leg_skeleton();
+        let leg = LegJoints { upper_leg: 2, lower_leg: 3, foot: 4, toe: 5, toe_offset: Vec3::ZERO };
+        let (mut gp, mut gr) = ([Vec3::ZERO; 6], [Quat::IDENTITY; 6]);
+        // Standing, knee slightly bent, foot flat.
+        let mut locals = [Quat::IDENTITY; 6];
+        locals[2] = Quat::from_rotation_x(-0.05);
+        locals[3] = Quat::from_rotation_x(0.1);
+        locals[4] = Quat::from_rotation_x(-0.05);
+        fk(&parents, &offsets, Vec3::ZERO, &locals, &mut gp, &mut gr);
+        let (toe, ankle) = (gp[5], gp[4]);
+
+        // Late stance: the toe must stay 0.3 m behind, out of reach for a flat foot → heel lifts.
+        let target = toe - Vec3::Z * 0.3;
+        let mut out = locals;
+        let reached = leg_ik(&leg, &parents, &gp, &gr, target, Vec3::ZERO, 0.0, 0.01, &mut out);
+        let (mut gp2, mut gr2) = ([Vec3::ZERO; 6], [Quat::IDENTITY; 6]);
+        fk(&parents, &offsets, Vec3::ZERO, &out, &mut gp2, &mut gr2);
+        assert!((gp2[5] - target).length() < 1e-4 && (reached - target).length() < 1e-4, "toe {} vs {target}", gp2[5]);
+        assert!(gp2[4].y - gp2[5].y > ankle.y - toe.y + 0.02, "heel did not lift");
+
+        // Target under the floor: the toe stops on the floor.
+        let target = toe.with_y(-0.05) + Vec3::Z * 0.05;
+        let mut out = locals;
+        leg_ik(&leg, &parents, &gp, &gr, target, Vec3::ZERO, 0.0, 0.01, &mut out);
+        fk(&parents, &offsets, Vec3::ZERO, &out, &mut gp2, &mut gr2);
+        assert!((gp2[5] - target.with_y(0.0)).length() < 1e-4, "toe {}", gp2[5]);
     }
 
     #[test]

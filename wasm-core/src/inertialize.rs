@@ -85,14 +85,7 @@ pub fn quat_abs(q: Quat) -> Quat {
 /// source `(src, src_vel)` to the target `(dst, dst_vel)` into the offset:
 /// `d' = (d + s) − t`, `d_v' = (d_v + s_v) − t_v`.
 #[inline]
-pub fn inertialize_transition_vec3(
-    offset: &mut Vec3,
-    offset_vel: &mut Vec3,
-    src: Vec3,
-    src_vel: Vec3,
-    dst: Vec3,
-    dst_vel: Vec3,
-) {
+pub fn inertialize_transition_vec3(offset: &mut Vec3, offset_vel: &mut Vec3, src: Vec3, src_vel: Vec3, dst: Vec3, dst_vel: Vec3) {
     *offset = (*offset + src) - dst;
     *offset_vel = (*offset_vel + src_vel) - dst_vel;
 }
@@ -121,14 +114,7 @@ pub fn inertialize_update_vec3(
 ///
 /// Preconditions: `src` and `dst` are unit quaternions (`offset` is kept unit by this module).
 #[inline]
-pub fn inertialize_transition_quat(
-    offset: &mut Quat,
-    offset_vel: &mut Vec3,
-    src: Quat,
-    src_vel: Vec3,
-    dst: Quat,
-    dst_vel: Vec3,
-) {
+pub fn inertialize_transition_quat(offset: &mut Quat, offset_vel: &mut Vec3, src: Quat, src_vel: Vec3, dst: Quat, dst_vel: Vec3) {
     // Normalizing costs little and keeps repeated transitions from accumulating drift.
     let new_offset = quat_abs((*offset * src * dst.inverse()).normalize());
     *offset_vel = (*offset_vel + *offset * src_vel) - new_offset * dst_vel;
@@ -453,14 +439,8 @@ impl RootInertializer {
         // Normalized: `dst · src⁻¹ · q` of nearly equal rotations drifts off unit length over time.
         let world_rot = (self.dst_rotation * self.src_rotation.inverse() * in_rot).normalize();
         let (world_vel, world_angvel) = (self.world_vector(in_vel), self.world_vector(in_angvel));
-        (self.position, self.velocity) = inertialize_update_vec3(
-            &mut self.offset_position,
-            &mut self.offset_velocity,
-            world_pos,
-            world_vel,
-            halflife,
-            dt,
-        );
+        (self.position, self.velocity) =
+            inertialize_update_vec3(&mut self.offset_position, &mut self.offset_velocity, world_pos, world_vel, halflife, dt);
         (self.rotation, self.angular_velocity) = inertialize_update_quat(
             &mut self.offset_rotation,
             &mut self.offset_angular_velocity,
@@ -666,7 +646,16 @@ mod tests {
             update(&mut b, &src, 0.15, 1.0 / 60.0, &mut out_b);
             let dst = Pose::random(&mut rng, n);
             transition(&mut a, &src, &dst);
-            b.transition_from_output(&out_b.pos, &out_b.vel, &out_b.rot, &out_b.angvel, &dst.pos, &dst.vel, &dst.rot, &dst.angvel);
+            b.transition_from_output(
+                &out_b.pos,
+                &out_b.vel,
+                &out_b.rot,
+                &out_b.angvel,
+                &dst.pos,
+                &dst.vel,
+                &dst.rot,
+                &dst.angvel,
+            );
             update(&mut a, &dst, 0.15, 1.0 / 60.0, &mut out_a);
             update(&mut b, &dst, 0.15, 1.0 / 60.0, &mut out_b);
             assert!(max_diff(&out_a, &out_b) < 1e-4, "{}", max_diff(&out_a, &out_b));
@@ -756,8 +745,9 @@ mod tests {
         dst.angvel.copy_from_slice(&src.angvel);
         let mut out = Pose::zeroed(n);
         transition(&mut inert, &src, &dst);
-        let before: Vec<(f32, f32)> =
-            (0..n).map(|i| (inert.offset_positions()[i].length(), inert.offset_rotations()[i].to_scaled_axis().length())).collect();
+        let before: Vec<(f32, f32)> = (0..n)
+            .map(|i| (inert.offset_positions()[i].length(), inert.offset_rotations()[i].to_scaled_axis().length()))
+            .collect();
         let mut prev = before.clone();
         let dt = 1.0f32 / 60.0;
         for _ in 0..(7.0 * h / dt).ceil() as usize {
