@@ -373,7 +373,7 @@ impl FootLock {
 
     /// Advances by `dt` and returns the toe target. `contact` is the database's contact flag for
     /// this foot at the frame now playing; `animated_toe_pos`/`animated_toe_vel` are the toe of the
-    /// inertialized pose in world space. Defaults: `unlock_radius` 0.2 m, `halflife` 0.1 s.
+    /// inertialized pose in world space. Defaults: `unlock_radius` 0.2 m, `halflife` 0.12 s (exact half-life; Holden's 0.1 s).
     ///
     /// Preconditions: `dt ≥ 0`, `halflife ≥ 0`.
     pub fn update(
@@ -691,17 +691,17 @@ mod tests {
         let mut lock = FootLock::new();
         let slide = Vec3::new(0.3, 0.0, 0.0);
         let mut toe = Vec3::new(0.0, 0.05, 0.0);
-        let mut prev = lock.update(false, toe, Vec3::ZERO, DT, 0.2, 0.1);
+        let mut prev = lock.update(false, toe, Vec3::ZERO, DT, 0.2, 0.12);
         // Swing in: toe approaching at 1 m/s, no contact.
         for _ in 0..10 {
             toe += Vec3::Z * DT;
-            prev = lock.update(false, toe, Vec3::Z, DT, 0.2, 0.1);
+            prev = lock.update(false, toe, Vec3::Z, DT, 0.2, 0.12);
         }
         // Contact for 0.5 s while the animation slides 0.3 m/s (0.15 m < unlock radius).
         let mut first = None;
         for _ in 0..30 {
             toe += slide * DT;
-            let target = lock.update(true, toe, slide, DT, 0.2, 0.1);
+            let target = lock.update(true, toe, slide, DT, 0.2, 0.12);
             assert!(lock.is_locked());
             let first = *first.get_or_insert(target);
             assert!((target - first).length() < 1e-3, "locked target moved {}", (target - first).length());
@@ -713,7 +713,7 @@ mod tests {
         let mut max_step = 0.0f32;
         for frame in 1..=60 {
             toe += lift * DT;
-            let target = lock.update(false, toe, lift, DT, 0.2, 0.1);
+            let target = lock.update(false, toe, lift, DT, 0.2, 0.12);
             assert!(!lock.is_locked());
             max_step = max_step.max((target - prev).length());
             if frame == 30 {
@@ -731,13 +731,13 @@ mod tests {
         let mut lock = FootLock::new();
         let slide = Vec3::new(0.0, 0.0, 0.7);
         let mut toe = Vec3::ZERO;
-        lock.update(false, toe, Vec3::ZERO, DT, 0.2, 0.1);
+        lock.update(false, toe, Vec3::ZERO, DT, 0.2, 0.12);
         let mut unlocked_at = None;
         let mut prev = lock.position();
         let mut max_step = 0.0f32;
         for frame in 0..60 {
             toe += slide * DT;
-            let target = lock.update(true, toe, slide, DT, 0.2, 0.1);
+            let target = lock.update(true, toe, slide, DT, 0.2, 0.12);
             if unlocked_at.is_none() && !lock.is_locked() {
                 unlocked_at = Some(frame);
             }
@@ -754,9 +754,9 @@ mod tests {
         assert!((prev - toe).length() < 0.01, "target did not catch up: {}", (prev - toe).length());
         assert!(max_step < 0.05, "per-frame step {max_step}");
         // A new contact locks again, where the target is.
-        lock.update(false, toe, slide, DT, 0.2, 0.1);
+        lock.update(false, toe, slide, DT, 0.2, 0.12);
         let at = lock.position();
-        lock.update(true, toe, slide, DT, 0.2, 0.1);
+        lock.update(true, toe, slide, DT, 0.2, 0.12);
         assert!(lock.is_locked() && lock.lock_position() == at);
     }
 }

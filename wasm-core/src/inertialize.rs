@@ -25,61 +25,35 @@
 
 use glam::{Quat, Vec3};
 
-/// Smallest half-life used, so a half-life of 0 means "snap" instead of a division by zero.
-const MIN_HALFLIFE: f32 = 1e-5;
-
-/// The spring's decay rate y = 4·ln2 / h / 2 = 2·ln2 / h (THESIS_NOTES §4).
-#[inline]
-fn halflife_to_decay(halflife: f32) -> f32 {
-    2.0 * std::f32::consts::LN_2 / halflife.max(MIN_HALFLIFE)
-}
-
-/// Exact step of a critically damped spring decaying a scalar `x` (velocity `v`) toward 0 over
-/// `dt` seconds; returns the new `(x, v)`. THESIS_NOTES §4 with goal ŷ = 0:
-/// `j0 = x; j1 = v + j0·y; e = exp(−y·dt); x' = e·(j0 + j1·dt); v' = e·(v − j1·y·dt)`.
-///
-/// "Half-life" is the spring's parameter in Holden's sense: with zero initial velocity the value
-/// after one half-life is `(1 + 2 ln2)/4 ≈ 0.597·x`, after 7 half-lives < 0.1 %. The step is
-/// exact, so one step of `dt` equals many smaller steps summing to `dt`.
-///
-/// Preconditions: `dt ≥ 0`; `halflife ≥ 0` (values below 1e-5 s act as 1e-5 s).
+/// Exact critically damped decay toward zero, the same spring as everywhere in the crate
+/// ([`crate::spring`]: one half-life halves a released offset). Returns `(x', v')`.
 #[inline]
 pub fn decay_spring(x: f32, v: f32, halflife: f32, dt: f32) -> (f32, f32) {
-    let y = halflife_to_decay(halflife);
-    let j1 = v + x * y;
-    let e = (-y * dt).exp();
-    (e * (x + j1 * dt), e * (v - j1 * y * dt))
+    let (mut x, mut v) = (x, v);
+    crate::spring::decay_spring_damper_exact(&mut x, &mut v, halflife, dt);
+    (x, v)
 }
 
 /// [`decay_spring`] for a vector (each component independently, one decay rate).
 #[inline]
 pub fn decay_spring_vec3(x: Vec3, v: Vec3, halflife: f32, dt: f32) -> (Vec3, Vec3) {
-    let y = halflife_to_decay(halflife);
-    let j1 = v + x * y;
-    let e = (-y * dt).exp();
-    (e * (x + j1 * dt), e * (v - j1 * (y * dt)))
+    let (mut x, mut v) = (x, v);
+    crate::spring::decay_spring_damper_exact(&mut x, &mut v, halflife, dt);
+    (x, v)
 }
 
 /// [`decay_spring`] for a rotation offset: the offset's scaled axis-angle is decayed with
-/// `w` (radians/s) as its velocity, and converted back (THESIS_NOTES §4, "via scaled axis-angle").
-/// Returns the new `(offset, w)`; the offset is unit length.
+/// `w` (radians/s) as its velocity (THESIS_NOTES §4, "via scaled axis-angle").
 ///
-/// Preconditions: `x` is unit length; as for [`decay_spring`].
+/// Preconditions: `x` is unit length.
 #[inline]
 pub fn decay_spring_quat(x: Quat, w: Vec3, halflife: f32, dt: f32) -> (Quat, Vec3) {
-    let (r, w) = decay_spring_vec3(x.to_scaled_axis(), w, halflife, dt);
-    (Quat::from_scaled_axis(r), w)
+    let (mut x, mut w) = (x, w);
+    crate::spring::decay_spring_damper_exact_quat(&mut x, &mut w, halflife, dt);
+    (x, w)
 }
 
-/// The same rotation in the hemisphere w ≥ 0, so its scaled axis-angle is the short way (≤ π).
-#[inline]
-pub fn quat_abs(q: Quat) -> Quat {
-    if q.w < 0.0 {
-        -q
-    } else {
-        q
-    }
-}
+pub use crate::spring::quat_abs;
 
 /// Transition of one vector channel (THESIS_NOTES §5, additive form): folds the jump from the raw
 /// source `(src, src_vel)` to the target `(dst, dst_vel)` into the offset:
@@ -584,10 +558,9 @@ mod tests {
             (x, v) = (nx, nv);
             t += dt;
         }
-        // Analytic value after one half-life with zero initial velocity: e^(−2ln2)·(1 + 2ln2).
+        // One half-life halves a released offset (crate::spring's definition).
         let (x_h, _) = decay_spring(1.0, 0.0, h, h);
-        let ln2 = std::f32::consts::LN_2;
-        assert!((x_h - 0.25 * (1.0 + 2.0 * ln2)).abs() < 1e-6, "{x_h}");
+        assert!((x_h - 0.5).abs() < 1e-5, "{x_h}");
         assert!(decay_spring(1.0, 0.0, h, 7.0 * h).0 < 0.01);
         // Halflife 0 snaps without NaN, also with dt = 0.
         assert_eq!(decay_spring(1.0, 3.0, 0.0, 0.0), (1.0, 3.0));

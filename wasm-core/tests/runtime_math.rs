@@ -171,7 +171,7 @@ fn foot_lock_and_leg_ik_plant_the_feet_on_real_walks() {
                 let toe = toe_of(leg, &gp, &gr);
                 let vel = prev_toe[side].map_or(Vec3::ZERO, |t| (toe - t) / dt);
                 let contact = db.contacts[2 * f + side] == 1;
-                let target = locks[side].update(contact, toe, vel, dt, 0.2, 0.1);
+                let target = locks[side].update(contact, toe, vel, dt, 0.2, 0.12);
                 let pole = knee_bend_direction(gp[leg.upper_leg], gp[leg.lower_leg], gp[leg.foot]);
                 let reached = leg_ik(leg, parents, &gp, &gr, target, pole, 0.0, 0.01, &mut rot);
                 // Re-run FK so the other leg sees the updated pose.
