@@ -5,6 +5,8 @@
 
 use crate::controller::{desired_rotation, desired_velocity, yaw_facing, ChangeDetector, ControllerSettings, Input, Path, Simulation};
 use crate::database::{Axes, Database, FeatureKind};
+use crate::database::forward_kinematics;
+use crate::ik::{knee_bend_direction, leg_ik, FootLock, LegJoints};
 use crate::inertialize::Inertializer;
 use crate::search::{SearchIndex, SearchMethod, SearchOptions};
 use crate::spring::{decay_spring_damper_exact, quat_abs};
@@ -39,6 +41,12 @@ pub struct CharacterSettings {
     pub playback_speed: f32,
     /// All methods return the same frame; AABB is the fast one, the others are for comparison.
     pub search_method: SearchMethod,
+    /// Pin toes in contact to the floor with two-bone leg IK (THESIS_NOTES §7).
+    pub foot_lock: bool,
+    /// A locked toe unlocks when the animation drifts farther than this (m).
+    pub foot_lock_unlock_radius: f32,
+    /// Blend in and out of a lock (exact half-life; Holden's 0.1 s).
+    pub foot_lock_halflife: f32,
 }
 
 impl Default for CharacterSettings {
@@ -61,6 +69,9 @@ impl Default for CharacterSettings {
             clamp_distance: 0.15,
             playback_speed: 1.0,
             search_method: SearchMethod::Aabb,
+            foot_lock: true,
+            foot_lock_unlock_radius: 0.2,
+            foot_lock_halflife: 0.12,
         }
     }
 }
@@ -114,9 +125,18 @@ pub struct Character {
     root_angular_offset: Vec3,
     root_angular_offset_rate: Vec3,
     inertializer: Inertializer,
-    /// Output pose: joint 0 holds the root's world transform, the others local transforms.
+    /// Inertialized pose: joint 0 holds the root's world transform, the others local
+    /// transforms. Transitions start from this, never from the IK-corrected output (else the
+    /// corrections would be folded into the offsets and decay away).
     pose_positions: Vec<Vec3>,
     pose_rotations: Vec<Quat>,
+    /// What is shown: the inertialized pose with foot-lock IK applied.
+    output_rotations: Vec<Quat>,
+    world_positions: Vec<Vec3>,
+    world_rotations: Vec<Quat>,
+    legs: [Option<LegJoints>; 2],
+    locks: [FootLock; 2],
+    previous_toes: [Vec3; 2],
     pose_velocities: Vec<Vec3>,
     pose_angular_velocities: Vec<Vec3>,
     contacts: [u8; 2],
@@ -176,6 +196,12 @@ impl Character {
             inertializer: Inertializer::new(j - 1),
             pose_positions: vec![Vec3::ZERO; j],
             pose_rotations: vec![Quat::IDENTITY; j],
+            output_rotations: vec![Quat::IDENTITY; j],
+            world_positions: vec![Vec3::ZERO; j],
+            world_rotations: vec![Quat::IDENTITY; j],
+            legs: [LegJoints::from_skeleton(&db.skeleton, "left"), LegJoints::from_skeleton(&db.skeleton, "right")],
+            locks: [FootLock::new(); 2],
+            previous_toes: [Vec3::ZERO; 2],
             pose_velocities: vec![Vec3::ZERO; j],
             pose_angular_velocities: vec![Vec3::ZERO; j],
             contacts: [0; 2],
@@ -187,15 +213,32 @@ impl Character {
             times,
         };
         c.write_pose(db, 0.0);
+        c.reset_feet(db);
         c
     }
 
+    /// Unlocks both feet and restarts their velocity estimate from the current pose.
+    fn reset_feet(&mut self, db: &Database) {
+        self.output_rotations.copy_from_slice(&self.pose_rotations);
+        forward_kinematics(&db.skeleton.parents, &self.pose_positions, &self.output_rotations, false, &mut self.world_positions, &mut self.world_rotations);
+        for side in 0..2 {
+            if let Some(leg) = &self.legs[side] {
+                let toe = self.world_positions[leg.toe] + self.world_rotations[leg.toe] * leg.toe_offset;
+                self.previous_toes[side] = toe;
+                self.locks[side].reset(toe, Vec3::ZERO);
+            }
+        }
+    }
+
     /// Places the character (and its simulated twin) at a world position and yaw.
-    pub fn teleport(&mut self, position: Vec3, rotation: Quat) {
+    pub fn teleport(&mut self, db: &Database, position: Vec3, rotation: Quat) {
         self.root_position = Vec3::new(position.x, 0.0, position.z);
         self.root_rotation = rotation;
         self.simulation = Simulation { position: self.root_position, rotation, ..Simulation::default() };
         self.force_search = true;
+        self.pose_positions[0] = self.root_position;
+        self.pose_rotations[0] = self.root_rotation;
+        self.reset_feet(db);
     }
 
     /// Follow `path` from its start (or `None` to return to input control).
@@ -234,8 +277,17 @@ impl Character {
     pub fn pose_positions(&self) -> &[Vec3] {
         &self.pose_positions
     }
+    /// The shown rotations: inertialized, with foot-lock IK on the legs.
     pub fn pose_rotations(&self) -> &[Quat] {
-        &self.pose_rotations
+        &self.output_rotations
+    }
+    /// Whether each foot (left, right) is locked to the floor now.
+    pub fn foot_locked(&self) -> [bool; 2] {
+        [self.locks[0].is_locked(), self.locks[1].is_locked()]
+    }
+    /// World positions of every joint of the shown pose (after [`Self::update`]).
+    pub fn world_positions(&self) -> &[Vec3] {
+        &self.world_positions
     }
     /// Foot contacts of the current frame (left, right).
     pub fn contacts(&self) -> [u8; 2] {
@@ -276,6 +328,42 @@ impl Character {
         }
         self.write_pose(db, dt);
         self.keep_with_simulation(dt);
+        self.lock_feet(db, dt);
+    }
+
+    /// Foot lock (THESIS_NOTES §7): each toe in contact is held where the contact began
+    /// (blended in and out by [`FootLock`]) and the leg reaches it by two-bone IK.
+    fn lock_feet(&mut self, db: &Database, dt: f32) {
+        self.output_rotations.copy_from_slice(&self.pose_rotations);
+        let parents = &db.skeleton.parents;
+        forward_kinematics(parents, &self.pose_positions, &self.output_rotations, false, &mut self.world_positions, &mut self.world_rotations);
+        for side in 0..2 {
+            let Some(leg) = &self.legs[side] else { continue };
+            let toe = self.world_positions[leg.toe] + self.world_rotations[leg.toe] * leg.toe_offset;
+            let velocity = if dt > 0.0 { (toe - self.previous_toes[side]) / dt } else { Vec3::ZERO };
+            self.previous_toes[side] = toe;
+            if !self.settings.foot_lock {
+                self.locks[side].reset(toe, velocity);
+                continue;
+            }
+            let contact = self.contacts[side] != 0;
+            let s = &self.settings;
+            let target = self.locks[side].update(contact, toe, velocity, dt, s.foot_lock_unlock_radius, s.foot_lock_halflife);
+            // Unlocked and blended out: the animation is already right, leave the leg alone.
+            if (target - toe).length_squared() < 1e-10 {
+                continue;
+            }
+            // Keep the knee in the animation's own bend plane, even a slightly backward
+            // (hyperextended) one: a pole on the other side makes the solver turn the leg half
+            // a turn about the hip–ankle axis in one frame. Facing only breaks an exact tie.
+            let (hip, knee, ankle) = (self.world_positions[leg.upper_leg], self.world_positions[leg.lower_leg], self.world_positions[leg.foot]);
+            let bend = knee_bend_direction(hip, knee, ankle);
+            let pole = if bend.length_squared() > 1e-8 { bend } else { self.root_rotation * Vec3::Z };
+            leg_ik(leg, parents, &self.world_positions, &self.world_rotations, target, pole, 0.0, 1e-4, &mut self.output_rotations);
+        }
+        if self.settings.foot_lock {
+            forward_kinematics(parents, &self.pose_positions, &self.output_rotations, false, &mut self.world_positions, &mut self.world_rotations);
+        }
     }
 
     fn update_simulation(&mut self, input: &Input, dt: f32) {

@@ -19,7 +19,7 @@ impl Crowd {
         let characters = (0..count)
             .map(|i| {
                 let mut c = Character::new(db, settings.clone());
-                c.teleport(Vec3::new(2.0 * (i % side) as f32, 0.0, 2.0 * (i / side) as f32), Quat::IDENTITY);
+                c.teleport(db, Vec3::new(2.0 * (i % side) as f32, 0.0, 2.0 * (i / side) as f32), Quat::IDENTITY);
                 c
             })
             .collect();

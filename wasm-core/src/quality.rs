@@ -68,6 +68,8 @@ pub struct Report {
     /// Foot skating, m per second of animation, summed over both toes:
     /// `s = d_xz·(2 − 2^(h/H))` for frames with toe height h < H.
     pub skating: f32,
+    /// The same with the foot lock switched off (the rest of the settings unchanged).
+    pub skating_without_lock: f32,
     pub searches_per_second: f32,
     pub transitions_per_second: f32,
     /// Largest angular speed of any joint between consecutive output poses (rad/s).
@@ -80,15 +82,22 @@ pub struct Report {
     pub travelled: f32,
 }
 
-/// Runs `script` for `seconds` at time step `dt` and measures it.
+/// Runs `script` for `seconds` at time step `dt` and measures it (and once more without the
+/// foot lock, for the skating comparison).
 pub fn run(db: &Database, settings: &CharacterSettings, script: &Script, seconds: f32, dt: f32) -> Report {
+    let unlocked = CharacterSettings { foot_lock: false, ..settings.clone() };
+    let without = simulate(db, &unlocked, script, seconds, dt);
+    Report { skating_without_lock: without.skating, ..simulate(db, settings, script, seconds, dt) }
+}
+
+fn simulate(db: &Database, settings: &CharacterSettings, script: &Script, seconds: f32, dt: f32) -> Report {
     let index = crate::search::SearchIndex::new(db).expect("a searchable database");
     let mut character = Character::new(db, settings.clone());
     let path = script.path.map(|p| p());
     if let Some(p) = &path {
         let (start, velocity) = p.sample(0.0);
         let facing = crate::controller::yaw_facing(velocity).unwrap_or(Quat::IDENTITY);
-        character.teleport(start, facing);
+        character.teleport(db, start, facing);
         character.set_path(Some(p.clone()));
     }
     let j = db.num_joints();
@@ -144,6 +153,7 @@ pub fn run(db: &Database, settings: &CharacterSettings, script: &Script, seconds
         max_distance,
         max_path_distance: path.as_ref().map(|_| max_path),
         skating: skating / seconds,
+        skating_without_lock: f32::NAN,
         searches_per_second: stats.searches as f32 / seconds,
         transitions_per_second: stats.transitions as f32 / seconds,
         max_angular_speed: max_speed,
@@ -163,4 +173,26 @@ pub fn joint_max_angular_speeds(db: &Database) -> Vec<f32> {
         }
     }
     max
+}
+
+/// The harness as a text table (`mmdb quality`).
+pub fn table(reports: &[Report]) -> String {
+    let mut out = String::from(
+        "script          root↔sim mean/max (m)  path max (m)  skating lock/no lock (cm/s)  searches/s  transitions/s  max ω (rad/s)\n",
+    );
+    for r in reports {
+        out += &format!(
+            "{:<15} {:>9.3} / {:<9.3} {:>12} {:>13.2} / {:<11.2} {:>10.1} {:>14.2} {:>14.1}\n",
+            r.script,
+            r.mean_distance,
+            r.max_distance,
+            r.max_path_distance.map_or("-".to_string(), |d| format!("{d:.3}")),
+            100.0 * r.skating,
+            100.0 * r.skating_without_lock,
+            r.searches_per_second,
+            r.transitions_per_second,
+            r.max_angular_speed
+        );
+    }
+    out
 }

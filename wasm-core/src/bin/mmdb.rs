@@ -14,7 +14,8 @@ const USAGE: &str = "usage:
               [--beta-pose B] [--beta-trajectory B] [--exclude-radius R] [--json]
   mmdb dump DB.mmdb            (every array as JSON)
   mmdb bench FILE.bvh... [--json] [--seconds S]
-  mmdb bench-runtime DB.mmdb [--json]   (per-character update time, characters per 4 ms)";
+  mmdb bench-runtime DB.mmdb [--json]   (per-character update time, characters per 4 ms)
+  mmdb quality DB.mmdb [--json] [--seconds S]   (scripted inputs: distance, skating, pops)";
 
 fn main() -> ExitCode {
     let args: Vec<String> = std::env::args().skip(1).collect();
@@ -25,6 +26,7 @@ fn main() -> ExitCode {
         Some("dump") => dump(&args[1..]),
         Some("bench") => bench(&args[1..]),
         Some("bench-runtime") => bench_runtime(&args[1..]),
+        Some("quality") => quality(&args[1..]),
         Some("-h" | "--help" | "help") => {
             println!("{USAGE}");
             return ExitCode::SUCCESS;
@@ -407,6 +409,23 @@ fn bench_runtime(args: &[String]) -> CliResult {
             "native: update median {median:.4} ms, p95 {p95:.4} ms; crowd of {n}: {per_character:.4} ms per character → {} characters in 4 ms",
             (4.0 / per_character).floor()
         );
+    }
+    Ok(())
+}
+
+/// The quality harness: each scripted input for `--seconds` (60) at 60 Hz.
+fn quality(args: &[String]) -> CliResult {
+    use mmcore::quality;
+    let a = Args::parse(args, &["--seconds"], &["--json"])?;
+    let [path] = a.positional.as_slice() else { return Err(Usage("quality needs one .mmdb file".into()).into()) };
+    let (db, _) = load(path)?;
+    let seconds = a.number::<f32>("--seconds")?.unwrap_or(60.0);
+    let settings = mmcore::character::CharacterSettings::default();
+    let reports: Vec<quality::Report> = quality::scripts().iter().map(|s| quality::run(&db, &settings, s, seconds, 1.0 / 60.0)).collect();
+    if a.has("--json") {
+        println!("{}", serde_json::to_string_pretty(&reports).unwrap());
+    } else {
+        print!("{path}: {seconds} s per script at 60 Hz, α = {} m\n{}", settings.clamp_distance, quality::table(&reports));
     }
     Ok(())
 }
