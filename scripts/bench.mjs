@@ -183,7 +183,7 @@ async function chromiumSearchBench(baseUrl, names) {
     const page = await browser.newPage();
     const pageErrors = [];
     page.on('pageerror', (e) => pageErrors.push(e.message));
-    await page.goto(`${baseUrl}web/bench.html?db=${names.join(',')}&queries=${numQueries}`);
+    await page.goto(`${baseUrl}web/bench.html?db=${names.join(',')}&queries=${numQueries}&runtime=locomotion.mmdb`);
     await page.waitForFunction(() => window.__searchBench?.done, null, { timeout: 600_000, polling: 250 });
     const hook = await page.evaluate(() => window.__searchBench);
     if (hook.error || pageErrors.length) throw new Error(`bench page: ${[hook.error, ...pageErrors].filter(Boolean).join('\n')}`);
@@ -203,12 +203,20 @@ async function searchBenchmark(log) {
     const { benchSearch } = await server.ssrLoadModule('/web/src/bench/search-bench.ts');
     const api = { RawDatabase: wasm.RawDatabase, RawSearchIndex: wasm.RawSearchIndex, memory: wasmExports.memory };
     const node = names.map((name) => benchSearch(api, name, new Uint8Array(fs.readFileSync(path.join(DATABASES, name))), { queries: numQueries }));
+    const { benchRuntime } = await server.ssrLoadModule('/web/src/bench/runtime-bench.ts');
+    const locomotion = path.join(DATABASES, 'locomotion.mmdb');
+    const nativeRuntime = JSON.parse(execFileSync(mmdb, ['bench-runtime', locomotion, '--json'], { encoding: 'utf8' }));
+    const runtime = [
+      { runtime: 'native', ...nativeRuntime, database: 'locomotion.mmdb' },
+      { runtime: 'wasm (node)', ...benchRuntime(wasm.RawCrowd, 'locomotion.mmdb', new Uint8Array(fs.readFileSync(locomotion))) },
+    ];
     let chromiumRun = null;
     if (fs.existsSync(CHROMIUM)) chromiumRun = await chromiumSearchBench(server.resolvedUrls.local[0], names);
     else log(`warning: ${CHROMIUM} missing, Chromium search benchmark skipped`);
     const runtimes = [{ runtime: 'wasm (node)', version: process.version, results: node }];
     if (chromiumRun) {
       runtimes.push({ runtime: 'wasm (chromium)', version: chromiumRun.version, cross_origin_isolated: chromiumRun.crossOriginIsolated, results: chromiumRun.results });
+      if (chromiumRun.runtime) runtime.push({ runtime: 'wasm (chromium)', ...chromiumRun.runtime });
     }
     const targets = Object.entries(AABB_TARGETS_MS).map(([database, target_ms]) => {
       const r = chromiumRun?.results.find((x) => x.database === database);
@@ -222,6 +230,7 @@ async function searchBenchmark(log) {
       query: 'a valid database frame with its trajectory turned by up to ±135° and its speed scaled 0.6–1.4; exclude ±20 frames around it; β = 1; bar = +inf',
       runtimes,
       targets,
+      runtime,
     };
   } finally {
     await server.close();
@@ -254,9 +263,32 @@ function printSearchBenchmark(search) {
   }
 }
 
+function printRuntimeBenchmark(runtime) {
+  console.log('\ncharacter update on locomotion.mmdb (zig-zag / back-run / stop script, AABB search, foot lock on)');
+  console.log('runtime            update median ms   p95 ms   characters in 4 ms (crowd of 256)');
+  for (const r of runtime) {
+    console.log(`${r.runtime.padEnd(18)} ${r.update_ms_median.toFixed(4).padStart(16)} ${r.update_ms_p95.toFixed(4).padStart(8)} ${String(r.characters_in_4ms).padStart(20)}`);
+  }
+  const chromium = runtime.find((r) => r.runtime === 'wasm (chromium)');
+  if (chromium) {
+    const ok = (v, t, less) => (less ? v <= t : v >= t) ? 'met' : 'MISSED';
+    console.log(`target: update ≤ 0.05 ms median in Chromium → ${chromium.update_ms_median.toFixed(4)} ms, ${ok(chromium.update_ms_median, 0.05, true)}`);
+    console.log(`target: ≥ 500 characters in 4 ms in Chromium → ${chromium.characters_in_4ms}, ${ok(chromium.characters_in_4ms, 500, false)}`);
+  }
+}
+
 const log = (m) => console.error(`[bench] ${m}`);
 const result = searchOnly ? {} : buildBenchmark();
 if (!json && !searchOnly) printBuildBenchmark(result);
 result.search = await searchBenchmark(log);
+if (process.argv.includes('--quality')) {
+  const args = ['quality', path.join(DATABASES, 'locomotion.mmdb'), ...(json ? ['--json'] : [])];
+  result.quality = execFileSync(mmdb, args, { encoding: 'utf8' });
+  if (json) result.quality = JSON.parse(result.quality);
+}
 if (json) console.log(JSON.stringify(result, null, 2));
-else printSearchBenchmark(result.search);
+else {
+  printSearchBenchmark(result.search);
+  printRuntimeBenchmark(result.search.runtime);
+  if (result.quality) console.log(`\nquality harness (mmdb quality):\n${result.quality}`);
+}

@@ -5,7 +5,6 @@
 
 use crate::controller::{desired_rotation, desired_velocity, yaw_facing, ChangeDetector, ControllerSettings, Input, Path, Simulation};
 use crate::database::{Axes, Database, FeatureKind};
-use crate::database::forward_kinematics;
 use crate::ik::{knee_bend_direction, leg_ik, FootLock, LegJoints};
 use crate::inertialize::Inertializer;
 use crate::search::{SearchIndex, SearchMethod, SearchOptions};
@@ -135,6 +134,9 @@ pub struct Character {
     world_positions: Vec<Vec3>,
     world_rotations: Vec<Quat>,
     legs: [Option<LegJoints>; 2],
+    /// Joints whose world transforms the foot lock needs: the legs and their ancestors, in
+    /// parent-first order (FK of just these is a third of the skeleton's).
+    leg_chain: Vec<usize>,
     locks: [FootLock; 2],
     previous_toes: [Vec3; 2],
     pose_velocities: Vec<Vec3>,
@@ -200,6 +202,7 @@ impl Character {
             world_positions: vec![Vec3::ZERO; j],
             world_rotations: vec![Quat::IDENTITY; j],
             legs: [LegJoints::from_skeleton(&db.skeleton, "left"), LegJoints::from_skeleton(&db.skeleton, "right")],
+            leg_chain: Vec::new(),
             locks: [FootLock::new(); 2],
             previous_toes: [Vec3::ZERO; 2],
             pose_velocities: vec![Vec3::ZERO; j],
@@ -212,15 +215,38 @@ impl Character {
             slots,
             times,
         };
+        let mut needed = vec![false; j];
+        for leg in c.legs.iter().flatten() {
+            let mut k = leg.toe as i32;
+            while k >= 0 && !needed[k as usize] {
+                needed[k as usize] = true;
+                k = db.skeleton.parents[k as usize];
+            }
+        }
+        c.leg_chain = (0..j).filter(|&k| needed[k]).collect();
         c.write_pose(db, 0.0);
         c.reset_feet(db);
         c
     }
 
+    /// World transforms of the leg chains of the pose being shown (before foot-lock IK).
+    fn leg_kinematics(&mut self, db: &Database) {
+        for &k in &self.leg_chain {
+            let p = db.skeleton.parents[k];
+            if p < 0 {
+                (self.world_positions[k], self.world_rotations[k]) = (self.pose_positions[k], self.output_rotations[k]);
+            } else {
+                let p = p as usize;
+                self.world_positions[k] = self.world_positions[p] + self.world_rotations[p] * self.pose_positions[k];
+                self.world_rotations[k] = self.world_rotations[p] * self.output_rotations[k];
+            }
+        }
+    }
+
     /// Unlocks both feet and restarts their velocity estimate from the current pose.
     fn reset_feet(&mut self, db: &Database) {
         self.output_rotations.copy_from_slice(&self.pose_rotations);
-        forward_kinematics(&db.skeleton.parents, &self.pose_positions, &self.output_rotations, false, &mut self.world_positions, &mut self.world_rotations);
+        self.leg_kinematics(db);
         for side in 0..2 {
             if let Some(leg) = &self.legs[side] {
                 let toe = self.world_positions[leg.toe] + self.world_rotations[leg.toe] * leg.toe_offset;
@@ -285,10 +311,7 @@ impl Character {
     pub fn foot_locked(&self) -> [bool; 2] {
         [self.locks[0].is_locked(), self.locks[1].is_locked()]
     }
-    /// World positions of every joint of the shown pose (after [`Self::update`]).
-    pub fn world_positions(&self) -> &[Vec3] {
-        &self.world_positions
-    }
+
     /// Foot contacts of the current frame (left, right).
     pub fn contacts(&self) -> [u8; 2] {
         self.contacts
@@ -335,8 +358,8 @@ impl Character {
     /// (blended in and out by [`FootLock`]) and the leg reaches it by two-bone IK.
     fn lock_feet(&mut self, db: &Database, dt: f32) {
         self.output_rotations.copy_from_slice(&self.pose_rotations);
+        self.leg_kinematics(db);
         let parents = &db.skeleton.parents;
-        forward_kinematics(parents, &self.pose_positions, &self.output_rotations, false, &mut self.world_positions, &mut self.world_rotations);
         for side in 0..2 {
             let Some(leg) = &self.legs[side] else { continue };
             let toe = self.world_positions[leg.toe] + self.world_rotations[leg.toe] * leg.toe_offset;
@@ -360,9 +383,6 @@ impl Character {
             let bend = knee_bend_direction(hip, knee, ankle);
             let pole = if bend.length_squared() > 1e-8 { bend } else { self.root_rotation * Vec3::Z };
             leg_ik(leg, parents, &self.world_positions, &self.world_rotations, target, pole, 0.0, 1e-4, &mut self.output_rotations);
-        }
-        if self.settings.foot_lock {
-            forward_kinematics(parents, &self.pose_positions, &self.output_rotations, false, &mut self.world_positions, &mut self.world_rotations);
         }
     }
 

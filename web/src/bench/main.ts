@@ -3,8 +3,9 @@
  * WASM on the databases named by `?db=` and shows a table. `scripts/bench.mjs` drives it in
  * headless Chromium and reads `window.__searchBench`.
  */
-import { RawDatabase, RawSearchIndex } from '../core/pkg/mmcore.js';
+import { RawCrowd, RawDatabase, RawSearchIndex } from '../core/pkg/mmcore.js';
 import { initWasm } from '../core/wasm.ts';
+import { benchRuntime, type RuntimeBenchResult } from './runtime-bench.ts';
 import { benchSearch, type SearchBenchResult } from './search-bench.ts';
 
 /** `window.__searchBench`: progress and results for the driver script. */
@@ -15,6 +16,8 @@ export interface SearchBenchHook {
   crossOriginIsolated: boolean;
   userAgent: string;
   results: SearchBenchResult[];
+  /** The character-update benchmark, when `?runtime=<database>` asks for it. */
+  runtime: RuntimeBenchResult | null;
 }
 
 declare global {
@@ -23,7 +26,7 @@ declare global {
   }
 }
 
-const hook: SearchBenchHook = { done: false, error: null, crossOriginIsolated, userAgent: navigator.userAgent, results: [] };
+const hook: SearchBenchHook = { done: false, error: null, crossOriginIsolated, userAgent: navigator.userAgent, results: [], runtime: null };
 window.__searchBench = hook;
 
 const status = document.getElementById('status') as HTMLElement;
@@ -67,6 +70,14 @@ async function main(): Promise<void> {
     hook.results.push(result);
     showResult(result);
     if (result.mismatches > 0) fail(`${name}: the three methods disagreed on ${result.mismatches} queries`);
+  }
+  const runtimeDb = params.get('runtime');
+  if (runtimeDb) {
+    status.textContent = `character updates on ${runtimeDb}…`;
+    await nextFrame();
+    const response = await fetch(`/databases/${runtimeDb}`);
+    if (!response.ok) throw new Error(`/databases/${runtimeDb}: HTTP ${response.status}`);
+    hook.runtime = benchRuntime(RawCrowd, runtimeDb, new Uint8Array(await response.arrayBuffer()));
   }
   status.textContent = `done (${crossOriginIsolated ? '5 µs' : '100 µs'} timer resolution)`;
   hook.done = true;

@@ -1,0 +1,77 @@
+/**
+ * The character-update benchmark, shared by Node (`scripts/bench.mjs` through vite) and the
+ * bench page in Chromium, with the same input script as `mmdb bench-runtime` (native): a
+ * zig-zag, a backward run and a stop, each 2 s, at 60 Hz.
+ */
+
+/** The WASM class this needs (structural, so tests and Node can pass the module's export). */
+export interface CrowdClass {
+  new (bytes: Uint8Array, count: number): {
+    set_input(i: number, moveX: number, moveZ: number, faceX: number, faceZ: number, run: boolean, strafe: boolean): void;
+    update(dt: number): void;
+    free(): void;
+  };
+}
+
+export interface RuntimeBenchResult {
+  database: string;
+  /** One character's full update (search, playback, inertialization, adjustment, foot lock). */
+  update_ms_median: number;
+  update_ms_p95: number;
+  crowd_size: number;
+  /** Median crowd update / crowd size. */
+  crowd_ms_per_character: number;
+  characters_in_4ms: number;
+}
+
+/** Input of step `step` (60 Hz): [moveX, moveZ, run]. */
+function input(step: number): [number, number, boolean] {
+  const phase = Math.floor(step / 120) % 4;
+  const dir = ([[0.7, 0.7], [-0.7, 0.7], [0, -1], [0, 0]] as const)[phase];
+  return [dir[0], dir[1], phase === 2];
+}
+
+const quantile = (sorted: number[], q: number): number => sorted[Math.min(sorted.length - 1, Math.floor(sorted.length * q))];
+
+export function benchRuntime(RawCrowd: CrowdClass, database: string, bytes: Uint8Array, crowdSize = 256): RuntimeBenchResult {
+  const one = new RawCrowd(bytes, 1);
+  const times: number[] = [];
+  try {
+    for (let step = 0; step < 3600; step++) {
+      const [x, z, run] = input(step);
+      one.set_input(0, x, z, 0, 1, run, false);
+      const t = performance.now();
+      one.update(1 / 60);
+      times.push(performance.now() - t);
+    }
+  } finally {
+    one.free();
+  }
+  times.sort((a, b) => a - b);
+
+  const crowd = new RawCrowd(bytes, crowdSize);
+  const crowdTimes: number[] = [];
+  try {
+    for (let step = 0; step < 240; step++) {
+      for (let i = 0; i < crowdSize; i++) {
+        const [x, z, run] = input(step + 37 * i);
+        crowd.set_input(i, x, z, 0, 1, run, false);
+      }
+      const t = performance.now();
+      crowd.update(1 / 60);
+      crowdTimes.push(performance.now() - t);
+    }
+  } finally {
+    crowd.free();
+  }
+  crowdTimes.sort((a, b) => a - b);
+  const perCharacter = quantile(crowdTimes, 0.5) / crowdSize;
+  return {
+    database,
+    update_ms_median: quantile(times, 0.5),
+    update_ms_p95: quantile(times, 0.95),
+    crowd_size: crowdSize,
+    crowd_ms_per_character: perCharacter,
+    characters_in_4ms: Math.floor(4 / perCharacter),
+  };
+}
