@@ -48,9 +48,11 @@ fn build_inspect_and_search() {
     // A query equal to frame 100's stored (normalized) features finds frame 100 at cost 0.
     let dump = stdout_json(&mmdb(&["dump", db]));
     let row: Vec<String> = dump["features"].as_array().unwrap()[100 * 27..101 * 27].iter().map(|v| v.to_string()).collect();
-    let own = stdout_json(&mmdb(&["search", db, "--query", &row.join(","), "--normalized", "-k", "1", "--json"]));
-    assert_eq!(own["results"][0]["frame"], 100);
-    assert_eq!(own["results"][0]["cost"], 0.0);
+    for method in ["aabb", "simd", "scalar"] {
+        let own = stdout_json(&mmdb(&["search", db, "--query", &row.join(","), "--normalized", "--method", method, "--json"]));
+        assert_eq!(own["results"][0]["frame"], 100, "{method}");
+        assert_eq!(own["results"][0]["cost"], 0.0);
+    }
 }
 
 #[test]

@@ -11,7 +11,8 @@ const USAGE: &str = "usage:
   mmdb build (--config CONFIG.json | FILE.bvh...) -o OUT.mmdb [--fps N] [--scale S|auto] [--no-mirror] [--json]
   mmdb inspect DB.mmdb [--json]
   mmdb search DB.mmdb (--frame N | --query v1,v2,...) [--normalized] [-k K] [--tag TAG]
-              [--beta-pose B] [--beta-trajectory B] [--exclude-radius R] [--json]
+              [--beta-pose B] [--beta-trajectory B] [--exclude-radius R]
+              [--method aabb|simd|scalar] [--json]   (-k > 1 lists the k best by brute force)
   mmdb dump DB.mmdb            (every array as JSON)
   mmdb bench FILE.bvh... [--json] [--seconds S]
   mmdb bench-runtime DB.mmdb [--json]   (per-character update time, characters per 4 ms)
@@ -235,7 +236,7 @@ fn dump(args: &[String]) -> CliResult {
 fn search_cmd(args: &[String]) -> CliResult {
     let a = Args::parse(
         args,
-        &["--frame", "--query", "-k", "--tag", "--beta-pose", "--beta-trajectory", "--exclude-radius"],
+        &["--frame", "--query", "-k", "--tag", "--beta-pose", "--beta-trajectory", "--exclude-radius", "--method"],
         &["--normalized", "--json"],
     )?;
     let [path] = a.positional.as_slice() else { return Err(Usage("search needs one .mmdb file".into()).into()) };
@@ -267,10 +268,23 @@ fn search_cmd(args: &[String]) -> CliResult {
         exclude,
         mask: mask.as_deref(),
     };
-    let k = a.number::<usize>("-k")?.unwrap_or(5).max(1);
-    let started = Instant::now();
-    let best = search::brute_force(&db, &query, &options, k);
-    let elapsed = started.elapsed().as_secs_f64() * 1e3;
+    let k = a.number::<usize>("-k")?.unwrap_or(1).max(1);
+    let method = match a.get("--method").unwrap_or("aabb") {
+        "aabb" => search::SearchMethod::Aabb,
+        "simd" => search::SearchMethod::Simd,
+        "scalar" => search::SearchMethod::Scalar,
+        m => return Err(Usage(format!("--method: '{m}' is not aabb, simd or scalar")).into()),
+    };
+    let (best, elapsed, method_name) = if k == 1 {
+        let index = search::SearchIndex::new(&db)?;
+        let started = Instant::now();
+        let best: Vec<(usize, f32)> = index.search(method, &query, &options, f32::INFINITY).into_iter().collect();
+        (best, started.elapsed().as_secs_f64() * 1e3, method.name())
+    } else {
+        let started = Instant::now();
+        let best = search::brute_force(&db, &query, &options, k);
+        (best, started.elapsed().as_secs_f64() * 1e3, "brute_force")
+    };
     let results: Vec<serde_json::Value> = best
         .iter()
         .map(|&(f, cost)| {
@@ -279,9 +293,9 @@ fn search_cmd(args: &[String]) -> CliResult {
         })
         .collect();
     if a.has("--json") {
-        println!("{}", serde_json::json!({"method": "brute_force", "ms": elapsed, "results": results}));
+        println!("{}", serde_json::json!({"method": method_name, "ms": elapsed, "results": results}));
     } else {
-        println!("brute force over {} frames in {elapsed:.3} ms", db.num_frames);
+        println!("{method_name} search over {} frames in {elapsed:.4} ms", db.num_frames);
         for r in &results {
             println!("  frame {:>6}  cost {:>10.4}  {} +{}", r["frame"], r["cost"].as_f64().unwrap(), r["clip"].as_str().unwrap(), r["clip_frame"]);
         }
