@@ -107,6 +107,9 @@ pub struct Character {
     frame_fraction: f32,
     frames_since_search: u32,
     force_search: bool,
+    /// Set by [`Self::switch_database`]: the next search runs in the new database with the
+    /// pose features captured from the old one.
+    switching: bool,
     velocity_change: ChangeDetector,
     rotation_change: ChangeDetector,
     desired_velocity: Vec3,
@@ -181,6 +184,7 @@ impl Character {
             frame_fraction: 0.0,
             frames_since_search: 0,
             force_search: true,
+            switching: false,
             velocity_change: ChangeDetector::default(),
             rotation_change: ChangeDetector::default(),
             desired_velocity: Vec3::ZERO,
@@ -284,9 +288,23 @@ impl Character {
         self.force_search = true;
     }
 
-    /// Forces a search at the next update (e.g. after switching to another database that
-    /// shares this skeleton: the transition is inertialized like any other).
+    /// Forces a search at the next update.
     pub fn request_search(&mut self) {
+        self.force_search = true;
+    }
+
+    /// Prepares a switch away from `from` (the database used so far) to another one with the
+    /// same skeleton and feature layout, passed to the next [`Self::update`]: that update
+    /// searches the new database from the current pose, and the jump is inertialized like any
+    /// other transition (VR: crouch ↔ stand by head height). A search mask belongs to a
+    /// database, so it is lifted (set a new one with [`Self::set_mask`] after the switch).
+    ///
+    /// # Panics
+    /// If `from` is not the database the character was playing.
+    pub fn switch_database(&mut self, from: &Database) {
+        self.query.copy_from_slice(from.feature(self.frame));
+        self.mask = None;
+        self.switching = true;
         self.force_search = true;
     }
 
@@ -337,8 +355,7 @@ impl Character {
         self.update_simulation(input, dt);
 
         // Search on a timer, on a sharp input change, or when the clip is about to end.
-        let clip_end = db.clips[db.clip_at(self.frame)].end as usize;
-        let at_clip_end = self.frame + 1 >= clip_end;
+        let at_clip_end = !self.switching && self.frame + 1 >= db.clips[db.clip_at(self.frame)].end as usize;
         if self.force_search || self.frames_since_search >= self.settings.search_interval || at_clip_end {
             self.search(db, index);
         }
@@ -465,8 +482,13 @@ impl Character {
     fn search(&mut self, db: &Database, index: &SearchIndex) {
         self.force_search = false;
         self.frames_since_search = 0;
-        // Pose part: the current frame's own (normalized) features.
-        self.query.copy_from_slice(db.feature(self.frame));
+        assert_eq!(self.query.len(), db.num_features(), "the database's feature layout differs from the character's");
+        // Pose part: the current frame's own (normalized) features (captured from the old
+        // database when switching).
+        let switching = std::mem::take(&mut self.switching);
+        if !switching {
+            self.query.copy_from_slice(db.feature(self.frame));
+        }
         self.build_query();
         for slot in &self.slots {
             let n = slot.axes.num_dims();
@@ -478,11 +500,12 @@ impl Character {
         let options = SearchOptions {
             beta_pose: self.settings.beta_pose,
             beta_trajectory: self.settings.beta_trajectory,
-            exclude: Some((self.frame.saturating_sub(r), self.frame + r + 1)),
-            mask: self.mask.as_deref(),
+            exclude: (!switching).then(|| (self.frame.saturating_sub(r), self.frame + r + 1)),
+            mask: if switching { None } else { self.mask.as_deref() },
         };
-        // The current frame is the bar: jump only to something strictly better.
-        let valid_now = index.is_valid(self.frame) && self.mask.as_ref().is_none_or(|m| m[self.frame]);
+        // The current frame is the bar: jump only to something strictly better. After a
+        // switch every frame is new: no bar.
+        let valid_now = !switching && index.is_valid(self.frame) && self.mask.as_ref().is_none_or(|m| m[self.frame]);
         let bar = if valid_now { index.cost(self.frame, &self.query, &options) } else { f32::INFINITY };
         let best = index.search(self.settings.search_method, &self.query, &options, bar);
         self.stats.searches += 1;
@@ -490,6 +513,9 @@ impl Character {
         if let Some((frame, cost)) = best {
             self.stats.best_cost = cost;
             self.transition(db, frame);
+        } else if switching {
+            // Nothing searchable in the new database: cut to its first frame.
+            self.transition(db, 0);
         }
     }
 

@@ -145,3 +145,39 @@ fn quality_harness_is_sane() {
     // for 0.5×; this asserts what holds and keeps the gap visible.
     assert!(locked <= 0.7 * unlocked, "skating with foot lock {locked} vs without {unlocked}");
 }
+
+/// Switching to another database with the same skeleton mid-motion (e.g. crouch ↔ stand in
+/// VR): the next update searches the new database and the output is continuous — at dt = 0
+/// it is unchanged, like any transition.
+#[test]
+fn switching_databases_is_inertialized() {
+    let walk = db();
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../shared/mocap/cmu-asf");
+    // Subject 127 runs and side-steps: another database, the same (normalized) skeleton.
+    let sources: Vec<Source> = ["cmu_16_15.bvh", "cmu_127_03.bvh", "cmu_127_13.bvh", "cmu_127_14.bvh", "cmu_127_17.bvh"]
+        .iter()
+        .map(|name| Source { bvh: Bvh::parse(name, &std::fs::read(dir.join(name)).unwrap()).unwrap(), name: name.to_string() })
+        .collect();
+    let other = build(&BuildConfig::default(), &sources).unwrap().database;
+    assert_eq!(other.skeleton.names, walk.skeleton.names);
+    let other_index = SearchIndex::new(&other).unwrap();
+    let mut c = Character::new(walk, CharacterSettings::default());
+    for step in 0..200 {
+        c.update(walk, index(), &input_at(step as f32 / 60.0), 1.0 / 60.0);
+    }
+    let (before_p, before_r) = (c.pose_positions().to_vec(), c.pose_rotations().to_vec());
+    let transitions = c.stats.transitions;
+    c.switch_database(walk);
+    c.update(&other, &other_index, &Input { direction: Vec2::new(0.0, 1.0), run: true, ..Default::default() }, 0.0);
+    assert!(c.stats.transitions > transitions, "the switch must land on a frame of the new database");
+    for (a, b) in before_p.iter().zip(c.pose_positions()) {
+        assert!((*a - *b).length() < 1e-4, "position {a} → {b}");
+    }
+    for (a, b) in before_r.iter().zip(c.pose_rotations()) {
+        assert!(a.dot(*b).abs() > 1.0 - 1e-5, "rotation {a} → {b}");
+    }
+    for step in 0..300 {
+        c.update(&other, &other_index, &Input { direction: Vec2::new(0.0, 1.0), run: true, ..Default::default() }, 1.0 / 60.0);
+        assert!(c.frame() < other.num_frames, "step {step}");
+    }
+}
