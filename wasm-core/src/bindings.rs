@@ -173,6 +173,7 @@ pub struct RawCrowd {
     db: crate::Database,
     index: crate::search::SearchIndex,
     crowd: crate::crowd::Crowd,
+    scratch: [f32; 7],
 }
 
 #[wasm_bindgen]
@@ -183,7 +184,7 @@ impl RawCrowd {
         let db = format::from_bytes(bytes).map_err(js_error)?;
         let index = crate::search::SearchIndex::new(&db).map_err(js_error)?;
         let crowd = crate::crowd::Crowd::new(&db, count, &crate::character::CharacterSettings::default());
-        Ok(RawCrowd { db, index, crowd })
+        Ok(RawCrowd { db, index, crowd, scratch: [0.0; 7] })
     }
 
     pub fn num_characters(&self) -> usize {
@@ -235,6 +236,81 @@ impl RawCrowd {
         let [l, r] = self.crowd.characters[i].contacts();
         l as u32 | (r as u32) << 1
     }
+    /// Settings of every character as JSON (`CharacterSettings` fields; missing ones keep
+    /// their value, unknown ones throw): `{"beta_pose": 1.5, "clamp_distance": 0.2}`.
+    pub fn set_settings_json(&mut self, json: &str) -> Result<(), JsError> {
+        for c in &mut self.crowd.characters {
+            let mut current = serde_json::to_value(&c.settings).map_err(|e| JsError::new(&e.to_string()))?;
+            let patch: serde_json::Value = serde_json::from_str(json).map_err(|e| JsError::new(&format!("settings: {e}")))?;
+            let (Some(obj), Some(patch)) = (current.as_object_mut(), patch.as_object()) else {
+                return Err(JsError::new("settings: expected a JSON object"));
+            };
+            for (k, v) in patch {
+                obj.insert(k.clone(), v.clone());
+            }
+            c.settings = serde_json::from_value(current).map_err(|e| JsError::new(&format!("settings: {e}")))?;
+        }
+        Ok(())
+    }
+    /// The settings of character `i` as JSON.
+    pub fn settings_json(&self, i: usize) -> String {
+        serde_json::to_string(&self.crowd.characters[i].settings).unwrap_or_default()
+    }
+
+    // Debug views (zero-copy where they are arrays).
+
+    /// Simulated character of `i`: position (3) then facing quaternion (4), in a buffer
+    /// reused by every call.
+    pub fn simulation_ptr(&mut self, i: usize) -> *const f32 {
+        let (p, q) = self.crowd.characters[i].simulation_transform();
+        self.scratch[..3].copy_from_slice(&p.to_array());
+        self.scratch[3..7].copy_from_slice(&q.to_array());
+        self.scratch.as_ptr()
+    }
+    /// Number of predicted trajectory points (the feature offsets ahead).
+    pub fn num_predictions(&self) -> usize {
+        self.crowd.characters.first().map_or(0, |c| c.predicted_positions().len())
+    }
+    /// `K×3` world positions of the predicted trajectory at the last search.
+    pub fn predicted_positions_ptr(&self, i: usize) -> *const f32 {
+        self.crowd.characters[i].predicted_positions().as_ptr().cast()
+    }
+    /// `K×4` world facings of the predicted trajectory at the last search.
+    pub fn predicted_rotations_ptr(&self, i: usize) -> *const f32 {
+        self.crowd.characters[i].predicted_rotations().as_ptr().cast()
+    }
+    /// `D` normalized features of the last query (what was asked for).
+    pub fn query_ptr(&self, i: usize) -> *const f32 {
+        self.crowd.characters[i].query().as_ptr()
+    }
+    /// `D` normalized features of the frame playing (what was matched).
+    pub fn current_features_ptr(&self, i: usize) -> *const f32 {
+        self.db.feature(self.crowd.characters[i].frame()).as_ptr()
+    }
+    pub fn num_features(&self) -> usize {
+        self.db.num_features()
+    }
+    /// Index of the clip playing for character `i` (names via the database's inspect JSON).
+    pub fn clip(&self, i: usize) -> usize {
+        self.db.clip_at(self.crowd.characters[i].frame())
+    }
+    /// Cost of the playing frame and of the chosen one at the last search.
+    pub fn search_cost(&self, i: usize) -> f32 {
+        self.crowd.characters[i].stats.current_cost
+    }
+    pub fn best_cost(&self, i: usize) -> f32 {
+        self.crowd.characters[i].stats.best_cost
+    }
+    /// Foot locks of character `i` as bits: 1 left, 2 right.
+    pub fn foot_locks(&self, i: usize) -> u32 {
+        let [l, r] = self.crowd.characters[i].foot_locked();
+        l as u32 | (r as u32) << 1
+    }
+    /// Same JSON as `mmdb inspect --json` for the crowd's database.
+    pub fn inspect_json(&self) -> String {
+        inspect::summary(&self.db, None).to_string()
+    }
+
     pub fn searches(&self, i: usize) -> f64 {
         self.crowd.characters[i].stats.searches as f64
     }

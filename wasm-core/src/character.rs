@@ -11,8 +11,10 @@ use crate::search::{SearchIndex, SearchMethod, SearchOptions};
 use crate::spring::{decay_spring_damper_exact, quat_abs};
 use glam::{Quat, Vec3};
 
-/// Everything a user can tune live (the demo's lil-gui knobs).
-#[derive(Clone, Debug, PartialEq)]
+/// Everything a user can tune live (the demo's lil-gui knobs). JSON with the field names
+/// below; missing fields keep their defaults, unknown ones are errors.
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(default, deny_unknown_fields)]
 pub struct CharacterSettings {
     pub controller: ControllerSettings,
     /// Database frames between searches (10 at 60 fps).
@@ -310,6 +312,10 @@ impl Character {
 
     pub fn frame(&self) -> usize {
         self.frame
+    }
+    /// The simulated character's position and facing (where the user wants the avatar).
+    pub fn simulation_transform(&self) -> (Vec3, Quat) {
+        (self.simulation.position, self.simulation.rotation)
     }
     pub fn root_position(&self) -> Vec3 {
         self.root_position

@@ -19,7 +19,7 @@ pub struct Input {
 }
 
 /// Speeds in m/s by direction relative to the facing (Holden's defaults).
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Speeds {
     pub forward: f32,
     pub side: f32,
@@ -28,7 +28,8 @@ pub struct Speeds {
 
 /// Controller tuning. Half-lives are exact (see [`crate::spring`]): 0.33 s here is Holden's
 /// 0.27 s "halflife" (his constant halves the offset after 1.21 of his half-lives).
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(default, deny_unknown_fields)]
 pub struct ControllerSettings {
     pub walk: Speeds,
     pub run: Speeds,

@@ -73,7 +73,8 @@ pub fn brute_force(db: &Database, query: &[f32], options: &SearchOptions, k: usi
 pub const MAX_DIMS: usize = 128;
 
 /// Which search algorithm to run; all return the same result.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "lowercase")]
 pub enum SearchMethod {
     /// One frame at a time, in frame order (the reference, on the index's layout).
     Scalar = 0,
