@@ -41,7 +41,7 @@ def compare_fk(db: mmdb.Database, bvh_path, step: int, scale: float) -> None:
 @pytest.mark.parametrize("rel", MOCAP_CLIPS)
 def test_mocap_fk_matches_bvh_reference(rel, fps, mocap, build_db, tmp_path):
     src = mocap / rel
-    db = mmdb.load(build_db(tmp_path / "one.mmdb", src, "--fps", fps, "--no-mirror"))
+    db = mmdb.load(build_db(tmp_path / "one.mmdb", src, "--fps", fps, "--no-mirror", "--no-repair"))
     assert len(db.clips) == 1 and not db.clips[0].mirrored
     clip = db.clips[0]
     assert clip.source_fps == pytest.approx(120.0, rel=1e-4)
@@ -53,7 +53,7 @@ def test_mocap_fk_matches_bvh_reference(rel, fps, mocap, build_db, tmp_path):
 def _build_synthetic(tmp_path, build_db, text: str):
     src = tmp_path / "synthetic.bvh"
     src.write_text(text)
-    db = mmdb.load(build_db(tmp_path / "synthetic.mmdb", src, "--fps", 50, "--scale", 1, "--no-mirror"))
+    db = mmdb.load(build_db(tmp_path / "synthetic.mmdb", src, "--fps", 50, "--scale", 1, "--no-mirror", "--no-repair"))
     assert db.clips[0].scale == 1.0
     return src, db
 

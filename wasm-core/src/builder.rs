@@ -160,7 +160,7 @@ pub fn build(config: &BuildConfig, sources: &[Source]) -> Result<BuildOutput> {
         let take = &takes[t];
         let mut locals = std::mem::take(&mut scratch.locals);
         take.resample(&sources[t].bvh, fps, &ref_offsets, &animated_translation, root_scales[t], t == reference, &mut locals);
-        let repaired = repair_spikes(&mut locals, names.len());
+        let repaired = if config.repair_spikes { repair_spikes(&mut locals, names.len()) } else { Vec::new() };
         if !repaired.is_empty() {
             let list: Vec<String> = repaired.iter().take(5).map(|&(j, f)| format!("{} at frame {f}", names[j])).collect();
             let more = if repaired.len() > 5 { format!(" and {} more", repaired.len() - 5) } else { String::new() };

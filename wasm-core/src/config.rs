@@ -41,6 +41,8 @@ pub struct BuildConfig {
     pub fps: f64,
     /// Add a left/right mirrored copy of every clip.
     pub mirror: bool,
+    /// Repair 1–3 frame rotation glitches of the capture (see `builder::repair_spikes`).
+    pub repair_spikes: bool,
     pub scale: Scale,
     pub up: UpAxis,
     /// Source file whose skeleton the others are normalized onto (default: the first).
@@ -67,6 +69,7 @@ impl Default for BuildConfig {
         BuildConfig {
             fps: 60.0,
             mirror: true,
+            repair_spikes: true,
             scale: Scale::Auto(AutoScale::Auto),
             up: UpAxis::Auto,
             reference: None,

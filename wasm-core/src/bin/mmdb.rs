@@ -8,7 +8,8 @@ use std::process::ExitCode;
 use std::time::Instant;
 
 const USAGE: &str = "usage:
-  mmdb build (--config CONFIG.json | FILE.bvh...) -o OUT.mmdb [--fps N] [--scale S|auto] [--no-mirror] [--json]
+  mmdb build (--config CONFIG.json | FILE.bvh...) -o OUT.mmdb [--fps N] [--scale S|auto] [--no-mirror]
+             [--no-repair] [--json]
   mmdb inspect DB.mmdb [--json]
   mmdb search DB.mmdb (--frame N | --query v1,v2,...) [--normalized] [-k K] [--tag TAG]
               [--beta-pose B] [--beta-trajectory B] [--exclude-radius R]
@@ -140,7 +141,7 @@ fn config_files(config: &BuildConfig, dir: &Path) -> Result<Vec<PathBuf>, Error>
 }
 
 fn build(args: &[String]) -> CliResult {
-    let a = Args::parse(args, &["-o", "--output", "--config", "--fps", "--scale"], &["--no-mirror", "--json"])?;
+    let a = Args::parse(args, &["-o", "--output", "--config", "--fps", "--scale"], &["--no-mirror", "--no-repair", "--json"])?;
     let output = a.get("-o").or(a.get("--output")).ok_or_else(|| Usage("build needs -o OUT.mmdb".into()))?;
     let (mut config, files) = match a.get("--config") {
         Some(path) => {
@@ -167,6 +168,9 @@ fn build(args: &[String]) -> CliResult {
         } else {
             Scale::Fixed(s.parse().ok().filter(|v: &f64| *v > 0.0).ok_or_else(|| Usage(format!("--scale: '{s}' is not a positive number or 'auto'")))?)
         };
+    }
+    if a.has("--no-repair") {
+        config.repair_spikes = false;
     }
     if a.has("--no-mirror") {
         config.mirror = false;
