@@ -181,3 +181,33 @@ fn switching_databases_is_inertialized() {
         assert!(c.frame() < other.num_frames, "step {step}");
     }
 }
+
+/// THESIS_NOTES §7 through the whole character: while a foot stays locked, its toe (in the
+/// shown pose, world space) moves less than 1 mm per frame.
+#[test]
+fn a_locked_foot_stays_put() {
+    let db = db();
+    let toes: Vec<(usize, Vec3)> = ["left_toe", "right_toe"].iter().map(|n| db.skeleton.site(n).map(|s| (s.joint as usize, s.offset)).unwrap()).collect();
+    let j = db.num_joints();
+    let (mut p, mut r) = (vec![Vec3::ZERO; j], vec![Quat::IDENTITY; j]);
+    let mut c = Character::new(db, CharacterSettings::default());
+    let (mut previous, mut was_locked) = ([Vec3::ZERO; 2], [false; 2]);
+    let (mut locked_frames, mut worst) = (0, 0.0f32);
+    for step in 0..1800 {
+        c.update(db, index(), &input_at(step as f32 / 60.0), 1.0 / 60.0);
+        mmcore::database::forward_kinematics(&db.skeleton.parents, c.pose_positions(), c.pose_rotations(), false, &mut p, &mut r);
+        for (k, &(joint, offset)) in toes.iter().enumerate() {
+            let toe = p[joint] + r[joint] * offset;
+            let locked = c.foot_locked()[k];
+            if locked && was_locked[k] {
+                locked_frames += 1;
+                worst = worst.max((toe - previous[k]).length());
+            }
+            previous[k] = toe;
+            was_locked[k] = locked;
+        }
+    }
+    println!("{locked_frames} locked foot-frames, largest toe step {:.3} mm", worst * 1e3);
+    assert!(locked_frames > 500, "feet were locked in only {locked_frames} frames");
+    assert!(worst < 1e-3, "a locked toe moved {worst} m in one frame");
+}
