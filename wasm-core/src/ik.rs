@@ -420,33 +420,7 @@ impl FootLock {
 mod tests {
     use super::*;
     use crate::database::Site;
-
-    /// SplitMix64: deterministic, dependency-free randomness for property tests.
-    struct Rng(u64);
-
-    impl Rng {
-        fn next_u64(&mut self) -> u64 {
-            self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
-            let mut z = self.0;
-            z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-            z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-            z ^ (z >> 31)
-        }
-        fn uniform(&mut self, lo: f32, hi: f32) -> f32 {
-            lo + (hi - lo) * ((self.next_u64() >> 40) as f32 / (1u64 << 24) as f32)
-        }
-        fn unit(&mut self) -> Vec3 {
-            loop {
-                let v = Vec3::new(self.uniform(-1.0, 1.0), self.uniform(-1.0, 1.0), self.uniform(-1.0, 1.0));
-                if v.length_squared() > 0.01 && v.length_squared() <= 1.0 {
-                    return v.normalize();
-                }
-            }
-        }
-        fn quat(&mut self) -> Quat {
-            Quat::from_axis_angle(self.unit(), self.uniform(-3.1, 3.1))
-        }
-    }
+    use crate::rng::Rng;
 
     /// A random chain: parent rotation, hip position, random bone directions in local space.
     struct Chain {
@@ -461,12 +435,12 @@ mod tests {
     impl Chain {
         fn random(rng: &mut Rng) -> Chain {
             Chain {
-                parent_gr: rng.quat(),
+                parent_gr: rng.axis_angle_quat(),
                 a: Vec3::new(rng.uniform(-1.0, 1.0), rng.uniform(0.5, 1.5), rng.uniform(-1.0, 1.0)),
-                a_lr: rng.quat(),
-                b_lr: rng.quat(),
-                offset_b: rng.unit() * rng.uniform(0.3, 0.5),
-                offset_c: rng.unit() * rng.uniform(0.3, 0.5),
+                a_lr: rng.axis_angle_quat(),
+                b_lr: rng.axis_angle_quat(),
+                offset_b: rng.unit_vector() * rng.uniform(0.3, 0.5),
+                offset_c: rng.unit_vector() * rng.uniform(0.3, 0.5),
             }
         }
         /// Forward kinematics: (b, c, a_gr, b_gr).
@@ -493,10 +467,10 @@ mod tests {
         for _ in 0..5000 {
             let chain = Chain::random(&mut rng);
             let (l1, l2) = (chain.offset_b.length(), chain.offset_c.length());
-            let dir = rng.unit();
+            let dir = rng.unit_vector();
             let reach = rng.uniform((l1 - l2).abs() + 0.01, l1 + l2 - 0.01);
             let target = chain.a + dir * reach;
-            let pole = rng.unit();
+            let pole = rng.unit_vector();
             let (b, c) = chain.solve(target, pole, eps);
             worst = worst.max((c - target).length());
             assert!((c - target).length() < 1e-4, "missed by {}", (c - target).length());
@@ -537,13 +511,13 @@ mod tests {
         for _ in 0..1000 {
             let chain = Chain::random(&mut rng);
             let (l1, l2) = (chain.offset_b.length(), chain.offset_c.length());
-            let dir = rng.unit();
-            let (b, c) = chain.solve(chain.a + dir * rng.uniform(l1 + l2, 3.0), rng.unit(), eps);
+            let dir = rng.unit_vector();
+            let (b, c) = chain.solve(chain.a + dir * rng.uniform(l1 + l2, 3.0), rng.unit_vector(), eps);
             let expected = chain.a + dir * (l1 + l2 - eps);
             assert!((c - expected).length() < 1e-4, "{c} vs {expected}");
             assert!(((b - chain.a).length() - l1).abs() < 1e-5 && ((c - b).length() - l2).abs() < 1e-5);
             // Too close: clamped to the minimum reach in the target's direction.
-            let (_, c) = chain.solve(chain.a + dir * 0.5 * (l1 - l2).abs(), rng.unit(), eps);
+            let (_, c) = chain.solve(chain.a + dir * 0.5 * (l1 - l2).abs(), rng.unit_vector(), eps);
             let expected = chain.a + dir * ((l1 - l2).abs() + eps);
             assert!((c - expected).length() < 1e-4, "{c} vs {expected}");
         }
@@ -610,7 +584,7 @@ mod tests {
             fk(&parents, &offsets, root, &locals, &mut gp, &mut gr);
             let gp0 = gp;
             let toe = gp[5] + gr[5] * leg.toe_offset;
-            let target = toe + rng.unit() * rng.uniform(0.0, 0.08);
+            let target = toe + rng.unit_vector() * rng.uniform(0.0, 0.08);
             let floor = 0.0;
             let pole = knee_bend_direction(gp[2], gp[3], gp[4]);
             let reached = leg_ik(&leg, &parents, &gp, &gr, target, pole, floor, 0.01, &mut locals);

@@ -453,39 +453,7 @@ impl RootInertializer {
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    /// SplitMix64: deterministic, dependency-free randomness for property tests.
-    struct Rng(u64);
-
-    impl Rng {
-        fn next_u64(&mut self) -> u64 {
-            self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
-            let mut z = self.0;
-            z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-            z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-            z ^ (z >> 31)
-        }
-        fn uniform(&mut self, lo: f32, hi: f32) -> f32 {
-            lo + (hi - lo) * ((self.next_u64() >> 40) as f32 / (1u64 << 24) as f32)
-        }
-        fn vec3(&mut self, r: f32) -> Vec3 {
-            Vec3::new(self.uniform(-r, r), self.uniform(-r, r), self.uniform(-r, r))
-        }
-        fn quat(&mut self) -> Quat {
-            loop {
-                let v = glam::Vec4::new(
-                    self.uniform(-1.0, 1.0),
-                    self.uniform(-1.0, 1.0),
-                    self.uniform(-1.0, 1.0),
-                    self.uniform(-1.0, 1.0),
-                );
-                let l = v.length();
-                if l > 0.1 && l <= 1.0 {
-                    return Quat::from_vec4(v / l);
-                }
-            }
-        }
-    }
+    use crate::rng::Rng;
 
     /// Exact angle between two rotations (glam's `angle_between` uses an approximate acos).
     fn angle(a: Quat, b: Quat) -> f32 {

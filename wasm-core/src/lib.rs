@@ -19,6 +19,7 @@ pub mod joint_map;
 pub mod lanes;
 pub mod parallel;
 pub mod quality;
+pub mod rng;
 pub mod search;
 pub mod smoothing;
 pub mod spring;

@@ -384,23 +384,9 @@ impl SearchIndex {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::rng::Rng;
     use crate::database::{Axes, FeatureGroup, FeatureKind, Skeleton};
     use glam::Vec3;
-
-    /// Deterministic SplitMix64.
-    struct Rng(u64);
-    impl Rng {
-        fn next_u64(&mut self) -> u64 {
-            self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
-            let mut z = self.0;
-            z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-            z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-            z ^ (z >> 31)
-        }
-        fn below(&mut self, n: usize) -> usize {
-            (self.next_u64() % n as u64) as usize
-        }
-    }
 
     fn group(name: &str, is_trajectory: bool, first_dim: usize, num_dims: usize) -> FeatureGroup {
         FeatureGroup { name: name.into(), kind: FeatureKind::Position, is_trajectory, axes: Axes::Xyz, joint: 0, axis: Vec3::Z, offsets: vec![0], weight: 1.0, first_dim, num_dims }

@@ -7,34 +7,8 @@ use mmcore::config::BuildConfig;
 use mmcore::search::{self, SearchIndex, SearchMethod, SearchOptions};
 use mmcore::{build, format, Bvh, Database, Source};
 use std::path::Path;
+use mmcore::rng::Rng;
 use std::time::Instant;
-
-/// Deterministic SplitMix64 (no `rand` dependency for one test).
-struct Rng(u64);
-
-impl Rng {
-    fn next_u64(&mut self) -> u64 {
-        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        z ^ (z >> 31)
-    }
-    fn below(&mut self, n: usize) -> usize {
-        (self.next_u64() % n as u64) as usize
-    }
-    /// Uniform in [0, 1).
-    fn unit(&mut self) -> f32 {
-        (self.next_u64() >> 40) as f32 / (1u64 << 24) as f32
-    }
-    fn range(&mut self, lo: f32, hi: f32) -> f32 {
-        lo + (hi - lo) * self.unit()
-    }
-    /// Roughly normal (sum of four uniforms, unit variance).
-    fn normal(&mut self) -> f32 {
-        ((0..4).map(|_| self.unit()).sum::<f32>() - 2.0) * 3f32.sqrt()
-    }
-}
 
 fn database() -> (Database, &'static str) {
     let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("..");
@@ -89,12 +63,12 @@ fn aabb_and_simd_equal_brute_force_on_10000_random_queries() {
         let source = valid[rng.below(valid.len())];
         match rng.below(10) {
             // Far away: uniform in a large box, or huge.
-            0 => query.iter_mut().for_each(|q| *q = rng.range(-20.0, 20.0)),
-            1 => query.iter_mut().for_each(|q| *q = rng.range(-1e3, 1e3)),
+            0 => query.iter_mut().for_each(|q| *q = rng.uniform(-20.0, 20.0)),
+            1 => query.iter_mut().for_each(|q| *q = rng.uniform(-1e3, 1e3)),
             // A user changing direction: the row with only its trajectory part moved.
             2 | 3 => {
                 query.copy_from_slice(db.feature(source));
-                let s = rng.range(0.1, 2.0);
+                let s = rng.uniform(0.1, 2.0);
                 query.iter_mut().zip(&trajectory).filter(|(_, &t)| t).for_each(|(q, _)| *q += s * rng.normal());
             }
             // A row plus noise of a random scale, sometimes none (an exact self-match).
@@ -106,7 +80,7 @@ fn aabb_and_simd_equal_brute_force_on_10000_random_queries() {
         let pick = |rng: &mut Rng| match rng.below(8) {
             0 => 0.0,
             1 => 1.0,
-            _ => rng.range(0.0, 3.0),
+            _ => rng.uniform(0.0, 3.0),
         };
         let (beta_pose, beta_trajectory) = (pick(&mut rng), pick(&mut rng));
         let exclude = match rng.below(4) {
