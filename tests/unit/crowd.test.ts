@@ -92,4 +92,29 @@ describe('RawCrowd (WASM in Node)', () => {
       crowd.free();
     }
   });
+
+  it('follows a path square and rejects a bad path', () => {
+    const crowd = new RawCrowd(DB, 1);
+    try {
+      // A 4 m square walked at 1.5 m/s, looping, starting where the character stands.
+      const square = new Float32Array([0, 0, 0, 4, -4, 4, -4, 0]);
+      crowd.set_path(0, square, new Float32Array([1.5, 1.5, 1.5, 1.5]), true);
+      let worst = 0;
+      for (let step = 0; step < 600; step++) {
+        crowd.update(1 / 60);
+        const [x, , z] = root(crowd, 0);
+        // Distance to the square's outline.
+        const d = Math.min(Math.abs(x), Math.abs(x + 4), Math.abs(z), Math.abs(z - 4));
+        const inside = x <= 0.2 && x >= -4.2 && z >= -0.2 && z <= 4.2;
+        worst = Math.max(worst, inside ? d : Infinity);
+      }
+      expect(worst).toBeLessThanOrEqual(0.15 + 0.02);
+      expect(() => crowd.set_path(0, new Float32Array([0, 0]), new Float32Array([]), false)).toThrow(/at least 2 points/);
+      expect(() => crowd.set_path(0, new Float32Array([0, 0, 1]), new Float32Array([1]), false)).toThrow(/pairs/);
+      crowd.clear_path(0);
+      crowd.update(1 / 60);
+    } finally {
+      crowd.free();
+    }
+  });
 });

@@ -208,6 +208,27 @@ impl RawCrowd {
         }
     }
 
+    /// Makes character `i` follow a path on the floor: `points` as x, z pairs (≥ 2 points),
+    /// `speeds` in m/s per segment (one fewer than the points, or as many when `looped`).
+    /// Throws with the reason on a bad path; the character keeps its current control then.
+    pub fn set_path(&mut self, i: usize, points: &[f32], speeds: &[f32], looped: bool) -> Result<(), JsError> {
+        if points.len() % 2 != 0 {
+            return Err(JsError::new(&format!("path points must be x, z pairs, got {} numbers", points.len())));
+        }
+        let points: Vec<glam::Vec3> = points.chunks_exact(2).map(|p| glam::Vec3::new(p[0], 0.0, p[1])).collect();
+        let path = crate::controller::Path::new(&points, speeds, looped).map_err(|e| JsError::new(&e))?;
+        let c = self.crowd.characters.get_mut(i).ok_or_else(|| JsError::new(&format!("no character {i}")))?;
+        c.set_path(Some(path));
+        Ok(())
+    }
+
+    /// Returns character `i` to input control.
+    pub fn clear_path(&mut self, i: usize) {
+        if let Some(c) = self.crowd.characters.get_mut(i) {
+            c.set_path(None);
+        }
+    }
+
     /// Search method of every character: 0 scalar, 1 SIMD, 2 AABB (default).
     pub fn set_search_method(&mut self, method: u32) {
         if let Some(m) = crate::search::SearchMethod::from_index(method) {
