@@ -118,3 +118,26 @@ describe('RawCrowd (WASM in Node)', () => {
     }
   });
 });
+
+describe('Crowd (TS wrapper)', () => {
+  it('drives characters from MoveInput and exposes their pose as views', async () => {
+    const { Crowd } = await import('../../web/src/core/crowd.ts');
+    const { createMoveInput } = await import('../../web/src/input/input.ts');
+    const crowd = new Crowd(DB, 2);
+    try {
+      const input = createMoveInput();
+      input.moveX = 1; // walk toward +X
+      crowd.setInput(1, input);
+      const x0 = crowd.positionsOf(1)[0];
+      for (let step = 0; step < 120; step++) crowd.update(1 / 60);
+      expect(crowd.positionsOf(1)[0] - x0).toBeGreaterThan(1.5);
+      expect(crowd.rotationsOf(0).length).toBe(crowd.numJoints * 4);
+      crowd.setSettings({ foot_lock: false });
+      expect(crowd.settings(1)['foot_lock']).toBe(false);
+      expect(() => crowd.setSettings({ nope: 1 })).toThrow(/nope/);
+    } finally {
+      crowd.free();
+    }
+    expect(() => crowd.update(1 / 60)).toThrow(/after free/);
+  });
+});

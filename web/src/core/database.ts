@@ -3,6 +3,7 @@
  * lifetime (`free()`). Pose arrays are exposed as zero-copy typed views over WASM memory.
  */
 import { RawDatabase } from './pkg/mmcore.js';
+import { ViewCache } from './view-cache.ts';
 import { wasmMemory } from './wasm.ts';
 
 /** One clip (a contiguous range of frames from one source file). */
@@ -20,31 +21,6 @@ export interface SiteInfo {
   readonly name: string;
   /** Joint index, or -1 when the skeleton has no such joint. */
   readonly joint: number;
-}
-
-/**
- * Typed views over WASM memory are invalidated when the memory grows (the old ArrayBuffer is
- * detached). `ViewCache` recreates a view only when the buffer or pointer changed.
- */
-class ViewCache<T extends Float32Array | Uint8Array> {
-  private view: T | null = null;
-  private buffer: ArrayBufferLike | null = null;
-  private ptr = -1;
-
-  constructor(
-    private readonly Ctor: { new (buffer: ArrayBufferLike, byteOffset: number, length: number): T },
-    private readonly length: number,
-  ) {}
-
-  get(memory: WebAssembly.Memory, ptr: number): T {
-    const buffer = memory.buffer;
-    if (this.view === null || this.buffer !== buffer || this.ptr !== ptr) {
-      this.view = new this.Ctor(buffer, ptr, this.length);
-      this.buffer = buffer;
-      this.ptr = ptr;
-    }
-    return this.view;
-  }
 }
 
 export class Database {

@@ -1,0 +1,80 @@
+/**
+ * `Crowd`: motion-matched characters on one database, wrapping the WASM `RawCrowd` and owning
+ * its lifetime (`free()`). Poses are zero-copy views of WASM memory (recreated only if the
+ * memory grows); nothing is allocated per frame.
+ */
+import { type MoveInput } from '../input/input.ts';
+import { RawCrowd } from './pkg/mmcore.js';
+import { ViewCache } from './view-cache.ts';
+import { wasmMemory } from './wasm.ts';
+
+export class Crowd {
+  readonly numCharacters: number;
+  readonly numJoints: number;
+  private raw: RawCrowd | null;
+  private readonly positions: ViewCache<Float32Array>[];
+  private readonly rotations: ViewCache<Float32Array>[];
+
+  /** Loads `.mmdb` bytes (throws the loader's message on a bad file) with `count` characters. */
+  constructor(bytes: Uint8Array, count = 1) {
+    this.raw = new RawCrowd(bytes, count);
+    this.numCharacters = count;
+    this.numJoints = this.raw.num_joints();
+    this.positions = Array.from({ length: count }, () => new ViewCache(Float32Array, this.numJoints * 3));
+    this.rotations = Array.from({ length: count }, () => new ViewCache(Float32Array, this.numJoints * 4));
+  }
+
+  private get live(): RawCrowd {
+    if (!this.raw) throw new Error('Crowd used after free()');
+    return this.raw;
+  }
+
+  setInput(i: number, input: MoveInput): void {
+    this.live.set_input(i, input.moveX, input.moveZ, input.faceX, input.faceZ, input.run, input.strafe);
+  }
+
+  /** Advances every character by `dt` seconds. */
+  update(dt: number): void {
+    this.live.update(dt);
+  }
+
+  /** `J×3`: joint 0 the root's world position, the others local positions. */
+  positionsOf(i: number): Float32Array {
+    return this.positions[i].get(wasmMemory(), this.live.pose_positions_ptr(i));
+  }
+
+  /** `J×4` (x, y, z, w): joint 0 the root's world rotation, the others local rotations. */
+  rotationsOf(i: number): Float32Array {
+    return this.rotations[i].get(wasmMemory(), this.live.pose_rotations_ptr(i));
+  }
+
+  /** Bits: 1 left foot, 2 right foot. */
+  contactsOf(i: number): number {
+    return this.live.contacts(i);
+  }
+
+  /** Patches settings of every character (docs/runtime.md lists the keys); throws on typos. */
+  setSettings(patch: Record<string, unknown>): void {
+    this.live.set_settings_json(JSON.stringify(patch));
+  }
+
+  settings(i = 0): Record<string, unknown> {
+    return JSON.parse(this.live.settings_json(i)) as Record<string, unknown>;
+  }
+
+  /** Follow `points` (x, z pairs) at `speeds` m/s per segment, or `null` to return to input. */
+  setPath(i: number, points: Float32Array | null, speeds?: Float32Array, looped = false): void {
+    if (points === null) this.live.clear_path(i);
+    else this.live.set_path(i, points, speeds ?? new Float32Array(), looped);
+  }
+
+  /** The underlying binding, for debug views not wrapped here. */
+  get binding(): RawCrowd {
+    return this.live;
+  }
+
+  free(): void {
+    this.raw?.free();
+    this.raw = null;
+  }
+}
