@@ -4,6 +4,7 @@
  * memory grows); nothing is allocated per frame.
  */
 import { type MoveInput } from '../input/input.ts';
+import { type SiteInfo } from './database.ts';
 import { RawCrowd } from './pkg/mmcore.js';
 import { ViewCache } from './view-cache.ts';
 import { wasmMemory } from './wasm.ts';
@@ -11,6 +12,10 @@ import { wasmMemory } from './wasm.ts';
 export class Crowd {
   readonly numCharacters: number;
   readonly numJoints: number;
+  readonly jointNames: readonly string[];
+  /** Parent of each joint, -1 for joint 0 (the root). */
+  readonly jointParents: Int32Array;
+  private readonly _sites: SiteInfo[];
   private raw: RawCrowd | null;
   private readonly positions: ViewCache<Float32Array>[];
   private readonly rotations: ViewCache<Float32Array>[];
@@ -20,8 +25,17 @@ export class Crowd {
     this.raw = new RawCrowd(bytes, count);
     this.numCharacters = count;
     this.numJoints = this.raw.num_joints();
+    const info = JSON.parse(this.raw.inspect_json()) as { joints: { name: string; parent: number }[]; sites: SiteInfo[] };
+    this.jointNames = info.joints.map((j) => j.name);
+    this.jointParents = Int32Array.from(info.joints.map((j) => j.parent));
+    this._sites = info.sites.map((s) => ({ name: s.name, joint: s.joint }));
     this.positions = Array.from({ length: count }, () => new ViewCache(Float32Array, this.numJoints * 3));
     this.rotations = Array.from({ length: count }, () => new ViewCache(Float32Array, this.numJoints * 4));
+  }
+
+  /** Named body points (`left_foot`, `left_toe`, …) of the database skeleton. */
+  sites(): SiteInfo[] {
+    return this._sites;
   }
 
   private get live(): RawCrowd {

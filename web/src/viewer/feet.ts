@@ -10,7 +10,7 @@ export interface FootJoints {
  * Uses the database's named sites (`left_foot`, `left_toe`, ...) when the inspect JSON lists
  * them, otherwise guesses from joint names (foot/ankle/toe with a left/right marker).
  */
-export function findFootJoints(db: Database): FootJoints {
+export function findFootJoints(db: Pick<Database, 'sites' | 'jointNames'>): FootJoints {
   const left = new Set<number>();
   const right = new Set<number>();
   for (const site of db.sites()) {
