@@ -11,7 +11,7 @@
 //
 // Environment:
 //   SETUP_SKIP=step,step   skip named steps: npm, rust-target, wasm-bindgen, wasm, cli, databases,
-//                          chromium, venv (for working on one part while another is broken)
+//                          avatars, chromium, venv (for working on one part while another is broken)
 //   TEST_SUITES=a,b        run only these suites: cargo, vitest, pytest, playwright
 //
 // Node builtins only: this runs before node_modules exists.
@@ -26,6 +26,7 @@ import { fileURLToPath } from 'node:url';
 const ROOT = path.resolve(path.dirname(fileURLToPath(import.meta.url)), '..');
 const CORE = path.join(ROOT, 'wasm-core');
 const SHARED_MOCAP = path.resolve(ROOT, '..', 'shared', 'mocap');
+const SHARED_AVATARS = path.resolve(ROOT, '..', 'shared', 'avatars');
 const WASM_TARGET = 'wasm32-unknown-unknown';
 const WASM_OUT = path.join(CORE, 'target', WASM_TARGET, 'release', 'mmcore.wasm');
 const PKG_DIR = path.join(ROOT, 'web', 'src', 'core', 'pkg');
@@ -289,6 +290,29 @@ async function stepDatabases() {
   });
 }
 
+async function stepAvatars() {
+  await step('avatars', 'avatars (public/avatars)', async () => {
+    if (!fs.existsSync(SHARED_AVATARS)) return `no ${SHARED_AVATARS} folder`;
+    const glbs = fs.readdirSync(SHARED_AVATARS).filter((f) => f.toLowerCase().endsWith('.glb')).sort();
+    if (glbs.length === 0) return 'no ../shared/avatars/*.glb';
+    const outDir = path.join(ROOT, 'public', 'avatars');
+    fs.mkdirSync(outDir, { recursive: true });
+    let copied = 0;
+    for (const f of glbs) {
+      const src = path.join(SHARED_AVATARS, f);
+      const out = path.join(outDir, f);
+      if (mtime(out) >= mtime(src)) continue;
+      // copyFile keeps the mode (the source may be read-only), so remove an old copy first; it
+      // does not keep the mtime, so the copy is newer than its source afterwards.
+      fs.rmSync(out, { force: true });
+      fs.copyFileSync(src, out);
+      log(`  copied ${path.relative(ROOT, out)}`);
+      copied++;
+    }
+    if (copied === 0) return `${glbs.length} avatar(s) newer than ../shared/avatars`;
+  });
+}
+
 async function stepChromium() {
   await step('chromium', 'Chromium (Debian package)', async () => {
     if (fs.existsSync('/usr/bin/chromium')) return '/usr/bin/chromium exists';
@@ -428,6 +452,7 @@ async function main() {
   await stepWasm();
   await stepCli();
   await stepDatabases();
+  await stepAvatars();
   if (mode === 'test') {
     await stepChromium();
     await stepVenv();

@@ -23,6 +23,7 @@ test('the character walks, turns and strafes under the keyboard', async ({ page 
   await page.goto('/demo.html?dt=fixed');
   await page.waitForFunction(() => window.__mm?.ready || window.__mm?.error, null, { timeout: 30_000 });
   expect((await hook(page)).error).toBeNull();
+  await expect(page.getByText('Motion matching')).toBeVisible(); // the settings panel
   await page.locator('#viewport canvas').click(); // focus
 
   // W for 2 s: > 1.5 m along the facing, both feet stepping.

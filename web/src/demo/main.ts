@@ -16,6 +16,7 @@ import { FollowCamera } from '../viewer/follow-camera.ts';
 import { RootMarker } from '../viewer/root-marker.ts';
 import { ViewerScene } from '../viewer/scene.ts';
 import { SkeletonView } from '../viewer/skeleton-view.ts';
+import { createSettingsPanel } from './settings-panel.ts';
 
 /** What tests read: only what they need. */
 export interface DemoHook {
@@ -61,6 +62,7 @@ async function main(): Promise<void> {
   if (!response.ok) throw new Error(`${response.url}: HTTP ${response.status}`);
   const crowd = new Crowd(new Uint8Array(await response.arrayBuffer()), 1);
 
+  createSettingsPanel(crowd);
   const feet = findFootJoints(crowd);
   const skeleton = new SkeletonView(crowd.jointParents, feet.left, feet.right);
   const marker = new RootMarker();
