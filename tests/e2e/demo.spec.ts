@@ -17,6 +17,8 @@ async function hold(page: Page, keys: string[], frames: number): Promise<void> {
 const angleDiff = (a: number, b: number) => Math.atan2(Math.sin(a - b), Math.cos(a - b));
 
 test('the character walks, turns and strafes under the keyboard', async ({ page }) => {
+  // ~330 frames of a skinned avatar in software WebGL (SwiftShader): ~1 min alone on 2 cores.
+  test.setTimeout(240_000);
   const errors: string[] = [];
   page.on('console', (m) => m.type() === 'error' && errors.push(m.text()));
   page.on('pageerror', (e) => errors.push(e.message));
