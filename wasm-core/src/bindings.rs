@@ -260,10 +260,13 @@ impl RawCrowd {
     /// Settings of every character as JSON (`CharacterSettings` fields; missing ones keep
     /// their value, unknown ones throw): `{"beta_pose": 1.5, "clamp_distance": 0.2}`.
     pub fn set_settings_json(&mut self, json: &str) -> Result<(), JsError> {
+        let patch: serde_json::Value = serde_json::from_str(json).map_err(|e| JsError::new(&format!("settings: {e}")))?;
+        let Some(patch) = patch.as_object() else {
+            return Err(JsError::new("settings: expected a JSON object"));
+        };
         for c in &mut self.crowd.characters {
             let mut current = serde_json::to_value(&c.settings).map_err(|e| JsError::new(&e.to_string()))?;
-            let patch: serde_json::Value = serde_json::from_str(json).map_err(|e| JsError::new(&format!("settings: {e}")))?;
-            let (Some(obj), Some(patch)) = (current.as_object_mut(), patch.as_object()) else {
+            let Some(obj) = current.as_object_mut() else {
                 return Err(JsError::new("settings: expected a JSON object"));
             };
             for (k, v) in patch {

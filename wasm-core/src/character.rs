@@ -437,10 +437,9 @@ impl Character {
         if self.path.is_none() {
             self.simulation.update(velocity, rotation, &settings, dt);
         } else {
-            let mut unused = self.simulation;
-            unused.update(velocity, rotation, &settings, dt);
-            self.simulation.rotation = unused.rotation;
-            self.simulation.angular_velocity = unused.angular_velocity;
+            // The path sets the position; only the facing is sprung.
+            let s = &mut self.simulation;
+            crate::spring::spring_damper_exact_quat(&mut s.rotation, &mut s.angular_velocity, rotation, settings.rotation_halflife, dt);
         }
     }
 

@@ -51,6 +51,7 @@ pub fn summary(db: &Database, size_bytes: Option<usize>) -> Value {
 /// shortest decimal that reads back to the same f32.
 pub fn dump(db: &Database) -> Value {
     let flat3 = |v: &[glam::Vec3]| v.iter().flat_map(|x| x.to_array()).collect::<Vec<f32>>();
+    let summary = summary(db, None);
     json!({
         "num_frames": db.num_frames,
         "num_joints": db.num_joints(),
@@ -68,8 +69,8 @@ pub fn dump(db: &Database) -> Value {
         "feature_mean": db.feature_mean,
         "feature_scale": db.feature_scale,
         "valid": db.valid,
-        "clips": summary(db, None)["clips"],
-        "tags": summary(db, None)["tags"],
+        "clips": summary["clips"],
+        "tags": summary["tags"],
     })
 }
 

@@ -61,6 +61,13 @@ window.addEventListener('unhandledrejection', (e) => fail(`error: ${errorMessage
 
 const _look = new THREE.Vector3();
 
+/** The first connected gamepad, without allocating a closure per frame. */
+function firstGamepad(): Gamepad | null {
+  const pads = navigator.getGamepads?.() ?? [];
+  for (const p of pads) if (p) return p;
+  return null;
+}
+
 async function main(): Promise<void> {
   const params = new URLSearchParams(location.search);
   const fixedDt = params.get('dt') === 'fixed';
@@ -99,7 +106,7 @@ async function main(): Promise<void> {
     basis.setLook(_look.x, _look.z);
     const rotations = crowd.rotationsOf(0);
     const yaw = 2 * Math.atan2(rotations[1], rotations[3]); // the root is a pure yaw
-    const pad = navigator.getGamepads?.().find((p) => p) ?? null;
+    const pad = firstGamepad();
     if (keyboard.active || !readGamepad(pad, basis, input)) keyboard.read(basis, yaw, dt, input);
     crowd.setInput(0, input);
     const t = performance.now();
@@ -121,7 +128,9 @@ async function main(): Promise<void> {
     if (onsets & 2) hook.steps[1]++;
     hook.updates++;
     hook.frame = crowd.binding.frame(0);
-    hook.root = [world[0], world[1], world[2]];
+    hook.root[0] = world[0];
+    hook.root[1] = world[1];
+    hook.root[2] = world[2];
     hook.yaw = 2 * Math.atan2(worldRotations[1], worldRotations[3]);
     hook.searches = crowd.binding.searches(0);
     hook.transitions = crowd.binding.transitions(0);
