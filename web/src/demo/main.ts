@@ -7,10 +7,7 @@
  * rendered frame (deterministic tests); state for tests is on `window.__mm`.
  */
 import * as THREE from 'three';
-import { GLTFLoader } from 'three/addons/loaders/GLTFLoader.js';
-import { skeletonFromGlb } from '../avatar/glb-skeleton.ts';
-import { findRoles } from '../avatar/joint-maps.ts';
-import { forwardKinematics as restKinematics, Retargeter } from '../avatar/retarget.ts';
+import { fetchAvatar } from '../avatar/avatar.ts';
 import { Crowd } from '../core/crowd.ts';
 import { forwardKinematics } from '../core/forward-kinematics.ts';
 import { initWasm } from '../core/wasm.ts';
@@ -87,8 +84,11 @@ async function main(): Promise<void> {
   const world = new Float32Array(j * 3);
   const worldRotations = new Float32Array(j * 4);
 
-  const avatar = params.get('avatar') === 'none' ? null : await loadAvatar(params.get('avatar') ?? 'avatars/ubc_male.glb', crowd, stage.scene);
-  if (avatar) skeleton.object.visible = params.get('skeleton') === '1';
+  const avatar = params.get('avatar') === 'none' ? null : await fetchAvatar(params.get('avatar') ?? 'avatars/ubc_male.glb', crowd);
+  if (avatar) {
+    stage.scene.add(avatar.object);
+    skeleton.object.visible = params.get('skeleton') === '1';
+  }
 
   const keyboard = new KeyboardInput();
   keyboard.attach(window);
@@ -137,65 +137,6 @@ async function main(): Promise<void> {
     hook.ready = true;
     hud.textContent = `frame ${hook.frame} · update ${averageMs.toFixed(3)} ms · searches ${hook.searches} · transitions ${hook.transitions}`;
   });
-}
-
-/** A skinned avatar posed each frame by T-pose retargeting from the database skeleton. */
-async function loadAvatar(url: string, crowd: Crowd, scene: THREE.Scene) {
-  const response = await fetch(url);
-  if (!response.ok) throw new Error(`${url}: HTTP ${response.status}`);
-  const bytes = new Uint8Array(await response.arrayBuffer());
-  const target = skeletonFromGlb(bytes);
-  const gltf = await new GLTFLoader().parseAsync(bytes.buffer, '');
-  let mesh: THREE.SkinnedMesh | null = null;
-  gltf.scene.traverse((o) => {
-    if ((o as THREE.SkinnedMesh).isSkinnedMesh && !mesh) mesh = o as THREE.SkinnedMesh;
-    // Skinned bounds stay at the rest pose's origin; the character walks away from it.
-    o.frustumCulled = false;
-    o.castShadow = true;
-  });
-  if (!mesh) throw new Error(`${url}: no skinned mesh`);
-  const bones = (mesh as THREE.SkinnedMesh).skeleton.bones;
-  // The .mmdb rest pose is the BVH rest: identity rotations, offsets = local positions.
-  const j = crowd.numJoints;
-  const sourceRest = new Float32Array(j * 4);
-  for (let k = 0; k < j; k++) sourceRest[4 * k + 3] = 1;
-  const sourceRestPositions = new Float64Array(j * 3);
-  restKinematics(crowd.jointParents, sourceRest, crowd.positionsOf(0), new Float64Array(j * 4), sourceRestPositions);
-  const sourceRoles = findRoles([...crowd.jointNames]);
-  const targetRoles = findRoles(target.names);
-  const retargeter = new Retargeter({
-    sourceParents: crowd.jointParents,
-    sourceRestWorldRotations: sourceRest,
-    sourceRestWorldPositions: sourceRestPositions,
-    targetParents: target.parents,
-    targetRestLocalRotations: target.restLocalRotations,
-    targetRestLocalPositions: target.restLocalPositions,
-    sourceRoles,
-    targetRoles,
-  });
-  const hips = sourceRoles.get('hips') ?? 1;
-  const targetHips = targetRoles.get('hips') ?? 0;
-  const toes = [targetRoles.get('leftToes'), targetRoles.get('rightToes')];
-  const local = new Float32Array(bones.length * 4);
-  const hipsPosition = new Float32Array(3);
-  const hipsWorld = new Float32Array(3);
-  const toeWorld = new THREE.Vector3();
-  scene.add(gltf.scene);
-  return {
-    pose(world: Float32Array, worldRotations: Float32Array, toeHeights: [number, number]): void {
-      hipsWorld[0] = world[3 * hips];
-      hipsWorld[1] = world[3 * hips + 1];
-      hipsWorld[2] = world[3 * hips + 2];
-      retargeter.apply(worldRotations, hipsWorld, local, hipsPosition);
-      for (let b = 0; b < bones.length; b++) bones[b].quaternion.set(local[4 * b], local[4 * b + 1], local[4 * b + 2], local[4 * b + 3]);
-      bones[targetHips].position.set(hipsPosition[0], hipsPosition[1], hipsPosition[2]);
-      gltf.scene.updateMatrixWorld(true);
-      for (let side = 0; side < 2; side++) {
-        const t = toes[side];
-        toeHeights[side] = t === undefined ? NaN : bones[t].getWorldPosition(toeWorld).y;
-      }
-    },
-  };
 }
 
 main().catch((e: unknown) => fail(errorMessage(e)));
