@@ -222,7 +222,20 @@ impl RawCrowd {
         Ok(())
     }
 
-    /// Returns character `i` to input control.
+    /// Makes character `i` follow a tracked user (VR); call every frame. `head_x, head_z`: the
+    /// head centre on the floor (m); `velocity_x, velocity_z`: its raw ground velocity (m/s);
+    /// `yaw`: the predicted body yaw (rad, 0 = +Z). The runtime smooths velocity and yaw.
+    pub fn set_tracked(&mut self, i: usize, head_x: f32, head_z: f32, velocity_x: f32, velocity_z: f32, yaw: f32) {
+        if let Some(c) = self.crowd.characters.get_mut(i) {
+            c.set_tracked(crate::character::Tracked {
+                position: glam::Vec3::new(head_x, 0.0, head_z),
+                velocity: glam::Vec3::new(velocity_x, 0.0, velocity_z),
+                yaw,
+            });
+        }
+    }
+
+    /// Returns character `i` to input control (from a path or a tracked user).
     pub fn clear_path(&mut self, i: usize) {
         if let Some(c) = self.crowd.characters.get_mut(i) {
             c.set_path(None);

@@ -8,7 +8,7 @@ use crate::database::{Axes, Database, FeatureKind};
 use crate::ik::{knee_bend_direction, leg_ik, FootLock, LegJoints};
 use crate::inertialize::Inertializer;
 use crate::search::{SearchIndex, SearchMethod, SearchOptions};
-use crate::spring::{decay_spring_damper_exact, quat_abs};
+use crate::spring::{decay_spring_damper_exact, quat_abs, spring_damper_exact, spring_damper_exact_quat, spring_rotation_predict};
 use glam::{Quat, Vec3};
 
 /// Everything a user can tune live (the demo's lil-gui knobs). JSON with the field names
@@ -38,6 +38,10 @@ pub struct CharacterSettings {
     pub clamping: bool,
     /// α: the root never ends farther than this from the simulated character (m).
     pub clamp_distance: f32,
+    /// With `clamping`, the root's yaw stays within this angle (rad) of the simulated
+    /// character's: the data has little turning on the spot, and a tracked (VR) user who turns
+    /// in place must see the avatar turn with them.
+    pub clamp_angle: f32,
     /// Database playback rate multiplier.
     pub playback_speed: f32,
     /// All methods return the same frame; AABB is the fast one, the others are for comparison.
@@ -68,6 +72,7 @@ impl Default for CharacterSettings {
             adjustment_max_ratio: 0.5,
             clamping: true,
             clamp_distance: 0.15,
+            clamp_angle: std::f32::consts::FRAC_PI_4,
             playback_speed: 1.0,
             search_method: SearchMethod::Aabb,
             foot_lock: true,
@@ -98,6 +103,27 @@ pub struct CharacterStats {
     pub best_cost: f32,
 }
 
+/// A tracked user (VR), as given each frame: raw, the character smooths it.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Tracked {
+    /// The head centre projected on the floor (y ignored), m.
+    pub position: Vec3,
+    /// The head's ground velocity (y ignored), m/s.
+    pub velocity: Vec3,
+    /// Predicted body yaw, radians, 0 = facing +Z.
+    pub yaw: f32,
+}
+
+/// What moves the simulated character.
+enum Drive {
+    /// Keyboard/gamepad [`Input`] through the velocity and rotation springs.
+    Input,
+    /// Along a polyline, `time` seconds since its start.
+    Path { path: Path, time: f32 },
+    /// Along with a tracked user.
+    Tracked(Tracked),
+}
+
 /// A character playing one database. Owns every buffer it needs: `update` never allocates.
 pub struct Character {
     pub settings: CharacterSettings,
@@ -116,8 +142,7 @@ pub struct Character {
     rotation_change: ChangeDetector,
     desired_velocity: Vec3,
     desired_rotation: Quat,
-    path: Option<Path>,
-    path_time: f32,
+    drive: Drive,
     /// World transform and motion of the character's root (joint 0).
     root_position: Vec3,
     root_rotation: Quat,
@@ -191,8 +216,7 @@ impl Character {
             rotation_change: ChangeDetector::default(),
             desired_velocity: Vec3::ZERO,
             desired_rotation: Quat::IDENTITY,
-            path: None,
-            path_time: 0.0,
+            drive: Drive::Input,
             root_position: Vec3::ZERO,
             root_rotation: Quat::IDENTITY,
             root_velocity: Vec3::ZERO,
@@ -275,9 +299,24 @@ impl Character {
 
     /// Follow `path` from its start (or `None` to return to input control).
     pub fn set_path(&mut self, path: Option<Path>) {
-        self.path = path;
-        self.path_time = 0.0;
+        self.drive = match path {
+            Some(path) => Drive::Path { path, time: 0.0 },
+            None => Drive::Input,
+        };
         self.force_search = true;
+    }
+
+    /// Follow a tracked user (VR) from now on: call every frame with the raw head floor
+    /// position, ground velocity and body yaw (THESIS_NOTES §9). The velocity and yaw are
+    /// spring-smoothed here. Back to input control with [`Self::set_path`]`(None)`.
+    pub fn set_tracked(&mut self, tracked: Tracked) {
+        if !matches!(self.drive, Drive::Tracked(_)) {
+            // Start from the user, not from wherever the simulation was.
+            self.simulation.velocity = tracked.velocity;
+            self.simulation.acceleration = Vec3::ZERO;
+            self.force_search = true;
+        }
+        self.drive = Drive::Tracked(tracked);
     }
 
     /// Restrict searches to frames where `mask` is true (e.g. a tag), or lift it with `None`.
@@ -411,20 +450,29 @@ impl Character {
 
     fn update_simulation(&mut self, input: &Input, dt: f32) {
         let settings = self.settings.controller;
-        let (velocity, rotation) = match &self.path {
-            Some(path) => {
+        let (velocity, rotation) = match &mut self.drive {
+            Drive::Input => {
+                let v = desired_velocity(input, self.simulation.rotation, &settings);
+                (v, desired_rotation(input, v, self.simulation.rotation))
+            }
+            Drive::Path { path, time } => {
                 // The simulated character rides the path exactly; its facing follows the
                 // path direction through the rotation spring.
-                self.path_time += dt;
-                let (p, v) = path.sample(self.path_time);
+                *time += dt;
+                let (p, v) = path.sample(*time);
                 self.simulation.position = p;
                 self.simulation.velocity = v;
                 self.simulation.acceleration = Vec3::ZERO;
                 (v, yaw_facing(v).unwrap_or(self.simulation.rotation))
             }
-            None => {
-                let v = desired_velocity(input, self.simulation.rotation, &settings);
-                (v, desired_rotation(input, v, self.simulation.rotation))
+            Drive::Tracked(t) => {
+                // The simulated character *is* the user's head on the floor; its velocity is
+                // the head's ground velocity, spring-smoothed (§9): the head bobs and sways
+                // every step, the trajectory must not.
+                self.simulation.position = Vec3::new(t.position.x, 0.0, t.position.z);
+                let goal = Vec3::new(t.velocity.x, 0.0, t.velocity.z);
+                spring_damper_exact(&mut self.simulation.velocity, &mut self.simulation.acceleration, goal, settings.velocity_halflife, dt);
+                (goal, Quat::from_rotation_y(t.yaw))
             }
         };
         let velocity_jump = (velocity - self.desired_velocity).length();
@@ -434,12 +482,13 @@ impl Character {
         self.force_search |= sharp_velocity || sharp_rotation;
         self.desired_velocity = velocity;
         self.desired_rotation = rotation;
-        if self.path.is_none() {
-            self.simulation.update(velocity, rotation, &settings, dt);
-        } else {
-            // The path sets the position; only the facing is sprung.
-            let s = &mut self.simulation;
-            crate::spring::spring_damper_exact_quat(&mut s.rotation, &mut s.angular_velocity, rotation, settings.rotation_halflife, dt);
+        match self.drive {
+            Drive::Input => self.simulation.update(velocity, rotation, &settings, dt),
+            // The path or the user sets the position; only the facing is sprung.
+            Drive::Path { .. } | Drive::Tracked(_) => {
+                let s = &mut self.simulation;
+                spring_damper_exact_quat(&mut s.rotation, &mut s.angular_velocity, rotation, settings.rotation_halflife, dt);
+            }
         }
     }
 
@@ -447,26 +496,27 @@ impl Character {
     /// frame, trajectory features from the prediction, relative to the character's root.
     fn build_query(&mut self) {
         let settings = self.settings.controller;
-        match &self.path {
-            Some(path) => {
+        let s = &self.simulation;
+        match &self.drive {
+            Drive::Input => s.predict(self.desired_velocity, self.desired_rotation, &settings, &self.times, &mut self.predicted_positions, &mut self.predicted_rotations),
+            Drive::Path { path, time } => {
                 for (i, &t) in self.times.iter().enumerate() {
-                    let (p, v) = path.sample(self.path_time + t);
+                    let (p, v) = path.sample(time + t);
                     self.predicted_positions[i] = p;
-                    let mut q = self.simulation.rotation;
-                    let mut w = self.simulation.angular_velocity;
-                    let goal = yaw_facing(v).unwrap_or(q);
-                    crate::spring::spring_damper_exact_quat(&mut q, &mut w, goal, settings.rotation_halflife, t);
+                    let goal = yaw_facing(v).unwrap_or(s.rotation);
+                    let (mut q, mut w) = (s.rotation, s.angular_velocity);
+                    spring_damper_exact_quat(&mut q, &mut w, goal, settings.rotation_halflife, t);
                     self.predicted_rotations[i] = q;
                 }
             }
-            None => self.simulation.predict(
-                self.desired_velocity,
-                self.desired_rotation,
-                &settings,
-                &self.times,
-                &mut self.predicted_positions,
-                &mut self.predicted_rotations,
-            ),
+            Drive::Tracked(_) => {
+                // §9: positions p̂ + t·v (t = 1/3, 2/3, 1 s at the default offsets); directions
+                // the smoothed yaw sprung on toward the predicted one.
+                for (i, &t) in self.times.iter().enumerate() {
+                    self.predicted_positions[i] = s.position + s.velocity * t;
+                }
+                spring_rotation_predict(&mut self.predicted_rotations, s.rotation, s.angular_velocity, self.desired_rotation, settings.rotation_halflife, &self.times);
+            }
         }
         let inv = self.root_rotation.inverse();
         for slot in &self.slots {
@@ -638,6 +688,11 @@ impl Character {
             let offset = self.root_position - target;
             if offset.length() > s.clamp_distance {
                 self.root_position = target + offset.normalize() * s.clamp_distance;
+            }
+            // Both rotations are pure yaws: clamp the yaw difference.
+            let (axis, angle) = quat_abs(self.root_rotation * self.simulation.rotation.inverse()).to_axis_angle();
+            if angle > s.clamp_angle {
+                self.root_rotation = (Quat::from_axis_angle(axis, s.clamp_angle) * self.simulation.rotation).normalize();
             }
         }
         self.pose_positions[0] = self.root_position;

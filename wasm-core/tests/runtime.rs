@@ -211,3 +211,48 @@ fn a_locked_foot_stays_put() {
     assert!(locked_frames > 500, "feet were locked in only {locked_frames} frames");
     assert!(worst < 1e-3, "a locked toe moved {worst} m in one frame");
 }
+
+/// VR (THESIS_NOTES §9): a tracked user walking forward, side-stepping and turning in place.
+/// The root stays within α of the head's floor position, moves with it, and turns to the
+/// predicted body yaw.
+#[test]
+fn a_tracked_user_is_followed() {
+    use mmcore::character::Tracked;
+    let db = db();
+    let alpha = 0.3;
+    let clamp_angle = 0.35;
+    let mut c = Character::new(db, CharacterSettings { clamp_distance: alpha, clamp_angle, ..Default::default() });
+    let dt = 1.0 / 72.0; // Quest Browser's lowest refresh rate
+    let (mut head, mut yaw) = (Vec3::ZERO, 0.0f32);
+    let mut max_distance = 0.0f32;
+    for step in 0..(72 * 11) {
+        let t = step as f32 * dt;
+        // 0–3 s forward (+Z) at 1.2 m/s, 3–5 s side-step right (−X) at 0.6 m/s, 5–6 s stand,
+        // 6–8 s turn in place to 90°, 8–11 s stand.
+        let velocity = match t {
+            t if t < 3.0 => Vec3::new(0.0, 0.0, 1.2),
+            t if t < 5.0 => Vec3::new(-0.6, 0.0, 0.0),
+            _ => Vec3::ZERO,
+        };
+        if t >= 6.0 {
+            yaw = (yaw + dt * 0.8).min(std::f32::consts::FRAC_PI_2);
+        }
+        // The head bobs sideways each step; the smoothed trajectory must not care.
+        let sway = Vec3::new(0.03 * (t * 6.0).sin(), 0.0, 0.0);
+        head += velocity * dt;
+        c.set_tracked(Tracked { position: head + sway, velocity: velocity + Vec3::new(0.18 * (t * 6.0).cos(), 0.0, 0.0), yaw });
+        c.update(db, index(), &Input::default(), dt);
+        let r = c.root_position();
+        let d = Vec2::new(r.x - head.x - sway.x, r.z - head.z - sway.z).length();
+        assert!(d <= alpha + 1e-5, "distance {d} > α at {t:.2} s");
+        max_distance = max_distance.max(d);
+        if step == 72 * 3 {
+            assert!(r.z > 2.5, "walked forward to z = {} (head at {})", r.z, head.z);
+        }
+    }
+    let facing = c.root_rotation() * Vec3::Z;
+    let final_yaw = facing.x.atan2(facing.z);
+    assert!((final_yaw - std::f32::consts::FRAC_PI_2).abs() <= clamp_angle + 0.02, "turned in place to {final_yaw} rad");
+    assert!(c.root_position().x < -0.9, "side-stepped to x = {}", c.root_position().x);
+    println!("tracked: max root↔head distance {max_distance:.3} m, final yaw {final_yaw:.3} rad");
+}

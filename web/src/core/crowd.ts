@@ -76,6 +76,15 @@ export class Crowd {
     return JSON.parse(this.live.settings_json(i)) as Record<string, unknown>;
   }
 
+  /**
+   * Follow a tracked user (VR); call every frame with the raw head floor position (m), its
+   * ground velocity (m/s) and the predicted body yaw (rad, 0 = +Z). The runtime spring-smooths
+   * velocity and yaw (THESIS_NOTES §9). `setPath(i, null)` returns to input control.
+   */
+  setTracked(i: number, headX: number, headZ: number, velocityX: number, velocityZ: number, yaw: number): void {
+    this.live.set_tracked(i, headX, headZ, velocityX, velocityZ, yaw);
+  }
+
   /** Follow `points` (x, z pairs) at `speeds` m/s per segment, or `null` to return to input. */
   setPath(i: number, points: Float32Array | null, speeds?: Float32Array, looped = false): void {
     if (points === null) this.live.clear_path(i);
