@@ -4,7 +4,8 @@
 // skips itself, so a second run with nothing changed takes a few seconds.
 //
 //   node scripts/setup.mjs build   set up everything, then stop
-//   node scripts/setup.mjs start   set up, then run the vite dev server (port 5173) in the foreground
+//   node scripts/setup.mjs start   set up, then run the vite dev server (port 5173) in the foreground;
+//                                  `start --https` serves HTTPS with a self-signed certificate (WebXR)
 //   node scripts/setup.mjs test    set up (plus Chromium and the Python venv), then run every test
 //                                  suite, continuing after a failure; prints a summary table and
 //                                  a last line `N passed, M failed`; exits non-zero on any failure
@@ -461,7 +462,13 @@ async function main() {
 
   if (mode === 'build') return 0;
   if (mode === 'start') {
-    const child = spawn(path.join(ROOT, 'node_modules', '.bin', 'vite'), ['--host', '0.0.0.0', '--port', '5173'], { cwd: ROOT, stdio: 'inherit' });
+    // `npm start -- --https`: vite.config.ts adds a locally made self-signed certificate
+    // (@vitejs/plugin-basic-ssl); Quest Browser allows WebXR only on secure origins. Listening
+    // on 0.0.0.0 makes the page reachable from a headset on the same LAN.
+    const https = process.argv.slice(3).includes('--https');
+    if (https) log('HTTPS on: open https://<this machine\'s LAN address>:5173/vr.html on the headset and accept the certificate warning');
+    const env = https ? { ...process.env, VITE_HTTPS: '1' } : process.env;
+    const child = spawn(path.join(ROOT, 'node_modules', '.bin', 'vite'), ['--host', '0.0.0.0', '--port', '5173'], { cwd: ROOT, stdio: 'inherit', env });
     for (const sig of ['SIGINT', 'SIGTERM']) process.on(sig, () => child.kill(sig));
     return new Promise((resolve) => child.on('close', (code) => resolve(code ?? 0)));
   }

@@ -1,0 +1,28 @@
+/**
+ * What the VR pipeline asks of a body-orientation predictor (THESIS_NOTES §9): each frame, the
+ * user's body (root) yaw from the HMD and controller states. Two implementations: the ONNX
+ * orientation network (web/src/orientation, wrapped by an adapter) and the HMD-forward
+ * dead-zone heuristic (fallback-yaw.ts), shown when the model is missing or fails to load.
+ */
+
+/** The tracker state a predictor reads (trackers.ts `TrackerView` is one). World = local-floor. */
+export interface TrackerPose {
+  readonly position: ArrayLike<number>;
+  /** x, y, z, w. */
+  readonly rotation: ArrayLike<number>;
+  /** m/s, world. */
+  readonly velocity: ArrayLike<number>;
+  /** rad/s (axis × rate), world. */
+  readonly angularVelocity: ArrayLike<number>;
+  /** trackers.ts TRACKED, MISSING or FROZEN. */
+  readonly status: number;
+}
+
+export interface BodyYawPredictor {
+  /** 'network' or 'heuristic': shown in the page and read by tests. */
+  readonly name: string;
+  /** Advances by `dt` seconds and returns the body yaw, radians (0 = +Z, world). */
+  update(hmd: TrackerPose, left: TrackerPose, right: TrackerPose, dt: number): number;
+  /** Forgets history (session start, recentre); the next update starts from the HMD heading. */
+  reset(): void;
+}

@@ -1,0 +1,321 @@
+/**
+ * Recorded tracker sessions (docs/vr-recording.md): the HMD and both controller grip poses per
+ * frame with timestamps and tracked flags — exactly the `TrackerSample`s the live pipeline
+ * consumes — so a VR session can be replayed on the desktop page without a headset. Two
+ * encodings of one versioned format: JSON (readable, diffable) and a compact little-endian
+ * binary (`MMTR` magic). Loading validates everything and names what is wrong.
+ */
+import { NUM_TRACKERS, type TrackerSample } from './tracker-sample.ts';
+
+export const RECORDING_FORMAT = 'mm-vr-recording';
+export const RECORDING_VERSION = 1;
+const MAGIC = 0x52544d4d; // 'MMTR' read as a little-endian u32
+const HEADER_BYTES = 16;
+
+/** Free-form facts about a recording (device, frame rate, calibrated eye height, source…). */
+export type RecordingMeta = Record<string, string | number | boolean>;
+
+/** A recording in memory: SoA over frames, the layout of `TrackerSample` repeated. */
+export interface Recording {
+  readonly frames: number;
+  /** Seconds, strictly increasing. */
+  readonly time: Float64Array;
+  /** frames × 3 trackers × (x, y, z), m, local-floor space. */
+  readonly position: Float64Array;
+  /** frames × 3 trackers × (x, y, z, w). */
+  readonly rotation: Float64Array;
+  /** frames × 3 trackers: 1 tracked, 0 not. */
+  readonly tracked: Uint8Array;
+  readonly meta: RecordingMeta;
+}
+
+export class RecordingError extends Error {
+  constructor(source: string, message: string) {
+    super(`${source}: ${message}`);
+    this.name = 'RecordingError';
+  }
+}
+
+/** Checks lengths, finiteness, time order and unit quaternions; throws a RecordingError. */
+export function validateRecording(r: Recording, source = 'recording'): void {
+  const fail = (m: string): never => {
+    throw new RecordingError(source, m);
+  };
+  if (!Number.isInteger(r.frames) || r.frames < 1) fail(`frames must be a positive integer (got ${r.frames})`);
+  const expect = (name: string, length: number, per: number) => {
+    if (length !== r.frames * per) fail(`${name} has ${length} values, expected frames × ${per} = ${r.frames * per}`);
+  };
+  expect('time', r.time.length, 1);
+  expect('position', r.position.length, NUM_TRACKERS * 3);
+  expect('rotation', r.rotation.length, NUM_TRACKERS * 4);
+  expect('tracked', r.tracked.length, NUM_TRACKERS);
+  for (let f = 0; f < r.frames; f++) {
+    if (!Number.isFinite(r.time[f])) fail(`time[${f}] is not a finite number`);
+    if (f > 0 && !(r.time[f] > r.time[f - 1])) fail(`time must increase: time[${f}] = ${r.time[f]} after ${r.time[f - 1]}`);
+    for (let t = 0; t < NUM_TRACKERS; t++) {
+      const k = f * NUM_TRACKERS + t;
+      if (r.tracked[k] > 1) fail(`tracked[${k}] must be 0 or 1 (got ${r.tracked[k]})`);
+      for (let c = 0; c < 3; c++) if (!Number.isFinite(r.position[3 * k + c])) fail(`position of frame ${f}, tracker ${t} is not finite`);
+      let n = 0;
+      for (let c = 0; c < 4; c++) {
+        const v = r.rotation[4 * k + c];
+        if (!Number.isFinite(v)) fail(`rotation of frame ${f}, tracker ${t} is not finite`);
+        n += v * v;
+      }
+      if (Math.abs(Math.sqrt(n) - 1) > 1e-3) fail(`rotation of frame ${f}, tracker ${t} is not a unit quaternion (length ${Math.sqrt(n).toFixed(4)})`);
+    }
+  }
+}
+
+// ------------------------------------------------------------------ JSON
+
+/** JSON text of a recording (flat SoA arrays; positions rounded to 0.1 mm, rotations to 1e-6). */
+export function encodeRecordingJson(r: Recording): string {
+  const round = (a: ArrayLike<number>, digits: number) => Array.from(a, (v) => Number(v.toFixed(digits)));
+  return JSON.stringify({
+    format: RECORDING_FORMAT,
+    version: RECORDING_VERSION,
+    trackers: ['head', 'left', 'right'],
+    frames: r.frames,
+    meta: r.meta,
+    time: round(r.time, 6),
+    position: round(r.position, 5),
+    rotation: round(r.rotation, 6),
+    tracked: Array.from(r.tracked),
+  });
+}
+
+function fromJson(text: string, source: string): Recording {
+  let data: unknown;
+  try {
+    data = JSON.parse(text);
+  } catch (e) {
+    throw new RecordingError(source, `not JSON (${e instanceof Error ? e.message : String(e)})`);
+  }
+  const fail = (m: string): never => {
+    throw new RecordingError(source, m);
+  };
+  if (typeof data !== 'object' || data === null || Array.isArray(data)) fail('expected a JSON object');
+  const o = data as Record<string, unknown>;
+  if (o.format !== RECORDING_FORMAT) fail(`"format" must be "${RECORDING_FORMAT}" (got ${JSON.stringify(o.format)})`);
+  if (o.version !== RECORDING_VERSION) fail(`unsupported version ${JSON.stringify(o.version)} (this page reads version ${RECORDING_VERSION})`);
+  const numbers = (name: string): number[] => {
+    const v = o[name];
+    if (!Array.isArray(v)) fail(`"${name}" must be an array of numbers`);
+    const a = v as unknown[];
+    for (let i = 0; i < a.length; i++) if (typeof a[i] !== 'number') fail(`"${name}"[${i}] is not a number`);
+    return a as number[];
+  };
+  const meta = o.meta ?? {};
+  if (typeof meta !== 'object' || meta === null || Array.isArray(meta)) fail('"meta" must be an object');
+  const frames = o.frames;
+  if (typeof frames !== 'number') fail('"frames" must be a number');
+  return {
+    frames: frames as number,
+    time: Float64Array.from(numbers('time')),
+    position: Float64Array.from(numbers('position')),
+    rotation: Float64Array.from(numbers('rotation')),
+    tracked: Uint8Array.from(numbers('tracked').map((v) => (v === 0 || v === 1 ? v : 255))),
+    meta: meta as RecordingMeta,
+  };
+}
+
+// ------------------------------------------------------------------ binary
+
+/**
+ * Binary: header (u32 magic 'MMTR', u32 version, u32 frames, u32 meta byte length), the meta as
+ * UTF-8 JSON padded to 8 bytes, then f64 time[frames], f32 position[frames×9],
+ * f32 rotation[frames×12], u8 tracked[frames×3]. Little-endian. ~100 bytes per frame.
+ */
+export function encodeRecordingBinary(r: Recording): Uint8Array {
+  const meta = new TextEncoder().encode(JSON.stringify(r.meta));
+  const metaPadded = Math.ceil(meta.length / 8) * 8;
+  const n = r.frames;
+  const size = HEADER_BYTES + metaPadded + 8 * n + 4 * n * 9 + 4 * n * 12 + n * 3;
+  const bytes = new Uint8Array(size);
+  const view = new DataView(bytes.buffer);
+  view.setUint32(0, MAGIC, true);
+  view.setUint32(4, RECORDING_VERSION, true);
+  view.setUint32(8, n, true);
+  view.setUint32(12, meta.length, true);
+  bytes.set(meta, HEADER_BYTES);
+  let o = HEADER_BYTES + metaPadded;
+  for (let i = 0; i < n; i++, o += 8) view.setFloat64(o, r.time[i], true);
+  for (let i = 0; i < n * 9; i++, o += 4) view.setFloat32(o, r.position[i], true);
+  for (let i = 0; i < n * 12; i++, o += 4) view.setFloat32(o, r.rotation[i], true);
+  bytes.set(r.tracked.subarray(0, n * 3), o);
+  return bytes;
+}
+
+function fromBinary(bytes: Uint8Array, source: string): Recording {
+  const fail = (m: string): never => {
+    throw new RecordingError(source, m);
+  };
+  if (bytes.length < HEADER_BYTES) fail(`${bytes.length} bytes is too short for a header`);
+  const view = new DataView(bytes.buffer, bytes.byteOffset, bytes.byteLength);
+  const version = view.getUint32(4, true);
+  if (version !== RECORDING_VERSION) fail(`unsupported binary version ${version} (this page reads version ${RECORDING_VERSION})`);
+  const n = view.getUint32(8, true);
+  const metaLength = view.getUint32(12, true);
+  const metaPadded = Math.ceil(metaLength / 8) * 8;
+  const expected = HEADER_BYTES + metaPadded + 8 * n + 4 * n * 9 + 4 * n * 12 + n * 3;
+  if (bytes.length !== expected) fail(`${bytes.length} bytes, but a header of ${n} frames and ${metaLength} meta bytes needs ${expected}`);
+  let meta: unknown;
+  try {
+    meta = JSON.parse(new TextDecoder().decode(bytes.subarray(HEADER_BYTES, HEADER_BYTES + metaLength)));
+  } catch {
+    fail('meta is not valid JSON');
+  }
+  if (typeof meta !== 'object' || meta === null || Array.isArray(meta)) fail('meta must be a JSON object');
+  const time = new Float64Array(n);
+  const position = new Float64Array(n * 9);
+  const rotation = new Float64Array(n * 12);
+  let o = HEADER_BYTES + metaPadded;
+  for (let i = 0; i < n; i++, o += 8) time[i] = view.getFloat64(o, true);
+  for (let i = 0; i < n * 9; i++, o += 4) position[i] = view.getFloat32(o, true);
+  for (let i = 0; i < n * 12; i++, o += 4) rotation[i] = view.getFloat32(o, true);
+  const tracked = bytes.slice(o, o + n * 3);
+  return { frames: n, time, position, rotation, tracked, meta: meta as RecordingMeta };
+}
+
+/**
+ * Decodes and validates a recording from bytes (binary, by its magic, or UTF-8 JSON) or text.
+ * `source` (a file name or URL) starts every error message.
+ */
+export function decodeRecording(data: Uint8Array | string, source = 'recording'): Recording {
+  let r: Recording;
+  if (typeof data !== 'string' && data.length >= 4 && new DataView(data.buffer, data.byteOffset, 4).getUint32(0, true) === MAGIC) {
+    r = fromBinary(data, source);
+  } else {
+    r = fromJson(typeof data === 'string' ? data : new TextDecoder().decode(data), source);
+  }
+  validateRecording(r, source);
+  return r;
+}
+
+// ------------------------------------------------------------------ recorder
+
+/**
+ * Appends samples into growing SoA buffers (capacity doubles, so appending is amortized O(1) and
+ * allocates only on the rare growth).
+ */
+export class TrackerRecorder {
+  private capacity: number;
+  private count = 0;
+  private time: Float64Array;
+  private position: Float64Array;
+  private rotation: Float64Array;
+  private tracked: Uint8Array;
+
+  /** `capacity`: frames preallocated (default one minute at 90 Hz). */
+  constructor(capacity = 90 * 60) {
+    this.capacity = Math.max(1, capacity);
+    this.time = new Float64Array(this.capacity);
+    this.position = new Float64Array(this.capacity * 9);
+    this.rotation = new Float64Array(this.capacity * 12);
+    this.tracked = new Uint8Array(this.capacity * 3);
+  }
+
+  get frames(): number {
+    return this.count;
+  }
+
+  clear(): void {
+    this.count = 0;
+  }
+
+  /** Appends a sample; a sample not later than the last one is skipped (time must increase). */
+  add(sample: TrackerSample): void {
+    if (this.count > 0 && !(sample.time > this.time[this.count - 1])) return;
+    if (this.count === this.capacity) this.grow();
+    const f = this.count++;
+    this.time[f] = sample.time;
+    this.position.set(sample.position, f * 9);
+    this.rotation.set(sample.rotation, f * 12);
+    this.tracked.set(sample.tracked, f * 3);
+  }
+
+  /** A copy of what was recorded, times shifted to start at 0. Throws with no frames. */
+  toRecording(meta: RecordingMeta = {}): Recording {
+    if (this.count === 0) throw new RecordingError('recorder', 'nothing recorded');
+    const n = this.count;
+    const t0 = this.time[0];
+    return {
+      frames: n,
+      time: this.time.slice(0, n).map((t) => t - t0),
+      position: this.position.slice(0, n * 9),
+      rotation: this.rotation.slice(0, n * 12),
+      tracked: this.tracked.slice(0, n * 3),
+      meta,
+    };
+  }
+
+  private grow(): void {
+    this.capacity *= 2;
+    const grow = <T extends Float64Array | Uint8Array>(a: T, per: number, make: (n: number) => T): T => {
+      const b = make(this.capacity * per);
+      b.set(a);
+      return b;
+    };
+    this.time = grow(this.time, 1, (n) => new Float64Array(n));
+    this.position = grow(this.position, 9, (n) => new Float64Array(n));
+    this.rotation = grow(this.rotation, 12, (n) => new Float64Array(n));
+    this.tracked = grow(this.tracked, 3, (n) => new Uint8Array(n));
+  }
+}
+
+// ------------------------------------------------------------------ player
+
+/** Samples a recording at any time: positions interpolated linearly, rotations by nlerp. */
+export class RecordingPlayer {
+  private cursor = 0;
+
+  constructor(readonly recording: Recording) {}
+
+  /** Seconds from the first to the last frame. */
+  get duration(): number {
+    const t = this.recording.time;
+    return t[t.length - 1] - t[0];
+  }
+
+  /**
+   * Writes the trackers at `time` (seconds from the recording's start, clamped to it) into
+   * `out`; `out.time` is set to `time`. A tracker counts as tracked only if it is at both
+   * neighbouring frames. Sequential times are O(1); allocates nothing.
+   */
+  sampleAt(time: number, out: TrackerSample): void {
+    const r = this.recording;
+    const t = r.time;
+    const at = t[0] + Math.min(Math.max(time, 0), this.duration);
+    if (this.cursor >= r.frames - 1 || t[this.cursor] > at) this.cursor = 0;
+    while (this.cursor < r.frames - 2 && t[this.cursor + 1] <= at) this.cursor++;
+    const a = this.cursor;
+    const b = Math.min(a + 1, r.frames - 1);
+    const w = b === a ? 0 : Math.min(1, Math.max(0, (at - t[a]) / (t[b] - t[a])));
+    out.time = time;
+    for (let k = 0; k < NUM_TRACKERS; k++) {
+      const ia = a * NUM_TRACKERS + k, ib = b * NUM_TRACKERS + k;
+      for (let c = 0; c < 3; c++) out.position[3 * k + c] = r.position[3 * ia + c] + (r.position[3 * ib + c] - r.position[3 * ia + c]) * w;
+      let dot = 0;
+      for (let c = 0; c < 4; c++) dot += r.rotation[4 * ia + c] * r.rotation[4 * ib + c];
+      const sign = dot < 0 ? -1 : 1;
+      let n = 0;
+      for (let c = 0; c < 4; c++) {
+        const v = r.rotation[4 * ia + c] + (sign * r.rotation[4 * ib + c] - r.rotation[4 * ia + c]) * w;
+        out.rotation[4 * k + c] = v;
+        n += v * v;
+      }
+      n = Math.sqrt(n) || 1;
+      for (let c = 0; c < 4; c++) out.rotation[4 * k + c] /= n;
+      out.tracked[k] = r.tracked[ia] & r.tracked[ib];
+    }
+  }
+}
+
+/** A recording from in-memory samples (tests and synthetic recordings). */
+export function recordingFromSamples(samples: readonly TrackerSample[], meta: RecordingMeta = {}): Recording {
+  const recorder = new TrackerRecorder(samples.length);
+  for (const s of samples) recorder.add(s);
+  return recorder.toRecording(meta);
+}
+

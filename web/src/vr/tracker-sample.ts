@@ -1,0 +1,76 @@
+/**
+ * One frame of raw tracker data — HMD and both controllers' grip poses in the `local-floor`
+ * reference space (THESIS_NOTES §9) — as structure-of-arrays, and the sampling of a WebXR frame
+ * into it. The same sample is what a recording stores (recording.ts) and what a replay feeds
+ * back, so the live and replayed pipelines start from identical data.
+ */
+
+/** Tracker indices into every SoA array of the VR modules. */
+export const HEAD = 0;
+export const LEFT = 1;
+export const RIGHT = 2;
+export const NUM_TRACKERS = 3;
+
+export class TrackerSample {
+  /** Seconds (the XR animation-frame timestamp / 1000). */
+  time = 0;
+  /** 3×3: x, y, z per tracker, m. */
+  readonly position = new Float64Array(NUM_TRACKERS * 3);
+  /** 3×4: x, y, z, w per tracker (unit quaternions). */
+  readonly rotation = new Float64Array(NUM_TRACKERS * 4);
+  /** 1 when the device reported a (non-emulated) pose for the tracker this frame. */
+  readonly tracked = new Uint8Array(NUM_TRACKERS);
+
+  constructor() {
+    for (let t = 0; t < NUM_TRACKERS; t++) this.rotation[4 * t + 3] = 1;
+  }
+
+  /** Sets one tracker's pose and marks it tracked. */
+  set(t: number, px: number, py: number, pz: number, qx: number, qy: number, qz: number, qw: number): void {
+    this.position[3 * t] = px;
+    this.position[3 * t + 1] = py;
+    this.position[3 * t + 2] = pz;
+    this.rotation[4 * t] = qx;
+    this.rotation[4 * t + 1] = qy;
+    this.rotation[4 * t + 2] = qz;
+    this.rotation[4 * t + 3] = qw;
+    this.tracked[t] = 1;
+  }
+
+  copyFrom(other: TrackerSample): void {
+    this.time = other.time;
+    this.position.set(other.position);
+    this.rotation.set(other.rotation);
+    this.tracked.set(other.tracked);
+  }
+}
+
+/**
+ * Reads the viewer (HMD) pose and the left/right grip poses of `frame` in `space` into `out`
+ * (`time` in seconds). A tracker with no pose this frame, or only an emulated position (a
+ * controller that lost tracking keeps its orientation but guesses its position), keeps its
+ * previous values and is marked untracked; trackers.ts decides what to show instead.
+ * `acceptEmulated`: take emulated positions as tracked — an emulator (iwer) flags every pose so.
+ *
+ * WebXR itself allocates the XRPose objects it returns; nothing else is allocated here.
+ */
+export function sampleXRFrame(frame: XRFrame, space: XRReferenceSpace, time: number, out: TrackerSample, acceptEmulated = false): void {
+  out.time = time;
+  out.tracked.fill(0);
+  const viewer = frame.getViewerPose(space);
+  if (viewer && (acceptEmulated || !viewer.emulatedPosition)) writePose(out, HEAD, viewer.transform);
+  const sources = frame.session.inputSources;
+  for (let i = 0; i < sources.length; i++) {
+    const source = sources[i];
+    const t = source.handedness === 'left' ? LEFT : source.handedness === 'right' ? RIGHT : -1;
+    if (t < 0 || !source.gripSpace) continue;
+    const pose = frame.getPose(source.gripSpace, space);
+    if (pose && (acceptEmulated || !pose.emulatedPosition)) writePose(out, t, pose.transform);
+  }
+}
+
+function writePose(out: TrackerSample, t: number, transform: XRRigidTransform): void {
+  const p = transform.position;
+  const q = transform.orientation;
+  out.set(t, p.x, p.y, p.z, q.x, q.y, q.z, q.w);
+}

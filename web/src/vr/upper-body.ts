@@ -1,0 +1,282 @@
+/**
+ * The VR upper body (THESIS_NOTES §9), applied to a posed avatar after retargeting: the spine
+ * twists from the animated root yaw toward the HMD's heading, the head takes the HMD's rotation,
+ * and each arm reaches its controller by analytic two-bone IK (two-bone-ik.ts) after a clavicle
+ * heuristic, the hand taking the controller's rotation.
+ *
+ * Hands: the grip pose (WebXR: origin at the fist's centre, −Z toward the thumb along the held
+ * rod, +X out of the back of the right hand / palm of the left) is related to the hand bone once,
+ * from the avatar's rest pose: a fist in the rest (T- or A-) pose holds its rod pointing forward
+ * with the back of the hand up. That gives, per hand, the wrist's offset in the grip frame and the
+ * hand bone's rotation relative to the grip, so no bone-axis conventions of the avatar are assumed.
+ *
+ * Construct it before the avatar is first posed (its bones still in the rest pose). `apply`
+ * allocates nothing.
+ */
+import * as THREE from 'three';
+import { type HumanoidRole } from '../avatar/joint-maps.ts';
+import { type TrackerPose } from './body-yaw.ts';
+import { rotateBoneWorld, setWorldQuaternion, solveTwoBoneIK } from './two-bone-ik.ts';
+import { headingYaw, wrapAngle } from './yaw.ts';
+
+/** What UpperBody needs of an avatar (avatar.ts `Avatar` is one). */
+export interface UpperBodyRig {
+  readonly object: THREE.Object3D;
+  readonly bones: readonly THREE.Bone[];
+  readonly roles: ReadonlyMap<HumanoidRole, number>;
+}
+
+export interface UpperBodyOptions {
+  /** Share of the head↔root yaw difference taken by spine, chest, upperChest, neck (the head gets the rest). */
+  spineWeights: readonly [number, number, number, number];
+  /** Largest twist handed to the spine, rad: a head turned further turns alone. */
+  maxTwist: number;
+  /** The clavicle starts helping when the target is farther than this share of the arm's length. */
+  clavicleReach: number;
+  /** Most the clavicle turns toward a far target, rad. */
+  clavicleMaxAngle: number;
+  /** Wrist → fist centre along the hand (m at avatar scale 1) and toward the palm. */
+  gripForward: number;
+  gripPalm: number;
+  /** Elbow pole in the torso's frame: outward, downward, backward weights. */
+  poleOut: number;
+  poleDown: number;
+  poleBack: number;
+  /**
+   * Most the forearm and hand may lengthen (share of their rest length) when a controller is out
+   * of the arm's reach — the last resort that keeps hands on the controllers while the avatar's
+   * shoulders lag the user's (walk sway, turning, a root up to α from the head).
+   */
+  maxStretch: number;
+  /** Scale the head to nothing (first-person view, so it does not fill the eyes' view). */
+  hideHead: boolean;
+}
+
+export const DEFAULT_UPPER_BODY_OPTIONS: Readonly<UpperBodyOptions> = {
+  spineWeights: [0.15, 0.2, 0.2, 0.15],
+  maxTwist: (100 * Math.PI) / 180,
+  clavicleReach: 0.85,
+  clavicleMaxAngle: (20 * Math.PI) / 180,
+  gripForward: 0.085,
+  gripPalm: 0.02,
+  poleOut: 0.6,
+  poleDown: 1,
+  poleBack: 0.5,
+  maxStretch: 0.25,
+  hideHead: false,
+};
+
+interface Arm {
+  /** +1 left, −1 right (left is +X when facing +Z). */
+  side: number;
+  clavicle: THREE.Bone | null;
+  upper: THREE.Bone;
+  lower: THREE.Bone;
+  hand: THREE.Bone;
+  /** Wrist (hand bone origin) in the grip frame, m at object scale 1. */
+  wristInGrip: THREE.Vector3;
+  /** Hand bone world rotation = grip rotation · handFromGrip. */
+  handFromGrip: THREE.Quaternion;
+  /** Rest local positions of the forearm and hand bones (restored before any stretch). */
+  lowerRest: THREE.Vector3;
+  handRest: THREE.Vector3;
+}
+
+const SPINE_ROLES = ['spine', 'chest', 'upperChest', 'neck'] as const;
+const UP = new THREE.Vector3(0, 1, 0);
+
+const _q = new THREE.Quaternion();
+const _q2 = new THREE.Quaternion();
+const _identity = new THREE.Quaternion();
+const _v = new THREE.Vector3();
+const _target = new THREE.Vector3();
+const _pole = new THREE.Vector3();
+const _s = new THREE.Vector3();
+const _a = new THREE.Vector3();
+const _from = new THREE.Vector3();
+const _to = new THREE.Vector3();
+const _q3 = new THREE.Quaternion();
+const _pos = new THREE.Vector3();
+
+export class UpperBody {
+  readonly options: UpperBodyOptions;
+  /** Wrist ↔ controller-implied wrist distance (m) after the last `apply` (left, right). */
+  readonly handError = new Float64Array(2);
+  /** The hand bones' world positions after the last `apply` (left xyz, right xyz). */
+  readonly handPositions = new Float64Array(6);
+  private readonly object: THREE.Object3D;
+  private readonly spine: { bone: THREE.Bone; weight: number; torso: boolean }[] = [];
+  private readonly head: THREE.Bone | null;
+  private readonly headFromHmd = new THREE.Quaternion();
+  private readonly arms: Arm[] = [];
+
+  constructor(rig: UpperBodyRig, options: Partial<UpperBodyOptions> = {}) {
+    this.options = { ...DEFAULT_UPPER_BODY_OPTIONS, ...options };
+    this.object = rig.object;
+    const bone = (role: HumanoidRole): THREE.Bone | null => {
+      const i = rig.roles.get(role);
+      return i === undefined ? null : rig.bones[i];
+    };
+    rig.object.updateMatrixWorld(true);
+    // Rest transforms relative to the avatar object, so offsets do not depend on where it stands.
+    const toObject = new THREE.Matrix4().copy(rig.object.matrixWorld).invert();
+    const rest = (b: THREE.Bone) => {
+      const m = new THREE.Matrix4().multiplyMatrices(toObject, b.matrixWorld);
+      const p = new THREE.Vector3();
+      const q = new THREE.Quaternion();
+      m.decompose(p, q, new THREE.Vector3());
+      return { p, q };
+    };
+
+    SPINE_ROLES.forEach((role, k) => {
+      const b = bone(role);
+      if (b) this.spine.push({ bone: b, weight: this.options.spineWeights[k], torso: role !== 'neck' });
+    });
+
+    const leftUpper = bone('leftUpperArm');
+    const rightUpper = bone('rightUpperArm');
+    // Rest facing: left × up (facing +Z, left is +X); +Z if the arms are missing.
+    const forward = new THREE.Vector3(0, 0, 1);
+    if (leftUpper && rightUpper) {
+      const lateral = rest(leftUpper).p.sub(rest(rightUpper).p);
+      lateral.y = 0;
+      if (lateral.lengthSq() > 1e-8) forward.crossVectors(lateral.normalize(), UP).normalize();
+    }
+
+    this.head = bone('head');
+    if (this.head) {
+      // A headset worn by the rest pose looks along `forward`: its −Z is forward, so R_y(yaw + π).
+      const hmdRest = new THREE.Quaternion().setFromAxisAngle(UP, Math.atan2(forward.x, forward.z) + Math.PI);
+      this.headFromHmd.copy(hmdRest.invert()).multiply(rest(this.head).q);
+    }
+
+    for (const [side, prefix] of [[1, 'left'], [-1, 'right']] as const) {
+      const upper = bone(`${prefix}UpperArm`);
+      const lower = bone(`${prefix}LowerArm`);
+      const hand = bone(`${prefix}Hand`);
+      if (!upper || !lower || !hand) continue;
+      const lowerRest = rest(lower);
+      const handRest = rest(hand);
+      const along = handRest.p.clone().sub(lowerRest.p).normalize();
+      // Back of the hand: up, orthogonal to the forearm (palm down in a T/A-pose).
+      const back = UP.clone().addScaledVector(along, -UP.dot(along));
+      if (back.lengthSq() < 1e-8) back.crossVectors(forward, along);
+      back.normalize();
+      const thumb = forward.clone().addScaledVector(along, -forward.dot(along)).addScaledVector(back, -forward.dot(back)).normalize();
+      const x = back.clone().multiplyScalar(side > 0 ? -1 : 1);
+      const z = thumb.clone().negate();
+      const y = new THREE.Vector3().crossVectors(z, x);
+      const gripRest = new THREE.Quaternion().setFromRotationMatrix(new THREE.Matrix4().makeBasis(x, y, z));
+      const gripRestPosition = handRest.p.clone().addScaledVector(along, this.options.gripForward).addScaledVector(back, -this.options.gripPalm);
+      const inverse = gripRest.clone().invert();
+      this.arms.push({
+        side,
+        clavicle: bone(`${prefix}Shoulder`),
+        upper,
+        lower,
+        hand,
+        wristInGrip: handRest.p.clone().sub(gripRestPosition).applyQuaternion(inverse),
+        handFromGrip: inverse.multiply(handRest.q),
+        lowerRest: lower.position.clone(),
+        handRest: hand.position.clone(),
+      });
+    }
+  }
+
+  /**
+   * Applies the upper body. `rootYaw`: the animated root's yaw (rad, 0 = +Z); `left`/`right`:
+   * the controller grip poses (world). The avatar's world matrices must be current (after
+   * `avatar.pose`); they are current again afterwards.
+   */
+  apply(hmd: TrackerPose, left: TrackerPose, right: TrackerPose, rootYaw: number): void {
+    const o = this.options;
+    const h = hmd.rotation;
+    const headYaw = headingYaw(h[0], h[1], h[2], h[3]);
+    const twist = Math.min(o.maxTwist, Math.max(-o.maxTwist, wrapAngle(headYaw - rootYaw)));
+
+    // Spine twist: each bone turns by its share about world Y. Every local is computed from the
+    // untwisted parents (P⁻¹·R_y(θ)·P·L), which composes to the cumulative twist, so the world
+    // matrices are updated once.
+    let torsoTwist = 0;
+    for (let k = 0; k < this.spine.length; k++) {
+      const s = this.spine[k];
+      rotateBoneWorld(s.bone, _q.setFromAxisAngle(UP, s.weight * twist));
+      if (s.torso) torsoTwist += s.weight * twist;
+    }
+    if (this.spine.length) this.spine[0].bone.updateWorldMatrix(false, true);
+
+    if (this.head) {
+      _q.set(h[0], h[1], h[2], h[3]).multiply(this.headFromHmd);
+      setWorldQuaternion(this.head, _q);
+      const hide = o.hideHead ? 1e-3 : 1;
+      this.head.scale.set(hide, hide, hide);
+      this.head.updateWorldMatrix(false, true);
+    }
+
+    const objectScale = this.object.matrixWorld.getMaxScaleOnAxis();
+    const torsoYaw = rootYaw + torsoTwist;
+    const sy = Math.sin(torsoYaw), cy = Math.cos(torsoYaw);
+    for (let k = 0; k < this.arms.length; k++) {
+      const arm = this.arms[k];
+      const tracker = arm.side > 0 ? left : right;
+      const p = tracker.position, r = tracker.rotation;
+      _q2.set(r[0], r[1], r[2], r[3]);
+      _target.copy(arm.wristInGrip).multiplyScalar(objectScale).applyQuaternion(_q2);
+      _target.x += p[0];
+      _target.y += p[1];
+      _target.z += p[2];
+      arm.lower.position.copy(arm.lowerRest);
+      arm.hand.position.copy(arm.handRest);
+      arm.lower.updateWorldMatrix(false, true);
+      if (arm.clavicle) this.reachWithClavicle(arm);
+      this.stretchToward(arm);
+      // Torso frame: outward = side·R_y(ψ)·(1, 0, 0) = side·(cos ψ, 0, −sin ψ); backward = −(sin ψ, 0, cos ψ).
+      _pole.set(arm.side * cy * o.poleOut - sy * o.poleBack, -o.poleDown, -arm.side * sy * o.poleOut - cy * o.poleBack);
+      solveTwoBoneIK(arm.upper, arm.lower, arm.hand, _target, _pole);
+      setWorldQuaternion(arm.hand, _q.copy(_q2).multiply(arm.handFromGrip));
+      arm.hand.updateWorldMatrix(false, true);
+      _pos.setFromMatrixPosition(arm.hand.matrixWorld);
+      const j = arm.side > 0 ? 0 : 1;
+      this.handError[j] = _pos.distanceTo(_target);
+      this.handPositions[3 * j] = _pos.x;
+      this.handPositions[3 * j + 1] = _pos.y;
+      this.handPositions[3 * j + 2] = _pos.z;
+    }
+  }
+
+  /** Lengthens forearm and hand (up to `maxStretch`) when `_target` is beyond the arm's reach. */
+  private stretchToward(arm: Arm): void {
+    _a.setFromMatrixPosition(arm.upper.matrixWorld);
+    _v.setFromMatrixPosition(arm.lower.matrixWorld);
+    _pos.setFromMatrixPosition(arm.hand.matrixWorld);
+    const l1 = _a.distanceTo(_v), l2 = _v.distanceTo(_pos);
+    const d = _a.distanceTo(_target);
+    // Only the forearm and hand lengthen: the elbow stays where the shoulder puts it.
+    if (!(d > l1 + l2) || l2 < 1e-9) return;
+    const k = Math.min(1 + this.options.maxStretch, (d - l1) / l2);
+    arm.hand.position.multiplyScalar(k);
+    arm.hand.updateWorldMatrix(false, true);
+  }
+
+  /** Turns the clavicle part of the way toward a target beyond `clavicleReach` of the arm. */
+  private reachWithClavicle(arm: Arm): void {
+    const o = this.options;
+    const clavicle = arm.clavicle as THREE.Bone;
+    _s.setFromMatrixPosition(clavicle.matrixWorld);
+    _a.setFromMatrixPosition(arm.upper.matrixWorld);
+    const reach = _a.distanceTo(_v.setFromMatrixPosition(arm.lower.matrixWorld)) + _v.distanceTo(_pos.setFromMatrixPosition(arm.hand.matrixWorld));
+    const excess = (_a.distanceTo(_target) - o.clavicleReach * reach) / Math.max(1e-6, (1 - o.clavicleReach) * reach);
+    if (!(excess > 0)) return;
+    _from.subVectors(_a, _s);
+    _to.subVectors(_target, _s);
+    if (_from.lengthSq() < 1e-12 || _to.lengthSq() < 1e-12) return;
+    _q.setFromUnitVectors(_from.normalize(), _to.normalize());
+    // A far target pulls the clavicle up to half the way, capped at clavicleMaxAngle.
+    const angle = 2 * Math.acos(Math.min(1, Math.abs(_q.w)));
+    if (angle < 1e-6) return;
+    const wanted = Math.min(o.clavicleMaxAngle, angle * Math.min(1, excess) * 0.5);
+    _q3.copy(_identity).slerp(_q, wanted / angle);
+    rotateBoneWorld(clavicle, _q3);
+    clavicle.updateWorldMatrix(false, true);
+  }
+}
