@@ -3,7 +3,34 @@ import path from 'node:path';
 import { expect, test, type Page } from '@playwright/test';
 
 const ROOT = path.resolve(import.meta.dirname, '../..');
-const hook = (page: Page) => page.evaluate(() => ({ ...window.__mm, root: [...window.__mm.root], steps: [...window.__mm.steps] }));
+const hook = (page: Page) =>
+  page.evaluate(() => {
+    const { screenOf: _, toeErrors: __, ...h } = window.__mm;
+    return { ...h, root: [...h.root], steps: [...h.steps], path: { points: [...h.path.points], following: h.path.following } };
+  });
+
+/** Loads the demo (fixed dt, no shadows: software WebGL is slow enough) and waits for it. */
+async function open(page: Page, query = ''): Promise<string[]> {
+  const errors: string[] = [];
+  page.on('console', (m) => m.type() === 'error' && errors.push(m.text()));
+  page.on('pageerror', (e) => errors.push(e.message));
+  await page.goto(`/?dt=fixed&shadows=0${query}`);
+  await page.waitForFunction(() => window.__mm?.ready || window.__mm?.error, null, { timeout: 60_000 });
+  expect((await hook(page)).error).toBeNull();
+  return errors;
+}
+
+/** Drops files (name → text or base64 bytes) on the page as a user would. */
+async function drop(page: Page, files: { name: string; text?: string; base64?: string }[]): Promise<void> {
+  await page.evaluate((files) => {
+    const transfer = new DataTransfer();
+    for (const f of files) {
+      const bytes = f.base64 !== undefined ? Uint8Array.from(atob(f.base64), (c) => c.charCodeAt(0)) : new TextEncoder().encode(f.text ?? '');
+      transfer.items.add(new File([bytes], f.name));
+    }
+    document.body.dispatchEvent(new DragEvent('drop', { dataTransfer: transfer, bubbles: true, cancelable: true }));
+  }, files);
+}
 
 /** Holds `keys` for `frames` runtime updates (fixed dt: 60 updates = 1 s). */
 async function hold(page: Page, keys: string[], frames: number): Promise<void> {
@@ -19,12 +46,7 @@ const angleDiff = (a: number, b: number) => Math.atan2(Math.sin(a - b), Math.cos
 test('the character walks, turns and strafes under the keyboard', async ({ page }) => {
   // ~330 frames of a skinned avatar in software WebGL (SwiftShader): ~1 min alone on 2 cores.
   test.setTimeout(240_000);
-  const errors: string[] = [];
-  page.on('console', (m) => m.type() === 'error' && errors.push(m.text()));
-  page.on('pageerror', (e) => errors.push(e.message));
-  await page.goto('/demo.html?dt=fixed');
-  await page.waitForFunction(() => window.__mm?.ready || window.__mm?.error, null, { timeout: 30_000 });
-  expect((await hook(page)).error).toBeNull();
+  const errors = await open(page);
   await expect(page.getByText('Motion matching')).toBeVisible(); // the settings panel
   await page.locator('#viewport canvas').click(); // focus
 
@@ -37,6 +59,12 @@ test('the character walks, turns and strafes under the keyboard', async ({ page 
   expect(along).toBeGreaterThan(1.5);
   expect(b.steps[0] - a.steps[0]).toBeGreaterThan(0);
   expect(b.steps[1] - a.steps[1]).toBeGreaterThan(0);
+  // The avatar's feet are on the floor while in contact: toe height within 3 cm of standing.
+  const toeErrors = await page.evaluate(() => window.__mm.toeErrors.map(Math.abs).sort((x, y) => x - y));
+  expect(toeErrors.length).toBeGreaterThan(60);
+  const p90 = toeErrors[Math.floor(toeErrors.length * 0.9)];
+  console.log(`avatar toe height in contact: median ${(toeErrors[toeErrors.length >> 1] * 100).toFixed(1)} cm, p90 ${(p90 * 100).toFixed(1)} cm (${toeErrors.length} foot-frames)`);
+  expect(p90).toBeLessThan(0.03);
 
   // A (camera-left) for 1.5 s: the facing turns by more than 60°.
   await hold(page, ['KeyA'], 90);
@@ -51,5 +79,102 @@ test('the character walks, turns and strafes under the keyboard', async ({ page 
 
   fs.mkdirSync(path.join(ROOT, 'test-results'), { recursive: true });
   await page.screenshot({ path: path.join(ROOT, 'test-results/demo.png') });
+  expect(errors).toEqual([]);
+});
+
+/** Shortest distance from (x, z) to the closed polyline `points` (x, z pairs). */
+function distanceToLoop(x: number, z: number, points: number[]): number {
+  let best = Infinity;
+  const n = points.length / 2;
+  for (let i = 0; i < n; i++) {
+    const [ax, az, bx, bz] = [points[2 * i], points[2 * i + 1], points[(2 * i + 2) % (2 * n)], points[(2 * i + 3) % (2 * n)]];
+    const [dx, dz] = [bx - ax, bz - az];
+    const t = Math.max(0, Math.min(1, ((x - ax) * dx + (z - az) * dz) / (dx * dx + dz * dz)));
+    best = Math.min(best, Math.hypot(ax + t * dx - x, az + t * dz - z));
+  }
+  return best;
+}
+
+test('path mode: clicked keypoints make a 4 m square the character follows within α', async ({ page }) => {
+  test.setTimeout(240_000);
+  const errors = await open(page, '&avatar=none');
+  // Zoom out so the whole square is on screen, and open the path folder's edit switch.
+  await page.mouse.move(640, 360);
+  for (let i = 0; i < 6; i++) await page.mouse.wheel(0, 400);
+  await page.waitForTimeout(500);
+  await page.getByText('edit (click the floor)').click();
+  // The path starts where the character stands (the origin); click the other three corners.
+  for (const [x, z] of [[-4, 0], [-4, -4], [0, -4]]) {
+    const p = await page.evaluate(([x, z]) => window.__mm.screenOf(x, z), [x, z]);
+    expect(p.x).toBeGreaterThan(0);
+    expect(p.x).toBeLessThan(1000); // left of the panel
+    expect(p.y).toBeGreaterThan(0);
+    expect(p.y).toBeLessThan(670); // above the toolbar
+    await page.mouse.click(p.x, p.y);
+  }
+  const h = await hook(page);
+  expect(h.path.points.length).toBe(8);
+  const square = h.path.points;
+  // Each corner within a few cm of where it was meant to be (the start is wherever the idle
+  // character stands, near the origin).
+  expect(Math.hypot(square[2] + 4, square[3])).toBeLessThan(0.05);
+  await page.getByText('follow the path').click();
+  expect((await hook(page)).path.following).toBe(true);
+  const alpha = 0.15; // the default clamp_distance (docs/runtime.md)
+  // 16 m at 1.4 m/s: ~11.5 s, sampled every frame through the hook.
+  const distances: number[] = [];
+  const corners = new Set<number>();
+  const start = (await hook(page)).updates;
+  while ((await hook(page)).updates < start + 12 * 60) {
+    const s = await hook(page);
+    distances.push(distanceToLoop(s.root[0], s.root[2], square));
+    for (let c = 0; c < 4; c++) if (Math.hypot(s.root[0] - square[2 * c], s.root[2] - square[2 * c + 1]) < 0.5) corners.add(c);
+    await page.waitForTimeout(20);
+  }
+  const max = Math.max(...distances);
+  console.log(`path square: max distance to the path ${max.toFixed(3)} m over ${distances.length} samples`);
+  expect(max).toBeLessThanOrEqual(alpha + 1e-3);
+  expect(corners.size).toBe(4); // went all the way round
+  expect(errors).toEqual([]);
+});
+
+test('dropping BVH files builds a database the character walks on; a broken one is reported', async ({ page }) => {
+  test.setTimeout(240_000);
+  const errors = await open(page);
+  const bvh = fs.readFileSync(path.join(ROOT, '../shared/mocap/cmu-asf/cmu_16_15.bvh'), 'utf8');
+  await drop(page, [{ name: 'cmu_16_15.bvh', text: bvh }]);
+  await page.waitForFunction(() => window.__mm.databaseLoads === 2 || window.__mm.fileError, null, { timeout: 60_000 });
+  let h = await hook(page);
+  expect(h.fileError).toBeNull();
+  expect(h.database).toBe('cmu_16_15.bvh');
+  expect(h.databaseFrames).toBeGreaterThan(300); // the take and its mirror at 60 fps
+  expect(h.avatar).toBe('ubc_male.glb'); // the avatar was bound to the new skeleton
+  await page.locator('#viewport canvas').click();
+  const a = await hook(page);
+  await hold(page, ['KeyW'], 90);
+  const b = await hook(page);
+  expect(Math.hypot(b.root[0] - a.root[0], b.root[2] - a.root[2])).toBeGreaterThan(1.0);
+
+  // A broken file: the importer's message (file and line) in the page; the database stays.
+  await drop(page, [{ name: 'broken.bvh', text: 'HIERARCHY\nROOT Hips\n{\n  OFFSET 0 0\n' }]);
+  await page.waitForFunction(() => window.__mm.fileError !== null, null, { timeout: 30_000 });
+  h = await hook(page);
+  expect(h.fileError).toMatch(/broken\.bvh:\d+/);
+  await expect(page.locator('#error-box')).toContainText('broken.bvh');
+  expect(h.databaseLoads).toBe(2);
+  expect(h.database).toBe('cmu_16_15.bvh');
+  await hold(page, ['KeyW'], 60);
+  const c = await hook(page);
+  expect(Math.hypot(c.root[0] - b.root[0], c.root[2] - b.root[2])).toBeGreaterThan(0.5);
+
+  // An avatar swap: the same GLB dropped binds again; a broken one is reported and the old stays.
+  const glb = fs.readFileSync(path.join(ROOT, 'public/avatars/ubc_male.glb')).toString('base64');
+  await drop(page, [{ name: 'dropped.glb', base64: glb }]);
+  await page.waitForFunction(() => window.__mm.avatar === 'dropped.glb', null, { timeout: 60_000 });
+  await drop(page, [{ name: 'junk.vrm', text: 'not a model' }]);
+  await page.waitForFunction(() => /junk\.vrm/.test(window.__mm.fileError ?? ''), null, { timeout: 30_000 });
+  expect((await hook(page)).avatar).toBe('dropped.glb');
+  await hold(page, ['KeyW'], 10);
+  await page.screenshot({ path: path.join(ROOT, 'test-results/demo-dropped.png') });
   expect(errors).toEqual([]);
 });

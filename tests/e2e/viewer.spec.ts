@@ -26,7 +26,7 @@ const viewer = (page: Page) => page.evaluate(() => ({ ...window.__viewer }));
 
 test('viewer plays the locomotion database', async ({ page }) => {
   const errors = collectErrors(page);
-  await page.goto('/');
+  await page.goto('/viewer.html');
   await page.waitForFunction(() => window.__viewer?.ready || window.__viewer?.error, null, { timeout: 30_000 });
   const state = await viewer(page);
   expect(state.error).toBeNull();
@@ -62,7 +62,7 @@ test('viewer plays the locomotion database', async ({ page }) => {
 });
 
 test('a missing database shows an error in the page', async ({ page }) => {
-  await page.goto('/?db=databases/missing.mmdb');
+  await page.goto('/viewer.html?db=databases/missing.mmdb');
   const box = page.locator('#error-box');
   await expect(box).toBeVisible();
   await expect(box).toContainText('missing.mmdb');
@@ -77,7 +77,7 @@ test('a corrupt database shows the checksum error in the page', async ({ page })
   await page.route('**/databases/corrupt.mmdb', (route) =>
     route.fulfill({ status: 200, contentType: 'application/octet-stream', body: bytes }),
   );
-  await page.goto('/?db=databases/corrupt.mmdb');
+  await page.goto('/viewer.html?db=databases/corrupt.mmdb');
   const box = page.locator('#error-box');
   await expect(box).toBeVisible();
   await expect(box).toContainText(/checksum/i);

@@ -6,6 +6,7 @@ import { Database } from '../../web/src/core/database.ts';
 import { initWasmSync } from '../../web/src/core/wasm.ts';
 import { skeletonFromGlb, parseGlbJson, type GlbSkeleton } from '../../web/src/avatar/glb-skeleton.ts';
 import { findRoles, HUMANOID_ROLES, normalizeJointName, type HumanoidRole } from '../../web/src/avatar/joint-maps.ts';
+import { Grounding } from '../../web/src/avatar/grounding.ts';
 import { forwardKinematics, Retargeter } from '../../web/src/avatar/retarget.ts';
 
 const ROOT = path.resolve(import.meta.dirname, '../..');
@@ -24,6 +25,9 @@ interface SourceSkeleton {
 
 let avatar: GlbSkeleton;
 let source: SourceSkeleton;
+/** Sampled database frames: world rotations, hips positions and contacts. */
+let toeHeight: number;
+let walk: { worldRotations: Float32Array[]; hips: Float64Array[]; contacts: [boolean, boolean][] };
 
 beforeAll(() => {
   avatar = skeletonFromGlb(fs.readFileSync(GLB_PATH));
@@ -38,13 +42,27 @@ beforeAll(() => {
     const pos = new Float64Array(J * 3);
     forwardKinematics(db.jointParents, rot, db.localPositions.slice(0, J * 3), new Float64Array(J * 4), pos);
     source = { names: [...db.jointNames], parents: Int32Array.from(db.jointParents), restWorldRotations: rot, restWorldPositions: pos };
+    toeHeight = (db.inspect() as { toe_joint_height_in_contact: number }).toe_joint_height_in_contact;
+    const hips = findRoles(source.names).get('hips')!;
+    walk = { worldRotations: [], hips: [], contacts: [] };
+    // Every 5th frame of the whole database (walks, runs, turns, stops; mirrored too).
+    for (let f = 0; f < db.numFrames; f += 5) {
+      const wr = new Float64Array(J * 4);
+      const wp = new Float64Array(J * 3);
+      forwardKinematics(db.jointParents, db.localRotations.subarray(f * J * 4, (f + 1) * J * 4), db.localPositions.subarray(f * J * 3, (f + 1) * J * 3), wr, wp);
+      walk.worldRotations.push(Float32Array.from(wr));
+      walk.hips.push(wp.slice(hips * 3, hips * 3 + 3));
+      walk.contacts.push([db.contacts[f * 2] !== 0, db.contacts[f * 2 + 1] !== 0]);
+    }
   } finally {
     db.free();
   }
 });
 
-function makeRetargeter(): Retargeter {
+function makeRetargeter(alignBones = true): Retargeter {
   return new Retargeter({
+    alignBones,
+    sourceToeHeight: alignBones ? toeHeight : undefined,
     sourceParents: source.parents,
     sourceRestWorldRotations: source.restWorldRotations,
     sourceRestWorldPositions: source.restWorldPositions,
@@ -177,8 +195,8 @@ describe('Retargeter (T-pose method)', () => {
     expect(Math.sign(z(sp, sr.get('leftToes')!) - z(sp, sr.get('leftFoot')!))).toBe(Math.sign(z(tp, tr.get('leftToes')!) - z(tp, tr.get('leftFoot')!)));
   });
 
-  it('gives the target rest pose for the source rest pose', () => {
-    const rt = makeRetargeter();
+  it('gives the target rest pose for the source rest pose (plain T-pose method)', () => {
+    const rt = makeRetargeter(false);
     const T = avatar.names.length;
     const out = new Float32Array(T * 4);
     const hips = new Float32Array(3);
@@ -188,7 +206,7 @@ describe('Retargeter (T-pose method)', () => {
   });
 
   it('bends the avatar elbow by the same 90° as the source elbow, nothing else', () => {
-    const rt = makeRetargeter();
+    const rt = makeRetargeter(false);
     const J = source.names.length;
     const T = avatar.names.length;
     const rest = new Float32Array(T * 4);
@@ -247,7 +265,8 @@ describe('Retargeter (T-pose method)', () => {
     const root = avatar.parents[avatar.names.indexOf('pelvis')];
     const world = new Vector3(hips[0], hips[1], hips[2]).applyQuaternion(new Quaternion().fromArray(avatar.restLocalRotations, root * 4));
     expect(world.x).toBeCloseTo(0.5 * rt.hipsScale, 5);
-    expect(world.y).toBeCloseTo(0.9 * rt.hipsScale, 5);
+    // Heights map about the floors (the planted toe heights): y_t = (y_s − floor_s)·s + floor_t.
+    expect(world.y).toBeCloseTo((0.9 - rt.sourceFloor) * rt.hipsScale + rt.targetFloor, 5);
     expect(world.z).toBeCloseTo(-2 * rt.hipsScale, 5);
   });
 
@@ -265,5 +284,70 @@ describe('Retargeter (T-pose method)', () => {
     for (let i = 0; i < 10_000; i++) rt.apply(pose, hipsPos, out, hips);
     expect(out).toEqual(first);
     expect(out.every(Number.isFinite)).toBe(true);
+  });
+
+  /** Avatar world joint positions (T×3) for a source pose. */
+  function avatarPose(rt: Retargeter, worldRotations: Float32Array, hips: ArrayLike<number>): Float64Array {
+    const T = avatar.names.length;
+    const local = new Float32Array(T * 4);
+    const hipsLocal = new Float32Array(3);
+    rt.apply(worldRotations, hips, local, hipsLocal);
+    const positions = Float64Array.from(avatar.restLocalPositions);
+    positions.set(hipsLocal, rt.targetHips * 3);
+    const out = new Float64Array(T * 3);
+    forwardKinematics(avatar.parents, local, positions, new Float64Array(T * 4), out);
+    return out;
+  }
+
+  it('aligns limb bones: each avatar limb bone points along the source bone', () => {
+    const rt = makeRetargeter(true);
+    const sr = findRoles(source.names);
+    const tr = findRoles(avatar.names);
+    const f = 40;
+    // A source bone now: its rest offset turned by its parent's world rotation.
+    const local = (j: number) => new Vector3().fromArray(source.restWorldPositions, j * 3).sub(new Vector3().fromArray(source.restWorldPositions, source.parents[j] * 3));
+    const tp = avatarPose(rt, walk.worldRotations[f], walk.hips[f]);
+    for (const [a, b] of [['leftFoot', 'leftToes'], ['rightLowerLeg', 'rightFoot'], ['leftLowerArm', 'leftHand']] as [HumanoidRole, HumanoidRole][]) {
+      const s = sr.get(b)!;
+      const sDir = local(s).applyQuaternion(new Quaternion().fromArray(walk.worldRotations[f], source.parents[s] * 4)).normalize();
+      const tDir = new Vector3().fromArray(tp, tr.get(b)! * 3).sub(new Vector3().fromArray(tp, tr.get(a)! * 3)).normalize();
+      expect(tDir.angleTo(sDir), `${a}→${b}`).toBeLessThan(0.01);
+    }
+  });
+
+  it('keeps the avatar toes on the floor while the source foot is in contact (within 3 cm)', () => {
+    const T = avatar.names.length;
+    const tr = findRoles(avatar.names);
+    const rest = new Float64Array(T * 3);
+    forwardKinematics(avatar.parents, avatar.restLocalRotations, avatar.restLocalPositions, new Float64Array(T * 4), rest);
+    const toes = [tr.get('leftToes')!, tr.get('rightToes')!];
+    const standing = (rest[toes[0] * 3 + 1] + rest[toes[1] * 3 + 1]) / 2;
+    const report: string[] = [];
+    const hips = new Float64Array(3);
+    for (const mode of ['plain T-pose', 'aligned', 'aligned + grounding'] as const) {
+      const rt = makeRetargeter(mode !== 'plain T-pose');
+      const grounding = new Grounding(standing);
+      const errors: number[] = [];
+      for (let f = 0; f < walk.worldRotations.length; f++) {
+        hips.set(walk.hips[f]);
+        if (mode === 'aligned + grounding') hips[1] += grounding.offset / rt.hipsScale;
+        const tp = avatarPose(rt, walk.worldRotations[f], hips);
+        const [l, r] = [tp[toes[0] * 3 + 1], tp[toes[1] * 3 + 1]];
+        const contacts = (walk.contacts[f][0] ? 1 : 0) | (walk.contacts[f][1] ? 2 : 0);
+        // Skip the first second while the offset settles (frames are 5 database frames apart).
+        if (f > 12) for (let side = 0; side < 2; side++) if (contacts & (1 << side)) errors.push((side ? r : l) - standing);
+        grounding.update(l, r, contacts, 5 / 60);
+      }
+      const abs = errors.map(Math.abs).sort((a, b) => a - b);
+      const signed = [...errors].sort((a, b) => a - b);
+      const [median, p90] = [signed[signed.length >> 1], abs[Math.floor(abs.length * 0.9)]];
+      report.push(`${mode}: avatar toe over its standing height in contact: median ${(median * 100).toFixed(1)} cm, |p90| ${(p90 * 100).toFixed(1)} cm (${errors.length} foot-frames)`);
+      expect(errors.length).toBeGreaterThan(1000);
+      if (mode === 'aligned + grounding') {
+        expect(Math.abs(median)).toBeLessThan(0.01);
+        expect(p90).toBeLessThan(0.03);
+      }
+    }
+    console.log(report.join('\n'));
   });
 });

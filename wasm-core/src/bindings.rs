@@ -235,6 +235,14 @@ impl RawCrowd {
         }
     }
 
+    /// Places character `i` at (x, z) facing `yaw` (rad, 0 = +Z), searching afresh — e.g. to
+    /// carry a character over to a crowd on another database.
+    pub fn teleport(&mut self, i: usize, x: f32, z: f32, yaw: f32) {
+        if let Some(c) = self.crowd.characters.get_mut(i) {
+            c.teleport(&self.db, glam::Vec3::new(x, 0.0, z), glam::Quat::from_rotation_y(yaw));
+        }
+    }
+
     /// Returns character `i` to input control (from a path or a tracked user).
     pub fn clear_path(&mut self, i: usize) {
         if let Some(c) = self.crowd.characters.get_mut(i) {

@@ -5,7 +5,8 @@
 import * as THREE from 'three';
 import { GLTFLoader } from 'three/addons/loaders/GLTFLoader.js';
 import { type Crowd } from '../core/crowd.ts';
-import { skeletonFromGlb } from './glb-skeleton.ts';
+import { type GlbSkeleton, skeletonFromGlb } from './glb-skeleton.ts';
+import { Grounding } from './grounding.ts';
 import { findRoles, type HumanoidRole } from './joint-maps.ts';
 import { forwardKinematics as restKinematics, Retargeter } from './retarget.ts';
 
@@ -16,12 +17,15 @@ export interface Avatar {
   readonly bones: readonly THREE.Bone[];
   /** Humanoid role → bone index. */
   readonly roles: ReadonlyMap<HumanoidRole, number>;
+  /** Toe (ball) height standing on the floor (the rest pose), m; NaN without toes. */
+  readonly standingToeHeight: number;
   /**
-   * Poses the bones from the source skeleton's world joint positions (J×3) and rotations (J×4),
-   * updates world matrices, and writes the toe (ball) heights above the floor into `toeHeights`
-   * (NaN for a side without a toe bone).
+   * Poses the bones from the source skeleton's world joint positions (J×3) and rotations (J×4)
+   * and its foot contacts (bits: 1 left, 2 right; they keep planted toes on the floor, see
+   * `Grounding`), updates world matrices, and writes the toe (ball) heights above the floor
+   * into `toeHeights` (NaN for a side without a toe bone).
    */
-  pose(world: Float32Array, worldRotations: Float32Array, toeHeights: [number, number]): void;
+  pose(world: Float32Array, worldRotations: Float32Array, contacts: number, dt: number, toeHeights: [number, number]): void;
   /** Frees GPU resources; remove `object` from the scene first. */
   dispose(): void;
 }
@@ -56,6 +60,7 @@ export async function loadAvatar(bytes: Uint8Array, name: string, crowd: Crowd):
     targetRestLocalPositions: target.restLocalPositions,
     sourceRoles,
     targetRoles,
+    sourceToeHeight: crowd.toeHeight,
   });
   const hips = sourceRoles.get('hips') ?? 1;
   const targetHips = targetRoles.get('hips') ?? 0;
@@ -64,13 +69,15 @@ export async function loadAvatar(bytes: Uint8Array, name: string, crowd: Crowd):
   const hipsPosition = new Float32Array(3);
   const hipsWorld = new Float32Array(3);
   const toeWorld = new THREE.Vector3();
+  const grounding = new Grounding(standingToeHeight(target, targetRoles));
   return {
     object: gltf.scene,
     bones,
     roles: targetRoles,
-    pose(world, worldRotations, toeHeights) {
+    standingToeHeight: grounding.standingToeHeight,
+    pose(world, worldRotations, contacts, dt, toeHeights) {
       hipsWorld[0] = world[3 * hips];
-      hipsWorld[1] = world[3 * hips + 1];
+      hipsWorld[1] = world[3 * hips + 1] + grounding.offset / retargeter.hipsScale;
       hipsWorld[2] = world[3 * hips + 2];
       retargeter.apply(worldRotations, hipsWorld, local, hipsPosition);
       for (let b = 0; b < bones.length; b++) bones[b].quaternion.set(local[4 * b], local[4 * b + 1], local[4 * b + 2], local[4 * b + 3]);
@@ -80,6 +87,7 @@ export async function loadAvatar(bytes: Uint8Array, name: string, crowd: Crowd):
         const t = toes[side];
         toeHeights[side] = t === undefined ? NaN : bones[t].getWorldPosition(toeWorld).y;
       }
+      grounding.update(toeHeights[0], toeHeights[1], contacts, dt);
     },
     dispose() {
       gltf.scene.traverse((o) => {
@@ -93,6 +101,15 @@ export async function loadAvatar(bytes: Uint8Array, name: string, crowd: Crowd):
       });
     },
   };
+}
+
+/** Mean rest (standing) height of the toe bones, or NaN without toes. */
+function standingToeHeight(skeleton: GlbSkeleton, roles: ReadonlyMap<HumanoidRole, number>): number {
+  const n = skeleton.parents.length;
+  const positions = new Float64Array(n * 3);
+  restKinematics(skeleton.parents, skeleton.restLocalRotations, skeleton.restLocalPositions, new Float64Array(n * 4), positions);
+  const toes = [roles.get('leftToes'), roles.get('rightToes')].filter((t) => t !== undefined);
+  return toes.reduce((sum, t) => sum + positions[t * 3 + 1], 0) / toes.length;
 }
 
 /** Fetches and loads an avatar by URL. */

@@ -14,7 +14,7 @@ export interface RetargeterOptions {
   sourceParents: ArrayLike<number>;
   /** Source world rotations in its T-pose, J×4. (For the .mmdb, BVH rest pose: all identity.) */
   sourceRestWorldRotations: ArrayLike<number>;
-  /** Source world positions in its T-pose, J×3 (only the hips height is used). */
+  /** Source world positions in its T-pose, J×3 (for the hips height and limb bone directions). */
   sourceRestWorldPositions: ArrayLike<number>;
   /** Target parent indices (-1 for a root), length T. */
   targetParents: ArrayLike<number>;
@@ -31,7 +31,40 @@ export interface RetargeterOptions {
    * x, y, z, w. Default identity.
    */
   targetRootParentRotation?: ArrayLike<number>;
+  /**
+   * Align limb bone directions (default true): rest poses differ beyond "T" — CMU's rest foot
+   * points down 20–30° where a game avatar's is flat, arms may hang at different angles — and the
+   * plain T-pose method carries that difference into every frame (toes up, feet off the floor).
+   * With alignment, each limb bone of the target points where the source's bone points: the
+   * source rest rotation is first swung so its bone lies along the target's rest bone.
+   */
+  alignBones?: boolean;
+  /**
+   * Height of the source's toe joints above its floor when a foot is planted (m; the database
+   * summary's `toe_joint_height_in_contact`). With it, heights map so that a planted source toe
+   * puts the avatar's toe at its rest (standing) height: feet on the floor whatever the foot
+   * geometry of the two skeletons.
+   */
+  sourceToeHeight?: number;
 }
+
+/**
+ * Limb bones as (joint role, child role): their directions are aligned (`alignBones`). Not the
+ * clavicles: anatomy differs there (CMU's clavicle bone rises ~20° to the shoulder, a game
+ * avatar's is level), and copying its direction shrugs the avatar's shoulders.
+ */
+const LIMB_BONES: readonly (readonly [HumanoidRole, HumanoidRole])[] = [
+  ['leftUpperArm', 'leftLowerArm'],
+  ['leftLowerArm', 'leftHand'],
+  ['rightUpperArm', 'rightLowerArm'],
+  ['rightLowerArm', 'rightHand'],
+  ['leftUpperLeg', 'leftLowerLeg'],
+  ['leftLowerLeg', 'leftFoot'],
+  ['leftFoot', 'leftToes'],
+  ['rightUpperLeg', 'rightLowerLeg'],
+  ['rightLowerLeg', 'rightFoot'],
+  ['rightFoot', 'rightToes'],
+];
 
 // ---------------------------------------------------------------- quaternion helpers (x, y, z, w)
 
@@ -69,6 +102,35 @@ function quatNormalize(out: Quats, o: number): void {
   out[o + 1] /= l;
   out[o + 2] /= l;
   out[o + 3] /= l;
+}
+
+/**
+ * out[o] = the shortest rotation taking direction a to direction b (neither need be unit);
+ * identity when either is zero, a half turn about some perpendicular axis when they oppose.
+ */
+function quatFromDirections(out: Quats, o: number, a: ArrayLike<number>, b: ArrayLike<number>): void {
+  const la = Math.hypot(a[0], a[1], a[2]);
+  const lb = Math.hypot(b[0], b[1], b[2]);
+  out[o] = out[o + 1] = out[o + 2] = 0;
+  out[o + 3] = 1;
+  if (la === 0 || lb === 0) return;
+  const ax = a[0] / la, ay = a[1] / la, az = a[2] / la;
+  const bx = b[0] / lb, by = b[1] / lb, bz = b[2] / lb;
+  const r = 1 + ax * bx + ay * by + az * bz;
+  if (r < 1e-8) {
+    // Opposite: any axis perpendicular to a.
+    const useX = Math.abs(ax) < 0.9;
+    out[o] = useX ? 0 : -az;
+    out[o + 1] = useX ? az : 0;
+    out[o + 2] = useX ? -ay : ax;
+    out[o + 3] = 0;
+  } else {
+    out[o] = ay * bz - az * by;
+    out[o + 1] = az * bx - ax * bz;
+    out[o + 2] = ax * by - ay * bx;
+    out[o + 3] = r;
+  }
+  quatNormalize(out, o);
 }
 
 /** Rotates vector v[vi] by the unit quaternion q[qi] into out[o]. */
@@ -146,6 +208,39 @@ function hipsHeight(worldPositions: ArrayLike<number>, hips: number): number {
 }
 
 /**
+ * Hips height over the toes (average of both legs) of the target in its rest pose and of the
+ * source standing with its leg bones along the target's rest bones; and the target's rest toe
+ * height. `null` unless both skeletons map hips, upper/lower leg, foot and toes on both sides.
+ */
+function standingHeights(opts: RetargeterOptions, targetRest: ArrayLike<number>): { source: number; target: number; targetToeHeight: number } | null {
+  const chains = [
+    ['leftUpperLeg', 'leftLowerLeg', 'leftFoot', 'leftToes'],
+    ['rightUpperLeg', 'rightLowerLeg', 'rightFoot', 'rightToes'],
+  ] as const;
+  const sp = opts.sourceRestWorldPositions;
+  const y = (p: ArrayLike<number>, j: number) => p[j * 3 + 1];
+  let source = 0, target = 0, toe = 0;
+  for (const chain of chains) {
+    const s = ['hips' as const, ...chain].map((r) => opts.sourceRoles.get(r));
+    const t = ['hips' as const, ...chain].map((r) => opts.targetRoles.get(r));
+    if (s.includes(undefined) || t.includes(undefined)) return null;
+    const si = s as number[], ti = t as number[];
+    // Hips → upper leg as the source has it; each leg bone's length along the target's direction.
+    let drop = y(sp, si[0]) - y(sp, si[1]);
+    for (let k = 1; k < 4; k++) {
+      const len = Math.hypot(sp[si[k + 1] * 3] - sp[si[k] * 3], sp[si[k + 1] * 3 + 1] - sp[si[k] * 3 + 1], sp[si[k + 1] * 3 + 2] - sp[si[k] * 3 + 2]);
+      const tx = targetRest[ti[k + 1] * 3] - targetRest[ti[k] * 3], ty = targetRest[ti[k + 1] * 3 + 1] - targetRest[ti[k] * 3 + 1], tz = targetRest[ti[k + 1] * 3 + 2] - targetRest[ti[k] * 3 + 2];
+      const tl = Math.hypot(tx, ty, tz);
+      drop -= tl > 0 ? (len * ty) / tl : 0;
+    }
+    source += drop / 2;
+    target += (y(targetRest, ti[0]) - y(targetRest, ti[4])) / 2;
+    toe += y(targetRest, ti[4]) / 2;
+  }
+  return source > 0 && target > 0 ? { source, target, targetToeHeight: toe } : null;
+}
+
+/**
  * Maps source poses onto a target skeleton by the T-pose method. Built once; `apply()` per frame
  * allocates nothing.
  *
@@ -165,6 +260,9 @@ export class Retargeter {
   readonly targetHipsHeight: number;
   /** Source hips height above its lowest joint in the rest pose (m). */
   readonly sourceHipsHeight: number;
+  /** Heights map as y_t = (y_s − sourceFloor)·hipsScale + targetFloor (see `sourceToeHeight`). */
+  readonly sourceFloor: number = 0;
+  readonly targetFloor: number = 0;
 
   private readonly parents: Int32Array;
   private readonly order: Int32Array;
@@ -208,6 +306,25 @@ export class Retargeter {
     this.sourceOf = new Int32Array(T).fill(-1);
     this.offsets = new Float64Array(T * 4);
     const srcRest = Float64Array.from(opts.sourceRestWorldRotations);
+    if (opts.alignBones ?? true) {
+      const sp = opts.sourceRestWorldPositions;
+      const ds = new Float64Array(3);
+      const dt = new Float64Array(3);
+      const swing = new Float64Array(4);
+      for (const [role, childRole] of LIMB_BONES) {
+        const [s, sc, t, tc] = [opts.sourceRoles.get(role), opts.sourceRoles.get(childRole), opts.targetRoles.get(role), opts.targetRoles.get(childRole)];
+        if (s === undefined || sc === undefined || t === undefined || tc === undefined) continue;
+        for (let c = 0; c < 3; c++) {
+          ds[c] = sp[sc * 3 + c] - sp[s * 3 + c];
+          dt[c] = restWorldPos[tc * 3 + c] - restWorldPos[t * 3 + c];
+        }
+        // q_s0' = R(d_s → d_t) · q_s0: the source rotation at which its bone lies along the
+        // target's rest bone, which then maps to the target's rest.
+        quatFromDirections(swing, 0, ds, dt);
+        quatNormalize(srcRest, s * 4);
+        quatMul(srcRest, s * 4, swing, 0, srcRest, s * 4);
+      }
+    }
     for (const [role, t] of opts.targetRoles) {
       const s = opts.sourceRoles.get(role);
       if (s === undefined) continue;
@@ -225,6 +342,15 @@ export class Retargeter {
       throw new Error(`retarget: hips heights must be positive (source ${this.sourceHipsHeight}, target ${this.targetHipsHeight})`);
     }
     this.hipsScale = this.targetHipsHeight / this.sourceHipsHeight;
+    // Better: the hips' height over the toes with the source standing like the target (its leg
+    // bones along the target's rest bones) — the rest foot's tilt no longer counts.
+    const legs = standingHeights(opts, restWorldPos);
+    if (legs && (opts.alignBones ?? true)) this.hipsScale = legs.target / legs.source;
+    if (legs && opts.sourceToeHeight !== undefined) {
+      if (!Number.isFinite(opts.sourceToeHeight)) throw new Error(`retarget: sourceToeHeight must be a number, got ${opts.sourceToeHeight}`);
+      this.sourceFloor = opts.sourceToeHeight;
+      this.targetFloor = legs.targetToeHeight;
+    }
 
     const hp = this.parents[th];
     this.hipsParentRotation = new Float64Array(4);
@@ -280,7 +406,7 @@ export class Retargeter {
     const sc = this.hipsScale;
     const pp = this.hipsParentPosition;
     _v3A[0] = sourceHipsWorldPosition[0] * sc - pp[0];
-    _v3A[1] = sourceHipsWorldPosition[1] * sc - pp[1];
+    _v3A[1] = (sourceHipsWorldPosition[1] - this.sourceFloor) * sc + this.targetFloor - pp[1];
     _v3A[2] = sourceHipsWorldPosition[2] * sc - pp[2];
     // Into the parent's frame: rotate by the inverse (conjugate) rotation.
     const r = this.hipsParentRotation;

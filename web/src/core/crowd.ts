@@ -9,13 +9,45 @@ import { RawCrowd } from './pkg/mmcore.js';
 import { ViewCache } from './view-cache.ts';
 import { wasmMemory } from './wasm.ts';
 
+/** One feature group of the database (see docs/mmdb-format.md). */
+export interface FeatureGroupInfo {
+  name: string;
+  kind: 'position' | 'velocity' | 'direction';
+  trajectory: boolean;
+  axes: 'xyz' | 'xz';
+  joint: string;
+  offsets: number[];
+  /** [first, end) feature dimensions. */
+  dims: [number, number];
+  mean: number[];
+  /** raw = normalized × scale + mean (one scale per group). */
+  scale: number;
+}
+
+/** A tag and its [start, end) frame ranges. */
+export interface TagInfo {
+  name: string;
+  ranges: [number, number][];
+}
+
 export class Crowd {
   readonly numCharacters: number;
   readonly numJoints: number;
   readonly jointNames: readonly string[];
   /** Parent of each joint, -1 for joint 0 (the root). */
   readonly jointParents: Int32Array;
+  /** Height of the toe joints above the floor when planted (m), if the database knows it. */
+  readonly toeHeight: number | undefined;
+  /** Feature groups (layout, normalization) as `mmdb inspect --json` lists them. */
+  readonly features: readonly FeatureGroupInfo[];
+  /** Clip names by clip index (`binding.clip(i)`), mirrored ones marked. */
+  readonly clipNames: readonly string[];
+  readonly tags: readonly TagInfo[];
   private readonly _sites: SiteInfo[];
+  private readonly simulation: ViewCache<Float32Array>;
+  private readonly predictedPositions: ViewCache<Float32Array>[];
+  private readonly predictedRotations: ViewCache<Float32Array>[];
+  private readonly currentFeatures: ViewCache<Float32Array>;
   private raw: RawCrowd | null;
   private readonly positions: ViewCache<Float32Array>[];
   private readonly rotations: ViewCache<Float32Array>[];
@@ -25,10 +57,26 @@ export class Crowd {
     this.raw = new RawCrowd(bytes, count);
     this.numCharacters = count;
     this.numJoints = this.raw.num_joints();
-    const info = JSON.parse(this.raw.inspect_json()) as { joints: { name: string; parent: number }[]; sites: SiteInfo[] };
+    const info = JSON.parse(this.raw.inspect_json()) as {
+      joints: { name: string; parent: number }[];
+      sites: SiteInfo[];
+      toe_joint_height_in_contact: number | null;
+      features: FeatureGroupInfo[];
+      clips: { name: string; mirrored: boolean }[];
+      tags: TagInfo[];
+    };
+    this.toeHeight = info.toe_joint_height_in_contact ?? undefined;
     this.jointNames = info.joints.map((j) => j.name);
     this.jointParents = Int32Array.from(info.joints.map((j) => j.parent));
     this._sites = info.sites.map((s) => ({ name: s.name, joint: s.joint }));
+    this.features = info.features;
+    this.clipNames = info.clips.map((c) => (c.mirrored ? `${c.name} (mirrored)` : c.name));
+    this.tags = info.tags;
+    const k = this.raw.num_predictions();
+    this.simulation = new ViewCache(Float32Array, 7);
+    this.predictedPositions = Array.from({ length: count }, () => new ViewCache(Float32Array, k * 3));
+    this.predictedRotations = Array.from({ length: count }, () => new ViewCache(Float32Array, k * 4));
+    this.currentFeatures = new ViewCache(Float32Array, this.raw.num_features());
     this.positions = Array.from({ length: count }, () => new ViewCache(Float32Array, this.numJoints * 3));
     this.rotations = Array.from({ length: count }, () => new ViewCache(Float32Array, this.numJoints * 4));
   }
@@ -89,6 +137,31 @@ export class Crowd {
   setPath(i: number, points: Float32Array | null, speeds?: Float32Array, looped = false): void {
     if (points === null) this.live.clear_path(i);
     else this.live.set_path(i, points, speeds ?? new Float32Array(), looped);
+  }
+
+  /** Places character `i` at (x, z) facing `yaw` (rad, 0 = +Z). */
+  teleport(i: number, x: number, z: number, yaw: number): void {
+    this.live.teleport(i, x, z, yaw);
+  }
+
+  /** Simulated character: position (3) then facing quaternion (4). A view valid until the next call. */
+  simulationOf(i: number): Float32Array {
+    return this.simulation.get(wasmMemory(), this.live.simulation_ptr(i));
+  }
+
+  /** `K×3` world positions of the predicted trajectory at the last search. */
+  predictedPositionsOf(i: number): Float32Array {
+    return this.predictedPositions[i].get(wasmMemory(), this.live.predicted_positions_ptr(i));
+  }
+
+  /** `K×4` world facings (x, y, z, w) of the predicted trajectory at the last search. */
+  predictedRotationsOf(i: number): Float32Array {
+    return this.predictedRotations[i].get(wasmMemory(), this.live.predicted_rotations_ptr(i));
+  }
+
+  /** `D` normalized features of the frame playing (what was matched). */
+  currentFeaturesOf(i: number): Float32Array {
+    return this.currentFeatures.get(wasmMemory(), this.live.current_features_ptr(i));
   }
 
   /** The underlying binding, for debug views not wrapped here. */

@@ -1,16 +1,16 @@
 /**
  * The lil-gui panel of the demo: every motion-matching knob, applied live through
- * `Crowd.setSettings` (the Rust `CharacterSettings` names, so the two cannot drift apart).
+ * `Crowd.setSettings` (the Rust `CharacterSettings` names, so the two cannot drift apart). The
+ * crowd is looked up on every change, so the panel survives database switches.
  */
 import GUI from 'lil-gui';
 import { type Crowd } from '../core/crowd.ts';
 
 type Settings = Record<string, number | boolean | string>;
 
-export function createSettingsPanel(crowd: Crowd): GUI {
-  const values = crowd.settings(0) as Settings;
-  const gui = new GUI({ title: 'Motion matching' });
-  const apply = (key: string) => (value: unknown) => crowd.setSettings({ [key]: value });
+export function createSettingsPanel(gui: GUI, crowd: () => Crowd): Settings {
+  const values = crowd().settings(0) as Settings;
+  const apply = (key: string) => (value: unknown) => crowd().setSettings({ [key]: value });
   const search = gui.addFolder('Search');
   search.add(values, 'beta_pose', 0, 5, 0.05).name('β_q (pose: quality)').onChange(apply('beta_pose'));
   search.add(values, 'beta_trajectory', 0, 5, 0.05).name('β_r (trajectory: response)').onChange(apply('beta_trajectory'));
@@ -24,7 +24,9 @@ export function createSettingsPanel(crowd: Crowd): GUI {
   follow.add(values, 'adjustment').onChange(apply('adjustment'));
   follow.add(values, 'clamping').onChange(apply('clamping'));
   follow.add(values, 'clamp_distance', 0.02, 0.5, 0.01).name('α (m)').onChange(apply('clamp_distance'));
+  follow.add(values, 'clamp_angle', 0.05, Math.PI, 0.01).name('max yaw gap (rad)').onChange(apply('clamp_angle'));
   const feet = gui.addFolder('Feet');
   feet.add(values, 'foot_lock').name('foot lock').onChange(apply('foot_lock'));
-  return gui;
+  for (const f of [blend, follow, feet]) f.close();
+  return values;
 }

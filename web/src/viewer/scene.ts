@@ -7,6 +7,9 @@ export class ViewerScene {
   readonly scene = new THREE.Scene();
   readonly camera: THREE.PerspectiveCamera;
   readonly grid = new FloorGrid(20);
+  readonly sun: THREE.DirectionalLight;
+  /** Catches shadows on the floor (invisible otherwise); see `enableShadows`. */
+  private shadowCatcher: THREE.Mesh | null = null;
 
   constructor(private readonly container: HTMLElement) {
     this.renderer = new THREE.WebGLRenderer({ antialias: true, preserveDrawingBuffer: true });
@@ -24,12 +27,40 @@ export class ViewerScene {
     this.scene.add(hemi);
     const sun = new THREE.DirectionalLight(0xffffff, 2.0);
     sun.position.set(3, 6, 4);
-    this.scene.add(sun);
+    this.sun = sun;
+    this.scene.add(sun, sun.target);
 
     this.scene.add(this.grid.object);
 
     this.resize();
     window.addEventListener('resize', () => this.resize());
+  }
+
+  /** Soft shadows of casters (meshes with `castShadow`) on the floor, in a box around `follow`'s point. */
+  enableShadows(on: boolean): void {
+    this.renderer.shadowMap.enabled = on;
+    this.renderer.shadowMap.type = THREE.PCFSoftShadowMap;
+    this.sun.castShadow = on;
+    if (on && !this.shadowCatcher) {
+      const s = this.sun.shadow;
+      s.mapSize.set(1024, 1024);
+      s.camera.left = s.camera.bottom = -3;
+      s.camera.right = s.camera.top = 3;
+      s.camera.near = 1;
+      s.camera.far = 20;
+      s.bias = -0.0005;
+      this.shadowCatcher = new THREE.Mesh(new THREE.PlaneGeometry(200, 200), new THREE.ShadowMaterial({ opacity: 0.35 }));
+      this.shadowCatcher.rotation.x = -Math.PI / 2;
+      this.shadowCatcher.receiveShadow = true;
+      this.scene.add(this.shadowCatcher);
+    }
+    if (this.shadowCatcher) this.shadowCatcher.visible = on;
+  }
+
+  /** Keeps the sun's shadow box over floor point (x, z). */
+  followLight(x: number, z: number): void {
+    this.sun.position.set(x + 3, 6, z + 4);
+    this.sun.target.position.set(x, 0, z);
   }
 
   resize(): void {
