@@ -52,7 +52,12 @@ test('the character walks, turns and strafes under the keyboard', async ({ page 
 
   // W for 2 s: > 1.5 m along the facing, both feet stepping.
   const a = await hook(page);
-  await hold(page, ['KeyW'], 120);
+  // Toe heights are measured while walking, after the first half second (starting from idle).
+  await page.keyboard.down('KeyW');
+  await page.waitForFunction((n) => window.__mm.updates >= n, a.updates + 30, { timeout: 60_000, polling: 50 });
+  await page.evaluate(() => (window.__mm.toeErrors.length = 0));
+  await page.waitForFunction((n) => window.__mm.updates >= n, a.updates + 120, { timeout: 60_000, polling: 50 });
+  await page.keyboard.up('KeyW');
   const b = await hook(page);
   const forward = [Math.sin(b.yaw), Math.cos(b.yaw)];
   const along = (b.root[0] - a.root[0]) * forward[0] + (b.root[2] - a.root[2]) * forward[1];

@@ -147,7 +147,8 @@ impl<'a> Parser<'a> {
     fn expect_token(&mut self, what: &str) -> Result<(&'a str, usize)> {
         match self.token() {
             Some(t) => Ok(t),
-            None => Err(Error::bvh(self.file, 0, format!("expected {what}, found end of file"))),
+            // Name the last line: editors jump to it, and "file:line" is what every error here gives.
+            None => Err(Error::bvh(self.file, self.line.max(1), format!("unexpected end of file: expected {what}"))),
         }
     }
 

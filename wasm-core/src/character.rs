@@ -50,6 +50,9 @@ pub struct CharacterSettings {
     pub foot_lock: bool,
     /// A locked toe unlocks when the animation drifts farther than this (m).
     pub foot_lock_unlock_radius: f32,
+    /// Plant locked toes at the floor height (see [`Character::set_toe_floor`]) rather than
+    /// wherever they touched down.
+    pub foot_lock_floor: bool,
     /// Blend in and out of a lock (exact half-life; Holden's 0.1 s).
     pub foot_lock_halflife: f32,
 }
@@ -77,6 +80,7 @@ impl Default for CharacterSettings {
             search_method: SearchMethod::Aabb,
             foot_lock: true,
             foot_lock_unlock_radius: 0.2,
+            foot_lock_floor: true,
             foot_lock_halflife: 0.12,
         }
     }
@@ -168,6 +172,8 @@ pub struct Character {
     /// parent-first order (FK of just these is a third of the skeleton's).
     leg_chain: Vec<usize>,
     locks: [FootLock; 2],
+    /// Height of a planted toe on the floor, if known ([`Database::toe_height_in_contact`]).
+    toe_floor: Option<f32>,
     previous_toes: [Vec3; 2],
     pose_velocities: Vec<Vec3>,
     pose_angular_velocities: Vec<Vec3>,
@@ -234,6 +240,7 @@ impl Character {
             legs: [LegJoints::from_skeleton(&db.skeleton, "left"), LegJoints::from_skeleton(&db.skeleton, "right")],
             leg_chain: Vec::new(),
             locks: [FootLock::new(); 2],
+            toe_floor: None,
             previous_toes: [Vec3::ZERO; 2],
             pose_velocities: vec![Vec3::ZERO; j],
             pose_angular_velocities: vec![Vec3::ZERO; j],
@@ -295,6 +302,13 @@ impl Character {
         self.pose_positions[0] = self.root_position;
         self.pose_rotations[0] = self.root_rotation;
         self.reset_feet(db);
+    }
+
+    /// Height of a planted toe on this database's floor (m): foot locks plant toes there
+    /// (with `foot_lock_floor`). Usually `db.toe_height_in_contact()`, computed once per
+    /// database and shared by its characters.
+    pub fn set_toe_floor(&mut self, height: Option<f32>) {
+        self.toe_floor = height;
     }
 
     /// Follow `path` from its start (or `None` to return to input control).
@@ -433,6 +447,7 @@ impl Character {
             }
             let contact = self.contacts[side] != 0;
             let s = &self.settings;
+            self.locks[side].floor = if s.foot_lock_floor { self.toe_floor } else { None };
             let target = self.locks[side].update(contact, toe, velocity, dt, s.foot_lock_unlock_radius, s.foot_lock_halflife);
             // Unlocked and blended out: the animation is already right, leave the leg alone.
             if (target - toe).length_squared() < 1e-10 {

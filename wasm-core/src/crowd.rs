@@ -16,9 +16,11 @@ impl Crowd {
     /// `count` characters on a grid 2 m apart, facing +Z.
     pub fn new(db: &Database, count: usize, settings: &CharacterSettings) -> Crowd {
         let side = (count as f32).sqrt().ceil().max(1.0) as usize;
+        let floor = db.toe_height_in_contact();
         let characters = (0..count)
             .map(|i| {
                 let mut c = Character::new(db, settings.clone());
+                c.set_toe_floor(floor);
                 c.teleport(db, Vec3::new(2.0 * (i % side) as f32, 0.0, 2.0 * (i / side) as f32), Quat::IDENTITY);
                 c
             })

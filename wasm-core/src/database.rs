@@ -188,6 +188,36 @@ impl Database {
         let r = frame * j..(frame + 1) * j;
         forward_kinematics(&self.skeleton.parents, &self.local_positions[r.clone()], &self.local_rotations[r], character_space, positions, rotations);
     }
+
+    /// Median height above the floor of the toe sites in frames where that foot is in contact
+    /// (m); `None` without toe sites or contacts. The foot lock plants toes at this height, and
+    /// retargeting maps it onto the avatar's standing toe height, so feet touch the floor
+    /// whatever the skeletons' foot geometry.
+    pub fn toe_height_in_contact(&self) -> Option<f32> {
+        let sites = [self.skeleton.site("left_toe")?, self.skeleton.site("right_toe")?];
+        let j = self.num_joints();
+        let (mut positions, mut rotations) = (vec![Vec3::ZERO; j], vec![Quat::IDENTITY; j]);
+        let mut heights = Vec::new();
+        // Every 4th frame is plenty for a median and keeps this cheap in the browser.
+        for frame in (0..self.num_frames).step_by(4) {
+            let contacts = &self.contacts[2 * frame..2 * frame + 2];
+            if contacts == [0, 0] {
+                continue;
+            }
+            self.forward_kinematics(frame, false, &mut positions, &mut rotations);
+            for (side, site) in sites.iter().enumerate() {
+                if contacts[side] != 0 {
+                    let k = site.joint as usize;
+                    heights.push((positions[k] + rotations[k] * site.offset).y);
+                }
+            }
+        }
+        if heights.is_empty() {
+            return None;
+        }
+        let mid = heights.len() / 2;
+        Some(*heights.select_nth_unstable_by(mid, f32::total_cmp).1)
+    }
 }
 
 /// Forward kinematics of one pose (joint 0's local transform is its world transform, or the

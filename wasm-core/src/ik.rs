@@ -324,6 +324,10 @@ pub struct FootLock {
     offset_velocity: Vec3,
     position: Vec3,
     velocity: Vec3,
+    /// Height of a planted toe on a flat floor (m): locks are made at this height, so a toe
+    /// that touches down while an inertialization offset still holds it in the air (or below
+    /// the floor) is brought to the floor over the lock's blend. `None`: lock where it is.
+    pub floor: Option<f32>,
 }
 
 impl Default for FootLock {
@@ -344,13 +348,14 @@ impl FootLock {
             offset_velocity: Vec3::ZERO,
             position: Vec3::ZERO,
             velocity: Vec3::ZERO,
+            floor: None,
         }
     }
 
     /// Unlocks and puts the target on the animated toe `(position, velocity)` (e.g. when foot
     /// locking is switched on or the character teleports). A contact in the next `update` locks.
     pub fn reset(&mut self, position: Vec3, velocity: Vec3) {
-        *self = FootLock { initialized: true, position, velocity, ..FootLock::new() };
+        *self = FootLock { initialized: true, position, velocity, floor: self.floor, ..FootLock::new() };
     }
 
     pub fn is_locked(&self) -> bool {
@@ -393,10 +398,14 @@ impl FootLock {
         // short corrective step instead of sliding for the rest of the stance).
         let relock = self.contact && self.offset.length_squared() < 1e-4;
         if contact && !self.locked && (!self.contact || relock) {
-            // Lock where the target is now; offset and its velocity start at zero (see type docs).
+            // Lock where the target is now (on the floor, if known); the offset from there to the
+            // target decays, so the target never jumps (see type docs).
             self.locked = true;
             self.lock_position = self.position;
-            self.offset = Vec3::ZERO;
+            if let Some(h) = self.floor {
+                self.lock_position.y = h;
+            }
+            self.offset = self.position - self.lock_position;
             self.offset_velocity = Vec3::ZERO;
         } else if self.locked && (!contact || self.lock_position.distance(animated_toe_pos) > unlock_radius) {
             // Transition from the lock to the animated toe (THESIS_NOTES §5, additive form):

@@ -44,38 +44,10 @@ pub fn summary(db: &Database, size_bytes: Option<usize>) -> Value {
             "name": t.name, "ranges": t.ranges, "frames": t.ranges.iter().map(|(s, e)| e - s).sum::<u32>(),
         })).collect::<Vec<_>>(),
         "contact_share": [share(0), share(1)],
-        "toe_joint_height_in_contact": toe_joint_height_in_contact(db),
+        "toe_height_in_contact": db.toe_height_in_contact(),
     })
 }
 
-/// Median height above the floor of the joints carrying the toe sites (the toe joints, or the
-/// feet on skeletons without toes) in frames where that foot is in contact (m); null without
-/// toe sites or contacts. Retargeting maps this height onto the avatar's standing toe height,
-/// so feet touch the floor whatever the skeletons' foot geometry.
-fn toe_joint_height_in_contact(db: &Database) -> Option<f32> {
-    let sites = [db.skeleton.site("left_toe")?, db.skeleton.site("right_toe")?];
-    let j = db.num_joints();
-    let (mut positions, mut rotations) = (vec![glam::Vec3::ZERO; j], vec![glam::Quat::IDENTITY; j]);
-    let mut heights = Vec::new();
-    // Every 4th frame is plenty for a median and keeps the summary cheap in the browser.
-    for frame in (0..db.num_frames).step_by(4) {
-        let contacts = &db.contacts[2 * frame..2 * frame + 2];
-        if contacts == [0, 0] {
-            continue;
-        }
-        db.forward_kinematics(frame, false, &mut positions, &mut rotations);
-        for (side, site) in sites.iter().enumerate() {
-            if contacts[side] != 0 {
-                heights.push(positions[site.joint as usize].y);
-            }
-        }
-    }
-    if heights.is_empty() {
-        return None;
-    }
-    let mid = heights.len() / 2;
-    Some(*heights.select_nth_unstable_by(mid, f32::total_cmp).1)
-}
 
 /// Every array of the database as JSON (for cross-language tests). f32 values print as the
 /// shortest decimal that reads back to the same f32.

@@ -7,6 +7,9 @@
  * never pops), and holds it while no foot is planted. The avatar's own leg proportions are
  * kept; only its height over the floor changes.
  */
+/** Largest toe height error (m) one update acts on. */
+const MAX_RESIDUAL = 0.03;
+
 export class Grounding {
   /** Metres to add to the avatar's hips height. */
   offset = 0;
@@ -26,9 +29,13 @@ export class Grounding {
    */
   update(leftToe: number, rightToe: number, contacts: number, dt: number): number {
     let error = Infinity;
+    const any = (contacts & 1 && Number.isFinite(leftToe)) || (contacts & 2 && Number.isFinite(rightToe));
     if (contacts & 1 && Number.isFinite(leftToe)) error = leftToe - this.standingToeHeight;
     if (contacts & 2 && Number.isFinite(rightToe)) error = Math.min(error, rightToe - this.standingToeHeight);
-    if (error !== Infinity && dt > 0) this.offset -= error * (1 - 2 ** (-dt / this.halflife));
+    // Only the residual is learnt: a toe far off the floor is a transient (a lock still blending
+    // in after a transition), and following it would push the other foot through the floor.
+    error = Math.max(-MAX_RESIDUAL, Math.min(MAX_RESIDUAL, error));
+    if (any && dt > 0) this.offset -= error * (1 - 2 ** (-dt / this.halflife));
     return this.offset;
   }
 }

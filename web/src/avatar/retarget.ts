@@ -41,7 +41,7 @@ export interface RetargeterOptions {
   alignBones?: boolean;
   /**
    * Height of the source's toe joints above its floor when a foot is planted (m; the database
-   * summary's `toe_joint_height_in_contact`). With it, heights map so that a planted source toe
+   * summary's `toe_height_in_contact`). With it, heights map so that a planted source toe
    * puts the avatar's toe at its rest (standing) height: feet on the floor whatever the foot
    * geometry of the two skeletons.
    */

@@ -60,12 +60,12 @@ export class Crowd {
     const info = JSON.parse(this.raw.inspect_json()) as {
       joints: { name: string; parent: number }[];
       sites: SiteInfo[];
-      toe_joint_height_in_contact: number | null;
+      toe_height_in_contact: number | null;
       features: FeatureGroupInfo[];
       clips: { name: string; mirrored: boolean }[];
       tags: TagInfo[];
     };
-    this.toeHeight = info.toe_joint_height_in_contact ?? undefined;
+    this.toeHeight = info.toe_height_in_contact ?? undefined;
     this.jointNames = info.joints.map((j) => j.name);
     this.jointParents = Int32Array.from(info.joints.map((j) => j.parent));
     this._sites = info.sites.map((s) => ({ name: s.name, joint: s.joint }));
