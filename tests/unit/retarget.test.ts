@@ -42,7 +42,7 @@ beforeAll(() => {
     const pos = new Float64Array(J * 3);
     forwardKinematics(db.jointParents, rot, db.localPositions.slice(0, J * 3), new Float64Array(J * 4), pos);
     source = { names: [...db.jointNames], parents: Int32Array.from(db.jointParents), restWorldRotations: rot, restWorldPositions: pos };
-    toeHeight = (db.inspect() as { toe_joint_height_in_contact: number }).toe_joint_height_in_contact;
+    toeHeight = (db.inspect() as { toe_height_in_contact: number }).toe_height_in_contact;
     const hips = findRoles(source.names).get('hips')!;
     walk = { worldRotations: [], hips: [], contacts: [] };
     // Every 5th frame of the whole database (walks, runs, turns, stops; mirrored too).
