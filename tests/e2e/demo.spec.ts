@@ -107,6 +107,7 @@ test('path mode: clicked keypoints make a 4 m square the character follows withi
   await page.mouse.move(640, 360);
   for (let i = 0; i < 6; i++) await page.mouse.wheel(0, 400);
   await page.waitForTimeout(500);
+  await page.getByText('Path mode', { exact: true }).click(); // open the folder
   await page.getByText('edit (click the floor)').click();
   // The path starts where the character stands (the origin); click the other three corners.
   for (const [x, z] of [[-4, 0], [-4, -4], [0, -4]]) {
@@ -179,7 +180,48 @@ test('dropping BVH files builds a database the character walks on; a broken one 
   await drop(page, [{ name: 'junk.vrm', text: 'not a model' }]);
   await page.waitForFunction(() => /junk\.vrm/.test(window.__mm.fileError ?? ''), null, { timeout: 30_000 });
   expect((await hook(page)).avatar).toBe('dropped.glb');
-  await hold(page, ['KeyW'], 10);
+  // A VRM whose bones have meaningless names: only its humanoid mapping can bind it.
+  await drop(page, [{ name: 'renamed.vrm', base64: vrmFromGlb(fs.readFileSync(path.join(ROOT, 'public/avatars/ubc_male.glb'))).toString('base64') }]);
+  await page.waitForFunction(() => window.__mm.avatar === 'renamed.vrm' || /renamed/.test(window.__mm.fileError ?? ''), null, { timeout: 60_000 });
+  expect((await hook(page)).avatar).toBe('renamed.vrm');
+  await page.evaluate(() => (window.__mm.toeErrors.length = 0));
+  await hold(page, ['KeyW'], 40);
+  const vrmToes = await page.evaluate(() => window.__mm.toeErrors.map(Math.abs).sort((x, y) => x - y));
+  expect(vrmToes.length).toBeGreaterThan(10);
+  expect(vrmToes[vrmToes.length >> 1]).toBeLessThan(0.03);
   await page.screenshot({ path: path.join(ROOT, 'test-results/demo-dropped.png') });
   expect(errors).toEqual([]);
 });
+
+/**
+ * A VRM 1.0 made from a GLB for the test (nothing committed): the `VRMC_vrm` extension maps
+ * humanoid bones to nodes, and every node is renamed `n<i>` so that name conventions cannot help.
+ */
+function vrmFromGlb(glb: Buffer): Buffer {
+  const jsonLength = glb.readUInt32LE(12);
+  const json = JSON.parse(glb.subarray(20, 20 + jsonLength).toString('utf8'));
+  const rest = glb.subarray(20 + jsonLength); // the BIN chunk, header included
+  const byName = new Map<string, number>(json.nodes.map((n: { name?: string }, i: number) => [n.name, i]));
+  const bones: Record<string, string> = {
+    hips: 'pelvis', spine: 'spine_01', chest: 'spine_02', upperChest: 'spine_03', neck: 'neck_01', head: 'Head',
+  };
+  for (const [side, s] of [['left', 'l'], ['right', 'r']]) {
+    Object.assign(bones, {
+      [`${side}Shoulder`]: `clavicle_${s}`, [`${side}UpperArm`]: `upperarm_${s}`, [`${side}LowerArm`]: `lowerarm_${s}`, [`${side}Hand`]: `hand_${s}`,
+      [`${side}UpperLeg`]: `thigh_${s}`, [`${side}LowerLeg`]: `calf_${s}`, [`${side}Foot`]: `foot_${s}`, [`${side}Toes`]: `ball_${s}`,
+    });
+  }
+  const humanBones = Object.fromEntries(Object.entries(bones).map(([role, name]) => [role, { node: byName.get(name) }]));
+  json.nodes.forEach((n: { name?: string }, i: number) => (n.name = `n${i}`));
+  json.extensionsUsed = [...(json.extensionsUsed ?? []), 'VRMC_vrm'];
+  json.extensions = { ...(json.extensions ?? {}), VRMC_vrm: { specVersion: '1.0', meta: { name: 'test', authors: ['test'], licenseUrl: 'https://vrm.dev/licenses/1.0/' }, humanoid: { humanBones } } };
+  let text = Buffer.from(JSON.stringify(json), 'utf8');
+  text = Buffer.concat([text, Buffer.alloc((4 - (text.length % 4)) % 4, 0x20)]);
+  const header = Buffer.alloc(20);
+  header.writeUInt32LE(0x46546c67, 0);
+  header.writeUInt32LE(2, 4);
+  header.writeUInt32LE(20 + text.length + rest.length, 8);
+  header.writeUInt32LE(text.length, 12);
+  header.writeUInt32LE(0x4e4f534a, 16);
+  return Buffer.concat([header, text, rest]);
+}

@@ -3,18 +3,18 @@
  * (THESIS_NOTES §8). The demo and the VR page both use it; `pose()` allocates nothing.
  */
 import * as THREE from 'three';
-import { GLTFLoader } from 'three/addons/loaders/GLTFLoader.js';
+import { type GLTF, GLTFLoader } from 'three/addons/loaders/GLTFLoader.js';
+import { type VRM, VRMLoaderPlugin, VRMUtils } from '@pixiv/three-vrm';
 import { type Crowd } from '../core/crowd.ts';
-import { type GlbSkeleton, skeletonFromGlb } from './glb-skeleton.ts';
 import { Grounding } from './grounding.ts';
-import { findRoles, type HumanoidRole } from './joint-maps.ts';
+import { findRoles, HUMANOID_ROLES, type HumanoidRole } from './joint-maps.ts';
 import { forwardKinematics as restKinematics, Retargeter } from './retarget.ts';
 
 export interface Avatar {
   /** Add this to the scene. */
   readonly object: THREE.Object3D;
-  /** The skin's bones, indexed like the glTF skin's joints (and `roles`). */
-  readonly bones: readonly THREE.Bone[];
+  /** The bones posed (of every skin, plus a VRM's humanoid bones), indexed like `roles`. */
+  readonly bones: readonly THREE.Object3D[];
   /** Humanoid role → bone index. */
   readonly roles: ReadonlyMap<HumanoidRole, number>;
   /** Toe (ball) height standing on the floor (the rest pose), m; NaN without toes. */
@@ -30,19 +30,82 @@ export interface Avatar {
   dispose(): void;
 }
 
-/** Loads a GLB (bytes) and binds it to the crowd's skeleton. `name` is used in error messages. */
+/**
+ * The skeleton to retarget onto, read from the loaded three.js objects (so GLB and VRM, any
+ * number of skins, and armature nodes above the root all work): every bone of every skinned
+ * mesh (and a VRM's humanoid bones), each bone's parent being its nearest ancestor in that set.
+ */
+function skeletonOf(scene: THREE.Object3D, vrm: VRM | undefined): { bones: THREE.Object3D[]; parents: Int32Array; roles: Map<HumanoidRole, number> } {
+  const set = new Set<THREE.Object3D>();
+  scene.traverse((o) => {
+    const m = o as THREE.SkinnedMesh;
+    if (m.isSkinnedMesh) for (const b of m.skeleton.bones) set.add(b);
+  });
+  const vrmBones = new Map<HumanoidRole, THREE.Object3D>();
+  if (vrm) {
+    for (const role of HUMANOID_ROLES) {
+      const node = vrm.humanoid.getRawBoneNode(role);
+      if (node) {
+        vrmBones.set(role, node);
+        set.add(node);
+      }
+    }
+  }
+  const bones = [...set];
+  const index = new Map(bones.map((b, i) => [b, i]));
+  const parents = Int32Array.from(bones, (b) => {
+    for (let p = b.parent; p; p = p.parent) if (index.has(p)) return index.get(p)!;
+    return -1;
+  });
+  // A VRM says which bone is which; other models are matched by name conventions.
+  const roles = vrm ? new Map([...vrmBones].map(([r, b]) => [r, index.get(b)!])) : findRoles(bones.map((b) => b.name));
+  return { bones, parents, roles };
+}
+
+/**
+ * Loads a GLB or VRM (bytes) and binds it to the crowd's skeleton. `name` is used in error
+ * messages.
+ */
 export async function loadAvatar(bytes: Uint8Array, name: string, crowd: Crowd): Promise<Avatar> {
-  const target = skeletonFromGlb(bytes);
-  const gltf = await new GLTFLoader().parseAsync(bytes.slice().buffer, '');
-  let mesh: THREE.SkinnedMesh | null = null;
-  gltf.scene.traverse((o) => {
-    if ((o as THREE.SkinnedMesh).isSkinnedMesh && !mesh) mesh = o as THREE.SkinnedMesh;
+  const loader = new GLTFLoader();
+  loader.register((parser) => new VRMLoaderPlugin(parser));
+  let gltf: GLTF;
+  try {
+    gltf = await loader.parseAsync(bytes.slice().buffer, '');
+  } catch (e) {
+    throw new Error(`${name}: not a glTF/GLB/VRM model (${e instanceof Error ? e.message : String(e)})`);
+  }
+  const vrm = gltf.userData.vrm as VRM | undefined;
+  if (vrm) {
+    // VRM 0.x faces −Z; and we pose the raw bones ourselves, so the normalized rig must not
+    // overwrite them.
+    VRMUtils.rotateVRM0(vrm);
+    vrm.humanoid.autoUpdateHumanBones = false;
+  }
+  const root = vrm?.scene ?? gltf.scene;
+  root.updateMatrixWorld(true);
+  let skinned = 0;
+  root.traverse((o) => {
+    if ((o as THREE.SkinnedMesh).isSkinnedMesh) skinned++;
     // Skinned bounds stay at the rest pose's origin; the character walks away from it.
     o.frustumCulled = false;
     o.castShadow = true;
   });
-  if (!mesh) throw new Error(`${name}: no skinned mesh`);
-  const bones = (mesh as THREE.SkinnedMesh).skeleton.bones;
+  if (skinned === 0) throw new Error(`${name}: no skinned mesh`);
+  const { bones, parents, roles: targetRoles } = skeletonOf(root, vrm);
+  if (!targetRoles.has('hips')) throw new Error(`${name}: no hips bone found among ${bones.length} bones (${bones.slice(0, 8).map((b) => b.name).join(', ')}, …)`);
+  const restLocalRotations = new Float32Array(bones.length * 4);
+  const restLocalPositions = new Float32Array(bones.length * 3);
+  bones.forEach((b, i) => {
+    b.quaternion.toArray(restLocalRotations, i * 4);
+    b.position.toArray(restLocalPositions, i * 3);
+  });
+  // Whatever carries the root bones (an "Armature" node, a VRM 0 turn) rotates the whole rest pose.
+  const hipsBone = bones[targetRoles.get('hips')!];
+  let top = hipsBone;
+  while (parents[bones.indexOf(top)] >= 0) top = bones[parents[bones.indexOf(top)]];
+  const carrier = top.parent ? top.parent.getWorldQuaternion(new THREE.Quaternion()) : new THREE.Quaternion();
+
   // The .mmdb rest pose is the BVH rest: identity rotations, offsets = local positions.
   const j = crowd.numJoints;
   const sourceRest = new Float32Array(j * 4);
@@ -50,14 +113,14 @@ export async function loadAvatar(bytes: Uint8Array, name: string, crowd: Crowd):
   const sourceRestPositions = new Float64Array(j * 3);
   restKinematics(crowd.jointParents, sourceRest, crowd.positionsOf(0), new Float64Array(j * 4), sourceRestPositions);
   const sourceRoles = findRoles([...crowd.jointNames]);
-  const targetRoles = findRoles(target.names);
   const retargeter = new Retargeter({
     sourceParents: crowd.jointParents,
     sourceRestWorldRotations: sourceRest,
     sourceRestWorldPositions: sourceRestPositions,
-    targetParents: target.parents,
-    targetRestLocalRotations: target.restLocalRotations,
-    targetRestLocalPositions: target.restLocalPositions,
+    targetParents: parents,
+    targetRestLocalRotations: restLocalRotations,
+    targetRestLocalPositions: restLocalPositions,
+    targetRootParentRotation: carrier.toArray(),
     sourceRoles,
     targetRoles,
     sourceToeHeight: crowd.toeHeight,
@@ -69,9 +132,11 @@ export async function loadAvatar(bytes: Uint8Array, name: string, crowd: Crowd):
   const hipsPosition = new Float32Array(3);
   const hipsWorld = new Float32Array(3);
   const toeWorld = new THREE.Vector3();
-  const grounding = new Grounding(standingToeHeight(target, targetRoles));
+  // Standing toe height in the world, read off the rest pose as loaded (any armature scale).
+  const standing = toes.filter((t) => t !== undefined).map((t) => bones[t].getWorldPosition(toeWorld).y);
+  const grounding = new Grounding(standing.length ? standing.reduce((a, b) => a + b) / standing.length : NaN);
   return {
-    object: gltf.scene,
+    object: root,
     bones,
     roles: targetRoles,
     standingToeHeight: grounding.standingToeHeight,
@@ -82,7 +147,7 @@ export async function loadAvatar(bytes: Uint8Array, name: string, crowd: Crowd):
       retargeter.apply(worldRotations, hipsWorld, local, hipsPosition);
       for (let b = 0; b < bones.length; b++) bones[b].quaternion.set(local[4 * b], local[4 * b + 1], local[4 * b + 2], local[4 * b + 3]);
       bones[targetHips].position.set(hipsPosition[0], hipsPosition[1], hipsPosition[2]);
-      gltf.scene.updateMatrixWorld(true);
+      root.updateMatrixWorld(true);
       for (let side = 0; side < 2; side++) {
         const t = toes[side];
         toeHeights[side] = t === undefined ? NaN : bones[t].getWorldPosition(toeWorld).y;
@@ -90,7 +155,7 @@ export async function loadAvatar(bytes: Uint8Array, name: string, crowd: Crowd):
       grounding.update(toeHeights[0], toeHeights[1], contacts, dt);
     },
     dispose() {
-      gltf.scene.traverse((o) => {
+      root.traverse((o) => {
         const m = o as THREE.Mesh;
         if (!m.isMesh) return;
         m.geometry.dispose();
@@ -101,15 +166,6 @@ export async function loadAvatar(bytes: Uint8Array, name: string, crowd: Crowd):
       });
     },
   };
-}
-
-/** Mean rest (standing) height of the toe bones, or NaN without toes. */
-function standingToeHeight(skeleton: GlbSkeleton, roles: ReadonlyMap<HumanoidRole, number>): number {
-  const n = skeleton.parents.length;
-  const positions = new Float64Array(n * 3);
-  restKinematics(skeleton.parents, skeleton.restLocalRotations, skeleton.restLocalPositions, new Float64Array(n * 4), positions);
-  const toes = [roles.get('leftToes'), roles.get('rightToes')].filter((t) => t !== undefined);
-  return toes.reduce((sum, t) => sum + positions[t * 3 + 1], 0) / toes.length;
 }
 
 /** Fetches and loads an avatar by URL. */

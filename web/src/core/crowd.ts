@@ -40,7 +40,7 @@ export class Crowd {
   readonly toeHeight: number | undefined;
   /** Feature groups (layout, normalization) as `mmdb inspect --json` lists them. */
   readonly features: readonly FeatureGroupInfo[];
-  /** Clip names by clip index (`binding.clip(i)`), mirrored ones marked. */
+  /** Clip names by clip index (`binding.clip(i)`; the builder marks mirrored ones). */
   readonly clipNames: readonly string[];
   readonly tags: readonly TagInfo[];
   private readonly _sites: SiteInfo[];
@@ -70,7 +70,7 @@ export class Crowd {
     this.jointParents = Int32Array.from(info.joints.map((j) => j.parent));
     this._sites = info.sites.map((s) => ({ name: s.name, joint: s.joint }));
     this.features = info.features;
-    this.clipNames = info.clips.map((c) => (c.mirrored ? `${c.name} (mirrored)` : c.name));
+    this.clipNames = info.clips.map((c) => c.name);
     this.tags = info.tags;
     const k = this.raw.num_predictions();
     this.simulation = new ViewCache(Float32Array, 7);

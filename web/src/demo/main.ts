@@ -164,6 +164,7 @@ async function main(): Promise<void> {
   const params = new URLSearchParams(location.search);
   const fixedDt = params.get('dt') === 'fixed';
   const stage = new ViewerScene(document.getElementById('viewport') as HTMLElement);
+  stage.camera.position.set(2.2, 1.7, 3.8); // the whole body in view, a little from above
   const camera = new FollowCamera(stage.camera, stage.renderer.domElement);
   const marker = new RootMarker();
   stage.scene.add(marker.object);
@@ -196,7 +197,7 @@ async function main(): Promise<void> {
       avatar.object.visible = view.mesh;
       return avatar;
     } catch (e) {
-      fileError(`${source.name}: ${errorMessage(e)}`);
+      fileError(errorMessage(e)); // names the file
       return null;
     }
   }
@@ -380,7 +381,7 @@ async function main(): Promise<void> {
 
   await useDatabase(dbBytes, choice.database);
   createSettingsPanel(gui.addFolder('Runtime'), () => rig!.crowd);
-  for (const f of [viewFolder, debugFolder]) f.close();
+  for (const f of [viewFolder, debugFolder, pathFolder]) f.close();
   // Other served databases, if the set-up built them.
   for (const name of ['bench53k']) {
     fetch(`databases/${name}.mmdb`, { method: 'HEAD' })

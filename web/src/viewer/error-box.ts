@@ -1,7 +1,15 @@
-/** Shows errors in the page (the `#error-box` element), not only in the console. */
+/**
+ * Shows errors in the page (the `#error-box` element), not only in the console. A click on the
+ * box dismisses it.
+ */
 export function showError(message: string): void {
   const box = document.getElementById('error-box');
   if (box) {
+    box.title = 'click to dismiss';
+    box.onclick = () => {
+      box.hidden = true;
+      box.textContent = '';
+    };
     box.textContent = box.hidden || !box.textContent ? message : `${box.textContent}\n${message}`;
     box.hidden = false;
   }

@@ -34,7 +34,7 @@ const EPS = 1e-9;
  * Solves the chain; returns the distance from `end` to `target` afterwards (0 when reachable,
  * the shortfall when not).
  */
-export function solveTwoBoneIK(upper: THREE.Bone, lower: THREE.Bone, end: THREE.Bone, target: THREE.Vector3, pole: THREE.Vector3): number {
+export function solveTwoBoneIK(upper: THREE.Object3D, lower: THREE.Object3D, end: THREE.Object3D, target: THREE.Vector3, pole: THREE.Vector3): number {
   _a.setFromMatrixPosition(upper.matrixWorld);
   _b.setFromMatrixPosition(lower.matrixWorld);
   _c.setFromMatrixPosition(end.matrixWorld);

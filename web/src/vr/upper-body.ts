@@ -22,7 +22,7 @@ import { headingYaw, wrapAngle } from './yaw.ts';
 /** What UpperBody needs of an avatar (avatar.ts `Avatar` is one). */
 export interface UpperBodyRig {
   readonly object: THREE.Object3D;
-  readonly bones: readonly THREE.Bone[];
+  readonly bones: readonly THREE.Object3D[];
   readonly roles: ReadonlyMap<HumanoidRole, number>;
 }
 
@@ -69,10 +69,10 @@ export const DEFAULT_UPPER_BODY_OPTIONS: Readonly<UpperBodyOptions> = {
 interface Arm {
   /** +1 left, −1 right (left is +X when facing +Z). */
   side: number;
-  clavicle: THREE.Bone | null;
-  upper: THREE.Bone;
-  lower: THREE.Bone;
-  hand: THREE.Bone;
+  clavicle: THREE.Object3D | null;
+  upper: THREE.Object3D;
+  lower: THREE.Object3D;
+  hand: THREE.Object3D;
   /** Wrist (hand bone origin) in the grip frame, m at object scale 1. */
   wristInGrip: THREE.Vector3;
   /** Hand bone world rotation = grip rotation · handFromGrip. */
@@ -105,22 +105,22 @@ export class UpperBody {
   /** The hand bones' world positions after the last `apply` (left xyz, right xyz). */
   readonly handPositions = new Float64Array(6);
   private readonly object: THREE.Object3D;
-  private readonly spine: { bone: THREE.Bone; weight: number; torso: boolean }[] = [];
-  private readonly head: THREE.Bone | null;
+  private readonly spine: { bone: THREE.Object3D; weight: number; torso: boolean }[] = [];
+  private readonly head: THREE.Object3D | null;
   private readonly headFromHmd = new THREE.Quaternion();
   private readonly arms: Arm[] = [];
 
   constructor(rig: UpperBodyRig, options: Partial<UpperBodyOptions> = {}) {
     this.options = { ...DEFAULT_UPPER_BODY_OPTIONS, ...options };
     this.object = rig.object;
-    const bone = (role: HumanoidRole): THREE.Bone | null => {
+    const bone = (role: HumanoidRole): THREE.Object3D | null => {
       const i = rig.roles.get(role);
       return i === undefined ? null : rig.bones[i];
     };
     rig.object.updateMatrixWorld(true);
     // Rest transforms relative to the avatar object, so offsets do not depend on where it stands.
     const toObject = new THREE.Matrix4().copy(rig.object.matrixWorld).invert();
-    const rest = (b: THREE.Bone) => {
+    const rest = (b: THREE.Object3D) => {
       const m = new THREE.Matrix4().multiplyMatrices(toObject, b.matrixWorld);
       const p = new THREE.Vector3();
       const q = new THREE.Quaternion();
@@ -261,7 +261,7 @@ export class UpperBody {
   /** Turns the clavicle part of the way toward a target beyond `clavicleReach` of the arm. */
   private reachWithClavicle(arm: Arm): void {
     const o = this.options;
-    const clavicle = arm.clavicle as THREE.Bone;
+    const clavicle = arm.clavicle as THREE.Object3D;
     _s.setFromMatrixPosition(clavicle.matrixWorld);
     _a.setFromMatrixPosition(arm.upper.matrixWorld);
     const reach = _a.distanceTo(_v.setFromMatrixPosition(arm.lower.matrixWorld)) + _v.distanceTo(_pos.setFromMatrixPosition(arm.hand.matrixWorld));
