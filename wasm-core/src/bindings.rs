@@ -235,6 +235,14 @@ impl RawCrowd {
         }
     }
 
+    /// Lowers character `i`'s hips `drop` m below the animation, legs bent by IK to keep the
+    /// feet planted (VR crouching).
+    pub fn set_hips_drop(&mut self, i: usize, drop: f32) {
+        if let Some(c) = self.crowd.characters.get_mut(i) {
+            c.set_hips_drop(drop);
+        }
+    }
+
     /// Places character `i` at (x, z) facing `yaw` (rad, 0 = +Z), searching afresh — e.g. to
     /// carry a character over to a crowd on another database.
     pub fn teleport(&mut self, i: usize, x: f32, z: f32, yaw: f32) {

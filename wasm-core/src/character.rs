@@ -174,6 +174,13 @@ pub struct Character {
     locks: [FootLock; 2],
     /// Height of a planted toe on the floor, if known ([`Database::toe_height_in_contact`]).
     toe_floor: Option<f32>,
+    /// How far the hips are lowered below the animation (m), legs bent by IK to keep the feet
+    /// planted ([`Self::set_hips_drop`]); the hips joint (the child of the root on the leg chain).
+    hips_drop: f32,
+    hips: Option<usize>,
+    /// The drop applied to `pose_positions` by the last update, undone before the next one:
+    /// like the leg IK it is a touch-up of the output, never a state the animation continues.
+    applied_drop: f32,
     previous_toes: [Vec3; 2],
     pose_velocities: Vec<Vec3>,
     pose_angular_velocities: Vec<Vec3>,
@@ -241,6 +248,9 @@ impl Character {
             leg_chain: Vec::new(),
             locks: [FootLock::new(); 2],
             toe_floor: None,
+            hips_drop: 0.0,
+            hips: None,
+            applied_drop: 0.0,
             previous_toes: [Vec3::ZERO; 2],
             pose_velocities: vec![Vec3::ZERO; j],
             pose_angular_velocities: vec![Vec3::ZERO; j],
@@ -261,6 +271,7 @@ impl Character {
             }
         }
         c.leg_chain = (0..j).filter(|&k| needed[k]).collect();
+        c.hips = c.leg_chain.iter().copied().find(|&k| db.skeleton.parents[k] == 0);
         c.write_pose(db, 0.0);
         c.reset_feet(db);
         c
@@ -309,6 +320,14 @@ impl Character {
     /// database and shared by its characters.
     pub fn set_toe_floor(&mut self, height: Option<f32>) {
         self.toe_floor = height;
+    }
+
+    /// Lowers the hips `drop` metres below the animation, the legs bending by IK so that the
+    /// feet stay where the animation (or the foot lock) puts them: crouching for a VR user
+    /// whose head is lower than calibrated, with any database (THESIS_NOTES §9's fallback to
+    /// crouch databases). Clamped to [0, 60% of the hip height].
+    pub fn set_hips_drop(&mut self, drop: f32) {
+        self.hips_drop = if drop.is_finite() { drop.max(0.0) } else { 0.0 };
     }
 
     /// Follow `path` from its start (or `None` to return to input control).
@@ -411,6 +430,10 @@ impl Character {
     /// `index` must be built from `db`.
     pub fn update(&mut self, db: &Database, index: &SearchIndex, input: &Input, dt: f32) {
         let dt = dt.max(0.0);
+        if let (Some(h), true) = (self.hips, self.applied_drop != 0.0) {
+            self.pose_positions[h].y += self.applied_drop;
+            self.applied_drop = 0.0;
+        }
         self.update_simulation(input, dt);
 
         // Search on a timer, on a sharp input change, or when the clip is about to end.
@@ -435,7 +458,8 @@ impl Character {
     fn lock_feet(&mut self, db: &Database, dt: f32) {
         self.output_rotations.copy_from_slice(&self.pose_rotations);
         self.leg_kinematics(db);
-        let parents = &db.skeleton.parents;
+        // Toe targets from the pose as animated (before any hips drop).
+        let mut targets = [None; 2];
         for side in 0..2 {
             let Some(leg) = &self.legs[side] else { continue };
             let toe = self.world_positions[leg.toe] + self.world_rotations[leg.toe] * leg.toe_offset;
@@ -443,14 +467,31 @@ impl Character {
             self.previous_toes[side] = toe;
             if !self.settings.foot_lock {
                 self.locks[side].reset(toe, velocity);
+                targets[side] = Some((toe, toe));
                 continue;
             }
             let contact = self.contacts[side] != 0;
             let s = &self.settings;
             self.locks[side].floor = if s.foot_lock_floor { self.toe_floor } else { None };
             let target = self.locks[side].update(contact, toe, velocity, dt, s.foot_lock_unlock_radius, s.foot_lock_halflife);
+            targets[side] = Some((toe, target));
+        }
+        let dropped = match self.hips {
+            Some(h) if self.hips_drop > 0.0 => {
+                // The root is a pure yaw, so the hips' local y is world height above the root.
+                let drop = self.hips_drop.min(0.6 * self.pose_positions[h].y.max(0.0));
+                self.pose_positions[h].y -= drop;
+                self.applied_drop = drop;
+                self.leg_kinematics(db);
+                drop > 0.0
+            }
+            _ => false,
+        };
+        let parents = &db.skeleton.parents;
+        for side in 0..2 {
+            let (Some(leg), Some((toe, target))) = (&self.legs[side], targets[side]) else { continue };
             // Unlocked and blended out: the animation is already right, leave the leg alone.
-            if (target - toe).length_squared() < 1e-10 {
+            if !dropped && (target - toe).length_squared() < 1e-10 {
                 continue;
             }
             // Keep the knee in the animation's own bend plane, even a slightly backward

@@ -256,3 +256,39 @@ fn a_tracked_user_is_followed() {
     assert!(c.root_position().x < -0.9, "side-stepped to x = {}", c.root_position().x);
     println!("tracked: max root↔head distance {max_distance:.3} m, final yaw {final_yaw:.3} rad");
 }
+
+/// VR crouching without a crouch database: a hips drop lowers the hips by that much while the
+/// legs bend by IK and the toes stay where the same run without the drop puts them.
+#[test]
+fn a_hips_drop_crouches_with_feet_planted() {
+    use mmcore::database::forward_kinematics;
+    let db = db();
+    let j = db.num_joints();
+    let world = |c: &Character| {
+        let (mut p, mut r) = (vec![Vec3::ZERO; j], vec![Quat::IDENTITY; j]);
+        forward_kinematics(&db.skeleton.parents, c.pose_positions(), c.pose_rotations(), false, &mut p, &mut r);
+        p
+    };
+    let toes: Vec<usize> = ["left_toe", "right_toe"].iter().map(|n| db.skeleton.site(n).unwrap().joint as usize).collect();
+    let hips = (0..j).find(|&k| db.skeleton.parents[k] == 0).unwrap();
+    let (mut a, mut b) = (Character::new(db, CharacterSettings::default()), Character::new(db, CharacterSettings::default()));
+    let mut max_toe_gap = 0.0f32;
+    for step in 0..600 {
+        let t = step as f32 / 60.0;
+        // Stand for 2 s, then walk slowly forward; crouch 0.35 m after 1 s.
+        let input = Input { direction: if t < 2.0 { Vec2::ZERO } else { Vec2::new(0.0, 0.4) }, ..Default::default() };
+        b.set_hips_drop(if t < 1.0 { 0.0 } else { 0.35 });
+        a.update(db, index(), &input, 1.0 / 60.0);
+        b.update(db, index(), &input, 1.0 / 60.0);
+        let (pa, pb) = (world(&a), world(&b));
+        assert!(pb.iter().all(|p| p.is_finite()), "NaN at step {step}");
+        if t >= 1.0 {
+            assert!((pa[hips].y - pb[hips].y - 0.35).abs() < 1e-4, "hips dropped {} m at step {step}", pa[hips].y - pb[hips].y);
+            for &k in &toes {
+                max_toe_gap = max_toe_gap.max(pa[k].distance(pb[k]));
+            }
+        }
+    }
+    println!("hips drop 0.35 m: toes within {:.4} m of the undropped run", max_toe_gap);
+    assert!(max_toe_gap < 0.01, "toes moved {max_toe_gap} m");
+}

@@ -139,6 +139,14 @@ export class Crowd {
     else this.live.set_path(i, points, speeds ?? new Float32Array(), looped);
   }
 
+  /**
+   * Lowers character `i`'s hips `drop` m (database units) below the animation, legs bent by IK
+   * so the feet stay planted: crouching a VR user with any database.
+   */
+  setHipsDrop(i: number, drop: number): void {
+    this.live.set_hips_drop(i, drop);
+  }
+
   /** Places character `i` at (x, z) facing `yaw` (rad, 0 = +Z). */
   teleport(i: number, x: number, z: number, yaw: number): void {
     this.live.teleport(i, x, z, yaw);
