@@ -35,6 +35,10 @@ pub struct CharacterSettings {
     /// Adjustment per frame is capped at this × the character's speed × dt, so a standing
     /// character never slides (THESIS_NOTES §6).
     pub adjustment_max_ratio: f32,
+    /// …but never below this speed (m/s), so a standing character is still brought back under
+    /// its simulated character (a tracked VR user who stands still must find the avatar under
+    /// them, not α away); the foot lock turns the drift into a corrective step. 0 = off.
+    pub adjustment_min_speed: f32,
     pub clamping: bool,
     /// α: the root never ends farther than this from the simulated character (m).
     pub clamp_distance: f32,
@@ -80,6 +84,7 @@ impl Default for CharacterSettings {
             search_method: SearchMethod::Aabb,
             foot_lock: true,
             foot_lock_unlock_radius: 0.2,
+            adjustment_min_speed: 0.0,
             foot_lock_floor: true,
             foot_lock_halflife: 0.12,
         }
@@ -726,7 +731,7 @@ impl Character {
             // own speed so that an idle character is never dragged.
             let target = Vec3::new(self.simulation.position.x, 0.0, self.simulation.position.z);
             let mut step = (target - self.root_position) * (1.0 - (-dt / s.adjustment_position_halflife).exp2());
-            let cap = s.adjustment_max_ratio * self.root_velocity.length() * dt;
+            let cap = (s.adjustment_max_ratio * self.root_velocity.length()).max(s.adjustment_min_speed) * dt;
             if step.length() > cap {
                 step = step.normalize_or_zero() * cap;
             }

@@ -221,10 +221,11 @@ fn a_tracked_user_is_followed() {
     let db = db();
     let alpha = 0.3;
     let clamp_angle = 0.35;
-    let mut c = Character::new(db, CharacterSettings { clamp_distance: alpha, clamp_angle, ..Default::default() });
+    let settings = CharacterSettings { clamp_distance: alpha, clamp_angle, adjustment_min_speed: 0.15, ..Default::default() };
+    let mut c = Character::new(db, settings);
     let dt = 1.0 / 72.0; // Quest Browser's lowest refresh rate
     let (mut head, mut yaw) = (Vec3::ZERO, 0.0f32);
-    let mut max_distance = 0.0f32;
+    let (mut max_distance, mut sum_distance) = (0.0f32, 0.0f32);
     for step in 0..(72 * 11) {
         let t = step as f32 * dt;
         // 0–3 s forward (+Z) at 1.2 m/s, 3–5 s side-step right (−X) at 0.6 m/s, 5–6 s stand,
@@ -246,15 +247,20 @@ fn a_tracked_user_is_followed() {
         let d = Vec2::new(r.x - head.x - sway.x, r.z - head.z - sway.z).length();
         assert!(d <= alpha + 1e-5, "distance {d} > α at {t:.2} s");
         max_distance = max_distance.max(d);
+        sum_distance += d;
         if step == 72 * 3 {
             assert!(r.z > 2.5, "walked forward to z = {} (head at {})", r.z, head.z);
+        }
+        if step == 72 * 6 - 1 {
+            // After a second of standing still the avatar is under the user again.
+            assert!(d < 0.1, "standing: root {d} m from the head");
         }
     }
     let facing = c.root_rotation() * Vec3::Z;
     let final_yaw = facing.x.atan2(facing.z);
     assert!((final_yaw - std::f32::consts::FRAC_PI_2).abs() <= clamp_angle + 0.02, "turned in place to {final_yaw} rad");
     assert!(c.root_position().x < -0.9, "side-stepped to x = {}", c.root_position().x);
-    println!("tracked: max root↔head distance {max_distance:.3} m, final yaw {final_yaw:.3} rad");
+    println!("tracked: root↔head distance mean {:.3} m, max {max_distance:.3} m; final yaw {final_yaw:.3} rad", sum_distance / (72.0 * 11.0));
 }
 
 /// VR crouching without a crouch database: a hips drop lowers the hips by that much while the
