@@ -225,3 +225,18 @@ function vrmFromGlb(glb: Buffer): Buffer {
   header.writeUInt32LE(0x4e4f534a, 16);
   return Buffer.concat([header, text, rest]);
 }
+
+test('a manual joint-map override reaches the avatar; a wrong one is reported, the skeleton stays', async ({ page }) => {
+  test.setTimeout(120_000);
+  // `Head` is what the table finds anyway: the override path binds as usual.
+  let errors = await open(page, `&roles=${encodeURIComponent(JSON.stringify({ head: 'Head' }))}`);
+  expect((await hook(page)).avatar).toBe('ubc_male.glb');
+  expect(errors).toEqual([]);
+  const page2 = await page.context().newPage();
+  errors = await open(page2, `&roles=${encodeURIComponent(JSON.stringify({ head: 'no_such_bone' }))}`);
+  const h = await hook(page2);
+  expect(h.fileError).toMatch(/no_such_bone/);
+  expect(h.avatar).toBe('');
+  expect(h.updates).toBeGreaterThan(0); // the skeleton plays on
+  expect(errors).toEqual([]);
+});

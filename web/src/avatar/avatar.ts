@@ -7,7 +7,7 @@ import { type GLTF, GLTFLoader } from 'three/addons/loaders/GLTFLoader.js';
 import { type VRM, VRMLoaderPlugin, VRMUtils } from '@pixiv/three-vrm';
 import { type Crowd } from '../core/crowd.ts';
 import { Grounding } from './grounding.ts';
-import { findRoles, HUMANOID_ROLES, type HumanoidRole } from './joint-maps.ts';
+import { findRoles, HUMANOID_ROLES, type HumanoidRole, type RoleOverrides } from './joint-maps.ts';
 import { forwardKinematics as restKinematics, Retargeter } from './retarget.ts';
 
 export interface Avatar {
@@ -35,7 +35,11 @@ export interface Avatar {
  * number of skins, and armature nodes above the root all work): every bone of every skinned
  * mesh (and a VRM's humanoid bones), each bone's parent being its nearest ancestor in that set.
  */
-function skeletonOf(scene: THREE.Object3D, vrm: VRM | undefined): { bones: THREE.Object3D[]; parents: Int32Array; roles: Map<HumanoidRole, number> } {
+function skeletonOf(
+  scene: THREE.Object3D,
+  vrm: VRM | undefined,
+  overrides: RoleOverrides | undefined,
+): { bones: THREE.Object3D[]; parents: Int32Array; roles: Map<HumanoidRole, number> } {
   const set = new Set<THREE.Object3D>();
   scene.traverse((o) => {
     const m = o as THREE.SkinnedMesh;
@@ -57,8 +61,9 @@ function skeletonOf(scene: THREE.Object3D, vrm: VRM | undefined): { bones: THREE
     for (let p = b.parent; p; p = p.parent) if (index.has(p)) return index.get(p)!;
     return -1;
   });
-  // A VRM says which bone is which; other models are matched by name conventions.
-  const roles = vrm ? new Map([...vrmBones].map(([r, b]) => [r, index.get(b)!])) : findRoles(bones.map((b) => b.name));
+  // A VRM says which bone is which; other models are matched by name conventions, with the
+  // caller's overrides first.
+  const roles = vrm && !overrides ? new Map([...vrmBones].map(([r, b]) => [r, index.get(b)!])) : findRoles(bones.map((b) => b.name), overrides);
   return { bones, parents, roles };
 }
 
@@ -66,7 +71,7 @@ function skeletonOf(scene: THREE.Object3D, vrm: VRM | undefined): { bones: THREE
  * Loads a GLB or VRM (bytes) and binds it to the crowd's skeleton. `name` is used in error
  * messages.
  */
-export async function loadAvatar(bytes: Uint8Array, name: string, crowd: Crowd): Promise<Avatar> {
+export async function loadAvatar(bytes: Uint8Array, name: string, crowd: Crowd, overrides?: RoleOverrides): Promise<Avatar> {
   const loader = new GLTFLoader();
   loader.register((parser) => new VRMLoaderPlugin(parser));
   let gltf: GLTF;
@@ -92,7 +97,13 @@ export async function loadAvatar(bytes: Uint8Array, name: string, crowd: Crowd):
     o.castShadow = true;
   });
   if (skinned === 0) throw new Error(`${name}: no skinned mesh`);
-  const { bones, parents, roles: targetRoles } = skeletonOf(root, vrm);
+  let skeleton;
+  try {
+    skeleton = skeletonOf(root, vrm, overrides);
+  } catch (e) {
+    throw new Error(`${name}: ${e instanceof Error ? e.message : String(e)}`);
+  }
+  const { bones, parents, roles: targetRoles } = skeleton;
   if (!targetRoles.has('hips')) throw new Error(`${name}: no hips bone found among ${bones.length} bones (${bones.slice(0, 8).map((b) => b.name).join(', ')}, …)`);
   const restLocalRotations = new Float32Array(bones.length * 4);
   const restLocalPositions = new Float32Array(bones.length * 3);

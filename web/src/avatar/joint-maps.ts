@@ -103,10 +103,10 @@ function cellNames(cell: Cell): readonly string[] {
  * leaves that role unmapped. Throws when an override names a joint that is not in `names`.
  * Roles absent from the skeleton are absent from the result.
  */
-export function findRoles(
-  names: readonly string[],
-  overrides?: Readonly<Partial<Record<HumanoidRole | string, string>>>,
-): Map<HumanoidRole, number> {
+/** Manual mapping, role → joint name (exact or normalized; '' unmaps the role). */
+export type RoleOverrides = Readonly<Partial<Record<HumanoidRole | string, string>>>;
+
+export function findRoles(names: readonly string[], overrides?: RoleOverrides): Map<HumanoidRole, number> {
   const byNorm = new Map<string, number>();
   names.forEach((n, i) => {
     const k = normalizeJointName(n);

@@ -4,13 +4,15 @@
  * HUD and every knob in lil-gui. Drop BVH files to build a database in the page, a `.mmdb` to
  * load one, a `.glb`/`.vrm` to swap the avatar.
  *
- * URL parameters: `db=<url>`, `avatar=<url>|none`, `skeleton=1`, `shadows=0`, `dt=fixed`
+ * URL parameters: `db=<url>`, `avatar=<url>|none`, `roles=<JSON role → joint name>` (manual
+ * joint map), `skeleton=1`, `shadows=0`, `dt=fixed`
  * (exactly 1/60 s per rendered frame, for deterministic tests). State for tests is on
  * `window.__mm`.
  */
 import GUI from 'lil-gui';
 import * as THREE from 'three';
 import { type Avatar, loadAvatar } from '../avatar/avatar.ts';
+import { type RoleOverrides } from '../avatar/joint-maps.ts';
 import { DatabaseBuilder } from '../core/builder.ts';
 import { Crowd } from '../core/crowd.ts';
 import { forwardKinematics } from '../core/forward-kinematics.ts';
@@ -163,6 +165,13 @@ interface Rig {
 async function main(): Promise<void> {
   const params = new URLSearchParams(location.search);
   const fixedDt = params.get('dt') === 'fixed';
+  // `?roles={"head":"Head_M","leftToes":""}`: the manual joint-map override for the avatar.
+  let roleOverrides: RoleOverrides | undefined;
+  try {
+    roleOverrides = params.has('roles') ? (JSON.parse(params.get('roles')!) as RoleOverrides) : undefined;
+  } catch (e) {
+    fileError(`?roles= must be JSON like {"head":"Head_M"}: ${errorMessage(e)}`);
+  }
   const stage = new ViewerScene(document.getElementById('viewport') as HTMLElement);
   stage.camera.position.set(2.2, 1.7, 3.8); // the whole body in view, a little from above
   const camera = new FollowCamera(stage.camera, stage.renderer.domElement);
@@ -193,7 +202,7 @@ async function main(): Promise<void> {
   /** Binds an avatar to the rig's skeleton, or null (the error said) when it cannot be. */
   async function bindAvatar(crowd: Crowd, source: { bytes: Uint8Array; name: string }): Promise<Avatar | null> {
     try {
-      const avatar = await loadAvatar(source.bytes, source.name, crowd);
+      const avatar = await loadAvatar(source.bytes, source.name, crowd, roleOverrides);
       avatar.object.visible = view.mesh;
       return avatar;
     } catch (e) {
