@@ -1,0 +1,176 @@
+import { createHash } from 'node:crypto';
+import fs from 'node:fs';
+import path from 'node:path';
+import * as ort from 'onnxruntime-web/wasm';
+import { beforeAll, describe, expect, it } from 'vitest';
+import { MAX_DT, NUM_INPUTS, OrientationFeatures, hmdYaw, wrapAngle } from '../../web/src/orientation/features.ts';
+import { OrientationModel } from '../../web/src/orientation/orientation-model.ts';
+
+// Fixtures recorded from Python by `npm run train` (training/orientation/fixtures.py): raw
+// tracker poses of a held-out take, the inputs the Python reference built each frame, and the
+// PyTorch outputs of the committed model.
+const ROOT = path.resolve(import.meta.dirname, '../..');
+const MODEL_PATH = path.join(ROOT, 'public/models/orientation.onnx');
+
+interface Fixture {
+  model_sha256: string;
+  rows: { inputs: number[][]; outputs: number[][] };
+  sequence: {
+    name: string;
+    dt: number[];
+    positions: number[][];
+    quaternions: number[][];
+    inputs: number[][];
+    outputs: number[][];
+    body_yaw: number[];
+    hmd_yaw: number[];
+  };
+}
+const fixture = JSON.parse(fs.readFileSync(path.join(ROOT, 'training/fixtures/orientation_parity.json'), 'utf8')) as Fixture;
+const seq = fixture.sequence;
+
+/** Largest |a − b| / (1 + |b|) (absolute near 0, relative for large velocities). */
+function maxErr(a: ArrayLike<number>, b: ArrayLike<number>): number {
+  let m = 0;
+  for (let i = 0; i < b.length; i++) m = Math.max(m, Math.abs(a[i] - b[i]) / (1 + Math.abs(b[i])));
+  return m;
+}
+
+describe('OrientationFeatures', () => {
+  it('builds the same 42 inputs as the Python reference, frame by frame', () => {
+    const f = new OrientationFeatures();
+    let worst = 0;
+    for (let t = 0; t < seq.dt.length; t++) {
+      const out = f.update(seq.positions[t], seq.quaternions[t], seq.dt[t]);
+      expect(out).toBe(f.input); // the one preallocated array, every frame
+      expect(Math.abs(f.hmdYaw - seq.hmd_yaw[t])).toBeLessThan(1e-9);
+      f.setPrevious(t === 0 ? 0 : wrapAngle(seq.body_yaw[t - 1] - f.hmdYaw));
+      worst = Math.max(worst, maxErr(f.input, seq.inputs[t]));
+    }
+    expect(worst).toBeLessThan(1e-5);
+    // The fixture covers a dropped frame and a pause longer than MAX_DT (velocities restart).
+    expect(seq.dt.some((dt) => dt > MAX_DT)).toBe(true);
+  });
+
+  it('yaw 0 is looking along +Z, and looking straight down keeps the heading', () => {
+    // A viewer looks down its local −Z: facing +Z is a half turn about Y.
+    expect(Math.abs(wrapAngle(hmdYaw(0, 1, 0, 0)))).toBeLessThan(1e-12);
+    const yaw = 0.6;
+    const qy = [0, Math.sin((yaw + Math.PI) / 2), 0, Math.cos((yaw + Math.PI) / 2)];
+    for (const pitch of [-Math.PI / 2, -1, 0, 1.2, Math.PI / 2]) {
+      const qx = [Math.sin(pitch / 2), 0, 0, Math.cos(pitch / 2)];
+      // q = qy · qx
+      const q = [
+        qy[3] * qx[0] + qy[0] * qx[3] + qy[1] * qx[2] - qy[2] * qx[1],
+        qy[3] * qx[1] - qy[0] * qx[2] + qy[1] * qx[3] + qy[2] * qx[0],
+        qy[3] * qx[2] + qy[0] * qx[1] - qy[1] * qx[0] + qy[2] * qx[3],
+        qy[3] * qx[3] - qy[0] * qx[0] - qy[1] * qx[1] - qy[2] * qx[2],
+      ];
+      expect(Math.abs(wrapAngle(hmdYaw(q[0], q[1], q[2], q[3]) - yaw))).toBeLessThan(1e-9);
+    }
+  });
+
+  it('rejects bad input with a message', () => {
+    const f = new OrientationFeatures();
+    const p = seq.positions[0];
+    const q = seq.quaternions[0];
+    f.update(p, q, 0.011);
+    expect(() => f.update(p, q, 0)).toThrow(/dt must be positive/);
+    expect(() => f.update(p, q, Number.NaN)).toThrow(RangeError);
+    expect(() => f.update(p.slice(0, 6), q, 0.011)).toThrow(/need 9 positions/);
+    expect(() => f.update([...p.slice(0, 8), Number.NaN], q, 0.011)).toThrow(/position 8/);
+    expect(() => f.update(p, new Array(12).fill(0), 0.011)).toThrow(/zero length/);
+    f.reset();
+    expect(Array.from(f.input.subarray(36))).toEqual([1, 0, -0, 0, 1, 0]);
+    expect(f.input.length).toBe(NUM_INPUTS);
+  });
+});
+
+describe('OrientationModel (onnxruntime-web in Node)', () => {
+  let bytes: Uint8Array;
+  beforeAll(() => {
+    ort.env.wasm.numThreads = 1;
+    bytes = fs.readFileSync(MODEL_PATH);
+  });
+
+  it('is the model the fixture was recorded with', () => {
+    expect(createHash('sha256').update(bytes).digest('hex')).toBe(fixture.model_sha256);
+    expect(bytes.byteLength).toBeLessThan(64 * 1024);
+  });
+
+  it('gives the PyTorch outputs on recorded inputs (within 1e-4)', async () => {
+    const session = await ort.InferenceSession.create(bytes);
+    try {
+      const n = fixture.rows.inputs.length;
+      const x = new Float32Array(n * NUM_INPUTS);
+      fixture.rows.inputs.forEach((row, i) => x.set(row, i * NUM_INPUTS));
+      const out = await session.run({ [session.inputNames[0]]: new ort.Tensor('float32', x, [n, NUM_INPUTS]) });
+      const y = out[session.outputNames[0]].data as Float32Array;
+      let worst = 0;
+      fixture.rows.outputs.forEach((row, i) => row.forEach((v, j) => (worst = Math.max(worst, Math.abs(y[i * 6 + j] - v)))));
+      console.log(`orientation model: max |onnxruntime-web − PyTorch| = ${worst.toExponential(2)} on ${n} recorded inputs`);
+      expect(worst).toBeLessThan(1e-4);
+    } finally {
+      await session.release();
+    }
+  });
+
+  it('runs the feedback loop like Python: same inputs, outputs and body yaw', async () => {
+    const model = await OrientationModel.create(bytes);
+    try {
+      for (let pass = 0; pass < 2; pass++) {
+        let worstIn = 0;
+        let worstOut = 0;
+        let worstYaw = 0;
+        for (let t = 0; t < seq.dt.length; t++) {
+          const yaw = await model.update(seq.positions[t], seq.quaternions[t], seq.dt[t]);
+          worstIn = Math.max(worstIn, maxErr(model.features.input, seq.inputs[t]));
+          worstOut = Math.max(worstOut, maxErr(model.output, seq.outputs[t]));
+          worstYaw = Math.max(worstYaw, Math.abs(wrapAngle(yaw - seq.body_yaw[t])));
+          expect(Math.abs(wrapAngle(model.bodyYaw - model.hmdYaw - model.relativeYaw))).toBeLessThan(1e-9);
+        }
+        expect(worstIn).toBeLessThan(1e-5);
+        expect(worstOut).toBeLessThan(1e-4);
+        expect(worstYaw).toBeLessThan(1e-4);
+        model.reset(); // the second pass must repeat the first exactly
+      }
+    } finally {
+      await model.release();
+    }
+  });
+
+  it('reports the median time per update', async () => {
+    const model = await OrientationModel.create(bytes);
+    try {
+      const times: number[] = [];
+      const n = seq.dt.length;
+      for (let i = 0; i < 600; i++) {
+        const t = i % n;
+        if (t === 0) model.reset();
+        const t0 = performance.now();
+        await model.update(seq.positions[t], seq.quaternions[t], seq.dt[t]);
+        times.push(performance.now() - t0);
+      }
+      times.sort((a, b) => a - b);
+      const median = times[times.length >> 1];
+      console.log(`orientation model: median ${median.toFixed(3)} ms per update (features + onnxruntime-web wasm, Node ${process.version})`);
+      expect(median).toBeLessThan(10);
+    } finally {
+      await model.release();
+    }
+  });
+
+  it('fails clearly on a broken model and on overlapping updates', async () => {
+    await expect(OrientationModel.create(new Uint8Array([1, 2, 3]))).rejects.toThrow(/cannot load the ONNX model \(3 bytes\)/);
+    const model = await OrientationModel.create(bytes);
+    try {
+      const p = seq.positions[0];
+      const q = seq.quaternions[0];
+      const first = model.update(p, q, 0.011);
+      await expect(model.update(p, q, 0.011)).rejects.toThrow(/still running/);
+      await first;
+    } finally {
+      await model.release();
+    }
+  });
+});

@@ -1,0 +1,49 @@
+#!/usr/bin/env node
+// Median time per OrientationModel.update in headless Chromium (Debian's /usr/bin/chromium via
+// playwright-core): serves the repo with vite (cross-origin isolated, for the 5 µs timer), opens
+// web/src/orientation/bench.html and prints its result as JSON. Also checks the browser's
+// outputs against the recorded PyTorch ones. Usage: node training/bench_chromium.mjs
+import path from 'node:path';
+import { fileURLToPath } from 'node:url';
+
+const ROOT = path.resolve(path.dirname(fileURLToPath(import.meta.url)), '..');
+const CHROMIUM = '/usr/bin/chromium';
+
+const { createServer } = await import('vite');
+const server = await createServer({
+  root: ROOT,
+  configFile: path.join(ROOT, 'vite.config.ts'),
+  logLevel: 'error',
+  clearScreen: false,
+  server: {
+    host: '127.0.0.1', port: 5287, strictPort: false, hmr: false,
+    headers: { 'Cross-Origin-Opener-Policy': 'same-origin', 'Cross-Origin-Embedder-Policy': 'require-corp' },
+  },
+});
+await server.listen();
+let code = 0;
+const { chromium } = await import('playwright-core');
+const browser = await chromium.launch({ executablePath: CHROMIUM, args: ['--headless', '--no-sandbox', '--disable-gpu'] });
+try {
+  const page = await browser.newPage();
+  const errors = [];
+  page.on('pageerror', (e) => errors.push(e.message));
+  await page.goto(`${server.resolvedUrls.local[0]}web/src/orientation/bench.html`);
+  await page.waitForFunction(() => window.__orientationBench?.done, null, { timeout: 300_000, polling: 200 });
+  const r = await page.evaluate(() => window.__orientationBench);
+  if (r.error || errors.length) throw new Error(r.error ?? errors.join('\n'));
+  console.log(JSON.stringify(r, null, 1));
+  console.log(`chromium: median ${r.medianMs.toFixed(3)} ms per update (p95 ${r.p95Ms.toFixed(3)} ms), ` +
+    `max |output − PyTorch| ${r.maxOutputError.toExponential(2)}`);
+  if (!(r.maxOutputError < 1e-4)) {
+    console.error('chromium outputs differ from PyTorch by more than 1e-4');
+    code = 1;
+  }
+} catch (e) {
+  console.error(`bench_chromium: ${e instanceof Error ? e.message : e}`);
+  code = 1;
+} finally {
+  await browser.close();
+  await server.close();
+}
+process.exit(code);

@@ -1,0 +1,192 @@
+"""Mocap subjects, the train/test split by subject, and per-clip world transforms.
+
+The pose data comes only from `.mmdb` files built by the project's own builder (the `mmdb` CLI),
+so FK, unit scaling and the virtual root (joint 0: hips on the floor, smoothed yaw facing) are
+exactly those the runtime uses; the body's facing, the ground truth here, is joint 0's yaw.
+
+One database per subject, at the source rate (120 fps, no resampling) and mirrored by the
+builder (left/right swapped, reflected: the "mirroring" augmentation). A per-subject database
+keeps each person's own bone lengths: one database per skeleton would rescale everybody onto
+one reference body.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+import mmdb
+
+from .geometry import quat_from_basis, quat_hemisphere
+
+TRAINING = Path(__file__).resolve().parent.parent
+REPO = TRAINING.parent
+DATA_DIR = Path(os.environ.get("ORIENTATION_DATA_DIR", TRAINING / "data"))
+MOCAP_DIR = Path(os.environ.get("MMDB_MOCAP_DIR", REPO.parent / "shared" / "mocap"))
+MMDB_BIN = Path(os.environ.get("MMDB_BIN", REPO / "wasm-core" / "target" / "release" / "mmdb"))
+
+# (folder, CMU subject). Subject 03 walks loops with many full turns on uneven ground, 08 walks
+# and 09 runs on the other skeleton: the held-out people cover both skeletons and both gaits,
+# and training keeps 16 and 127 (turns, side-steps, stops, ducking) and six cmu-daz walkers.
+TRAIN_SUBJECTS = (("cmu-asf", "16"), ("cmu-asf", "127"), ("cmu-daz", "02"), ("cmu-daz", "05"),
+                  ("cmu-daz", "06"), ("cmu-daz", "07"), ("cmu-daz", "10"), ("cmu-daz", "12"))
+TEST_SUBJECTS = (("cmu-asf", "03"), ("cmu-daz", "08"), ("cmu-daz", "09"))
+
+SOURCE_FPS = 120.0
+
+
+class DataError(RuntimeError):
+    """Mocap, CLI or database missing or unusable; the message says which and how to fix it."""
+
+
+def subject_name(folder: str, subject: str) -> str:
+    return f"{folder}_{subject}"
+
+
+def database_config(folder: str, subject: str, mocap_dir: Path, config_dir: Path) -> dict:
+    """The builder config for one subject (all its takes, 120 fps, mirrored, units auto)."""
+    bvh_dir = mocap_dir / folder
+    pattern = f"cmu_{subject}_*.bvh"
+    if not any(bvh_dir.glob(pattern)):
+        raise DataError(f"no mocap files {bvh_dir / pattern} (is ../shared/mocap beside the repo? "
+                        f"MMDB_MOCAP_DIR overrides)")
+    rel = os.path.relpath(bvh_dir, config_dir)
+    return {"fps": SOURCE_FPS, "mirror": True, "scale": "auto", "clips": [{"file": f"{rel}/{pattern}"}]}
+
+
+def ensure_database(folder: str, subject: str, data_dir: Path = DATA_DIR, mocap_dir: Path = MOCAP_DIR,
+                    cli: Path = MMDB_BIN, log=print) -> Path:
+    """Path of the subject's `.mmdb`, (re)built with the CLI when missing or stale.
+
+    Stale means: the config text changed, or the CLI binary or a source BVH is newer.
+    """
+    data_dir.mkdir(parents=True, exist_ok=True)
+    name = subject_name(folder, subject)
+    config_path, out = data_dir / f"{name}.json", data_dir / f"{name}.mmdb"
+    text = json.dumps(database_config(folder, subject, mocap_dir, data_dir), indent=1) + "\n"
+    if not config_path.exists() or config_path.read_text() != text:
+        config_path.write_text(text)
+    if not cli.is_file():
+        raise DataError(f"mmdb CLI not built at {cli} (run `npm run build` or "
+                        f"`cargo build --release` in wasm-core/)")
+    sources = list((mocap_dir / folder).glob(f"cmu_{subject}_*.bvh"))
+    newest = max([config_path.stat().st_mtime, cli.stat().st_mtime] + [p.stat().st_mtime for p in sources])
+    if out.exists() and out.stat().st_mtime >= newest:
+        return out
+    log(f"building {out.relative_to(data_dir.parent) if data_dir.parent in out.parents else out} "
+        f"from {len(sources)} takes")
+    proc = subprocess.run([str(cli), "build", "--config", str(config_path), "-o", str(out)],
+                          capture_output=True, text=True, timeout=300)
+    if proc.returncode != 0:
+        raise DataError(f"mmdb build --config {config_path} failed ({proc.returncode}):\n{proc.stderr}")
+    return out
+
+
+@dataclass
+class Rig:
+    """Where the devices sit on one skeleton, from its rest pose (all rest rotations identity).
+
+    `hmd_align` rotates the WebXR viewer frame (X right, Y up, looking down −Z) into the head
+    joint's frame; `grip_align[s]` rotates the WebXR grip frame into hand joint s's frame, with
+    the hand as in the rest T-pose holding a controller palm down: −Z (out of the fist on the
+    thumb side) forward, +Y back along the forearm, +X out of the back of the right hand /
+    the palm of the left hand (WebXR gripSpace, as MDN's XRInputSource.gripSpace describes it).
+    `hand_axis[s]` is the unit forearm direction at rest (lower arm → hand), in the hand's frame.
+    """
+
+    head: int
+    hands: tuple[int, int]  # left, right joint indices
+    hmd_align: np.ndarray  # (4,)
+    grip_align: np.ndarray  # (2, 4)
+    hand_axis: np.ndarray  # (2, 3)
+
+
+def rig_of(db: mmdb.Database) -> Rig:
+    site = {k: j for k, (j, _) in db.sites.items()}
+    need = ("head", "left_hand", "right_hand", "left_lower_arm", "right_lower_arm",
+            "left_upper_leg", "right_upper_leg")
+    missing = [k for k in need if site.get(k, -1) < 0]
+    if missing:
+        raise DataError(f"database skeleton lacks the role(s) {missing} needed to place trackers")
+    rest = np.zeros((db.num_joints, 3))
+    for j in range(1, db.num_joints):
+        rest[j] = rest[db.parents[j]] + db.rest_offsets[j]
+    up = np.array([0.0, 1.0, 0.0])
+    # Facing at rest: (left hip − right hip) × up, the builder's virtual-root rule.
+    forward = np.cross(rest[site["left_upper_leg"]] - rest[site["right_upper_leg"]], up)
+    forward[1] = 0.0
+    forward /= np.linalg.norm(forward)
+    back = -forward
+    hmd_align = quat_from_basis(np.cross(up, back), up, back)
+    grips, axes = [], []
+    for side in ("left", "right"):
+        a = rest[site[f"{side}_hand"]] - rest[site[f"{side}_lower_arm"]]
+        a /= np.linalg.norm(a)
+        z = back - np.dot(back, a) * a
+        z /= np.linalg.norm(z)
+        y = -a
+        grips.append(quat_from_basis(np.cross(y, z), y, z))
+        axes.append(a)
+    return Rig(site["head"], (site["left_hand"], site["right_hand"]), hmd_align, np.array(grips), np.array(axes))
+
+
+@dataclass
+class MocapClip:
+    """World transforms of one clip at the database rate, float64."""
+
+    name: str
+    subject: str
+    mirrored: bool
+    fps: float
+    body_yaw: np.ndarray  # (n,) virtual-root yaw, unwrapped
+    head_pos: np.ndarray  # (n, 3)
+    head_rot: np.ndarray  # (n, 4)
+    hand_pos: np.ndarray  # (2, n, 3) left, right
+    hand_rot: np.ndarray  # (2, n, 4)
+    rig: Rig
+
+    @property
+    def num_frames(self) -> int:
+        return len(self.body_yaw)
+
+    @property
+    def seconds(self) -> float:
+        return (self.num_frames - 1) / self.fps
+
+
+def load_clips(path: Path, subject: str, mirrored: bool | None = None) -> list[MocapClip]:
+    """Clips of one database (`mirrored`: None = all, False = originals only, True = mirrors)."""
+    db = mmdb.load(path)
+    rig = rig_of(db)
+    pos, rot = mmdb.world_transforms_all(db)
+    root = db.local_rotations[:, 0].astype(np.float64)
+    if np.abs(root[:, [0, 2]]).max() > 1e-4:
+        raise DataError(f"{path}: joint 0 is not a pure yaw (not a builder-made virtual root)")
+    yaw_all = 2.0 * np.arctan2(root[:, 1], root[:, 3])
+    clips = []
+    for c in db.clips:
+        if mirrored is not None and c.mirrored != mirrored:
+            continue
+        sl = slice(c.start, c.end)
+        clips.append(MocapClip(
+            name=c.name, subject=subject, mirrored=c.mirrored, fps=float(db.fps),
+            body_yaw=np.unwrap(yaw_all[sl]),
+            head_pos=pos[sl, rig.head], head_rot=quat_hemisphere(rot[sl, rig.head]),
+            hand_pos=np.stack([pos[sl, j] for j in rig.hands]),
+            hand_rot=np.stack([quat_hemisphere(rot[sl, j]) for j in rig.hands]),
+            rig=rig))
+    return clips
+
+
+def load_subjects(subjects, mirrored: bool | None = None, log=print, **kw) -> list[MocapClip]:
+    """Clips of several subjects, building their databases when needed."""
+    clips = []
+    for folder, subject in subjects:
+        path = ensure_database(folder, subject, log=log, **kw)
+        clips += load_clips(path, subject_name(folder, subject), mirrored)
+    return clips

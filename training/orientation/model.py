@@ -1,0 +1,121 @@
+"""The orientation MLP, the r-step feedback rollout, and ONNX export.
+
+Network (THESIS_NOTES §9): 42 inputs → 32 → ReLU → 32 → ReLU → 6. The released MMVR model has a
+ReLU after the first hidden layer only; the thesis describes (and we use) one after each.
+Input normalization (x − mean) / std is part of the module, so the exported ONNX graph takes the
+raw features of `features.py` — a runtime needs no statistics file.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import torch
+from torch import nn
+
+from .features import FEATURE_NAMES, NUM_INPUTS
+
+HIDDEN = 32
+INPUT_NAME, OUTPUT_NAME = "features", "orientation6d"
+
+
+class OrientationNet(nn.Module):
+    def __init__(self, mean: np.ndarray | None = None, std: np.ndarray | None = None):
+        super().__init__()
+        self.register_buffer("mean", torch.zeros(NUM_INPUTS))
+        self.register_buffer("inv_std", torch.ones(NUM_INPUTS))
+        if mean is not None:
+            self.set_normalization(mean, std)
+        self.mlp = nn.Sequential(
+            nn.Linear(NUM_INPUTS, HIDDEN), nn.ReLU(),
+            nn.Linear(HIDDEN, HIDDEN), nn.ReLU(),
+            nn.Linear(HIDDEN, 6),
+        )
+
+    def set_normalization(self, mean: np.ndarray, std: np.ndarray) -> None:
+        """Dimensions that never vary (the constant parts of the previous-orientation 6D) get
+        scale 1 rather than 1/0, so garbage there stays bounded."""
+        std = np.where(np.asarray(std) > 1e-4, std, 1.0)
+        self.mean.copy_(torch.as_tensor(mean, dtype=torch.float32))
+        self.inv_std.copy_(torch.as_tensor(1.0 / std, dtype=torch.float32))
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        return self.mlp((x - self.mean) * self.inv_std)
+
+
+def _unit(v: torch.Tensor) -> torch.Tensor:
+    return v * torch.rsqrt((v * v).sum(-1, keepdim=True) + 1e-8)
+
+
+def rollout(net: OrientationNet, feats: torch.Tensor, dyaw: torch.Tensor, prev0: torch.Tensor,
+            steps: int | None = None) -> tuple[torch.Tensor, torch.Tensor]:
+    """Run the network `r` frames feeding back its own prediction (thesis Fig. "Orientation
+    Prediction Training"): the previous-orientation slot of step t is step t−1's prediction,
+    reduced to its yaw and re-expressed in step t's HMD-yaw frame (exactly what the runtime
+    feeds back). Gradients flow through the whole chain, so the network learns to use its own
+    earlier estimates and to recover from poor ones.
+
+    feats (B, r, 36) tracker features; dyaw (B, r) HMD yaw change into each frame (dyaw[:, 0]
+    unused); prev0 (B, 2) = (cos φ, sin φ) of the previous body yaw relative to frame 0's HMD
+    yaw. Returns (last output (B, 6), all outputs (B, r, 6)).
+    """
+    r = feats.shape[1] if steps is None else steps
+    cs = prev0
+    zeros, ones = torch.zeros_like(cs[:, :1]), torch.ones_like(cs[:, :1])
+    outs = []
+    for t in range(r):
+        if t > 0:
+            # φ_t = φ_{t−1} − Δψ: rotate (cos, sin) by −Δψ.
+            c, s = torch.cos(dyaw[:, t:t + 1]), torch.sin(dyaw[:, t:t + 1])
+            cs = torch.cat([cs[:, :1] * c + cs[:, 1:] * s, cs[:, 1:] * c - cs[:, :1] * s], dim=1)
+        prev6 = torch.cat([cs[:, :1], zeros, -cs[:, 1:], zeros, ones, zeros], dim=1)
+        out = net(torch.cat([feats[:, t], prev6], dim=1))
+        outs.append(out)
+        cs = _unit(torch.stack([out[:, 0], -out[:, 2]], dim=1))
+    return outs[-1], torch.stack(outs, dim=1)
+
+
+def state_to_numpy(net: OrientationNet) -> dict[str, np.ndarray]:
+    return {k: v.detach().cpu().numpy().copy() for k, v in net.state_dict().items()}
+
+
+def net_from_state(state: dict) -> OrientationNet:
+    net = OrientationNet()
+    net.load_state_dict({k: torch.as_tensor(np.asarray(v)) for k, v in state.items()})
+    return net.eval()
+
+
+def export_onnx(net: OrientationNet, path: Path, metadata: dict[str, str] | None = None) -> Path:
+    """Write the model as one self-contained ONNX file (weights embedded, no `.onnx.data`),
+    input `features` float32 [batch, 42] raw, output `orientation6d` float32 [batch, 6]."""
+    import onnx
+
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    net = net.eval()
+    example = torch.zeros(1, NUM_INPUTS)
+    batch = torch.export.Dim("batch", min=1, max=1 << 20)
+    program = torch.onnx.export(net, (example,), input_names=[INPUT_NAME], output_names=[OUTPUT_NAME],
+                                dynamo=True, external_data=False, opset_version=18,
+                                dynamic_shapes=({0: batch},), verbose=False, report=False)
+    model = program.model_proto
+    # The exporter annotates every value and node (source locations, export bookkeeping): half
+    # the file for a model this small, and nothing a runtime reads.
+    del model.graph.value_info[:]
+    for node in model.graph.node:
+        del node.metadata_props[:]
+        node.doc_string = ""
+    for value in list(model.graph.input) + list(model.graph.output) + list(model.graph.initializer):
+        del value.metadata_props[:]
+    model.doc_string = ("Body-orientation network (THESIS_NOTES §9). Input: 42 raw features "
+                        "(docs/orientation-model.md); output: 6D body rotation in the HMD-yaw frame.")
+    props = {"feature_order": ",".join(FEATURE_NAMES), "units": "m, s, rad; Y up; yaw 0 = +Z",
+             **(metadata or {})}
+    del model.metadata_props[:]
+    for k, v in props.items():
+        entry = model.metadata_props.add()
+        entry.key, entry.value = k, str(v)
+    onnx.checker.check_model(model, full_check=True)
+    onnx.save_model(model, str(path), save_as_external_data=False)
+    return path

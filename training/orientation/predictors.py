@@ -1,0 +1,117 @@
+"""Body-yaw predictors run frame by frame as at run time: the network in its feedback loop, and
+the two baselines it is compared with (HMD-forward, dead-zone).
+
+`run_network` is the reference for `web/src/orientation/orientation-model.ts`: per frame,
+1. features of the current poses (`features.py`);
+2. previous slot = 6D of (previous body yaw − current HMD yaw); after a reset: HMD forward (φ = 0);
+3. run the model; φ = atan2(−out[2], out[0]); if the output is not finite or degenerate
+   (|(out[0], out[2])| ≤ 1e-6), keep the previous body yaw (or the HMD yaw after a reset);
+4. body yaw = HMD yaw + φ, fed back at the next frame.
+It runs many sequences side by side (one batch row each) to evaluate quickly.
+"""
+
+from __future__ import annotations
+
+from typing import Callable
+
+import numpy as np
+
+from .features import relative_yaw_of_output, tracker_features, yaw_slot
+from .geometry import wrap_angle
+from .simulate import TrackerSequence
+
+DEAD_ZONE = np.radians(25.0)
+
+
+class OnnxModel:
+    """The exported model through onnxruntime (CPU, one thread): f(x (B, 42)) -> (B, 6)."""
+
+    def __init__(self, path):
+        import onnxruntime as ort
+
+        opts = ort.SessionOptions()
+        opts.intra_op_num_threads = 1
+        opts.inter_op_num_threads = 1
+        self.session = ort.InferenceSession(str(path), sess_options=opts, providers=["CPUExecutionProvider"])
+        self.input = self.session.get_inputs()[0].name
+
+    def __call__(self, x: np.ndarray) -> np.ndarray:
+        return self.session.run(None, {self.input: np.ascontiguousarray(x, dtype=np.float32)})[0]
+
+
+class TorchModel:
+    def __init__(self, net):
+        import torch
+
+        self.net, self.torch = net.eval(), torch
+
+    def __call__(self, x: np.ndarray) -> np.ndarray:
+        with self.torch.no_grad():
+            return self.net(self.torch.as_tensor(np.asarray(x, dtype=np.float32))).numpy()
+
+
+def sequence_features(seqs: list[TrackerSequence]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Padded tracker features (B, T, 36) float32, HMD yaw (B, T), lengths (B,)."""
+    lengths = np.array([s.num_frames for s in seqs])
+    T = int(lengths.max())
+    feats = np.zeros((len(seqs), T, 36), dtype=np.float32)
+    yaw = np.zeros((len(seqs), T))
+    for b, s in enumerate(seqs):
+        f, y = tracker_features(s.pos, s.rot, s.dt)
+        feats[b, :len(f)], yaw[b, :len(f)] = f, y
+    return feats, yaw, lengths
+
+
+def run_network(model: Callable[[np.ndarray], np.ndarray], feats: np.ndarray, hmd_yaw: np.ndarray,
+                inject: dict[int, tuple[np.ndarray, np.ndarray]] | None = None,
+                finite: np.ndarray | None = None) -> np.ndarray:
+    """Body yaw (B, T) predicted in the feedback loop from a reset at frame 0.
+
+    `inject` maps a frame to (rows, values (len(rows), 6)) written into those rows' previous
+    slot instead of the fed-back prediction (garbage for the robustness tests). If `finite` is
+    a (B, T) bool array, it receives whether each raw network output was finite."""
+    B, T, _ = feats.shape
+    x = np.zeros((B, 42), dtype=np.float32)
+    body = np.zeros((B, T))
+    prev_world = None
+    for t in range(T):
+        x[:, :36] = feats[:, t]
+        x[:, 36:] = yaw_slot(0.0 if prev_world is None else prev_world - hmd_yaw[:, t])
+        if inject is not None and t in inject:
+            rows, values = inject[t]
+            x[rows, 36:] = values
+        out = model(x)
+        if finite is not None:
+            finite[:, t] = np.isfinite(out).all(axis=1)
+        phi, ok = relative_yaw_of_output(out)
+        fallback = hmd_yaw[:, t] if prev_world is None else prev_world
+        body[:, t] = np.where(ok, hmd_yaw[:, t] + phi, fallback)
+        prev_world = body[:, t]
+    return body
+
+
+def hmd_forward(hmd_yaw: np.ndarray) -> np.ndarray:
+    """Baseline: the body faces where the head looks."""
+    return hmd_yaw.copy()
+
+
+def dead_zone(hmd_yaw: np.ndarray, dt: np.ndarray, threshold: float = DEAD_ZONE,
+              halflife: float = 0.15, settle: float = np.radians(2.0)) -> np.ndarray:
+    """Baseline used by many VR apps: the body keeps its yaw until the head is more than
+    `threshold` off; then it turns toward the head (exponential, `halflife` seconds) until
+    within `settle`, and waits again. hmd_yaw (B, T), dt (B, T)."""
+    B, T = hmd_yaw.shape
+    body = np.zeros((B, T))
+    b = hmd_yaw[:, 0].copy()
+    turning = np.zeros(B, dtype=bool)
+    for t in range(T):
+        off = wrap_angle(hmd_yaw[:, t] - b)
+        turning = np.where(turning, np.abs(off) > settle, np.abs(off) > threshold)
+        k = 1.0 - np.exp(-np.log(2.0) * dt[:, t] / halflife)
+        b = np.where(turning, b + k * off, b)
+        body[:, t] = b
+    return body
+
+
+def yaw_error_deg(pred: np.ndarray, truth: np.ndarray) -> np.ndarray:
+    return np.degrees(np.abs(wrap_angle(pred - truth)))

@@ -1,0 +1,169 @@
+/**
+ * The 42 inputs of the body-orientation network from raw WebXR tracker poses — the browser twin
+ * of `training/orientation/features.py` (the contract is `docs/orientation-model.md`).
+ *
+ * Frames: WebXR `local-floor` space as three.js uses it (Y up, metres, quaternions x, y, z, w).
+ * The headset pose is the viewer pose (looks down its local −Z); the controllers are their
+ * `gripSpace` poses. Everything is re-expressed in the frame of the HMD's yaw ("R_H"), so the
+ * network sees the same numbers wherever the user faces in the room (THESIS_NOTES §9).
+ *
+ * Per frame nothing is allocated: the input lives in one preallocated Float32Array.
+ */
+
+export const NUM_TRACKERS = 3;
+export const NUM_INPUTS = 42;
+/** Start of the previous-orientation slot (6 floats) in the input. */
+export const PREV_OFFSET = 36;
+/** A frame gap longer than this (s) is a discontinuity (paused session): velocities are zero. */
+export const MAX_DT = 0.25;
+
+/**
+ * Yaw of the HMD (radians, 0 = looking along +Z): the floor projection of its view direction d
+ * (local −Z), made robust for straight-up/-down looks by subtracting d.y times the floor
+ * projection of its up vector u — identical to the plain projection for a head without roll.
+ */
+export function hmdYaw(x: number, y: number, z: number, w: number): number {
+  const dx = -2 * (x * z + y * w);
+  const dy = -2 * (y * z - x * w);
+  const dz = -(1 - 2 * (x * x + y * y));
+  const ux = 2 * (x * y - z * w);
+  const uz = 2 * (y * z + x * w);
+  return Math.atan2(dx - dy * ux, dz - dy * uz);
+}
+
+/** Writes the 6D of a pure yaw φ — (cos φ, 0, −sin φ, 0, 1, 0) — into `out` at `offset`. */
+export function writeYaw6d(out: Float32Array, offset: number, phi: number): void {
+  out[offset] = Math.cos(phi);
+  out[offset + 1] = 0;
+  out[offset + 2] = -Math.sin(phi);
+  out[offset + 3] = 0;
+  out[offset + 4] = 1;
+  out[offset + 5] = 0;
+}
+
+/** Wraps an angle to [−π, π). */
+export function wrapAngle(a: number): number {
+  const t = (a + Math.PI) % (2 * Math.PI);
+  return (t < 0 ? t + 2 * Math.PI : t) - Math.PI;
+}
+
+/**
+ * Builds the network input frame by frame.
+ *
+ * Layout of `input` (see docs/orientation-model.md): for tracker k = HMD, left, right, at 12k:
+ * rotation 6D (columns 0 and 1 of R_H⁻¹·R), velocity R_H⁻¹·Δp/dt (m/s), angular velocity
+ * R_H⁻¹·rotvec(q·q_prev⁻¹)/dt (rad/s); then at 36 the previous body orientation's 6D, which the
+ * caller sets with {@link setPrevious} (after `reset()` it is "HMD forward", φ = 0).
+ */
+export class OrientationFeatures {
+  /** The 42 network inputs (reused every frame). */
+  readonly input = new Float32Array(NUM_INPUTS);
+  /** HMD yaw of the last update, radians. */
+  hmdYaw = 0;
+  private readonly prevPos = new Float64Array(NUM_TRACKERS * 3);
+  private readonly prevQuat = new Float64Array(NUM_TRACKERS * 4);
+  private hasPrev = false;
+
+  constructor() {
+    this.reset();
+  }
+
+  /** Forgets the previous poses: the next update has zero velocities; previous slot = HMD forward. */
+  reset(): void {
+    this.hasPrev = false;
+    this.input.fill(0);
+    writeYaw6d(this.input, PREV_OFFSET, 0);
+  }
+
+  /**
+   * Updates inputs 0..35 from this frame's poses.
+   * @param positions 9 numbers: HMD, left grip, right grip positions (x, y, z), metres.
+   * @param quaternions 12 numbers: the same trackers' orientations (x, y, z, w), any length > 0.
+   * @param dt seconds since the previous update (the real frame time: 1/72, 1/90, 1/120 s…).
+   * @returns `input` (the previous-orientation slot untouched).
+   * @throws RangeError for non-finite poses, zero quaternions or a non-positive dt.
+   */
+  update(positions: ArrayLike<number>, quaternions: ArrayLike<number>, dt: number): Float32Array {
+    if (positions.length < 9 || quaternions.length < 12) {
+      throw new RangeError(`OrientationFeatures.update: need 9 positions and 12 quaternion numbers, got ${positions.length} and ${quaternions.length}`);
+    }
+    for (let i = 0; i < 9; i++) {
+      if (!Number.isFinite(positions[i])) throw new RangeError(`OrientationFeatures.update: position ${i} is ${positions[i]}`);
+    }
+    for (let i = 0; i < 12; i++) {
+      if (!Number.isFinite(quaternions[i])) throw new RangeError(`OrientationFeatures.update: quaternion number ${i} is ${quaternions[i]}`);
+    }
+    if (this.hasPrev && !(dt > 0 && Number.isFinite(dt))) {
+      throw new RangeError(`OrientationFeatures.update: dt must be positive and finite seconds, got ${dt}`);
+    }
+    const moving = this.hasPrev && dt <= MAX_DT;
+
+    // The HMD's yaw frame of this frame; R_H⁻¹ v = (c·vx − s·vz, vy, s·vx + c·vz).
+    let hx = quaternions[0], hy = quaternions[1], hz = quaternions[2], hw = quaternions[3];
+    const hn = Math.hypot(hx, hy, hz, hw);
+    if (!(hn > 1e-6)) throw new RangeError('OrientationFeatures.update: HMD quaternion has zero length');
+    hx /= hn; hy /= hn; hz /= hn; hw /= hn;
+    const yaw = hmdYaw(hx, hy, hz, hw);
+    const c = Math.cos(yaw);
+    const s = Math.sin(yaw);
+    const input = this.input;
+
+    for (let k = 0; k < NUM_TRACKERS; k++) {
+      let x = quaternions[4 * k], y = quaternions[4 * k + 1], z = quaternions[4 * k + 2], w = quaternions[4 * k + 3];
+      const n = Math.hypot(x, y, z, w);
+      if (!(n > 1e-6)) throw new RangeError(`OrientationFeatures.update: quaternion of tracker ${k} has zero length`);
+      x /= n; y /= n; z /= n; w /= n;
+      const o = 12 * k;
+      // Columns 0 and 1 of the rotation matrix, then into the HMD-yaw frame.
+      const c0x = 1 - 2 * (y * y + z * z), c0y = 2 * (x * y + z * w), c0z = 2 * (x * z - y * w);
+      const c1x = 2 * (x * y - z * w), c1y = 1 - 2 * (x * x + z * z), c1z = 2 * (y * z + x * w);
+      input[o] = c * c0x - s * c0z;
+      input[o + 1] = c0y;
+      input[o + 2] = s * c0x + c * c0z;
+      input[o + 3] = c * c1x - s * c1z;
+      input[o + 4] = c1y;
+      input[o + 5] = s * c1x + c * c1z;
+
+      const px = positions[3 * k], py = positions[3 * k + 1], pz = positions[3 * k + 2];
+      if (moving) {
+        const vx = (px - this.prevPos[3 * k]) / dt;
+        const vy = (py - this.prevPos[3 * k + 1]) / dt;
+        const vz = (pz - this.prevPos[3 * k + 2]) / dt;
+        input[o + 6] = c * vx - s * vz;
+        input[o + 7] = vy;
+        input[o + 8] = s * vx + c * vz;
+        // Δq = q · q_prev⁻¹ (world-frame rotation over the frame), shorter way round.
+        const ax = -this.prevQuat[4 * k], ay = -this.prevQuat[4 * k + 1], az = -this.prevQuat[4 * k + 2], aw = this.prevQuat[4 * k + 3];
+        let dx = w * ax + x * aw + y * az - z * ay;
+        let dy = w * ay - x * az + y * aw + z * ax;
+        let dz = w * az + x * ay - y * ax + z * aw;
+        let dw = w * aw - x * ax - y * ay - z * az;
+        if (dw < 0) { dx = -dx; dy = -dy; dz = -dz; dw = -dw; }
+        const dn = Math.hypot(dx, dy, dz);
+        // rotvec = axis·angle; angle/|xyz| → 2/w for tiny rotations.
+        const scale = (dn > 1e-12 ? (2 * Math.atan2(dn, dw)) / dn : 2 / Math.max(dw, 1e-12)) / dt;
+        const wx = dx * scale, wy = dy * scale, wz = dz * scale;
+        input[o + 9] = c * wx - s * wz;
+        input[o + 10] = wy;
+        input[o + 11] = s * wx + c * wz;
+      } else {
+        input.fill(0, o + 6, o + 12);
+      }
+      this.prevPos[3 * k] = px;
+      this.prevPos[3 * k + 1] = py;
+      this.prevPos[3 * k + 2] = pz;
+      this.prevQuat[4 * k] = x;
+      this.prevQuat[4 * k + 1] = y;
+      this.prevQuat[4 * k + 2] = z;
+      this.prevQuat[4 * k + 3] = w;
+    }
+    this.hasPrev = true;
+    this.hmdYaw = yaw;
+    return input;
+  }
+
+  /** Sets the previous-orientation slot to the body yaw φ relative to this frame's HMD yaw. */
+  setPrevious(relativeYaw: number): void {
+    writeYaw6d(this.input, PREV_OFFSET, relativeYaw);
+  }
+}

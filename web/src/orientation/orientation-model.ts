@@ -1,0 +1,131 @@
+/**
+ * The body-orientation network at run time (THESIS_NOTES §9): raw headset and controller poses
+ * in, the body's yaw out, the network's previous prediction fed back every frame.
+ *
+ * Runs `public/models/orientation.onnx` with onnxruntime-web's WASM backend. Mirrors
+ * `training/orientation/predictors.py::run_network` step for step (the contract is
+ * `docs/orientation-model.md`):
+ *   1. inputs 0..35 from the poses and the real dt ({@link OrientationFeatures});
+ *   2. previous slot = 6D of (previous body yaw − this frame's HMD yaw); after `reset()`, 0;
+ *   3. run; φ = atan2(−out[2], out[0]); a non-finite or degenerate output keeps the previous
+ *      body yaw (the HMD yaw right after a reset);
+ *   4. body yaw = HMD yaw + φ (radians, 0 = facing +Z, as the character's yaw).
+ */
+import * as ort from 'onnxruntime-web/wasm';
+import { NUM_INPUTS, OrientationFeatures, wrapAngle } from './features.ts';
+
+/** The model the app serves (relative to the page). */
+export const DEFAULT_MODEL_URL = 'models/orientation.onnx';
+
+export interface OrientationModelOptions {
+  /** WASM threads; 1 (the default) avoids needing cross-origin isolation and is fastest for this tiny model. */
+  numThreads?: number;
+}
+
+export class OrientationModel {
+  /** Inputs of the last update (exposed for debugging and tests). */
+  readonly features = new OrientationFeatures();
+  /** The network's last raw 6D output. */
+  readonly output = new Float32Array(6);
+  private readonly feeds: Record<string, ort.Tensor>;
+  private readonly outputName: string;
+  private _bodyYaw = 0;
+  private _relativeYaw = 0;
+  private hasYaw = false;
+  private busy = false;
+
+  private constructor(private readonly session: ort.InferenceSession) {
+    // The input tensor wraps the features' array: filled in place every frame, never copied by
+    // us. (onnxruntime-web 1.30 leaves a pre-allocated CPU output tensor unwritten, so the
+    // result is copied out of the tensor it returns; that allocation is the runtime's.)
+    this.feeds = { [session.inputNames[0]]: new ort.Tensor('float32', this.features.input, [1, NUM_INPUTS]) };
+    this.outputName = session.outputNames[0];
+  }
+
+  /**
+   * Loads the model from a URL or its bytes.
+   * @throws Error naming the source when the model cannot be loaded or has the wrong shape.
+   */
+  static async create(source: string | Uint8Array | ArrayBuffer = DEFAULT_MODEL_URL, options: OrientationModelOptions = {}): Promise<OrientationModel> {
+    ort.env.wasm.numThreads = options.numThreads ?? 1;
+    let session: ort.InferenceSession;
+    try {
+      const opts: ort.InferenceSession.SessionOptions = { executionProviders: ['wasm'], graphOptimizationLevel: 'all' };
+      session =
+        typeof source === 'string'
+          ? await ort.InferenceSession.create(source, opts)
+          : await ort.InferenceSession.create(source instanceof Uint8Array ? source : new Uint8Array(source), opts);
+    } catch (e) {
+      const what = typeof source === 'string' ? source : `${source.byteLength} bytes`;
+      throw new Error(`OrientationModel: cannot load the ONNX model (${what}): ${e instanceof Error ? e.message : String(e)}`);
+    }
+    if (session.inputNames.length !== 1 || session.outputNames.length !== 1) {
+      await session.release();
+      throw new Error(`OrientationModel: expected 1 input and 1 output, the model has ${session.inputNames.length} and ${session.outputNames.length}`);
+    }
+    return new OrientationModel(session);
+  }
+
+  /** Predicted body yaw, world (local-floor) radians, 0 = facing +Z. */
+  get bodyYaw(): number {
+    return this._bodyYaw;
+  }
+
+  /** Predicted body yaw relative to the HMD's yaw, radians in [−π, π). */
+  get relativeYaw(): number {
+    return this._relativeYaw;
+  }
+
+  /** HMD yaw of the last update, radians. */
+  get hmdYaw(): number {
+    return this.features.hmdYaw;
+  }
+
+  /**
+   * One frame: poses as in {@link OrientationFeatures.update} (9 positions, 12 quaternion
+   * numbers: HMD, left grip, right grip), `dt` the real time since the previous frame.
+   * Await each call before the next (the state is sequential).
+   * @returns the body yaw (radians, 0 = +Z).
+   */
+  async update(positions: ArrayLike<number>, quaternions: ArrayLike<number>, dt: number): Promise<number> {
+    if (this.busy) throw new Error('OrientationModel.update: the previous update is still running (await it)');
+    this.busy = true;
+    try {
+      const f = this.features;
+      f.update(positions, quaternions, dt);
+      f.setPrevious(this.hasYaw ? wrapAngle(this._bodyYaw - f.hmdYaw) : 0);
+      const result = await this.session.run(this.feeds);
+      const o = this.output;
+      o.set(result[this.outputName].data as Float32Array);
+      const cs = o[0];
+      const sn = -o[2];
+      if (Number.isFinite(cs) && Number.isFinite(sn) && Math.hypot(cs, sn) > 1e-6) {
+        this._relativeYaw = Math.atan2(sn, cs);
+        this._bodyYaw = f.hmdYaw + this._relativeYaw;
+      } else if (!this.hasYaw) {
+        this._bodyYaw = f.hmdYaw;
+        this._relativeYaw = 0;
+      } else {
+        this._relativeYaw = wrapAngle(this._bodyYaw - f.hmdYaw);
+      }
+      this._bodyYaw = wrapAngle(this._bodyYaw);
+      this.hasYaw = true;
+      return this._bodyYaw;
+    } finally {
+      this.busy = false;
+    }
+  }
+
+  /** Starts over (new session, recentred space, long pause): no velocities, previous = HMD forward. */
+  reset(): void {
+    this.features.reset();
+    this.hasYaw = false;
+    this._bodyYaw = 0;
+    this._relativeYaw = 0;
+  }
+
+  /** Frees the ONNX session. */
+  async release(): Promise<void> {
+    await this.session.release();
+  }
+}
