@@ -1,5 +1,6 @@
 #!/usr/bin/env node
-// `npm run bench [-- --json] [-- --seconds S] [-- --queries N] [-- --search-only]`:
+// `npm run bench [-- --json] [-- --seconds S] [-- --queries N] [-- --search-only] [-- --vr]`
+// (--vr: only the VR replay benchmark, see vrBenchmark):
 // 1. BVH parse speed (MB/s) and database build speed (frames/s), native (the mmdb CLI) and WASM
 //    in Node, on the same files in one run so the two are comparable under the same machine
 //    noise. Medians of repeated runs.
@@ -277,7 +278,80 @@ function printRuntimeBenchmark(runtime) {
   }
 }
 
+// ---------------------------------------------------------------- VR replay benchmark (--vr)
+
+/**
+ * `npm run bench -- --vr [--alpha A]`: replays each synthetic held-in recording
+ * (public/recordings, made by training/make_recordings.py when missing) through the real VR page
+ * in headless Chromium (`vr.html?replay=…&bench=1`) and prints user↔avatar root distance,
+ * body-yaw errors (network, dead-zone heuristic, HMD forward), foot skating and the VR update
+ * time. Only this section runs with --vr.
+ */
+async function vrBenchmark(log) {
+  const dir = path.join(ROOT, 'public', 'recordings');
+  const index = path.join(dir, 'index.json');
+  if (!fs.existsSync(index)) {
+    const py = path.join(ROOT, 'training', '.venv', 'bin', 'python');
+    if (!fs.existsSync(py)) throw new Error('no public/recordings and no training/.venv to make them: run `npm test` once (it sets up the venv)');
+    log('making public/recordings (training/make_recordings.py)');
+    execFileSync(py, ['make_recordings.py'], { cwd: path.join(ROOT, 'training'), stdio: 'inherit' });
+  }
+  const names = JSON.parse(fs.readFileSync(index, 'utf8'));
+  const alpha = args.includes('--alpha') ? Number(args[args.indexOf('--alpha') + 1]) : 0.3;
+  const server = await startVite();
+  const { chromium } = await import('playwright-core');
+  const browser = await chromium.launch({
+    executablePath: CHROMIUM,
+    args: ['--headless', '--no-sandbox', '--disable-gpu', '--disable-quic', '--no-first-run', '--use-angle=swiftshader', '--enable-unsafe-swiftshader'],
+  });
+  const rows = [];
+  try {
+    for (const name of names) {
+      const page = await browser.newPage({ viewport: { width: 320, height: 200 } });
+      const errors = [];
+      page.on('pageerror', (e) => errors.push(e.message));
+      await page.goto(`${server.resolvedUrls.local[0]}vr.html?replay=recordings/${name}&bench=1&mirror=0&alpha=${alpha}`);
+      await page.waitForFunction(() => window.__vr?.ready || window.__vr?.error, null, { timeout: 600_000, polling: 250 });
+      const r = await page.evaluate(() => ({ error: window.__vr.error, bench: window.__vr.bench, isolated: crossOriginIsolated }));
+      await page.close();
+      if (r.error || errors.length) throw new Error(`vr.html replay ${name}: ${[r.error, ...errors].filter(Boolean).join('\n')}`);
+      rows.push({ name, isolated: r.isolated, ...r.bench });
+    }
+    return { alpha, chromium: browser.version(), load_average_1min: os.loadavg()[0], recordings: rows };
+  } finally {
+    await browser.close();
+    await server.close();
+  }
+}
+
+function printVrBenchmark(vr) {
+  const f = (v, d = 1) => (v === null || v === undefined || Number.isNaN(v) ? '–' : v.toFixed(d));
+  const cm = (s) => (s ? `${f(100 * s.mean)} / ${f(100 * s.p95)}` : '–');
+  const deg = (s) => (s ? `${f(s.mean)} / ${f(s.median)} / ${f(s.p95)}` : '–');
+  console.log(`\nVR replay benchmark (α = ${vr.alpha} m; Chromium ${vr.chromium}; load ${vr.load_average_1min.toFixed(2)})`);
+  console.log('recording   frames  root dist cm mean/p95  (heuristic)   yaw err ° mean/median/p95: network | heuristic | HMD forward      skating cm/s  update ms med/p95  model ms med');
+  for (const r of vr.recordings) {
+    console.log(
+      `${r.name.padEnd(11)} ${String(r.frames).padStart(6)}  ${cm(r.rootDistance).padStart(20)}  ${`(${cm(r.rootDistanceHeuristic)})`.padStart(12)}   ` +
+        `${deg(r.yawError.network).padStart(16)} | ${deg(r.yawError.heuristic).padStart(16)} | ${deg(r.yawError.hmdForward).padStart(16)}  ${f(r.skatingCmPerS).padStart(12)}  ${`${f(r.median, 3)} / ${f(r.p95, 3)}`.padStart(17)}  ${f(r.modelMedian, 3).padStart(12)}`,
+    );
+  }
+  const all = vr.recordings.filter((r) => r.rootDistance);
+  if (all.length) {
+    const mean = all.reduce((a, r) => a + r.rootDistance.mean, 0) / all.length;
+    const upd = all.map((r) => r.median).sort((a, b) => a - b)[all.length >> 1];
+    console.log(`target: mean user↔avatar root distance ≤ 12 cm at α = 0.3 → ${f(100 * mean)} cm over ${all.length} recordings, ${mean <= 0.12 ? 'met' : 'MISSED'} (thesis: 19 cm)`);
+    console.log(`target: VR update ≤ 1 ms median → ${f(upd, 3)} ms (median of the recordings' medians; timer ${all[0].isolated ? '5 µs' : '100 µs'}), ${upd <= 1 ? 'met' : 'MISSED'}`);
+  }
+}
+
 const log = (m) => console.error(`[bench] ${m}`);
+if (args.includes('--vr')) {
+  const vr = await vrBenchmark(log);
+  if (json) console.log(JSON.stringify(vr, null, 2));
+  else printVrBenchmark(vr);
+  process.exit(0);
+}
 const result = searchOnly ? {} : buildBenchmark();
 if (!json && !searchOnly) printBuildBenchmark(result);
 result.search = await searchBenchmark(log);

@@ -12,7 +12,7 @@
 //
 // Environment:
 //   SETUP_SKIP=step,step   skip named steps: npm, rust-target, wasm-bindgen, wasm, cli, databases,
-//                          avatars, chromium, venv (for working on one part while another is broken)
+//                          avatars, chromium, venv, recordings (for working on one part while another is broken)
 //   TEST_SUITES=a,b        run only these suites: cargo, vitest, pytest, playwright
 //
 // Node builtins only: this runs before node_modules exists.
@@ -341,6 +341,18 @@ async function stepVenv() {
   });
 }
 
+async function stepRecordings() {
+  await step('recordings', 'VR recordings (public/recordings, synthetic from held-in mocap)', async () => {
+    const py = path.join(VENV, 'bin', 'python');
+    if (!fs.existsSync(py)) return 'no training/.venv (made in test mode)';
+    const script = path.join(ROOT, 'training', 'make_recordings.py');
+    if (!fs.existsSync(script)) return 'no training/make_recordings.py';
+    const index = path.join(ROOT, 'public', 'recordings', 'index.json');
+    if (mtime(index) > mtime(script) && mtime(index) > mtime(MMDB_BIN)) return `${path.relative(ROOT, index)} is newer than its generator`;
+    await run(py, [script, '--force'], { cwd: path.join(ROOT, 'training') });
+  });
+}
+
 // ---------------------------------------------------------------- test suites
 
 const stripAnsi = (s) => s.replace(/\x1b\[[0-9;?]*[A-Za-z]/g, '');
@@ -458,6 +470,7 @@ async function main() {
     await stepChromium();
     await stepVenv();
   }
+  if (mode !== 'build') await stepRecordings();
   log(`setup finished in ${secs(t0All)}`);
 
   if (mode === 'build') return 0;

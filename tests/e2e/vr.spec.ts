@@ -10,11 +10,16 @@ const ROOT = path.resolve(import.meta.dirname, '../..');
 const SHOTS = path.join(ROOT, 'test-results');
 
 interface Frame {
-  frame: number;
+  t: number;
   head: [number, number];
+  hmdY: number;
   root: [number, number, number];
+  rootYaw: number;
   handErrors: [number, number];
   status: [number, number, number];
+  hips: number;
+  toes: [number, number];
+  runs: number;
 }
 
 /**
@@ -32,23 +37,47 @@ function collectErrors(page: Page): string[] {
   return errors;
 }
 
-async function waitFrames(page: Page, count: number): Promise<void> {
+async function waitFrames(page: Page, count: number, timeout = 90_000): Promise<void> {
   const start = await page.evaluate(() => window.__vr.frames);
-  await page.waitForFunction((n) => window.__vr.frames >= n || window.__vr.error, start + count, { timeout: 90_000, polling: 100 });
+  await page.waitForFunction((n) => window.__vr.frames >= n || window.__vr.error, start + count, { timeout, polling: 100 });
 }
 
-test('VR under iwer: enter VR, walk forward 1.5 m, avatar follows with hands on the controllers', async ({ page }) => {
-  test.setTimeout(150_000);
-  await page.setViewportSize({ width: 640, height: 400 });
+/**
+ * The scripted user (seconds from the start, 60 frames per second of tracker time): stand 0.5 s;
+ * walk 1.2 m along −Z (the headset's forward) in 1.8 s; side-step 0.5 m to the right (+X) in 1 s;
+ * turn in place a full 360° over 2.5 s; crouch 0.5 m (eyes 1.6 → 1.1 m), hold; stand up. The
+ * controllers ride in front of the hips, turning with the body.
+ */
+const SCRIPT = `
+  (t) => {
+    const s = (x) => (x <= 0 ? 0 : x >= 1 ? 1 : x * x * (3 - 2 * x));
+    const ph = (a, len) => s((t - a) / len);
+    const z = -1.2 * ph(0.5, 1.8);
+    const x = 0.5 * ph(2.5, 1);
+    const yaw = 2 * Math.PI * ph(3.7, 2.5);
+    const crouch = ph(6.3, 0.8) - ph(7.6, 0.6);
+    const y = 1.6 - 0.5 * crouch + (t > 0.5 && t < 2.3 ? 0.015 * Math.sin(2 * Math.PI * 1.8 * t) : 0);
+    return { x, y, z, yaw };
+  }`;
+const SCRIPT_SECONDS = 8.3;
+
+async function openVr(page: Page, query: string): Promise<string[]> {
+  await page.setViewportSize({ width: 320, height: 200 });
   const errors = collectErrors(page);
   await muteHmr(page);
-  await page.goto('/vr.html?emulate=1&devui=0&dt=fixed');
+  await page.goto(`/vr.html?emulate=1&devui=0&dt=fixed${query}`);
   await page.waitForFunction(() => window.__vr?.ready || window.__vr?.error, null, { timeout: 60_000 });
   expect(await page.evaluate(() => window.__vr.error)).toBeNull();
+  return errors;
+}
 
-  // No model in this build: the heuristic is used and the page says so.
-  expect(await page.evaluate(() => window.__vr.predictor)).toBe('heuristic');
-  await expect(page.locator('#predictor-status')).toHaveText(/fallback: heuristic/);
+test('VR under iwer: enter VR; scripted walk, side-step, 360° turn and crouch; avatar within α, hands on the controllers, the network runs every frame', async ({ page }) => {
+  test.setTimeout(200_000);
+  const errors = await openVr(page, '&mirror=128');
+
+  // The network loaded and is the predictor; the page says so.
+  expect(await page.evaluate(() => [window.__vr.networkLoaded, window.__vr.predictor])).toEqual([true, 'network']);
+  await expect(page.locator('#predictor-status')).toHaveText('body yaw: network');
 
   // Enter VR through the button, as a person would.
   await expect(page.locator('#enter-vr')).toHaveText('Enter VR');
@@ -56,59 +85,86 @@ test('VR under iwer: enter VR, walk forward 1.5 m, avatar follows with hands on 
   await page.waitForFunction(() => window.__vr.inXR || window.__vr.error, null, { timeout: 30_000 });
   expect(await page.evaluate(() => window.__vr.mode)).toBe('xr');
 
-  // Script the emulated headset and controllers per frame: stand 0.5 s, walk 1.5 m along −Z
-  // (the headset's forward) in 2 s with a slight bob, stand 1 s. Controllers ride along in
-  // front of the hips. Every frame's state is logged in the page.
-  await page.evaluate(() => {
+  // Script the emulated headset and controllers per frame, calibrate at 1.6 m once standing,
+  // and log every frame's state in the page.
+  await page.evaluate((script) => {
     type V = { set(x: number, y: number, z: number): void };
     type Q = { set(x: number, y: number, z: number, w: number): void };
     const device = window.__vr.emulator as { position: V; quaternion: Q; controllers: { left: { position: V; quaternion: Q }; right: { position: V; quaternion: Q } } };
+    const motion = (0, eval)(script) as (t: number) => { x: number; y: number; z: number; yaw: number };
     const log: unknown[] = [];
     (window as unknown as { __log: unknown[] }).__log = log;
     let start = -1;
     window.__vr.beforeFrame = (frame) => {
-      if (start < 0) start = frame;
-      const t = (frame - start) / 60;
-      const x = Math.min(1, Math.max(0, (t - 0.5) / 2));
-      const z = -1.5 * x * x * (3 - 2 * x);
-      const bob = t > 0.5 && t < 2.5 ? 0.015 * Math.sin(2 * Math.PI * 1.8 * t) : 0;
-      device.position.set(0, 1.6 + bob, z);
-      device.quaternion.set(0, 0, 0, 1); // looking along −Z
-      device.controllers.left.position.set(-0.22, 1.0, z - 0.25);
-      device.controllers.right.position.set(0.22, 1.0, z - 0.25);
-      device.controllers.left.quaternion.set(0, 0, 0, 1);
-      device.controllers.right.quaternion.set(0, 0, 0, 1);
       const h = window.__vr;
-      log.push({ frame: t, head: [...h.head], root: [...h.root], handErrors: [...h.handErrors], status: [...h.trackerStatus] });
+      if (start >= 0) {
+        log.push({ t: (frame - 1 - start) / 60, head: [...h.head], hmdY: h.hmd[1], root: [...h.root], rootYaw: h.rootYaw, handErrors: [...h.handErrors], status: [...h.trackerStatus], hips: h.hipsHeight, toes: [...h.toeHeights], runs: h.predictorRuns });
+      } else start = frame;
+      const t = (frame - start) / 60;
+      if (t === 0.25) h.calibrate(1.6);
+      const m = motion(t);
+      // Looking along −Z at yaw 0; turning by `yaw` about +Y (counter-clockwise seen from above).
+      const qy = Math.sin(m.yaw / 2), qw = Math.cos(m.yaw / 2);
+      device.position.set(m.x, m.y, m.z);
+      device.quaternion.set(0, qy, 0, qw);
+      const c = Math.cos(m.yaw), s = Math.sin(m.yaw);
+      for (const [side, lateral] of [['left', -0.22], ['right', 0.22]] as const) {
+        // Body frame: right = +X, forward = −Z at yaw 0; hands 0.25 m forward, at 1.0 m (0.3 m above the crouch's lowest).
+        const lx = lateral, lz = -0.25;
+        const ctrl = device.controllers[side];
+        ctrl.position.set(m.x + c * lx + s * lz, Math.max(0.55, m.y - 0.6), m.z - s * lx + c * lz);
+        ctrl.quaternion.set(0, qy, 0, qw);
+      }
     };
-  });
-  await waitFrames(page, 60 * 3.5);
+  }, SCRIPT);
+  await waitFrames(page, Math.ceil(60 * SCRIPT_SECONDS) + 2, 170_000);
   const log = (await page.evaluate(() => (window as unknown as { __log: unknown[] }).__log)) as Frame[];
-  const end = log[log.length - 1];
   if (process.env.VR_LOG) for (const f of log) console.log(JSON.stringify(f));
-
-  // The head moved ~1.5 m forward; the avatar root followed it.
-  expect(end.head[1]).toBeLessThan(-1.35); // the head centre is 0.1 m behind the eyes
-  expect(end.root[2]).toBeLessThan(-1.2);
+  const at = (t: number) => log.reduce((a, b) => (Math.abs(b.t - t) < Math.abs(a.t - t) ? b : a));
   const gap = (f: Frame) => Math.hypot(f.root[0] - f.head[0], f.root[2] - f.head[1]);
-  const alpha = 0.2; // the page's default clamp
-  const drive = await page.evaluate(() => window.__vr.drive);
-  console.log(`drive: ${drive}; root↔head gap: end ${gap(end).toFixed(3)} m, worst ${Math.max(...log.map(gap)).toFixed(3)} m`);
-  if (drive === 'tracked') {
-    // The runtime's VR mode clamps the root within α of the head's floor position, every frame.
-    for (const f of log) expect(gap(f)).toBeLessThan(alpha + 0.005);
-  } else {
-    // The stick-input stand-in only pulls the root back: within α once the user stands still.
-    expect(gap(end)).toBeLessThan(alpha + 0.02);
-  }
+  const alpha = await page.evaluate(() => window.__vr.alpha);
+  expect(alpha).toBe(0.2);
 
-  // Hands within 1 cm of the controllers on every tracked frame once the avatar has turned to
-  // the headset (it starts facing +Z, the emulated headset looks along −Z: a turn in place).
-  const settled = log.filter((f) => f.frame >= 0.6);
+  // Walk forward: the root followed the head 1.2 m along −Z.
+  expect(at(2.4).root[2]).toBeLessThan(-0.95);
+  // Side-step right: +0.5 m in x.
+  expect(at(3.6).root[0] - at(2.4).root[0]).toBeGreaterThan(0.3);
+  // Turn in place: the root yaw went all the way round (unwrapped ≥ 300°) while the root stayed.
+  let turned = 0;
+  for (let k = 1; k < log.length; k++) {
+    if (log[k].t < 3.6 || log[k].t > 6.3) continue;
+    let d = log[k].rootYaw - log[k - 1].rootYaw;
+    d -= 2 * Math.PI * Math.round(d / (2 * Math.PI));
+    turned += d;
+  }
+  console.log(`turn in place: root yaw turned ${((turned * 180) / Math.PI).toFixed(0)}°`);
+  expect(Math.abs(turned)).toBeGreaterThan((300 * Math.PI) / 180);
+  // Within α of the head's floor projection on every frame (the runtime's clamp).
+  const worstGap = Math.max(...log.map(gap));
+  console.log(`root↔head gap: worst ${worstGap.toFixed(3)} m (α ${alpha})`);
+  expect(worstGap).toBeLessThan(alpha + 0.005);
+
+  // Crouch: the avatar's hips went down ~0.45 m (0.5 m minus the dead band), feet on the floor.
+  const standing = at(6.2), crouched = at(7.5);
+  console.log(`hips ${standing.hips.toFixed(3)} → ${crouched.hips.toFixed(3)} m; toes crouched ${crouched.toes.map((v) => v.toFixed(3))} m; eyes ${crouched.hmdY.toFixed(2)} m`);
+  expect(standing.hips - crouched.hips).toBeGreaterThan(0.35);
+  expect(Math.max(...crouched.toes)).toBeLessThan(0.08);
+  expect(Math.min(...crouched.toes)).toBeGreaterThan(-0.03);
+  expect(at(8.25).hips).toBeGreaterThan(standing.hips - 0.08); // standing up again
+
+  // Hands within 1 cm of the controllers on every frame once the avatar faced the headset.
+  const settled = log.filter((f) => f.t >= 0.6);
   expect(settled.every((f) => f.status[1] === 0 && f.status[2] === 0)).toBe(true);
   const worstHand = Math.max(...settled.flatMap((f) => f.handErrors));
   console.log(`worst hand error ${(worstHand * 1000).toFixed(3)} mm over ${settled.length} frames`);
   expect(worstHand).toBeLessThan(0.01);
+
+  // The network ran once per frame (each run finishes before the next frame; none skipped).
+  const runs = log[log.length - 1].runs - log[0].runs;
+  const skipped = await page.evaluate(() => window.__vr.predictorSkipped);
+  console.log(`network runs ${runs} over ${log.length - 1} frames, ${skipped} skipped`);
+  expect(runs).toBeGreaterThanOrEqual(log.length - 2);
+  expect(await page.evaluate(() => window.__vr.predictorFailures)).toBe(0);
 
   fs.mkdirSync(SHOTS, { recursive: true });
   await page.screenshot({ path: path.join(SHOTS, 'vr-first-person.png') });
@@ -121,23 +177,41 @@ test('VR under iwer: enter VR, walk forward 1.5 m, avatar follows with hands on 
   expect(errors).toEqual([]);
 });
 
-test('replay of a scripted session on the desktop page, with the VR update benchmark', async ({ page }) => {
+test('with the model file missing the heuristic is used and the page says so; the switch compares them', async ({ page }) => {
+  test.setTimeout(90_000);
+  const errors = await openVr(page, '&model=missing.onnx&mirror=0');
+  const h = await page.evaluate(() => ({ loaded: window.__vr.networkLoaded, predictor: window.__vr.predictor, why: window.__vr.predictorFallback }));
+  expect(h.loaded).toBe(false);
+  expect(h.predictor).toBe('heuristic');
+  expect(h.why).toContain('missing.onnx');
+  await expect(page.locator('#predictor-status')).toHaveText(/fallback: heuristic/);
+  await expect(page.locator('#predictor option[value="network"]')).toBeDisabled();
+  await waitFrames(page, 5);
+  expect(await page.evaluate(() => window.__vr.predictor)).toBe('heuristic');
+  // The page's own warning is the only console message allowed.
+  expect(errors).toEqual([]);
+});
+
+test('replay of a synthetic held-in recording with the benchmark: loose bounds', async ({ page }) => {
   test.setTimeout(120_000);
-  await page.setViewportSize({ width: 640, height: 400 });
+  await page.setViewportSize({ width: 480, height: 300 });
   const errors = collectErrors(page);
   await muteHmr(page);
-  await page.goto('/vr.html?replay=scripted&bench=1&dt=fixed&mirror=0');
+  await page.goto('/vr.html?replay=recordings/walk.json&bench=1&mirror=0&alpha=0.3');
   await page.waitForFunction(() => window.__vr?.ready || window.__vr?.error, null, { timeout: 90_000 });
   expect(await page.evaluate(() => window.__vr.error)).toBeNull();
-  const bench = await page.evaluate(() => window.__vr.bench);
-  expect(bench).not.toBeNull();
-  console.log(`VR update over the replay (${bench?.frames} frames at 72 Hz): median ${bench?.median.toFixed(3)} ms, p95 ${bench?.p95.toFixed(3)} ms, mean ${bench?.mean.toFixed(3)} ms`);
-  expect(bench?.frames).toBeGreaterThan(700);
-  expect(bench?.median).toBeLessThan(5); // the target is ≤ 1 ms on a desktop; this machine is shared and slow
-  await waitFrames(page, 90); // 1.5 s of replay: standing, then starting to walk
-  const h = await page.evaluate(() => ({ mode: window.__vr.mode, hand: [...window.__vr.handErrors] }));
-  expect(h.mode).toBe('replay');
-  expect(Math.max(...h.hand)).toBeLessThan(0.01);
+  const b = (await page.evaluate(() => window.__vr.bench))!;
+  console.log(JSON.stringify({ root: b.rootDistance, yaw: b.yawError, skating: b.skatingCmPerS, ms: [b.median, b.p95, b.modelMedian] }));
+  expect(b.predictor).toBe('network');
+  expect(b.modelRuns).toBe(b.frames);
+  expect(b.rootDistance!.mean).toBeLessThan(0.15);
+  expect(b.headGap.max).toBeLessThan(0.3 + 0.005);
+  expect(b.yawError.network!.mean).toBeLessThan(10);
+  expect(b.yawError.network!.mean).toBeLessThan(b.yawError.hmdForward!.mean);
+  expect(b.median).toBeLessThan(5); // target ≤ 1 ms on a desktop; this machine is shared and slow
+  await waitFrames(page, 30);
+  expect(await page.evaluate(() => window.__vr.mode)).toBe('replay');
+  expect(Math.max(...(await page.evaluate(() => window.__vr.handErrors)))).toBeLessThan(0.01);
   await page.screenshot({ path: path.join(SHOTS, 'vr-replay.png') });
   expect(errors).toEqual([]);
 });

@@ -1,11 +1,112 @@
 /**
- * The orientation network as a BodyYawPredictor (THESIS_NOTES §9). The ONNX runner lives in
- * web/src/orientation (onnxruntime-web); until it lands this loader rejects, and the page falls
- * back, visibly, to the HMD-forward heuristic — the same path as a missing or broken model file.
+ * The orientation network as a BodyYawPredictor (THESIS_NOTES §9), on the browser runner of
+ * web/src/orientation (`OrientationModel`, onnxruntime-web's WASM backend; contract in
+ * docs/orientation-model.md).
+ *
+ * The runner's `update` is asynchronous and the frame must never wait for it: each frame starts
+ * one run with this frame's poses and returns the last *finished* prediction — one frame old in
+ * a live session (the run finishes long before the next frame) and in replays, which `settle()`
+ * between frames. A frame that arrives while a run is still pending is not fed (the next run sees
+ * the summed dt, so velocities stay right) and counted in `skipped`. The feedback of the previous
+ * prediction is the runner's own.
+ *
+ * Inputs are the tracker state's output poses (a missing or frozen controller is the hanging
+ * hand trackers.ts shows; the network was trained with controllers that stop moving, which a
+ * hand hanging at the side resembles more than a pose left floating in the room).
  */
-import { type BodyYawPredictor } from './body-yaw.ts';
+import { OrientationModel } from '../orientation/orientation-model.ts';
+import { type BodyYawPredictor, type TrackerPose } from './body-yaw.ts';
+import { headingYaw } from './yaw.ts';
+
+export class NetworkYawPredictor implements BodyYawPredictor {
+  readonly name = 'network';
+  /** Runs finished since construction (never reset: tests compare it with frames). */
+  runs = 0;
+  /** Frames not fed because a run was still pending. */
+  skipped = 0;
+  /** Runs that failed (non-finite poses…); the last message. */
+  failures = 0;
+  lastError: string | null = null;
+  /** Milliseconds from starting the last finished run to its result (features + onnxruntime). */
+  lastRunMs = 0;
+  private yaw = 0;
+  private started = false;
+  private pending: Promise<void> | null = null;
+  private pendingDt = 0;
+  private runStart = 0;
+  private generation = 0;
+  private modelNeedsReset = true;
+  private runGeneration = 0;
+  private readonly positions = new Float64Array(9);
+  private readonly quaternions = new Float64Array(12);
+  private readonly onResult = (yaw: number) => {
+    this.pending = null;
+    if (this.runGeneration !== this.generation) return; // a reset happened meanwhile
+    this.yaw = yaw;
+    this.runs++;
+    this.lastRunMs = performance.now() - this.runStart;
+  };
+  private readonly onError = (e: unknown) => {
+    this.pending = null;
+    this.failures++;
+    this.lastError = e instanceof Error ? e.message : String(e);
+  };
+
+  constructor(readonly model: OrientationModel) {}
+
+  update(hmd: TrackerPose, left: TrackerPose, right: TrackerPose, dt: number): number {
+    const q = hmd.rotation;
+    if (!this.started) {
+      // Until the first run finishes the body faces where the head looks (the model's own
+      // reset state).
+      this.yaw = headingYaw(q[0], q[1], q[2], q[3]);
+    }
+    this.pendingDt += dt > 0 ? dt : 0;
+    if (this.pending) {
+      this.skipped++;
+      return this.yaw;
+    }
+    if (this.modelNeedsReset) {
+      this.modelNeedsReset = false;
+      this.model.reset();
+    }
+    // The runner wants a positive dt after its first frame; a zero-length frame is not fed.
+    if (this.started && !(this.pendingDt > 0)) return this.yaw;
+    const p = this.positions, r = this.quaternions;
+    for (let k = 0; k < 3; k++) {
+      const t = k === 0 ? hmd : k === 1 ? left : right;
+      p[3 * k] = t.position[0];
+      p[3 * k + 1] = t.position[1];
+      p[3 * k + 2] = t.position[2];
+      r[4 * k] = t.rotation[0];
+      r[4 * k + 1] = t.rotation[1];
+      r[4 * k + 2] = t.rotation[2];
+      r[4 * k + 3] = t.rotation[3];
+    }
+    const step = this.pendingDt;
+    this.pendingDt = 0;
+    this.started = true;
+    this.runStart = performance.now();
+    this.runGeneration = this.generation;
+    this.pending = this.model.update(p, r, step).then(this.onResult, this.onError);
+    return this.yaw;
+  }
+
+  /** Resolves when the pending run (if any) has finished: replays call it between frames. */
+  settle(): Promise<void> {
+    return this.pending ?? Promise.resolve();
+  }
+
+  reset(): void {
+    this.generation++;
+    this.started = false;
+    this.pendingDt = 0;
+    // A pending run's result is dropped by its generation; the runner resets before its next run.
+    this.modelNeedsReset = true;
+  }
+}
 
 /** Loads the model at `url`; rejects with a message the page shows when it cannot. */
-export async function loadNetworkPredictor(url: string): Promise<BodyYawPredictor> {
-  throw new Error(`${url}: the orientation model runner (web/src/orientation) is not in this build yet`);
+export async function loadNetworkPredictor(url: string): Promise<NetworkYawPredictor> {
+  return new NetworkYawPredictor(await OrientationModel.create(url));
 }

@@ -27,6 +27,19 @@ describe('recordings', () => {
     for (let i = 0; i < r.rotation.length; i++) expect(Math.abs(back.rotation[i] - r.rotation[i])).toBeLessThan(1e-6);
   });
 
+  it('carries optional ground truth in JSON and rejects a truth of the wrong length', () => {
+    const r = scripted(72, 1);
+    const truth = { bodyYaw: Float64Array.from({ length: r.frames }, (_, i) => i * 0.01), root: new Float64Array(2 * r.frames).fill(0.5) };
+    const back = decodeRecording(encodeRecordingJson({ ...r, truth }), 'truth.json');
+    expect(back.truth?.bodyYaw.length).toBe(r.frames);
+    expect(back.truth?.bodyYaw[10]).toBeCloseTo(0.1, 5);
+    expect(back.truth?.root[3]).toBe(0.5);
+    expect(decodeRecording(encodeRecordingJson(r)).truth).toBeUndefined();
+    const bad = JSON.parse(encodeRecordingJson({ ...r, truth })) as { truth: { root: number[] } };
+    bad.truth.root.pop();
+    expect(() => decodeRecording(JSON.stringify(bad), 'bad.json')).toThrow(/bad\.json: truth\.root has \d+ values/);
+  });
+
   it('round-trips through the binary encoding (float32 poses), and from bytes of JSON', () => {
     const r = scripted(90);
     const bytes = encodeRecordingBinary(r);

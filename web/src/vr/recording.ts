@@ -27,6 +27,16 @@ export interface Recording {
   /** frames × 3 trackers: 1 tracked, 0 not. */
   readonly tracked: Uint8Array;
   readonly meta: RecordingMeta;
+  /** Optional ground truth (synthetic recordings from mocap; JSON only). */
+  readonly truth?: RecordingTruth;
+}
+
+/** What the user's body really did, per frame (docs/vr-recording.md, `truth`). */
+export interface RecordingTruth {
+  /** Body (virtual-root) yaw, rad, 0 = +Z; unwrapped. */
+  readonly bodyYaw: Float64Array;
+  /** Root floor position, frames × (x, z), m. */
+  readonly root: Float64Array;
 }
 
 export class RecordingError extends Error {
@@ -49,6 +59,12 @@ export function validateRecording(r: Recording, source = 'recording'): void {
   expect('position', r.position.length, NUM_TRACKERS * 3);
   expect('rotation', r.rotation.length, NUM_TRACKERS * 4);
   expect('tracked', r.tracked.length, NUM_TRACKERS);
+  if (r.truth) {
+    expect('truth.bodyYaw', r.truth.bodyYaw.length, 1);
+    expect('truth.root', r.truth.root.length, 2);
+    for (const v of r.truth.bodyYaw) if (!Number.isFinite(v)) fail('truth.bodyYaw has a non-finite value');
+    for (const v of r.truth.root) if (!Number.isFinite(v)) fail('truth.root has a non-finite value');
+  }
   for (let f = 0; f < r.frames; f++) {
     if (!Number.isFinite(r.time[f])) fail(`time[${f}] is not a finite number`);
     if (f > 0 && !(r.time[f] > r.time[f - 1])) fail(`time must increase: time[${f}] = ${r.time[f]} after ${r.time[f - 1]}`);
@@ -82,6 +98,7 @@ export function encodeRecordingJson(r: Recording): string {
     position: round(r.position, 5),
     rotation: round(r.rotation, 6),
     tracked: Array.from(r.tracked),
+    ...(r.truth ? { truth: { bodyYaw: round(r.truth.bodyYaw, 5), root: round(r.truth.root, 5) } } : {}),
   });
 }
 
@@ -110,7 +127,19 @@ function fromJson(text: string, source: string): Recording {
   if (typeof meta !== 'object' || meta === null || Array.isArray(meta)) fail('"meta" must be an object');
   const frames = o.frames;
   if (typeof frames !== 'number') fail('"frames" must be a number');
+  let truth: RecordingTruth | undefined;
+  if (o.truth !== undefined) {
+    const t = o.truth as Record<string, unknown>;
+    if (typeof t !== 'object' || t === null || Array.isArray(t)) fail('"truth" must be an object');
+    const arr = (name: string): Float64Array => {
+      const v = t[name];
+      if (!Array.isArray(v) || v.some((x) => typeof x !== 'number')) fail(`"truth.${name}" must be an array of numbers`);
+      return Float64Array.from(v as number[]);
+    };
+    truth = { bodyYaw: arr('bodyYaw'), root: arr('root') };
+  }
   return {
+    truth,
     frames: frames as number,
     time: Float64Array.from(numbers('time')),
     position: Float64Array.from(numbers('position')),
