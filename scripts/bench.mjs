@@ -14,6 +14,7 @@ import os from 'node:os';
 import path from 'node:path';
 import { execFileSync } from 'node:child_process';
 import { fileURLToPath } from 'node:url';
+import { startBenchServer } from './bench-server.mjs';
 
 const ROOT = path.resolve(path.dirname(fileURLToPath(import.meta.url)), '..');
 const MOCAP = path.resolve(ROOT, '..', 'shared', 'mocap', 'cmu-asf');
@@ -153,24 +154,7 @@ function ensureBigDatabase(log) {
 }
 
 /** Starts vite on 127.0.0.1 (from port 5197 up), cross-origin isolated for the 5 µs timer. */
-async function startVite() {
-  const { createServer } = await import('vite');
-  const server = await createServer({
-    root: ROOT,
-    configFile: path.join(ROOT, 'vite.config.ts'),
-    logLevel: 'error',
-    clearScreen: false,
-    server: {
-      host: '127.0.0.1',
-      port: BENCH_PORT,
-      strictPort: false,
-      hmr: false,
-      headers: { 'Cross-Origin-Opener-Policy': 'same-origin', 'Cross-Origin-Embedder-Policy': 'require-corp' },
-    },
-  });
-  await server.listen();
-  return server;
-}
+const startVite = () => startBenchServer(BENCH_PORT);
 
 /** Runs web/bench.html in headless Chromium; returns the page's `window.__searchBench`. */
 async function chromiumSearchBench(baseUrl, names) {

@@ -3,24 +3,11 @@
 // playwright-core): serves the repo with vite (cross-origin isolated, for the 5 µs timer), opens
 // web/src/orientation/bench.html and prints its result as JSON. Also checks the browser's
 // outputs against the recorded PyTorch ones. Usage: node training/bench_chromium.mjs
-import path from 'node:path';
-import { fileURLToPath } from 'node:url';
+import { startBenchServer } from '../scripts/bench-server.mjs';
 
-const ROOT = path.resolve(path.dirname(fileURLToPath(import.meta.url)), '..');
 const CHROMIUM = '/usr/bin/chromium';
 
-const { createServer } = await import('vite');
-const server = await createServer({
-  root: ROOT,
-  configFile: path.join(ROOT, 'vite.config.ts'),
-  logLevel: 'error',
-  clearScreen: false,
-  server: {
-    host: '127.0.0.1', port: 5287, strictPort: false, hmr: false,
-    headers: { 'Cross-Origin-Opener-Policy': 'same-origin', 'Cross-Origin-Embedder-Policy': 'require-corp' },
-  },
-});
-await server.listen();
+const server = await startBenchServer(5287);
 let code = 0;
 const { chromium } = await import('playwright-core');
 const browser = await chromium.launch({ executablePath: CHROMIUM, args: ['--headless', '--no-sandbox', '--disable-gpu'] });
