@@ -168,6 +168,12 @@ test('VR under iwer: enter VR; scripted walk, side-step, 360° turn and crouch; 
 
   fs.mkdirSync(SHOTS, { recursive: true });
   await page.screenshot({ path: path.join(SHOTS, 'vr-first-person.png') });
+  // While presenting, the page shows the spectator's third-person view (picture-in-picture),
+  // with the head that first person hides; a larger page for a readable screenshot.
+  await page.setViewportSize({ width: 960, height: 540 });
+  await waitFrames(page, 3);
+  await expect(page.locator('#spectator')).toBeVisible();
+  await page.screenshot({ path: path.join(SHOTS, 'vr-in-vr-spectator.png') });
 
   // Leave VR: the desktop view is the spectator camera following the avatar.
   await page.evaluate(() => window.__vr.exitVR());

@@ -24,6 +24,7 @@ import { type Avatar, fetchAvatar } from '../avatar/avatar.ts';
 import { Crowd } from '../core/crowd.ts';
 import { initWasm } from '../core/wasm.ts';
 import { errorMessage, showError } from '../viewer/error-box.ts';
+import { SpectatorView } from './spectator-view.ts';
 import { FollowCamera } from '../viewer/follow-camera.ts';
 import { ViewerScene } from '../viewer/scene.ts';
 import { type BodyYawPredictor } from './body-yaw.ts';
@@ -234,6 +235,9 @@ async function main(): Promise<void> {
   renderer.xr.enabled = true;
   renderer.xr.setReferenceSpaceType('local-floor');
   const spectator = new FollowCamera(stage.camera, renderer.domElement);
+  // While the headset presents, the page shows a third-person view (`spectator=0`: none).
+  const pip = params.get('spectator') === '0' ? null : new SpectatorView($('viewport'));
+  let head: THREE.Object3D | null = null; // the avatar's head bone, set once the avatar loads
   stage.camera.position.set(2.2, 1.6, 3.2);
 
   await initWasm();
@@ -243,6 +247,7 @@ async function main(): Promise<void> {
 
   const avatar: Avatar | null = params.get('avatar') === 'none' ? null : await fetchAvatar(params.get('avatar') ?? 'avatars/ubc_male.glb', crowd);
   if (avatar) stage.scene.add(avatar.object);
+  head = avatar && avatar.roles.has('head') ? avatar.bones[avatar.roles.get('head')!] : null;
   const hipsBone = avatar && avatar.roles.has('hips') ? avatar.bones[avatar.roles.get('hips')!] : null;
 
   // Body yaw: the network if it loads, else the heuristic — and the page says which and why.
@@ -417,6 +422,18 @@ async function main(): Promise<void> {
     if (!hook.inXR) spectator.follow(pipeline.root[0], pipeline.root[2], fixedDt ? 1 / 60 : realDt);
     stage.grid.follow(pipeline.root[0], pipeline.root[2]);
     stage.render();
+    if (pip) {
+      pip.visible = hook.inXR;
+      if (hook.inXR) {
+        // Others see the head that first person hides.
+        const hidden = head ? head.scale.x : 1;
+        if (head) head.scale.setScalar(1);
+        head?.updateMatrixWorld(true);
+        pip.render(stage.scene, pipeline.root[0], pipeline.root[2], pipeline.rootYaw);
+        if (head) head.scale.setScalar(hidden);
+        head?.updateMatrixWorld(true);
+      }
+    }
 
     hook.frames++;
     hook.head[0] = pipeline.headFloor[0];
