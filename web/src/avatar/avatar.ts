@@ -20,6 +20,11 @@ export interface Avatar {
   /** Toe (ball) height standing on the floor (the rest pose), m; NaN without toes. */
   readonly standingToeHeight: number;
   /**
+   * Room metres per source (database) unit horizontally, at object scale 1: the retargeter's
+   * hips scale times the scale of whatever carries the root bones.
+   */
+  readonly hipsScale: number;
+  /**
    * Poses the bones from the source skeleton's world joint positions (J×3) and rotations (J×4)
    * and its foot contacts (bits: 1 left, 2 right; they keep planted toes on the floor, see
    * `Grounding`), updates world matrices, and writes the toe (ball) heights above the floor
@@ -151,6 +156,7 @@ export async function loadAvatar(bytes: Uint8Array, name: string, crowd: Crowd, 
     bones,
     roles: targetRoles,
     standingToeHeight: grounding.standingToeHeight,
+    hipsScale: retargeter.hipsScale * (top.parent ? top.parent.getWorldScale(new THREE.Vector3()).x : 1),
     pose(world, worldRotations, contacts, dt, toeHeights) {
       hipsWorld[0] = world[3 * hips];
       hipsWorld[1] = world[3 * hips + 1] + grounding.offset / retargeter.hipsScale;

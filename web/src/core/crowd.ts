@@ -33,6 +33,8 @@ export interface TagInfo {
 export class Crowd {
   readonly numCharacters: number;
   readonly numJoints: number;
+  /** Frames in the database. */
+  readonly numFrames: number;
   readonly jointNames: readonly string[];
   /** Parent of each joint, -1 for joint 0 (the root). */
   readonly jointParents: Int32Array;
@@ -64,7 +66,9 @@ export class Crowd {
       features: FeatureGroupInfo[];
       clips: { name: string; mirrored: boolean }[];
       tags: TagInfo[];
+      num_frames: number;
     };
+    this.numFrames = info.num_frames;
     this.toeHeight = info.toe_height_in_contact ?? undefined;
     this.jointNames = info.joints.map((j) => j.name);
     this.jointParents = Int32Array.from(info.joints.map((j) => j.parent));

@@ -237,7 +237,7 @@ async function main(): Promise<void> {
     if (old) disposeRig(old);
     settings ??= crowd.settings(0);
     hook.database = name;
-    hook.databaseFrames = Number((JSON.parse(crowd.binding.inspect_json()) as { num_frames: number }).num_frames);
+    hook.databaseFrames = crowd.numFrames;
     hook.avatar = avatar ? avatarSource!.name : '';
     hook.databaseLoads++;
     if (path.points.length >= 4 && hook.path.following) followPath();

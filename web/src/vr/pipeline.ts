@@ -115,7 +115,7 @@ export class VrPipeline {
       avatar.object.updateMatrixWorld(true);
       const h = avatar.roles.get('head');
       this.avatarEyeHeight = h === undefined ? this.databaseEyeHeight : avatar.bones[h].matrixWorld.elements[13];
-      this.hipsScale = measureHipsScale(crowd, avatar, this.world, this.worldRotations, this.toeHeights);
+      this.hipsScale = avatar.hipsScale;
     } else {
       this.avatarEyeHeight = this.databaseEyeHeight;
       this.hipsScale = 1;
@@ -201,27 +201,4 @@ export class VrPipeline {
     }
     this.lastUpdateMs = performance.now() - t0;
   }
-}
-
-/**
- * The retargeter's horizontal map (avatar hips x = source hips x · hipsScale, at object scale 1),
- * measured by posing the avatar twice with the source shifted 1 unit along X (dt = 0, so the
- * avatar's grounding learns nothing). Leaves the avatar in the crowd's current pose.
- */
-function measureHipsScale(crowd: Crowd, avatar: Avatar, world: Float32Array, worldRotations: Float32Array, toeHeights: [number, number]): number {
-  const hips = avatar.roles.get('hips');
-  if (hips === undefined) return 1;
-  forwardKinematics(crowd.jointParents, crowd.positionsOf(0), crowd.rotationsOf(0), world, worldRotations);
-  const bone = avatar.bones[hips];
-  const x = () => {
-    avatar.pose(world, worldRotations, 0, 0, toeHeights);
-    return bone.matrixWorld.elements[12];
-  };
-  const x1 = x();
-  for (let j = 0; j < crowd.numJoints; j++) world[3 * j] += 1;
-  const x2 = x();
-  for (let j = 0; j < crowd.numJoints; j++) world[3 * j] -= 1;
-  x();
-  const s = x2 - x1;
-  return s > 0.2 && s < 5 ? s : 1;
 }

@@ -5,6 +5,7 @@ import { type TrackerPose } from './body-yaw.ts';
 import { solveTwoBoneIK } from './two-bone-ik.ts';
 import { UpperBody } from './upper-body.ts';
 import { headingYaw } from './yaw.ts';
+import { seededRandom } from '../bench/queries.ts';
 
 /** A T-posed humanoid upper body facing +Z (left = +X), bones with arbitrary rest rotations. */
 function makeRig(twistRest = false) {
@@ -72,7 +73,7 @@ describe('solveTwoBoneIK', () => {
   };
 
   it('reaches targets within its reach to 1e-4 m, bending toward the pole', () => {
-    const rng = mulberry32(7);
+    const rng = seededRandom(7);
     for (let k = 0; k < 200; k++) {
       const { upper, lower, end } = chain();
       const dir = new THREE.Vector3(rng() - 0.5, rng() - 0.5, rng() - 0.5).normalize();
@@ -202,17 +203,6 @@ describe('UpperBody', () => {
     for (const v of body3.handPositions) expect(Number.isFinite(v)).toBe(true);
   });
 });
-
-function mulberry32(seed: number): () => number {
-  let a = seed >>> 0;
-  return () => {
-    a = (a + 0x6d2b79f5) >>> 0;
-    let t = a;
-    t = Math.imul(t ^ (t >>> 15), t | 1);
-    t ^= t + Math.imul(t ^ (t >>> 7), t | 61);
-    return ((t ^ (t >>> 14)) >>> 0) / 4294967296;
-  };
-}
 
 describe('UpperBody stretch', () => {
   it('lengthens the forearm up to maxStretch for a target just out of reach, and restores it next frame', () => {
