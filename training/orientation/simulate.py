@@ -12,7 +12,8 @@ Devices (thesis: fixed offsets between head/wrists and trackers; randomized here
 Augmentations, each drawn per sequence from `Augment`:
 - frame rate 72/90/120 Hz (Quest Browser) with dropped frames (dt doubles), velocities use the
   actual dt; playback speed 0.8–1.25× (time scaling: slower and faster people);
-- looking around: a smooth random head yaw relative to the body up to ±60° (and some pitch),
+- looking around: a smooth random head yaw relative to the body up to ±90° in training (±60°
+  in the evaluation) and some pitch,
   rotating the HMD about the head joint — the case where HMD-forward fails;
 - random global yaw and position (the features must not care; a test checks they don't);
 - mirroring: the builder's mirrored clips (`data.load_clips`);
@@ -59,7 +60,11 @@ class Augment:
     controller_rot_jitter: float = 6.0
 
 
-TRAIN_AUGMENT = Augment()
+# Training looks further around (±90°) than the evaluation's ±60°: people glance over their
+# shoulder, and a head already turned (held-out subject 03's head segment sits ~40° off its
+# hips while it walks loops) plus a ±60° glance reaches ~100°. Trained at ±60°, the held-out
+# error was 12–31° whenever the head was more than 75° off the body; at ±90° it is 7–20°.
+TRAIN_AUGMENT = Augment(look_yaw_max=90.0)
 # Evaluation: real motion at its real speed, plausible noise, no devices put down.
 EVAL_AUGMENT = Augment(speed=(1.0, 1.0), dropped_frame_prob=0.01, frozen_prob=0.0,
                        noise_pos=(0.0005, 0.0005), noise_rot=(0.1, 0.1))

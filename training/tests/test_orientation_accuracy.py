@@ -30,11 +30,12 @@ def results(held_out):
     return out
 
 
-# The issue asks for ≤ 5.4° (the thesis's number, on its own 2.4 h of VR mocap). On these
-# held-out CMU subjects the committed model does not reach it (README: ~5–6° on the two cmu-daz
-# subjects, ~9° on cmu-asf 03, who walks tight loops looking ~40° to the inside); this bound
-# guards the achieved level against regressions.
-MAX_MEAN_WITH_LOOK_AROUND = 9.5
+# The issue asks for ≤ 5.4° (the thesis's number, on its own VR mocap, where HMD-forward was
+# 14.5° off; here it is ~43°). On these held-out CMU subjects the committed model does not reach
+# it (README: 7.6° — 7.9° on cmu-asf 03, who walks loops with the head ~40° off the hips, 6.3°
+# and 7.4° on cmu-daz 08 and 09); the bound guards the achieved level (the model before the ±90°
+# look-around training, 8.6°, fails it).
+MAX_MEAN_WITH_LOOK_AROUND = 8.5
 
 
 def test_network_accuracy_and_half_of_hmd_forward(results):
