@@ -23,7 +23,7 @@ export default defineConfig({
   // vite from re-optimizing mid-session and reloading the page.
   optimizeDeps: { exclude: ['onnxruntime-web'], include: ['iwer', '@iwer/devui'] },
   test: {
-    include: ['tests/unit/**/*.test.ts', 'web/**/*.test.ts'],
+    include: ['tests/unit/**/*.test.ts', 'web/**/*.test.ts', 'server/**/*.test.ts'],
     environment: 'node',
     testTimeout: 30_000,
   },

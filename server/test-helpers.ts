@@ -1,0 +1,163 @@
+/** Loopback helpers for the room server's tests: a server on 127.0.0.1:0 and a raw ws client. */
+import { createServer, type Server } from 'node:http';
+import { type AddressInfo } from 'node:net';
+import { WebSocket } from 'ws';
+import {
+  createMoveStep,
+  createRoomId,
+  decodeServerMessage,
+  encodeJoin,
+  encodeMove,
+  quantizeMoveStep,
+  type JoinInfo,
+  type MoveStep,
+  type ServerMessage,
+} from '../web/src/rooms/protocol.ts';
+import { attachRooms, roomsRequestHandler, type RoomsHandle, type RoomsOptions } from './rooms.ts';
+
+export interface TestServer {
+  server: Server;
+  rooms: RoomsHandle;
+  port: number;
+  origin: string;
+  url(roomId: string): string;
+  close(): Promise<void>;
+}
+
+export async function startServer(options: RoomsOptions = {}): Promise<TestServer> {
+  const handler = roomsRequestHandler();
+  const server = createServer((req, res) => {
+    if (!handler(req, res)) {
+      res.writeHead(404);
+      res.end();
+    }
+  });
+  const rooms = attachRooms(server, { rejectOtherUpgrades: true, ...options });
+  await new Promise<void>((resolve) => server.listen(0, '127.0.0.1', resolve));
+  const port = (server.address() as AddressInfo).port;
+  return {
+    server,
+    rooms,
+    port,
+    origin: `http://127.0.0.1:${port}`,
+    url: (id) => `ws://127.0.0.1:${port}/rooms/${id}`,
+    close: async () => {
+      await rooms.close();
+      server.closeAllConnections();
+      await new Promise<void>((resolve) => server.close(() => resolve()));
+    },
+  };
+}
+
+export const testJoin = (name: string, extra: Partial<JoinInfo> = {}): JoinInfo => ({
+  name,
+  avatar: { kind: 'builtin', id: 0 },
+  database: 'locomotion',
+  height: 0,
+  mode: 'desktop',
+  devices: { keyboard: true },
+  ...extra,
+});
+
+export function moveBytes(seq: number, rootX: number, steps = 3): Uint8Array {
+  const s: MoveStep[] = [];
+  for (let i = 0; i < steps; i++) s.push(quantizeMoveStep({ ...createMoveStep(), ticks: 120, moveX: 0, moveZ: 1 }));
+  return encodeMove({ seq, time: seq * 50, rootX, rootZ: 0, rootYaw: 0, steps: s });
+}
+
+/** A raw client: every server message decoded (undecodable ones recorded as errors). */
+export class TestClient {
+  readonly messages: ServerMessage[] = [];
+  readonly decodeErrors: string[] = [];
+  closed: { code: number; reason: string; at: number } | null = null;
+  memberId = 0;
+  private waiters: (() => void)[] = [];
+
+  private constructor(readonly ws: WebSocket) {
+    ws.binaryType = 'nodebuffer';
+    ws.on('message', (data: Buffer) => {
+      try {
+        const m = decodeServerMessage(new Uint8Array(data.buffer, data.byteOffset, data.byteLength));
+        if (m.type === 'welcome') this.memberId = m.memberId;
+        this.messages.push(m);
+      } catch (e) {
+        this.decodeErrors.push(String(e));
+      }
+      this.wake();
+    });
+    ws.on('close', (code, reason) => {
+      this.closed = { code, reason: reason.toString(), at: performance.now() };
+      this.wake();
+    });
+    ws.on('error', () => {});
+  }
+
+  private wake(): void {
+    const w = this.waiters;
+    this.waiters = [];
+    for (const f of w) f();
+  }
+
+  static open(url: string, origin: string | undefined): Promise<TestClient> {
+    return new Promise((resolve, reject) => {
+      const ws = new WebSocket(url, origin === undefined ? {} : { origin });
+      ws.once('open', () => resolve(new TestClient(ws)));
+      ws.once('unexpected-response', (_req, res) => {
+        reject(new Error(`HTTP ${res.statusCode}`));
+        ws.terminate();
+      });
+      ws.once('error', reject);
+    });
+  }
+
+  /** Opens, joins, and waits for the welcome. */
+  static async join(server: TestServer, roomId: string, name: string, extra: Partial<JoinInfo> = {}): Promise<TestClient> {
+    const c = await TestClient.open(server.url(roomId), server.origin);
+    c.send(encodeJoin(testJoin(name, extra)));
+    await c.waitFor((m) => m.type === 'welcome');
+    return c;
+  }
+
+  send(bytes: Uint8Array | string): void {
+    if (this.ws.readyState === this.ws.OPEN) this.ws.send(bytes);
+  }
+
+  /** Resolves with the first message (from `from` on) matching `pred`; rejects after `ms`. */
+  waitFor(pred: (m: ServerMessage) => boolean, ms = 3000, from = 0): Promise<ServerMessage> {
+    return new Promise((resolve, reject) => {
+      const deadline = setTimeout(() => reject(new Error(`timed out after ${ms} ms waiting for a message`)), ms);
+      const check = () => {
+        const m = this.messages.slice(from).find(pred);
+        if (m) {
+          clearTimeout(deadline);
+          resolve(m);
+        } else this.waiters.push(check);
+      };
+      check();
+    });
+  }
+
+  waitClosed(ms = 3000): Promise<{ code: number; reason: string; at: number }> {
+    return new Promise((resolve, reject) => {
+      const deadline = setTimeout(() => reject(new Error(`not closed after ${ms} ms`)), ms);
+      const check = () => {
+        if (this.closed) {
+          clearTimeout(deadline);
+          resolve(this.closed);
+        } else this.waiters.push(check);
+      };
+      check();
+    });
+  }
+
+  relays(from?: number) {
+    return this.messages.flatMap((m) => (m.type === 'relay' && (from === undefined || m.from === from) ? [m] : []));
+  }
+
+  close(): void {
+    this.ws.close();
+  }
+}
+
+export const sleep = (ms: number) => new Promise((r) => setTimeout(r, ms));
+export { createRoomId };
