@@ -71,6 +71,7 @@ export class InputStream {
   readonly lastMove: MoveStep = createMoveStep();
   readonly lastTracked: TrackedStep = createTrackedStep();
   readonly trackers: [TrackerPose, TrackerPose, TrackerPose] = [identityTracker(), identityTracker(), identityTracker()];
+  private path: { points: Float32Array; speeds: Float32Array; looped: boolean } | null = null;
   private moveSteps: MoveStep[] = [];
   private trackedSteps: TrackedStep[] = [];
   private queue: Uint8Array[] = [];
@@ -138,7 +139,25 @@ export class InputStream {
     this.queue.push(bytes);
     this.drive = 'path';
     this.pathTime = 0;
+    this.path = { points, speeds, looped };
     return bytes;
+  }
+
+  /**
+   * A new connection (new member id): sequence and clock start over, unsent steps are dropped;
+   * the root, inputs and drive are kept, and the path being followed is queued again (the
+   * caller queues a STATE next, which carries how far along it is).
+   */
+  restart(): void {
+    this.seq = 0;
+    this.simTicks = 0;
+    this.moveSteps = [];
+    this.trackedSteps = [];
+    this.queue = [];
+    if (this.drive === 'path' && this.path) {
+      this.seq++;
+      this.queue.push(encodePath({ seq: this.seq, time: 0, ...this.path }));
+    }
   }
 
   /** Everything to send now: queued messages and a message with the steps since the last flush. */

@@ -1,0 +1,351 @@
+/**
+ * One remote member's avatar: its relayed stream goes through a `JitterBuffer`; each frame the
+ * steps whose sender time has come are replayed on the local `DrivenCharacter` with the
+ * sender's own dt and inputs (so the motion is the sender's, re-synthesized), and after each
+ * message's last step the sender's reported root feeds a `DriftCorrector` whose display offset
+ * hides whatever replay did not reproduce. VR trackers are interpolated at the playout time.
+ *
+ * Remote data is untrusted: messages are already validated by the protocol decoder; here
+ * positions beyond `worldLimit` are refused with a note and never reach the character.
+ */
+import { DriftCorrector, type DriftCorrectorOptions } from './drift-corrector.ts';
+import { type DrivenCharacter, type PathInput } from './driven-character.ts';
+import { JitterBuffer, type JitterBufferOptions, type PushResult } from './jitter-buffer.ts';
+import {
+  angleToI16,
+  createMoveStep,
+  fromMm,
+  i16ToAngle,
+  toMm,
+  createTrackedStep,
+  stepSeconds,
+  TICKS_PER_SECOND,
+  type MoveMessage,
+  type MoveStep,
+  type PathMessage,
+  type StateMessage,
+  type StreamMessage,
+  type TrackedMessage,
+  type TrackerPose,
+} from './protocol.ts';
+
+export interface RemoteAvatarOptions {
+  jitter?: JitterBufferOptions;
+  drift?: DriftCorrectorOptions;
+  /** Steps replayed per `update` at most (a long stall catches up over several frames). Default 32. */
+  maxStepsPerUpdate?: number;
+  /** Lost time longer than this (s) is not simulated (the drift correction covers it). Default 2. */
+  maxGapSeconds?: number;
+  /** |x|, |z| beyond this (m) are refused. Default 10 000. */
+  worldLimit?: number;
+  /** Called with a reason whenever remote data is refused or patched over. */
+  onNote?: (note: string) => void;
+}
+
+export interface RemoteAvatarStats {
+  stepsApplied: number;
+  /** Messages known lost (a later one arrived first and the time came). */
+  lostMessages: number;
+  /** Lost time played with the last input as it passed (s), and all at once after a snapshot (s). */
+  extrapolatedSeconds: number;
+  gapSeconds: number;
+  refused: number;
+  underflows: number;
+}
+
+function poseCopy(): TrackerPose {
+  return { tracked: false, fromHand: false, position: [0, 0, 0], rotation: [0, 0, 0, 1] };
+}
+
+export class RemoteAvatar {
+  readonly buffer: JitterBuffer<StreamMessage>;
+  readonly drift: DriftCorrector;
+  readonly stats: RemoteAvatarStats = { stepsApplied: 0, lostMessages: 0, extrapolatedSeconds: 0, gapSeconds: 0, refused: 0, underflows: 0 };
+  /** True once placed by a state (snapshot or in-stream) or a first message. */
+  ready = false;
+  /** The trackers shown this frame (VR members). */
+  readonly trackers: [TrackerPose, TrackerPose, TrackerPose] = [poseCopy(), poseCopy(), poseCopy()];
+  private readonly o: Required<Omit<RemoteAvatarOptions, 'jitter' | 'drift' | 'onNote'>>;
+  private readonly note: (n: string) => void;
+  private current: MoveMessage | TrackedMessage | null = null;
+  private stepIndex = 0;
+  private stepEnd = 0;
+  /** Sender time at the end of the last applied step. */
+  private lastEnd = NaN;
+  private path: PathInput | null = null;
+  private readonly lastMove: MoveStep = createMoveStep();
+  private readonly lastTracked = createTrackedStep();
+  private scale = 1;
+  private alpha = 0.2;
+  private drive: 'move' | 'path' | 'tracked' = 'move';
+  private readonly trackerA: TrackerPose[] = [poseCopy(), poseCopy(), poseCopy()];
+  private readonly trackerB: TrackerPose[] = [poseCopy(), poseCopy(), poseCopy()];
+  private trackerTimeA = NaN;
+  private trackerTimeB = NaN;
+  /** Lost time played in the current gap (ms), reset when a message plays. */
+  private gapMs = 0;
+
+  constructor(
+    readonly character: DrivenCharacter,
+    options: RemoteAvatarOptions = {},
+  ) {
+    this.buffer = new JitterBuffer(options.jitter);
+    this.drift = new DriftCorrector(options.drift);
+    this.o = { maxStepsPerUpdate: options.maxStepsPerUpdate ?? 32, maxGapSeconds: options.maxGapSeconds ?? 2, worldLimit: options.worldLimit ?? 10_000 };
+    this.note = options.onNote ?? (() => {});
+  }
+
+  private refuse(reason: string): PushResult {
+    this.stats.refused++;
+    this.note(reason);
+    return 'invalid';
+  }
+
+  private inWorld(...values: number[]): boolean {
+    for (const v of values) if (!(Math.abs(v) <= this.o.worldLimit)) return false;
+    return true;
+  }
+
+  /** A relayed stream message arrived at local time `nowMs`. */
+  receive(m: StreamMessage, nowMs: number): PushResult {
+    if (m.type === 'move' || m.type === 'tracked' || m.type === 'state') {
+      if (!this.inWorld(m.rootX, m.rootZ)) return this.refuse(`root (${m.rootX}, ${m.rootZ}) is beyond ±${this.o.worldLimit} m`);
+    }
+    if (m.type === 'tracked') {
+      for (const s of m.steps) if (!this.inWorld(s.headX, s.headZ)) return this.refuse('tracked head beyond the world limit');
+    }
+    if (m.type === 'path') {
+      for (const p of m.points) if (!this.inWorld(p * (this.scale || 1))) return this.refuse('path point beyond the world limit');
+    }
+    return this.buffer.push(m.seq, m.time, nowMs, m, stepSeconds(m) * 1000);
+  }
+
+  /** The late-join snapshot the server cached (state and path may be null). */
+  applySnapshot(state: StateMessage | null, path: PathMessage | null): void {
+    if (path && this.inWorld(...path.points)) this.path = { points: path.points, speeds: path.speeds, looped: path.looped };
+    if (!state) return;
+    if (!this.inWorld(state.rootX, state.rootZ)) {
+      this.refuse('snapshot root beyond the world limit');
+      return;
+    }
+    this.resetTo(state);
+    this.buffer.skipTo(Math.max(state.seq, path?.seq ?? 0));
+  }
+
+  /** Measures the drift with the local root quantized as the sender's report is (1 mm, int16 yaw). */
+  private measure(x: number, z: number, yaw: number): void {
+    const c = this.character;
+    this.drift.measure(fromMm(toMm(c.rootX)), fromMm(toMm(c.rootZ)), i16ToAngle(angleToI16(c.rootYaw)), x, z, yaw);
+  }
+
+  private resetTo(s: StateMessage): void {
+    const c = this.character;
+    const [x0, z0, yaw0] = [c.rootX, c.rootZ, c.rootYaw];
+    this.scale = s.scale;
+    this.alpha = s.alpha;
+    this.drive = s.drive;
+    c.reset(s.frame, s.rootX, s.rootZ, s.rootYaw);
+    Object.assign(this.lastMove, s.move);
+    Object.assign(this.lastTracked, s.tracked);
+    if (s.drive === 'path' && this.path) c.setPath(this.path, s.pathTime);
+    else if (s.drive === 'path') this.note('snapshot follows a path it did not include');
+    if (s.drive === 'tracked') c.setTracked(this.lastTracked, this.scale, this.alpha);
+    else if (s.drive === 'move') c.setMove(this.lastMove);
+    if (this.ready) this.drift.rebase(c.rootX - x0, c.rootZ - z0, c.rootYaw - yaw0);
+    else this.drift.reset();
+    this.measure(s.rootX, s.rootZ, s.rootYaw);
+    this.lastEnd = s.time;
+    this.current = null;
+    this.ready = true;
+  }
+
+  /**
+   * Once a frame: replays every step due at local time `nowMs`, then advances the display
+   * correction by `dt` (s) and hands it, and the trackers, to the character.
+   */
+  update(nowMs: number, dt: number): void {
+    const playout = this.buffer.playoutTime(nowMs);
+    let budget = this.o.maxStepsPerUpdate;
+    while (budget > 0) {
+      if (!this.current) {
+        const r = this.buffer.pop(nowMs);
+        if (!r) {
+          if (this.ready && Number.isFinite(playout) && playout > this.lastEnd + 1.5) {
+            const head = this.buffer.peekSeq();
+            if (head > this.buffer.releasedSeq + 1) {
+              // A later message is here but the one for this time is not: it is lost (the
+              // stream is ordered). Play the lost time with the last input as it passes.
+              const lost = head - this.buffer.releasedSeq - 1;
+              this.note(`${lost} message(s) lost before seq ${head}`);
+              this.stats.lostMessages += lost;
+              this.buffer.skipTo(head - 1);
+            }
+            if (this.buffer.releasedSeq + 1 === head && this.buffer.size > 0) {
+              this.extrapolate(Math.min(playout, this.buffer.nextStart()));
+            } else if (this.buffer.size === 0) this.stats.underflows++;
+          }
+          break;
+        }
+        const m = r.item;
+        const start = r.time - r.span;
+        if (r.missingBefore > 0) this.note(`${r.missingBefore} message(s) lost before seq ${r.seq}`);
+        // Message times are whole ms of the sender's clock: consecutive messages meet within 1 ms.
+        if (this.ready && Number.isFinite(this.lastEnd) && start > this.lastEnd + 1.5) this.fillGap((start - this.lastEnd) / 1000);
+        if (m.type === 'state') {
+          if (!this.ready) this.resetTo(m);
+          else {
+            this.measure(m.rootX, m.rootZ, m.rootYaw);
+            this.scale = m.scale;
+            this.alpha = m.alpha;
+            this.lastEnd = m.time;
+          }
+          continue;
+        }
+        if (m.type === 'path') {
+          this.path = { points: m.points, speeds: m.speeds, looped: m.looped };
+          this.drive = 'path';
+          this.character.setPath(this.path, 0);
+          this.lastEnd = m.time;
+          continue;
+        }
+        if (!this.ready) {
+          // No state yet: start where the sender says it is.
+          this.character.reset(-1, m.rootX, m.rootZ, m.rootYaw);
+          this.drift.reset();
+          this.ready = true;
+        }
+        if (m.type === 'tracked') {
+          this.scale = m.scale;
+          this.alpha = m.alpha;
+          this.pushTrackers(m);
+        }
+        this.current = m;
+        this.stepIndex = 0;
+        this.stepEnd = start;
+        this.gapMs = 0;
+      }
+      const m = this.current;
+      const step = m.steps[this.stepIndex];
+      const end = this.stepEnd + (step.ticks * 1000) / TICKS_PER_SECOND;
+      if (end > playout) break;
+      this.applyStep(m, this.stepIndex);
+      budget--;
+      this.stepEnd = end;
+      this.lastEnd = end;
+      this.stepIndex++;
+      if (this.stepIndex === m.steps.length) {
+        this.measure(m.rootX, m.rootZ, m.rootYaw);
+        this.lastEnd = m.time;
+        this.current = null;
+      }
+    }
+    this.drift.update(dt);
+    this.character.setDisplayOffset(this.drift.offsetX, this.drift.offsetZ, this.drift.offsetYaw);
+    if (Number.isFinite(this.trackerTimeB)) this.interpolateTrackers(playout);
+  }
+
+  private applyStep(m: MoveMessage | TrackedMessage, i: number): void {
+    const c = this.character;
+    if (m.type === 'move') {
+      const s = m.steps[i];
+      if (s.path && this.path) {
+        if (this.drive !== 'path') {
+          this.note('path step without a running path');
+          c.setPath(this.path, 0);
+        }
+        this.drive = 'path';
+      } else {
+        if (this.drive === 'path') c.setPath(null, 0);
+        this.drive = 'move';
+        c.setMove(s);
+      }
+      Object.assign(this.lastMove, s);
+      c.update(s.ticks / TICKS_PER_SECOND);
+    } else {
+      const s = m.steps[i];
+      this.drive = 'tracked';
+      c.setTracked(s, m.scale, m.alpha);
+      Object.assign(this.lastTracked, s);
+      c.update(s.ticks / TICKS_PER_SECOND);
+    }
+    this.stats.stepsApplied++;
+  }
+
+  /** Steps the character `ticks` with the last input (lost time: a guess the drift correction fixes). */
+  private stepLastInput(ticks: number): void {
+    const c = this.character;
+    if (this.drive === 'tracked') c.setTracked(this.lastTracked, this.scale, this.alpha);
+    else if (this.drive === 'move') c.setMove(this.lastMove);
+    c.update(ticks / TICKS_PER_SECOND);
+  }
+
+  /** Plays lost time up to sender time `until` (one step per frame, so the motion stays smooth). */
+  private extrapolate(until: number): void {
+    const ms = Math.min(until - this.lastEnd, this.o.maxGapSeconds * 1000 - this.gapMs);
+    const ticks = Math.min(Math.floor((ms * TICKS_PER_SECOND) / 1000), TICKS_PER_SECOND / 10);
+    if (ticks >= 1) {
+      this.stepLastInput(ticks);
+      this.gapMs += (ticks * 1000) / TICKS_PER_SECOND;
+      this.stats.extrapolatedSeconds += ticks / TICKS_PER_SECOND;
+    }
+    this.lastEnd = until;
+  }
+
+  /**
+   * Lost time discovered at once (e.g. after a snapshot): simulated now with the last input
+   * (steps ≤ 1/30 s, up to `maxGapSeconds`); the display is rebased so it does not jump and
+   * blends to the sender's report instead.
+   */
+  private fillGap(seconds: number): void {
+    const total = Math.min(seconds, this.o.maxGapSeconds);
+    this.stats.gapSeconds += total;
+    const c = this.character;
+    const [x0, z0, yaw0] = [c.rootX, c.rootZ, c.rootYaw];
+    let left = Math.round(total * TICKS_PER_SECOND);
+    while (left > 0) {
+      const ticks = Math.min(left, TICKS_PER_SECOND / 30);
+      this.stepLastInput(ticks);
+      left -= ticks;
+    }
+    this.drift.rebase(c.rootX - x0, c.rootZ - z0, c.rootYaw - yaw0);
+  }
+
+  private pushTrackers(m: TrackedMessage): void {
+    // B becomes A; the new sample is B (at the message's time).
+    for (let i = 0; i < 3; i++) copyPose(this.trackerA[i], Number.isFinite(this.trackerTimeB) ? this.trackerB[i] : m.trackers[i]);
+    this.trackerTimeA = Number.isFinite(this.trackerTimeB) ? this.trackerTimeB : m.time;
+    for (let i = 0; i < 3; i++) copyPose(this.trackerB[i], m.trackers[i]);
+    this.trackerTimeB = m.time;
+  }
+
+  private interpolateTrackers(playout: number): void {
+    const span = this.trackerTimeB - this.trackerTimeA;
+    const t = span > 0 ? Math.max(0, Math.min(1, (playout - this.trackerTimeA) / span)) : 1;
+    for (let i = 0; i < 3; i++) {
+      const a = this.trackerA[i];
+      const b = this.trackerB[i];
+      const d = this.trackers[i];
+      d.tracked = b.tracked;
+      d.fromHand = b.fromHand;
+      for (let k = 0; k < 3; k++) d.position[k] = a.position[k] + (b.position[k] - a.position[k]) * t;
+      // nlerp on the shorter arc.
+      const dot = a.rotation[0] * b.rotation[0] + a.rotation[1] * b.rotation[1] + a.rotation[2] * b.rotation[2] + a.rotation[3] * b.rotation[3];
+      const sb = dot < 0 ? -1 : 1;
+      let n = 0;
+      for (let k = 0; k < 4; k++) {
+        d.rotation[k] = a.rotation[k] * (1 - t) + sb * b.rotation[k] * t;
+        n += d.rotation[k] * d.rotation[k];
+      }
+      n = Math.sqrt(n) || 1;
+      for (let k = 0; k < 4; k++) d.rotation[k] /= n;
+    }
+    this.character.setTrackers?.(this.trackers);
+  }
+}
+
+function copyPose(d: TrackerPose, s: TrackerPose): void {
+  d.tracked = s.tracked;
+  d.fromHand = s.fromHand;
+  for (let k = 0; k < 3; k++) d.position[k] = s.position[k];
+  for (let k = 0; k < 4; k++) d.rotation[k] = s.rotation[k];
+}
