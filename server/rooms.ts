@@ -89,6 +89,8 @@ export interface RoomsStats {
   dropped: Record<number, number>;
   /** Upgrade requests refused (bad id, origin, capacity). */
   rejected: number;
+  /** Messages that arrived from a connection already dropped (read, not looked at). */
+  ignoredAfterDrop: number;
   /** Handler exceptions caught (a bug, not an attack: should stay 0). */
   internalErrors: number;
 }
@@ -165,6 +167,7 @@ export function attachRooms(server: HttpServer | HttpsServer, options: RoomsOpti
     skippedSlow: 0,
     dropped: {},
     rejected: 0,
+    ignoredAfterDrop: 0,
     internalErrors: 0,
   };
   const wss = new WebSocketServer({ noServer: true, maxPayload: MAX_CLIENT_MESSAGE_BYTES, perMessageDeflate: false, clientTracking: false });
@@ -331,11 +334,14 @@ export function attachRooms(server: HttpServer | HttpsServer, options: RoomsOpti
   };
 
   const onMessage = (c: Connection, data: RawData, isBinary: boolean) => {
-    if (c.gone) return;
-    const t = now();
     const bytes = Array.isArray(data) ? Buffer.concat(data) : Buffer.isBuffer(data) ? data : Buffer.from(data);
     stats.messagesIn++;
     stats.bytesIn += bytes.length;
+    if (c.gone) {
+      stats.ignoredAfterDrop++; // already in flight when it was dropped
+      return;
+    }
+    const t = now();
     if (!c.messages.take(1, t) || !c.bytes.take(bytes.length, t)) return drop(c, CloseCode.rateLimited, 'rate limit: too many messages or bytes', 'dropped');
     if (!isBinary) return drop(c, CloseCode.malformed, 'text messages are not part of the protocol', 'dropped');
     let m;
