@@ -2,7 +2,9 @@
  * The room server alone on a port (load tests, a dedicated rooms process): serves nothing but
  * `/rooms/<id>` (WebSocket) and `POST /rooms` (a new room id).
  *
- *   node_modules/.bin/esbuild server/main.ts --bundle --platform=node --format=esm --outfile=/tmp/rooms.mjs
+ *   node_modules/.bin/esbuild server/main.ts --bundle --platform=node --format=esm --outfile=/tmp/rooms.mjs \
+ *     --external:bufferutil --external:utf-8-validate \
+ *     "--banner:js=import { createRequire as __cr } from 'node:module'; const require = __cr(import.meta.url);"
  *   node /tmp/rooms.mjs --port 8787 [--host 127.0.0.1] [--max-members 16]
  *        [--allow-origin https://example.com]… [--allow-no-origin] [--stats-ms 1000]
  *

@@ -1,0 +1,137 @@
+#!/usr/bin/env node
+/**
+ * Room server load test (loopback only, bounded): bundles server/main.ts and
+ * server/load-client.ts with esbuild, starts the server in one process and the clients in
+ * another, runs 100 clients in 10 rooms for 60 s (all parameters below), and prints a table and
+ * a JSON line: relay latency p50/p99, server CPU and memory, bytes/s per avatar.
+ *
+ *   node scripts/rooms-load.mjs [--clients 100] [--rooms 10] [--seconds 60] [--vr-every 3] [--json out.json]
+ *   node scripts/rooms-load.mjs --seconds 8        # the short variant (CI)
+ */
+import { spawn } from 'node:child_process';
+import { mkdtempSync, rmSync, writeFileSync } from 'node:fs';
+import { cpus, loadavg, tmpdir } from 'node:os';
+import { join, dirname } from 'node:path';
+import { fileURLToPath } from 'node:url';
+import { createInterface } from 'node:readline';
+import { build } from 'esbuild';
+
+const root = join(dirname(fileURLToPath(import.meta.url)), '..');
+const opt = (name, fallback) => {
+  const i = process.argv.indexOf(`--${name}`);
+  return i < 0 ? fallback : process.argv[i + 1];
+};
+const clients = Number(opt('clients', 100));
+const rooms = Number(opt('rooms', 10));
+const seconds = Number(opt('seconds', 60));
+const vrEvery = Number(opt('vr-every', 3));
+const jsonOut = opt('json', null);
+if (!(clients > 0 && clients <= 2000 && rooms > 0 && seconds > 0 && seconds <= 600)) throw new Error('clients 1–2000, seconds 1–600');
+
+const loadBefore = loadavg()[0];
+const dir = mkdtempSync(join(tmpdir(), 'rooms-load-'));
+await build({
+  entryPoints: { main: join(root, 'server/main.ts'), 'load-client': join(root, 'server/load-client.ts') },
+  bundle: true,
+  platform: 'node',
+  format: 'esm',
+  target: 'node20',
+  outdir: dir,
+  outExtension: { '.js': '.mjs' },
+  // ws's optional native add-ons are not installed; let it fall back to JS.
+  external: ['bufferutil', 'utf-8-validate'],
+  // ws is CommonJS: give the ESM bundle a `require` for Node's built-ins.
+  banner: { js: "import { createRequire as __cr } from 'node:module'; const require = __cr(import.meta.url);" },
+  logLevel: 'warning',
+});
+
+const lines = (child, onLine) => createInterface({ input: child.stdout }).on('line', (l) => {
+  try {
+    onLine(JSON.parse(l));
+  } catch {
+    process.stderr.write(`${l}\n`);
+  }
+});
+
+const server = spawn(process.execPath, [join(dir, 'main.mjs'), '--port', '0', '--host', '127.0.0.1', '--stats-ms', '1000', '--max-members', '16'], { stdio: ['ignore', 'pipe', 'inherit'] });
+const stats = [];
+const port = await new Promise((resolve, reject) => {
+  lines(server, (m) => {
+    if (m.type === 'listening') resolve(m.port);
+    else if (m.type === 'stats') stats.push(m);
+  });
+  server.once('exit', (code) => reject(new Error(`server exited ${code}`)));
+});
+const killTimer = setTimeout(() => {
+  console.error('load test overran its time; stopping');
+  server.kill('SIGKILL');
+  process.exit(2);
+}, (seconds + 60) * 1000);
+
+let measuringAt = 0;
+let measuredAt = 0;
+let result = null;
+const client = spawn(
+  process.execPath,
+  [join(dir, 'load-client.mjs'), '--url', `ws://127.0.0.1:${port}`, '--origin', `http://127.0.0.1:${port}`, '--clients', String(clients), '--rooms', String(rooms), '--seconds', String(seconds), '--vr-every', String(vrEvery)],
+  { stdio: ['ignore', 'pipe', 'inherit'] },
+);
+lines(client, (m) => {
+  if (m.type === 'measuring') measuringAt = performance.now();
+  else if (m.type === 'measured') measuredAt = performance.now();
+  else if (m.type === 'result') result = m;
+});
+const clientCode = await new Promise((resolve) => client.once('exit', resolve));
+await new Promise((r) => setTimeout(r, 1100)); // one more stats line
+server.kill('SIGTERM');
+await new Promise((resolve) => server.once('exit', resolve));
+clearTimeout(killTimer);
+rmSync(dir, { recursive: true, force: true });
+if (clientCode !== 0 || !result) throw new Error(`load client failed (exit ${clientCode})`);
+
+// Server numbers over the measured window: the stats lines inside it.
+const inWindow = stats.filter((s, i) => i > 0 && s.members === clients);
+const first = inWindow[Math.min(2, inWindow.length - 1)];
+const last = inWindow[inWindow.length - 1];
+const wall = (last.t - first.t) / 1000;
+const cpuMs = last.cpuUserMs + last.cpuSystemMs - (first.cpuUserMs + first.cpuSystemMs);
+const msgsIn = last.messagesIn - first.messagesIn;
+const msgsOut = last.messagesOut - first.messagesOut;
+const serverSummary = {
+  windowSeconds: Math.round(wall * 10) / 10,
+  cpuPercentOfOneCore: Math.round((cpuMs / (wall * 1000)) * 1000) / 10,
+  rssMiBMax: Math.round(Math.max(...inWindow.map((s) => s.rss)) / 1048576 * 10) / 10,
+  heapMiBMax: Math.round(Math.max(...inWindow.map((s) => s.heapUsed)) / 1048576 * 10) / 10,
+  messagesInPerSecond: Math.round(msgsIn / wall),
+  messagesOutPerSecond: Math.round(msgsOut / wall),
+  bytesOutPerSecond: Math.round((last.bytesOut - first.bytesOut) / wall),
+  cpuMicrosecondsPerMessageIn: Math.round((cpuMs * 1000) / msgsIn * 10) / 10,
+  cpuMicrosecondsPerRelayedCopy: Math.round((cpuMs * 1000) / msgsOut * 100) / 100,
+  skippedSlow: last.skippedSlow,
+  dropped: last.dropped,
+  internalErrors: last.internalErrors,
+};
+const report = { clients, rooms, seconds: result.seconds, vrEvery, latencyMs: result.latencyMs, latencySamples: result.latencySamples, server: serverSummary, desktop: result.desktop, vr: result.vr, clientErrors: result.clientErrors, closedEarly: result.closedEarly, clientProcessCpuPercent: result.clientCpuPercent,
+  machine: { cores: cpus().length, loadAverage1mBefore: Math.round(loadBefore * 100) / 100, loadAverage1mAfter: Math.round(loadavg()[0] * 100) / 100 } };
+
+const row = (k, v) => `| ${k} | ${v} |`;
+console.log(
+  [
+    `| rooms load test: ${clients} clients in ${rooms} rooms, ${result.seconds} s measured | |`,
+    '|---|---|',
+    row('relay latency p50 / p90 / p99 / max (ms)', `${result.latencyMs.p50.toFixed(2)} / ${result.latencyMs.p90.toFixed(2)} / ${result.latencyMs.p99.toFixed(2)} / ${result.latencyMs.max}`),
+    row('latency samples; client process CPU (% of one core)', `${result.latencySamples}; ${result.clientCpuPercent}`),
+    row('server CPU (% of one core)', serverSummary.cpuPercentOfOneCore),
+    row('server RSS / heap max (MiB)', `${serverSummary.rssMiBMax} / ${serverSummary.heapMiBMax}`),
+    row('messages in / relayed copies out per s', `${serverSummary.messagesInPerSecond} / ${serverSummary.messagesOutPerSecond}`),
+    row('server CPU µs per message in / per copy out', `${serverSummary.cpuMicrosecondsPerMessageIn} / ${serverSummary.cpuMicrosecondsPerRelayedCopy}`),
+    row(`desktop avatars (${result.desktop.avatars}): up / down per receiver (B/s)`, `${result.desktop.upBytesPerSecond} / ${result.desktop.downBytesPerSecondPerReceiver}`),
+    row(`VR avatars (${result.vr.avatars}): up / down per receiver (B/s)`, `${result.vr.upBytesPerSecond} / ${result.vr.downBytesPerSecondPerReceiver}`),
+    row('machine: cores; 1-min load average before / after (other work on the machine)', `${report.machine.cores}; ${report.machine.loadAverage1mBefore} / ${report.machine.loadAverage1mAfter}`),
+    row('dropped / skipped slow / internal errors / client errors', `${JSON.stringify(serverSummary.dropped)} / ${serverSummary.skippedSlow} / ${serverSummary.internalErrors} / ${result.clientErrors}`),
+  ].join('\n'),
+);
+console.log(JSON.stringify(report));
+if (jsonOut) writeFileSync(jsonOut, `${JSON.stringify(report, null, 2)}\n`);
+void measuringAt;
+void measuredAt;

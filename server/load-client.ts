@@ -1,0 +1,254 @@
+/**
+ * Load-test clients (run by scripts/rooms-load.mjs in a process of their own, loopback only):
+ * `--clients` members in `--rooms` rooms, desktop ones stepping at 60 Hz and sending 20 Hz, VR
+ * ones (every `--vr-every`-th) stepping at 90 Hz and sending 30 Hz, each a real `LocalAvatar` +
+ * `InputStream` stream with a STATE a second. Measures relay latency (send → each receiver, one
+ * clock: the same process) and bytes per avatar, then prints one JSON line.
+ */
+import { WebSocket } from 'ws';
+import { InputStream } from '../web/src/rooms/input-stream.ts';
+import { LocalAvatar } from '../web/src/rooms/local-avatar.ts';
+import { createRoomId, decodeServerMessage, encodeJoin, MsgType, websocketFrameOverhead, type TrackerPose } from '../web/src/rooms/protocol.ts';
+import { TestCharacter } from '../web/src/rooms/testing.ts';
+
+function arg(name: string, fallback: number): number;
+function arg(name: string, fallback: string): string;
+function arg(name: string, fallback: number | string): number | string {
+  const i = process.argv.indexOf(`--${name}`);
+  if (i < 0) return fallback;
+  return typeof fallback === 'number' ? Number(process.argv[i + 1]) : process.argv[i + 1];
+}
+
+const base = arg('url', 'ws://127.0.0.1:8787');
+const origin = arg('origin', 'http://127.0.0.1:8787');
+const numClients = arg('clients', 100);
+const numRooms = arg('rooms', 10);
+const seconds = arg('seconds', 60);
+const warmup = arg('warmup', 2);
+const vrEvery = arg('vr-every', 3);
+
+const RING = 4096;
+const HIST_BUCKET_MS = 0.05;
+const histogram = new Uint32Array(Math.ceil(2000 / HIST_BUCKET_MS));
+let latencySamples = 0;
+let latencyOverflow = 0;
+let measuring = false;
+
+interface Client {
+  index: number;
+  room: number;
+  vr: boolean;
+  ws: WebSocket;
+  memberId: number;
+  stream: InputStream;
+  local: LocalAvatar;
+  character: TestCharacter;
+  sentAt: Float64Array;
+  /** Member id → that sender's mode, in this client's room. */
+  modes: Map<number, boolean>;
+  upBytes: number;
+  downBytes: { desktop: number; vr: number };
+  downPairs: { desktop: number; vr: number };
+  joined: boolean;
+  closed: boolean;
+  errors: number;
+}
+
+const roomIds = Array.from({ length: numRooms }, () => createRoomId());
+const clients: Client[] = [];
+const byRoomAndId = new Map<string, Client>();
+const trackers: TrackerPose[] = [0, 1, 2].map(() => ({ tracked: true, fromHand: false, position: [0, 1.6, 0], rotation: [0, 0, 0, 1] }));
+
+function open(index: number): Promise<void> {
+  const room = index % numRooms;
+  const vr = index % vrEvery === vrEvery - 1;
+  const ws = new WebSocket(`${base}/rooms/${roomIds[room]}`, { origin });
+  const stream = new InputStream();
+  const character = new TestCharacter();
+  const c: Client = {
+    index,
+    room,
+    vr,
+    ws,
+    memberId: 0,
+    stream,
+    local: new LocalAvatar(character, stream),
+    character,
+    sentAt: new Float64Array(RING),
+    modes: new Map(),
+    upBytes: 0,
+    downBytes: { desktop: 0, vr: 0 },
+    downPairs: { desktop: 0, vr: 0 },
+    joined: false,
+    closed: false,
+    errors: 0,
+  };
+  clients.push(c);
+  ws.binaryType = 'nodebuffer';
+  return new Promise((resolve, reject) => {
+    ws.on('open', () => {
+      ws.send(encodeJoin({ name: `load ${index}`, avatar: { kind: 'builtin', id: index % 4 }, database: 'locomotion', height: vr ? 1.65 : 0, mode: vr ? 'vr' : 'desktop', devices: vr ? { headset: true, leftController: true, rightController: true } : { keyboard: true } }));
+    });
+    ws.on('message', (data: Buffer) => {
+      const now = performance.now();
+      if (data[1] === MsgType.relay) {
+        // Hot path: header only. [1, 0x83, from, 1, type, seq u32 …]
+        const from = data[2];
+        const seq = data.readUInt32LE(5);
+        const sender = byRoomAndId.get(`${room}:${from}`);
+        if (measuring && sender) {
+          const sent = sender.sentAt[seq % RING];
+          if (sent > 0) {
+            const ms = now - sent;
+            const b = Math.floor(ms / HIST_BUCKET_MS);
+            if (b < histogram.length) histogram[b]++;
+            else latencyOverflow++;
+            latencySamples++;
+          }
+          const key = sender.vr ? 'vr' : 'desktop';
+          c.downBytes[key] += data.length + websocketFrameOverhead(data.length, false);
+        }
+        return;
+      }
+      try {
+        const m = decodeServerMessage(new Uint8Array(data.buffer, data.byteOffset, data.byteLength));
+        if (m.type === 'welcome') {
+          c.memberId = m.memberId;
+          c.joined = true;
+          byRoomAndId.set(`${room}:${m.memberId}`, c);
+          c.stream.queueState();
+          resolve();
+        } else if (m.type === 'stateRequest') c.stream.queueState();
+      } catch {
+        c.errors++;
+      }
+    });
+    ws.on('close', () => {
+      c.closed = true;
+      if (!c.joined) reject(new Error(`client ${index} closed before joining`));
+    });
+    ws.on('error', () => c.errors++);
+  });
+}
+
+function send(c: Client, now: number): void {
+  if (!c.joined || c.closed) return;
+  for (const bytes of c.stream.flush()) {
+    const seq = new DataView(bytes.buffer, bytes.byteOffset).getUint32(2, true);
+    c.sentAt[seq % RING] = now;
+    c.ws.send(bytes);
+    if (measuring) c.upBytes += bytes.length + websocketFrameOverhead(bytes.length, true);
+  }
+}
+
+async function main() {
+  // Connect in batches so the server is not asked for 100 handshakes in one tick.
+  for (let i = 0; i < numClients; i += 10) await Promise.all(Array.from({ length: Math.min(10, numClients - i) }, (_, k) => open(i + k)));
+  const t0 = performance.now();
+  let simNow = t0;
+  let vrSteps = 0;
+  // Frames: desktop 60 Hz, VR 90 Hz (catching up from the one timer).
+  const frame = setInterval(() => {
+    const now = performance.now();
+    const t = (now - t0) / 1000;
+    vrSteps += ((now - simNow) / 1000) * 90;
+    const vrNow = Math.floor(vrSteps);
+    vrSteps -= vrNow;
+    for (const c of clients) {
+      const phase = c.index * 0.7;
+      const steps = c.vr ? vrNow : 1;
+      const dt = c.vr ? 1 / 90 : (now - simNow) / 1000;
+      for (let s = 0; s < steps; s++) {
+        const ang = t * 0.5 + phase;
+        if (c.vr) {
+          const x = Math.sin(ang) * 2;
+          const z = Math.cos(ang) * 2;
+          trackers[0].position = [x, 1.6, z];
+          trackers[1].position = [x - 0.3, 1.1, z];
+          trackers[2].position = [x + 0.3, 1.1, z];
+          c.local.setTrackers(trackers);
+          c.local.setTracked({ headX: x, headZ: z, velocityX: Math.cos(ang), velocityZ: -Math.sin(ang), yaw: ang + Math.PI / 2, hipsDrop: 0 }, 1, 0.2);
+        } else c.local.setMove({ moveX: Math.sin(ang), moveZ: Math.cos(ang), faceX: 0, faceZ: 1, run: Math.sin(t + phase) > 0.5, strafe: false });
+        c.local.update(dt);
+      }
+    }
+    simNow = now;
+  }, 1000 / 60);
+  // Sends: 20 Hz desktop, 30 Hz VR, phases spread; a STATE every second.
+  const timers: ReturnType<typeof setInterval>[] = [];
+  for (const c of clients) {
+    const period = 1000 / (c.vr ? 30 : 20);
+    let lastState = performance.now();
+    setTimeout(() => {
+      timers.push(
+        setInterval(() => {
+          const now = performance.now();
+          if (now - lastState >= 1000) {
+            c.stream.queueState();
+            lastState = now;
+          }
+          send(c, now);
+        }, period),
+      );
+    }, Math.random() * period);
+  }
+  await new Promise((r) => setTimeout(r, warmup * 1000));
+  console.log(JSON.stringify({ type: 'measuring', at: Date.now() }));
+  measuring = true;
+  const m0 = performance.now();
+  const cpu0 = process.cpuUsage();
+  await new Promise((r) => setTimeout(r, seconds * 1000));
+  measuring = false;
+  const measured = (performance.now() - m0) / 1000;
+  const cpu = process.cpuUsage(cpu0);
+  const clientCpuPercent = Math.round(((cpu.user + cpu.system) / 1000 / (measured * 1000)) * 1000) / 10;
+  console.log(JSON.stringify({ type: 'measured', at: Date.now() }));
+  clearInterval(frame);
+  for (const t of timers) clearInterval(t);
+
+  const pct = (p: number) => {
+    const target = p * latencySamples;
+    let acc = 0;
+    for (let b = 0; b < histogram.length; b++) {
+      acc += histogram[b];
+      if (acc >= target) return (b + 0.5) * HIST_BUCKET_MS;
+    }
+    return Infinity;
+  };
+  let maxBucket = 0;
+  for (let b = 0; b < histogram.length; b++) if (histogram[b]) maxBucket = b;
+  const perMode = (vr: boolean) => {
+    const senders = clients.filter((c) => c.vr === vr);
+    const up = senders.reduce((s, c) => s + c.upBytes, 0) / senders.length / measured;
+    // Downstream: bytes received from senders of this mode / (receiver, sender) pairs.
+    let bytes = 0;
+    let pairs = 0;
+    for (const r of clients) {
+      const inRoom = clients.filter((s) => s.room === r.room && s !== r && s.vr === vr).length;
+      bytes += r.downBytes[vr ? 'vr' : 'desktop'];
+      pairs += inRoom;
+    }
+    return { avatars: senders.length, upBytesPerSecond: Math.round(up), downBytesPerSecondPerReceiver: Math.round(bytes / pairs / measured) };
+  };
+  const result = {
+    type: 'result',
+    clients: numClients,
+    rooms: numRooms,
+    seconds: Math.round(measured * 10) / 10,
+    latencySamples,
+    latencyMs: { p50: pct(0.5), p90: pct(0.9), p99: pct(0.99), p999: pct(0.999), max: latencyOverflow ? '>2000' : (maxBucket + 1) * HIST_BUCKET_MS },
+    desktop: perMode(false),
+    vr: perMode(true),
+    clientErrors: clients.reduce((s, c) => s + c.errors, 0),
+    closedEarly: clients.filter((c) => c.closed).length,
+    clientCpuPercent,
+  };
+  console.log(JSON.stringify(result));
+  for (const c of clients) c.ws.close();
+  setTimeout(() => process.exit(0), 500);
+}
+
+main().catch((e) => {
+  console.error(e);
+  process.exit(1);
+});
