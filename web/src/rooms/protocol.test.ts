@@ -115,6 +115,21 @@ describe('quantization', () => {
     expect(angleToI16(NaN)).toBe(0);
   });
 
+  it('move and facing: int8, facing direction error < 0.32°, move length never above 1', () => {
+    let worst = 0;
+    for (let i = 0; i < 100_000; i++) {
+      const a = (i / 100_000) * 2 * Math.PI;
+      const s = quantizeMoveStep({ ...createMoveStep(), moveX: Math.sin(a) * 1.3, moveZ: Math.cos(a) * 1.3, faceX: Math.sin(a), faceZ: Math.cos(a) });
+      const d = Math.abs(Math.atan2(Math.sin(a - Math.atan2(s.faceX, s.faceZ)), Math.cos(a - Math.atan2(s.faceX, s.faceZ))));
+      worst = Math.max(worst, d);
+      expect(Math.hypot(s.moveX, s.moveZ)).toBeLessThanOrEqual(1);
+    }
+    const degrees = (worst * 180) / Math.PI;
+    console.log(`int8 facing: worst direction error ${degrees.toFixed(3)}°`);
+    expect(degrees).toBeLessThan(0.32);
+    expect(degrees).toBeGreaterThan(0.1);
+  });
+
   it('quaternions: smallest-three 32 bit, worst angular error < 0.24° over 200k random rotations', () => {
     const rand = seeded(7);
     const out = [0, 0, 0, 0];

@@ -614,7 +614,7 @@ const MOVE_PATH = 16;
 const MOVE_SAME_DT = 32;
 const MOVE_FLAGS = MOVE_RUN | MOVE_STRAFE | MOVE_HAS_MOVE | MOVE_HAS_FACE | MOVE_PATH | MOVE_SAME_DT;
 
-/** int8 of a value in [-1, 1] (q / 127): stick and facing resolution 1/127 (facing ≤ 0.23°). */
+/** int8 of a value in [-1, 1] (q / 127): stick resolution 1/127, facing direction error < 0.31° (measured). */
 export function unitToI8(v: number): number {
   if (!Number.isFinite(v)) return 0;
   return Math.max(-127, Math.min(127, Math.round(v * 127)));
