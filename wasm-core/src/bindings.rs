@@ -101,7 +101,7 @@ impl RawDatabase {
     /// the pointer to `J×3` f32 world positions. Rotations: [`Self::world_rotations_ptr`].
     pub fn world_positions(&mut self, frame: usize) -> *const f32 {
         let frame = frame.min(self.db.num_frames - 1);
-        self.db.forward_kinematics(frame, false, &mut self.world_positions, &mut self.world_rotations);
+        self.db.forward_kinematics(frame, &mut self.world_positions, &mut self.world_rotations);
         self.world_positions.as_ptr().cast()
     }
     /// `J×4` f32 world rotations from the last [`Self::world_positions`] call.
@@ -293,15 +293,9 @@ impl RawCrowd {
         let Some(patch) = patch.as_object() else {
             return Err(JsError::new("settings: expected a JSON object"));
         };
+        let _ = patch;
         for c in &mut self.crowd.characters {
-            let mut current = serde_json::to_value(&c.settings).map_err(|e| JsError::new(&e.to_string()))?;
-            let Some(obj) = current.as_object_mut() else {
-                return Err(JsError::new("settings: expected a JSON object"));
-            };
-            for (k, v) in patch {
-                obj.insert(k.clone(), v.clone());
-            }
-            c.settings = serde_json::from_value(current).map_err(|e| JsError::new(&format!("settings: {e}")))?;
+            c.settings = c.settings.patched(json).map_err(|e| JsError::new(&e))?;
         }
         Ok(())
     }

@@ -1,7 +1,8 @@
 //! The motion database: skeleton, one pose per frame (SoA arrays), contacts, clips, tags and
-//! the normalized feature matrix (THESIS_NOTES §1–2). Built by [`crate::builder`], stored by
+//! the normalized feature matrix (docs/method.md §1–2). Built by [`crate::builder`], stored by
 //! [`crate::format`], searched by [`crate::search`].
 
+use crate::kinematics::local_to_model;
 use glam::{Quat, Vec3};
 
 /// The joint hierarchy. Joint 0 is the virtual root; parents precede children.
@@ -12,7 +13,8 @@ pub struct Skeleton {
     pub parents: Vec<i32>,
     /// Rest position of each joint in its parent's space (rest rotations are the identity).
     pub offsets: Vec<Vec3>,
-    /// Named points on the body (`hips`, `left_toe`, …), see [`crate::joint_map::ROLES`].
+    /// Named points on the body, one per [`crate::roles::Role`] in [`crate::roles::Role::ALL`]
+    /// order (`hips`, `left_toe`, …; joint −1 where the skeleton has no such part).
     pub sites: Vec<Site>,
 }
 
@@ -177,16 +179,25 @@ impl Database {
         Some(mask)
     }
 
-    /// World positions and rotations of every joint at `frame` by forward kinematics, written
-    /// into the caller's buffers (no allocation). With `character_space` the virtual root's
-    /// transform is skipped, giving positions relative to the character.
+    /// World positions and rotations of every joint at `frame` (the one FK,
+    /// [`crate::kinematics::local_to_model`]), written into the caller's buffers (no allocation).
     ///
     /// # Panics
     /// If the buffers are shorter than the joint count or `frame` is out of range.
-    pub fn forward_kinematics(&self, frame: usize, character_space: bool, positions: &mut [Vec3], rotations: &mut [Quat]) {
+    pub fn forward_kinematics(&self, frame: usize, positions: &mut [Vec3], rotations: &mut [Quat]) {
         let j = self.num_joints();
         let r = frame * j..(frame + 1) * j;
-        forward_kinematics(&self.skeleton.parents, &self.local_positions[r.clone()], &self.local_rotations[r], character_space, positions, rotations);
+        local_to_model(&self.skeleton.parents, 0..j, None, &self.local_positions[r.clone()], &self.local_rotations[r], positions, rotations);
+    }
+
+    /// World positions of every joint in the rest pose (identity rotations, the skeleton's
+    /// offsets) with the virtual root at the origin: what retargeting aligns to.
+    pub fn rest_positions(&self) -> Vec<Vec3> {
+        let j = self.num_joints();
+        let (mut p, mut r) = (vec![Vec3::ZERO; j], vec![Quat::IDENTITY; j]);
+        let identity = vec![Quat::IDENTITY; j];
+        local_to_model(&self.skeleton.parents, 0..j, None, &self.skeleton.offsets, &identity, &mut p, &mut r);
+        p
     }
 
     /// Median height above the floor of the toe sites in frames where that foot is in contact
@@ -204,7 +215,7 @@ impl Database {
             if contacts == [0, 0] {
                 continue;
             }
-            self.forward_kinematics(frame, false, &mut positions, &mut rotations);
+            self.forward_kinematics(frame, &mut positions, &mut rotations);
             for (side, site) in sites.iter().enumerate() {
                 if contacts[side] != 0 {
                     let k = site.joint as usize;
@@ -217,29 +228,5 @@ impl Database {
         }
         let mid = heights.len() / 2;
         Some(*heights.select_nth_unstable_by(mid, f32::total_cmp).1)
-    }
-}
-
-/// Forward kinematics of one pose (joint 0's local transform is its world transform, or the
-/// identity with `character_space`): `rot[j] = rot[p]·local[j]`, `pos[j] = pos[p] + rot[p]·t[j]`.
-///
-/// # Panics
-/// If any slice is shorter than `parents`.
-pub fn forward_kinematics(
-    parents: &[i32],
-    local_positions: &[Vec3],
-    local_rotations: &[Quat],
-    character_space: bool,
-    positions: &mut [Vec3],
-    rotations: &mut [Quat],
-) {
-    for (i, &parent) in parents.iter().enumerate() {
-        if parent < 0 {
-            (positions[i], rotations[i]) = if character_space { (Vec3::ZERO, Quat::IDENTITY) } else { (local_positions[i], local_rotations[i]) };
-        } else {
-            let p = parent as usize;
-            positions[i] = positions[p] + rotations[p] * local_positions[i];
-            rotations[i] = rotations[p] * local_rotations[i];
-        }
     }
 }

@@ -1,7 +1,8 @@
-//! Analytic two-bone IK and the foot lock built on it (THESIS_NOTES §7).
+//! Analytic two-bone IK and the foot lock built on it (docs/method.md §7).
 //!
-//! - [`two_bone_ik`]: hip–knee–ankle (or shoulder–elbow–wrist) by the law of cosines, bending in
-//!   the plane of a pole vector, exact up to float rounding.
+//! - [`two_bone_ik`]: hip–knee–ankle or shoulder–elbow–wrist by the law of cosines, bending in
+//!   the plane of a pole vector, exact up to float rounding. The one two-bone IK of the product:
+//!   the foot lock's legs here, the VR avatar's arms through the bindings.
 //! - [`FootLock`]: per foot, turns the animated toe position and the contact flag into a toe target
 //!   that stays put while the foot is planted and blends in and out with a decay spring.
 //! - [`leg_ik`]: moves one leg of a posed skeleton so its toe reaches that target and stays above
@@ -58,15 +59,29 @@ pub fn knee_bend_direction(a: Vec3, b: Vec3, c: Vec3) -> Vec3 {
     (b - a) - ac * ((b - a).dot(ac) / l2)
 }
 
-/// The world-space rotations that solve a two-bone chain: returns `(r_a, r_b)` such that the new
-/// world rotations are `r_a · a_gr` for the root joint `a` and `r_b · b_gr` for the middle joint `b`
-/// (and `r_b` moves everything below `b` rigidly). See [`two_bone_ik`] for the parameters.
+/// Analytic two-bone IK (law of cosines; Holden's `ik_two_bone` with an exact pole plane), as
+/// world-space rotation deltas: returns `(r_a, r_b)` such that the new world rotations are
+/// `r_a · a_gr` for the root joint `a` and `r_b · b_gr` for the middle joint `b` (`r_b` moves
+/// everything below `b` rigidly; joints between `a` and `b` turn with `r_a`).
 ///
-/// Method: the new knee position comes from the law of cosines in the plane spanned by the
-/// direction `u` to the (clamped) target and the pole's part perpendicular to `u`; `r_a` maps
-/// the thigh direction and the old bend-plane normal onto the new ones (so the thigh does not
-/// twist more than the bend-plane change requires), and `r_b = arc(r_a·shin, new shin) · r_a`.
-pub fn two_bone_ik_deltas(a: Vec3, b: Vec3, c: Vec3, target: Vec3, pole: Vec3, eps: f32) -> (Quat, Quat) {
+/// - `a`, `b`, `c`: positions of the root (hip, shoulder), middle (knee, elbow) and end (ankle,
+///   wrist) joints;
+/// - `target`: where `c` should go. Out of reach, `c` goes to the closest reachable point in the
+///   target's direction: distance from `a` clamped to `[|l1 − l2| + eps, l1 + l2 − eps]`;
+/// - `pole`: the direction the middle joint should bend toward, e.g. [`knee_bend_direction`]
+///   (keeps the current bend plane) or the knee's forward axis. Only its part perpendicular to
+///   `a → target` counts; if that vanishes (`Vec3::ZERO`, or parallel) the current bend plane is
+///   kept. A pole opposite to the current bend swings the chain about the root–end axis;
+/// - `eps`: reach margin (e.g. 0.01 m); it keeps the chain from locking straight, where the bend
+///   direction is lost.
+///
+/// Method: the new middle-joint position comes from the law of cosines in the plane spanned by
+/// the direction `u` to the (clamped) target and the pole's part perpendicular to `u`; `r_a`
+/// maps the upper bone's direction and the old bend-plane normal onto the new ones (so the bone
+/// does not twist more than the bend-plane change requires), and
+/// `r_b = arc(r_a·lower bone, new lower bone) · r_a`. Bone lengths are kept by construction; a
+/// chain with a zero-length bone gets identities. Never NaN for finite inputs.
+pub fn two_bone_ik(a: Vec3, b: Vec3, c: Vec3, target: Vec3, pole: Vec3, eps: f32) -> (Quat, Quat) {
     let (ab, bc) = (b - a, c - b);
     let (l1, l2) = (ab.length(), bc.length());
     if l1 < TINY || l2 < TINY {
@@ -115,39 +130,6 @@ pub fn two_bone_ik_deltas(a: Vec3, b: Vec3, c: Vec3, target: Vec3, pole: Vec3, e
     // Folded ↔ straight (opposite directions): turn about the hinge, not an arbitrary axis.
     let knee = rotation_arc(s1, s_new, n_new);
     (r_a, (knee * r_a).normalize())
-}
-
-/// Analytic two-bone IK (law of cosines; Holden's `ik_two_bone` with an exact pole plane).
-///
-/// - `a`, `b`, `c`: positions of the root (hip), middle (knee) and end (ankle) joints;
-/// - `target`: where `c` should go. Out of reach, `c` goes to the closest reachable point in the
-///   target's direction: distance from `a` clamped to `[|l1 − l2| + eps, l1 + l2 − eps]`;
-/// - `pole`: the direction the middle joint should bend toward, e.g. [`knee_bend_direction`] (keeps
-///   the current bend plane) or the knee's forward axis. Only its part perpendicular to `a → target`
-///   counts; if that vanishes (`Vec3::ZERO`, or parallel) the current bend plane is kept. A pole
-///   opposite to the current bend swings the leg about the hip–ankle axis;
-/// - `a_gr`, `b_gr`: world rotations of `a` and `b`; `a_parent_gr`: world rotation of `a`'s parent;
-/// - `eps`: reach margin in metres (e.g. 0.01).
-///
-/// Returns the new **local** rotations `(a_lr, b_lr)`, with `b`'s parent being `a` (if there are
-/// joints in between, use [`two_bone_ik_deltas`]). Bone lengths are kept by construction.
-///
-/// Preconditions: unit rotations; `eps ≥ 0`. A chain with a zero-length bone is returned unchanged.
-#[allow(clippy::too_many_arguments)]
-pub fn two_bone_ik(
-    a: Vec3,
-    b: Vec3,
-    c: Vec3,
-    target: Vec3,
-    pole: Vec3,
-    a_gr: Quat,
-    b_gr: Quat,
-    a_parent_gr: Quat,
-    eps: f32,
-) -> (Quat, Quat) {
-    let (r_a, r_b) = two_bone_ik_deltas(a, b, c, target, pole, eps);
-    let a_gr_new = r_a * a_gr;
-    ((a_parent_gr.inverse() * a_gr_new).normalize(), (a_gr_new.inverse() * (r_b * b_gr)).normalize())
 }
 
 /// Joints of one leg and its toe point, for [`leg_ik`].
@@ -202,7 +184,7 @@ fn parent_rotation(parents: &[i32], global_rotations: &[Quat], joint: usize) -> 
     }
 }
 
-/// Foot-lock touch-up of one leg (THESIS_NOTES §7): two-bone IK on hip–knee–ankle moves the
+/// Foot-lock touch-up of one leg (docs/method.md §7): two-bone IK on hip–knee–ankle moves the
 /// ankle by the delta the toe must move (`target − toe`), then the ankle turns so the toe
 /// reaches the target; the target is first lifted to `y ≥ floor_height`. When that ankle position
 /// is out of the leg's reach, the heel lifts instead (the ankle goes to the reachable point at the
@@ -260,7 +242,7 @@ pub fn leg_ik(
             ankle_goal = centre + side * h;
         }
     }
-    let (r_a, r_b) = two_bone_ik_deltas(a, b, c, ankle_goal, pole, eps);
+    let (r_a, r_b) = two_bone_ik(a, b, c, ankle_goal, pole, eps);
     let b_new = a + r_a * (b - a);
     let c_new = b_new + r_b * (c - b);
     let toe_rel = r_b * (toe - c);
@@ -300,16 +282,16 @@ pub fn leg_ik(
     c_new + r_f * (toe - c)
 }
 
-/// Foot locking for one foot (THESIS_NOTES §7): turns the animated toe position and the contact
+/// Foot locking for one foot (docs/method.md §7): turns the animated toe position and the contact
 /// flag into the toe target for [`leg_ik`].
 ///
 /// - When a contact starts, the lock point is the current target (the toe as shown), so locking
 ///   never pops. The target's velocity drops to zero there: the foot plants (contacts start only
-///   when the toe is slow, < 0.15 m/s, THESIS_NOTES §1).
+///   when the toe is slow, < 0.15 m/s, docs/method.md §1).
 /// - While locked the target stays on the lock point.
 /// - The lock is released when the contact ends or the animated toe drifts more than
 ///   `unlock_radius` from the lock point; the target then returns to the animated toe by
-///   inertialization (offset decayed by the critically damped spring, THESIS_NOTES §4–5), with no
+///   inertialization (offset decayed by the critically damped spring, docs/method.md §4–5), with no
 ///   jump in position or velocity. A new lock needs a new contact start.
 ///
 /// All positions are in world space (the lock must not move with the character). No allocation.
@@ -408,7 +390,7 @@ impl FootLock {
             self.offset = self.position - self.lock_position;
             self.offset_velocity = Vec3::ZERO;
         } else if self.locked && (!contact || self.lock_position.distance(animated_toe_pos) > unlock_radius) {
-            // Transition from the lock to the animated toe (THESIS_NOTES §5, additive form):
+            // Transition from the lock to the animated toe (docs/method.md §5, additive form):
             // the offset takes what separates the current target from the new input.
             self.locked = false;
             self.offset = self.position - animated_toe_pos;
@@ -461,7 +443,9 @@ mod tests {
         }
         fn solve(&self, target: Vec3, pole: Vec3, eps: f32) -> (Vec3, Vec3) {
             let (b, c, a_gr, b_gr) = self.fk(self.a_lr, self.b_lr);
-            let (a_lr, b_lr) = two_bone_ik(self.a, b, c, target, pole, a_gr, b_gr, self.parent_gr, eps);
+            let (r_a, r_b) = two_bone_ik(self.a, b, c, target, pole, eps);
+            let a_gr_new = r_a * a_gr;
+            let (a_lr, b_lr) = ((self.parent_gr.inverse() * a_gr_new).normalize(), (a_gr_new.inverse() * (r_b * b_gr)).normalize());
             assert!((a_lr.length() - 1.0).abs() < 1e-5 && (b_lr.length() - 1.0).abs() < 1e-5);
             let (b, c, _, _) = self.fk(a_lr, b_lr);
             (b, c)
@@ -536,15 +520,14 @@ mod tests {
     fn two_bone_ik_handles_straight_and_folded_chains() {
         // Straight leg hanging down, target pulled up: the knee bends toward the pole (+Z).
         let (a, b, c) = (Vec3::new(0.0, 1.0, 0.0), Vec3::new(0.0, 0.55, 0.0), Vec3::new(0.0, 0.1, 0.0));
-        let (lr_a, lr_b) =
-            two_bone_ik(a, b, c, Vec3::new(0.0, 0.3, 0.0), Vec3::Z, Quat::IDENTITY, Quat::IDENTITY, Quat::IDENTITY, 1e-3);
-        let b_new = a + lr_a * (b - a);
-        let c_new = b_new + lr_a * lr_b * (c - b);
+        let (r_a, r_b) = two_bone_ik(a, b, c, Vec3::new(0.0, 0.3, 0.0), Vec3::Z, 1e-3);
+        let b_new = a + r_a * (b - a);
+        let c_new = b_new + r_b * (c - b);
         assert!((c_new - Vec3::new(0.0, 0.3, 0.0)).length() < 1e-5);
         assert!(b_new.z > 0.1 && b_new.x.abs() < 1e-5);
         // Target at the hip itself: no NaN, clamped to minimum reach.
-        let (lr_a, lr_b) = two_bone_ik(a, b, c, a, Vec3::Z, Quat::IDENTITY, Quat::IDENTITY, Quat::IDENTITY, 1e-3);
-        assert!(lr_a.is_finite() && lr_b.is_finite());
+        let (r_a, r_b) = two_bone_ik(a, b, c, a, Vec3::Z, 1e-3);
+        assert!(r_a.is_finite() && r_b.is_finite());
     }
 
     /// root(0) → hips(1) → upper(2) → lower(3) → foot(4) → toe(5).
@@ -562,15 +545,9 @@ mod tests {
     }
 
     fn fk(parents: &[i32], offsets: &[Vec3], root: Vec3, locals: &[Quat], gp: &mut [Vec3], gr: &mut [Quat]) {
-        for i in 0..parents.len() {
-            if parents[i] < 0 {
-                (gp[i], gr[i]) = (root, locals[i]);
-            } else {
-                let p = parents[i] as usize;
-                gp[i] = gp[p] + gr[p] * offsets[i];
-                gr[i] = gr[p] * locals[i];
-            }
-        }
+        let mut positions = offsets.to_vec();
+        positions[0] = root;
+        crate::kinematics::local_to_model(parents, 0..parents.len(), None, &positions, locals, gp, gr);
     }
 
     #[test]

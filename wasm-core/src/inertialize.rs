@@ -1,8 +1,8 @@
 //! Inertialization (Bollo 2017, offset form): transitions without pops, decayed by springs.
 //!
-//! THESIS_NOTES §5. At a transition from the pose that was playing (source) to a new database
+//! docs/method.md §5. At a transition from the pose that was playing (source) to a new database
 //! frame (target) we store, per joint, the *offset* between them; every frame the offset decays
-//! to zero with a critically damped spring (THESIS_NOTES §4) and is applied to the pose that is
+//! to zero with a critically damped spring (docs/method.md §4) and is applied to the pose that is
 //! now playing. Only one pose is evaluated per frame and the output is continuous (position and
 //! velocity) across the transition.
 //!
@@ -13,15 +13,13 @@
 //!   at hand (e.g. after a database switch), [`Inertializer::transition_from_output`] does the same
 //!   from the output pose.
 //! - Rotation offsets act on the left, `out_r = d_r · in_r`; angular velocities are in the
-//!   parent's space with the convention ω = scaled axis of `q_i · q_{i−1}⁻¹` / dt (THESIS_NOTES §1),
+//!   parent's space with the convention ω = scaled axis of `q_i · q_{i−1}⁻¹` / dt (docs/method.md §1),
 //!   so `out_ω = d_ω + d_r · in_ω`.
 //! - Positions and velocities add: `out_p = in_p + d_p`, `out_v = in_v + d_v`.
 //!
 //! The root (joint 0) stores a *world* position and yaw that jump arbitrarily between takes, so
-//! it must not be inertialized like the other joints: [`RootInertializer`] re-anchors the new
-//! take's root at the character's current world transform and inertializes only the velocity
-//! mismatch (Holden's `transition_src/dst` scheme). [`Inertializer`] treats joint 0 like any
-//! other joint; overwrite its output with the root inertializer's.
+//! it is not inertialized here: the character's root motion (`character::root`) plays the new
+//! take's motion from where the character stands and inertializes only the velocity mismatch.
 
 use glam::{Quat, Vec3};
 
@@ -43,7 +41,7 @@ pub fn decay_spring_vec3(x: Vec3, v: Vec3, halflife: f32, dt: f32) -> (Vec3, Vec
 }
 
 /// [`decay_spring`] for a rotation offset: the offset's scaled axis-angle is decayed with
-/// `w` (radians/s) as its velocity (THESIS_NOTES §4, "via scaled axis-angle").
+/// `w` (radians/s) as its velocity (docs/method.md §4, "via scaled axis-angle").
 ///
 /// Preconditions: `x` is unit length.
 #[inline]
@@ -55,7 +53,7 @@ pub fn decay_spring_quat(x: Quat, w: Vec3, halflife: f32, dt: f32) -> (Quat, Vec
 
 pub use crate::spring::quat_abs;
 
-/// Transition of one vector channel (THESIS_NOTES §5, additive form): folds the jump from the raw
+/// Transition of one vector channel (docs/method.md §5, additive form): folds the jump from the raw
 /// source `(src, src_vel)` to the target `(dst, dst_vel)` into the offset:
 /// `d' = (d + s) − t`, `d_v' = (d_v + s_v) − t_v`.
 #[inline]
@@ -79,7 +77,7 @@ pub fn inertialize_update_vec3(
     (input + *offset, input_vel + *offset_vel)
 }
 
-/// Transition of one rotation channel (THESIS_NOTES §5): `d_r' = abs(d_r · s_r · t_r⁻¹)`, so that
+/// Transition of one rotation channel (docs/method.md §5): `d_r' = abs(d_r · s_r · t_r⁻¹)`, so that
 /// `d_r' · t_r = d_r · s_r` (the output does not move), and the angular velocity offset that keeps
 /// the output's angular velocity `d_ω + d_r · ω` continuous: `d_ω' = d_ω + d_r·s_ω − d_r'·t_ω`.
 ///
@@ -167,7 +165,7 @@ impl Inertializer {
         &self.offset_angular_velocities
     }
 
-    /// Records a jump from the source pose `src_*` to the target pose `dst_*` (THESIS_NOTES §5).
+    /// Records a jump from the source pose `src_*` to the target pose `dst_*` (docs/method.md §5).
     ///
     /// `src_*` is the **raw** pose that was the input of the last [`Inertializer::update`] (the
     /// database frame that was playing, without offsets); the existing offsets are folded in, so
@@ -246,11 +244,11 @@ impl Inertializer {
         self.transition(out_pos, out_vel, out_rot, out_angvel, dst_pos, dst_vel, dst_rot, dst_angvel);
     }
 
-    /// Decays the offsets over `dt` seconds (critically damped, THESIS_NOTES §4) and writes the
+    /// Decays the offsets over `dt` seconds (critically damped, docs/method.md §4) and writes the
     /// inertialized pose: `out_p = in_p + d_p`, `out_v = in_v + d_v`, `out_r = d_r · in_r`,
     /// `out_ω = d_ω + d_r · in_ω`. `in_*` is the raw pose playing now (usually a database frame).
     ///
-    /// Preconditions: `dt ≥ 0`, `halflife ≥ 0` (THESIS default 0.1 s), unit input rotations.
+    /// Preconditions: `dt ≥ 0`, `halflife ≥ 0` (the method's default 0.1 s), unit input rotations.
     ///
     /// # Panics
     /// If any slice's length differs from [`Inertializer::num_joints`].
@@ -299,154 +297,6 @@ impl Inertializer {
                 dt,
             );
         }
-    }
-}
-
-/// Inertialization of the root (joint 0: world position and yaw of the virtual root) in world
-/// space, after Holden's `transition_src/dst` scheme.
-///
-/// Database root transforms are where each take happened to be recorded, so a jump cannot be
-/// blended in world space. Instead the playing take is mapped into the world by an *anchor*: the
-/// database root transform `(src_position, src_rotation)` is placed at the world transform
-/// `(dst_position, dst_rotation)`:
-/// `world_p(x) = dst_p + dst_r · src_r⁻¹ · (x − src_p)`, `world_r(q) = dst_r · src_r⁻¹ · q`
-/// (velocities are rotated by `dst_r · src_r⁻¹`). At a transition the anchor is moved to the new
-/// frame and the character's current world transform, so position and rotation are continuous by
-/// construction and only the velocity mismatch is inertialized (it decays like
-/// [`inertialize_update_vec3`]/[`inertialize_update_quat`]).
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct RootInertializer {
-    src_position: Vec3,
-    src_rotation: Quat,
-    dst_position: Vec3,
-    dst_rotation: Quat,
-    offset_position: Vec3,
-    offset_velocity: Vec3,
-    offset_rotation: Quat,
-    offset_angular_velocity: Vec3,
-    /// Last raw input (database root), to re-anchor in [`RootInertializer::adjust`].
-    input_position: Vec3,
-    input_rotation: Quat,
-    position: Vec3,
-    velocity: Vec3,
-    rotation: Quat,
-    angular_velocity: Vec3,
-}
-
-impl RootInertializer {
-    /// Starts playing with the database root `(db_position, db_rotation)` placed at the world
-    /// transform `(world_position, world_rotation)`, zero offsets and zero velocity.
-    pub fn new(world_position: Vec3, world_rotation: Quat, db_position: Vec3, db_rotation: Quat) -> Self {
-        RootInertializer {
-            src_position: db_position,
-            src_rotation: db_rotation,
-            dst_position: world_position,
-            dst_rotation: world_rotation,
-            offset_position: Vec3::ZERO,
-            offset_velocity: Vec3::ZERO,
-            offset_rotation: Quat::IDENTITY,
-            offset_angular_velocity: Vec3::ZERO,
-            input_position: db_position,
-            input_rotation: db_rotation,
-            position: world_position,
-            velocity: Vec3::ZERO,
-            rotation: world_rotation,
-            angular_velocity: Vec3::ZERO,
-        }
-    }
-
-    /// World root position output by the last `update`/`adjust`.
-    pub fn position(&self) -> Vec3 {
-        self.position
-    }
-
-    pub fn velocity(&self) -> Vec3 {
-        self.velocity
-    }
-
-    pub fn rotation(&self) -> Quat {
-        self.rotation
-    }
-
-    pub fn angular_velocity(&self) -> Vec3 {
-        self.angular_velocity
-    }
-
-    /// Maps a database root velocity (linear or angular) into the world.
-    #[inline]
-    fn world_vector(&self, v: Vec3) -> Vec3 {
-        self.dst_rotation * (self.src_rotation.inverse() * v)
-    }
-
-    /// Jump to a new frame whose database root is `dst_*` (position, velocity, rotation, angular
-    /// velocity as stored for joint 0). The new take is anchored at the current output transform;
-    /// the velocity mismatch becomes the offset velocities (THESIS_NOTES §5, additive form).
-    pub fn transition(&mut self, dst_pos: Vec3, dst_vel: Vec3, dst_rot: Quat, dst_angvel: Vec3) {
-        self.src_position = dst_pos;
-        self.src_rotation = dst_rot;
-        self.dst_position = self.position;
-        self.dst_rotation = self.rotation;
-        // Position and rotation offsets are folded into the anchor (it sits at the output), so
-        // they restart at zero/identity; the velocity offsets keep the output velocity.
-        self.offset_position = Vec3::ZERO;
-        self.offset_rotation = Quat::IDENTITY;
-        self.offset_velocity = self.velocity - self.world_vector(dst_vel);
-        self.offset_angular_velocity = self.angular_velocity - self.world_vector(dst_angvel);
-    }
-
-    /// Decays the offsets over `dt` and returns the world root `(position, velocity, rotation,
-    /// angular velocity)` for the database root `in_*` playing now.
-    ///
-    /// Preconditions: as for [`Inertializer::update`].
-    pub fn update(
-        &mut self,
-        in_pos: Vec3,
-        in_vel: Vec3,
-        in_rot: Quat,
-        in_angvel: Vec3,
-        halflife: f32,
-        dt: f32,
-    ) -> (Vec3, Vec3, Quat, Vec3) {
-        self.input_position = in_pos;
-        self.input_rotation = in_rot;
-        let world_pos = self.dst_position + self.world_vector(in_pos - self.src_position);
-        // Normalized: `dst · src⁻¹ · q` of nearly equal rotations drifts off unit length over time.
-        let world_rot = (self.dst_rotation * self.src_rotation.inverse() * in_rot).normalize();
-        let (world_vel, world_angvel) = (self.world_vector(in_vel), self.world_vector(in_angvel));
-        (self.position, self.velocity) =
-            inertialize_update_vec3(&mut self.offset_position, &mut self.offset_velocity, world_pos, world_vel, halflife, dt);
-        (self.rotation, self.angular_velocity) = inertialize_update_quat(
-            &mut self.offset_rotation,
-            &mut self.offset_angular_velocity,
-            world_rot,
-            world_angvel,
-            halflife,
-            dt,
-        );
-        (self.position, self.velocity, self.rotation, self.angular_velocity)
-    }
-
-    /// Moves the output root to `(position, rotation)` and keeps it there for the following frames
-    /// (adjustment toward the controller and clamping, THESIS_NOTES §6): the anchor is moved so the
-    /// take continues from the new transform, turning about the new position.
-    ///
-    /// Precondition: `rotation` is unit length.
-    pub fn adjust(&mut self, position: Vec3, rotation: Quat) {
-        // Re-anchor at the last input (same mapping), so a rotation of the anchor pivots about
-        // the character's current position instead of the old anchor point.
-        self.dst_position += self.world_vector(self.input_position - self.src_position);
-        self.src_position = self.input_position;
-        self.dst_position += position - self.position;
-        // Output rotation = d_r · world_r; choose the world rotation change Δ with d_r·Δ·world_r = rotation.
-        let world_rot = self.dst_rotation * self.src_rotation.inverse() * self.input_rotation;
-        let delta = (self.offset_rotation.inverse() * rotation * world_rot.inverse()).normalize();
-        self.dst_rotation = (delta * self.dst_rotation).normalize();
-        // Velocities follow the rotated take: out_v = world_v + d_v with world_v rotated by Δ.
-        self.velocity = delta * (self.velocity - self.offset_velocity) + self.offset_velocity;
-        let world_w = self.offset_rotation.inverse() * (self.angular_velocity - self.offset_angular_velocity);
-        self.angular_velocity = self.offset_angular_velocity + self.offset_rotation * (delta * world_w);
-        self.position = position;
-        self.rotation = rotation;
     }
 }
 
@@ -728,67 +578,4 @@ mod tests {
         inert.transition(&p.pos, &p.vel, &p.rot, &p.angvel, &p.pos, &p.vel, &q.rot, &p.angvel);
     }
 
-    #[test]
-    fn root_transition_is_continuous_and_follows_the_new_take() {
-        let mut rng = Rng(6);
-        let dt = 1.0 / 60.0;
-        let h = 0.1;
-        for _ in 0..100 {
-            let yaw = |r: &mut Rng| Quat::from_rotation_y(r.uniform(-3.1, 3.1));
-            // Take A: walks along its own +Z at 1.2 m/s, turning at 0.5 rad/s.
-            let (a_p, a_r) = (rng.vec3(10.0).with_y(0.0), yaw(&mut rng));
-            let (a_v, a_w) = (a_r * Vec3::new(0.0, 0.0, 1.2), Vec3::new(0.0, 0.5, 0.0));
-            let mut root = RootInertializer::new(rng.vec3(5.0).with_y(0.0), yaw(&mut rng), a_p, a_r);
-            let mut t = 0.0;
-            for _ in 0..30 {
-                t += dt;
-                root.update(a_p + a_v * t, a_v, Quat::from_scaled_axis(a_w * t) * a_r, a_w, h, dt);
-            }
-            let (p0, v0, r0, w0) = (root.position(), root.velocity(), root.rotation(), root.angular_velocity());
-            // Jump to take B somewhere else, standing still.
-            let (b_p, b_r) = (rng.vec3(10.0).with_y(0.0), yaw(&mut rng));
-            root.transition(b_p, Vec3::ZERO, b_r, Vec3::ZERO);
-            let (p1, v1, r1, w1) = root.update(b_p, Vec3::ZERO, b_r, Vec3::ZERO, h, 0.0);
-            assert!((p1 - p0).length() < 1e-5 && (v1 - v0).length() < 1e-5);
-            assert!(angle(r1, r0) < 1e-5 && (w1 - w0).length() < 1e-5);
-            // Then take B walks along its own +X: after the offsets decay the world motion is
-            // B's motion rotated by the anchor (r0 · b_r⁻¹).
-            let b_v = b_r * Vec3::new(0.8, 0.0, 0.0);
-            let mut t = 0.0;
-            for _ in 0..120 {
-                t += dt;
-                root.update(b_p + b_v * t, b_v, b_r, Vec3::ZERO, h, dt);
-            }
-            let expected_v = r0 * (b_r.inverse() * b_v);
-            assert!((root.velocity() - expected_v).length() < 1e-3, "{} vs {expected_v}", root.velocity());
-            assert!((root.rotation().length() - 1.0).abs() < 1e-5);
-        }
-    }
-
-    #[test]
-    fn root_adjust_moves_the_output_and_persists() {
-        let mut rng = Rng(8);
-        let dt = 1.0 / 60.0;
-        for _ in 0..100 {
-            let (a_p, a_r) = (rng.vec3(3.0).with_y(0.0), Quat::from_rotation_y(rng.uniform(-3.0, 3.0)));
-            let a_v = a_r * Vec3::new(0.0, 0.0, 1.0);
-            let mut root = RootInertializer::new(Vec3::ZERO, Quat::IDENTITY, a_p, a_r);
-            let mut t = 0.0;
-            for k in 0..20 {
-                t += dt;
-                if k == 5 {
-                    root.transition(a_p + a_v * t, a_v, a_r, Vec3::Y * 2.0);
-                }
-                root.update(a_p + a_v * t, a_v, a_r, Vec3::ZERO, 0.1, dt);
-            }
-            let target_p = root.position() + rng.vec3(0.2).with_y(0.0);
-            let target_r = Quat::from_rotation_y(rng.uniform(-0.3, 0.3)) * root.rotation();
-            root.adjust(target_p, target_r);
-            assert!((root.position() - target_p).length() < 1e-6 && angle(root.rotation(), target_r) < 1e-5);
-            // Same input again with dt = 0: stays where it was put.
-            let (p, _, r, _) = root.update(a_p + a_v * t, a_v, a_r, Vec3::ZERO, 0.1, 0.0);
-            assert!((p - target_p).length() < 1e-5, "{p} vs {target_p}");
-            assert!(angle(r, target_r) < 1e-5);
-        }
-    }
 }

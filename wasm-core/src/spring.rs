@@ -1,5 +1,5 @@
 //! Critically damped springs parametrized by half-life (Holden, "Spring-It-On", and
-//! THESIS_NOTES §4): exact steps for values, vectors, rotations, and the velocity-driven
+//! docs/method.md §4): exact steps for values, vectors, rotations, and the velocity-driven
 //! character spring with its analytic prediction.
 //!
 //! A critically damped spring released at rest from offset x₀ follows
@@ -88,29 +88,6 @@ pub fn spring_character_update(x: &mut Vec3, v: &mut Vec3, a: &mut Vec3, v_goal:
     *a = e * (*a - j1 * y * dt);
 }
 
-/// Where the simulated character will be after each of `times` (seconds from now, any order)
-/// if the desired velocity stays `v_goal`: written to `positions`/`velocities`.
-///
-/// # Panics
-/// If the output slices are shorter than `times`.
-pub fn spring_character_predict(
-    positions: &mut [Vec3],
-    velocities: &mut [Vec3],
-    x: Vec3,
-    v: Vec3,
-    a: Vec3,
-    v_goal: Vec3,
-    halflife: f32,
-    times: &[f32],
-) {
-    for (i, &t) in times.iter().enumerate() {
-        let (mut px, mut pv, mut pa) = (x, v, a);
-        spring_character_update(&mut px, &mut pv, &mut pa, v_goal, halflife, t);
-        positions[i] = px;
-        velocities[i] = pv;
-    }
-}
-
 /// Where the rotation spring will be after each of `times` toward a fixed `goal`.
 ///
 /// # Panics
@@ -181,15 +158,19 @@ mod tests {
     fn character_spring_reaches_the_desired_velocity_and_predicts_exactly() {
         let (mut x, mut v, mut a) = (Vec3::ZERO, Vec3::ZERO, Vec3::ZERO);
         let goal = Vec3::new(0.0, 0.0, 1.75);
-        let times = [1.0 / 3.0, 2.0 / 3.0, 1.0];
-        let (mut px, mut pv) = ([Vec3::ZERO; 3], [Vec3::ZERO; 3]);
-        spring_character_predict(&mut px, &mut pv, x, v, a, goal, 0.27, &times);
+        // Prediction = one exact step of t seconds (how the controller predicts its trajectory).
+        let predict = |t: f32| {
+            let (mut px, mut pv, mut pa) = (x, v, a);
+            spring_character_update(&mut px, &mut pv, &mut pa, goal, 0.27, t);
+            (px, pv)
+        };
+        let predicted = [predict(1.0 / 3.0), predict(2.0 / 3.0), predict(1.0)];
         // Stepping at 60 Hz lands on the prediction (the update is exact for any dt).
         for step in 1..=60 {
             spring_character_update(&mut x, &mut v, &mut a, goal, 0.27, 1.0 / 60.0);
             if step % 20 == 0 {
-                let i = step / 20 - 1;
-                assert!((x - px[i]).length() < 1e-4 && (v - pv[i]).length() < 1e-4, "step {step}");
+                let (px, pv) = predicted[step / 20 - 1];
+                assert!((x - px).length() < 1e-4 && (v - pv).length() < 1e-4, "step {step}");
             }
         }
         // 1 s = 3.7 half-lives: e^(−6.2)·(1 + 6.2) = 1.5% of the error is left.

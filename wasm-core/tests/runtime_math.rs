@@ -5,7 +5,9 @@
 use glam::{Quat, Vec3};
 use mmcore::config::BuildConfig;
 use mmcore::ik::{knee_bend_direction, leg_ik, FootLock, LegJoints};
-use mmcore::inertialize::{Inertializer, RootInertializer};
+use mmcore::character::root::RootMotion;
+use mmcore::inertialize::Inertializer;
+use mmcore::kinematics::local_to_model;
 use mmcore::{build, Bvh, Database, Source};
 use std::path::Path;
 
@@ -50,15 +52,7 @@ fn frame(db: &Database, f: usize) -> (&[Vec3], &[Vec3], &[Quat], &[Vec3]) {
 
 /// World forward kinematics of local buffers whose joint 0 holds the world root.
 fn fk(parents: &[i32], pos: &[Vec3], rot: &[Quat], gp: &mut [Vec3], gr: &mut [Quat]) {
-    for (i, &p) in parents.iter().enumerate() {
-        if p < 0 {
-            (gp[i], gr[i]) = (pos[i], rot[i]);
-        } else {
-            let p = p as usize;
-            gp[i] = gp[p] + gr[p] * pos[i];
-            gr[i] = gr[p] * rot[i];
-        }
-    }
+    local_to_model(parents, 0..parents.len(), None, pos, rot, gp, gr);
 }
 
 /// SplitMix64 for reproducible jumps.
@@ -81,8 +75,8 @@ fn inertialized_playback_is_continuous_across_random_jumps() {
 
     let mut inert = Inertializer::new(n);
     let mut current = valid[0];
-    let (p0, _, r0, _) = frame(&db, current);
-    let mut root = RootInertializer::new(Vec3::ZERO, Quat::IDENTITY, p0[0], r0[0]);
+    // The character's own root motion: plays each take's root motion from where it stands.
+    let mut root = RootMotion::default();
     let (mut out, mut check) = (Pose::new(n), Pose::new(n));
     let (mut gp, mut gr, mut prev_gp, mut cut_gp) =
         (vec![Vec3::ZERO; n], vec![Quat::IDENTITY; n], vec![Vec3::ZERO; n], vec![Vec3::ZERO; n]);
@@ -98,7 +92,7 @@ fn inertialized_playback_is_continuous_across_random_jumps() {
                 let (sp, sv, sr, sw) = frame(&db, current);
                 let (dp, dv, dr, dw) = frame(&db, dst);
                 inert.transition(sp, sv, sr, sw, dp, dv, dr, dw);
-                root.transition(dp[0], dv[0], dr[0], dw[0]);
+                root.transition(&db, dst, true);
                 // Key invariant on real data: at the transition the output does not move.
                 inert.update(dp, dv, dr, dw, halflife, 0.0, &mut check.pos, &mut check.vel, &mut check.rot, &mut check.angvel);
                 for i in 1..n {
@@ -107,16 +101,17 @@ fn inertialized_playback_is_continuous_across_random_jumps() {
                 }
                 // What a hard cut would do to the world pose (root anchored like the inertializer's).
                 let (mut cut_pos, mut cut_rot) = (dp.to_vec(), dr.to_vec());
-                (cut_pos[0], cut_rot[0]) = (root.position(), root.rotation());
+                (cut_pos[0], cut_rot[0]) = (root.position, root.rotation);
                 fk(parents, &cut_pos, &cut_rot, &mut cut_gp, &mut gr);
                 max_cut = max_cut.max(cut_gp.iter().zip(&prev_gp).map(|(a, b)| (*a - *b).length()).fold(0.0, f32::max));
                 current = dst;
             }
+            root.step(&db, current, current + 1, halflife);
             current += 1;
         }
         let (ip, iv, ir, iw) = frame(&db, current);
         inert.update(ip, iv, ir, iw, halflife, dt, &mut out.pos, &mut out.vel, &mut out.rot, &mut out.angvel);
-        (out.pos[0], out.vel[0], out.rot[0], out.angvel[0]) = root.update(ip[0], iv[0], ir[0], iw[0], halflife, dt);
+        (out.pos[0], out.rot[0]) = (root.position, root.rotation);
         fk(parents, &out.pos, &out.rot, &mut gp, &mut gr);
         if step > 0 {
             let s = gp.iter().zip(&prev_gp).map(|(a, b)| (*a - *b).length()).fold(0.0, f32::max);

@@ -1,0 +1,196 @@
+//! One take's resampled local transforms → database rows: world transforms by the one FK, the
+//! virtual root, local pose rows with velocities, foot contacts and raw features.
+
+use super::contacts::contacts;
+use super::features::{raw_features, ClipGeometry};
+use super::poses::Poses;
+use super::root::virtual_root;
+use super::rows::Rows;
+use crate::config::BuildConfig;
+use crate::database::{FeatureGroup, Site};
+use crate::kinematics::local_to_model;
+use glam::{DQuat, DVec3};
+
+/// Per-thread temporaries of [`ClipBuilder::append`] and the resampling, kept between clips:
+/// fresh ones per clip add up to ~100 MB of f64 temporaries for the default database, and WASM
+/// memory never shrinks once grown.
+#[derive(Default)]
+pub struct Scratch {
+    pub locals: Poses,
+    pub mirrored: Poses,
+    world: Poses,
+    root_xz: Vec<f64>,
+    facing: Vec<f64>,
+    root: Vec<(DVec3, DQuat)>,
+    lp: Vec<DVec3>,
+    lr: Vec<DQuat>,
+    contacts: Vec<[bool; 2]>,
+}
+
+/// Turns one take's local transforms into database rows.
+pub struct ClipBuilder<'a> {
+    pub config: &'a BuildConfig,
+    pub fps: f64,
+    /// BVH joint parents (negative for the root).
+    pub parents: &'a [i32],
+    pub hips: usize,
+    pub forward_rest: DVec3,
+    pub toe_sites: &'a [Option<Site>; 2],
+    pub groups: &'a [FeatureGroup],
+    pub num_dims: usize,
+}
+
+/// World geometry of one clip: database joint `j` is BVH joint `j − 1`; joint 0 is the root.
+struct Geometry<'a> {
+    world: &'a Poses,
+    root: &'a [(DVec3, DQuat)],
+    /// Seconds per frame.
+    dt: f64,
+}
+
+impl Geometry<'_> {
+    fn span(&self, f: usize) -> (usize, usize) {
+        (f.saturating_sub(1), (f + 1).min(self.root.len() - 1))
+    }
+}
+
+impl ClipGeometry for Geometry<'_> {
+    fn num_frames(&self) -> usize {
+        self.root.len()
+    }
+    fn root(&self, f: usize) -> (DVec3, DQuat) {
+        self.root[f]
+    }
+    fn point(&self, f: usize, joint: usize, offset: DVec3) -> DVec3 {
+        if joint == 0 {
+            self.root[f].0
+        } else {
+            let (p, q) = self.world.at(f, joint - 1);
+            p + q * offset
+        }
+    }
+    fn rotation(&self, f: usize, joint: usize) -> DQuat {
+        if joint == 0 {
+            self.root[f].1
+        } else {
+            self.world.at(f, joint - 1).1
+        }
+    }
+    fn velocity(&self, f: usize, joint: usize, offset: DVec3) -> DVec3 {
+        let (a, b) = self.span(f);
+        (self.point(b, joint, offset) - self.point(a, joint, offset)) / ((b - a) as f64 * self.dt)
+    }
+}
+
+impl ClipBuilder<'_> {
+    pub fn append(&self, locals: &Poses, out: Rows, scratch: &mut Scratch) {
+        let (n, nj) = (locals.num_frames(), locals.num_joints);
+
+        // World transforms of the source joints.
+        let world = &mut scratch.world;
+        world.clear(nj);
+        world.positions.resize(n * nj, DVec3::ZERO);
+        world.rotations.resize(n * nj, DQuat::IDENTITY);
+        for f in 0..n {
+            let r = f * nj..(f + 1) * nj;
+            local_to_model(self.parents, 0..nj, None, &locals.positions[r.clone()], &locals.rotations[r.clone()], &mut world.positions[r.clone()], &mut world.rotations[r]);
+        }
+
+        let (c, hips) = (self.config, self.hips);
+        let world = &scratch.world;
+        virtual_root(n, |f| world.at(f, hips), self.forward_rest, self.fps, c.root_position_window, c.root_facing_window, &mut scratch.root_xz, &mut scratch.facing, &mut scratch.root);
+        let root = &scratch.root;
+
+        // Local pose rows: joint 0 = root (world), source root re-expressed under it.
+        let nd = nj + 1;
+        let (lp, lr) = (&mut scratch.lp, &mut scratch.lr);
+        lp.clear();
+        lr.clear();
+        for f in 0..n {
+            let (rp, rq) = root[f];
+            lp.push(rp);
+            lr.push(rq);
+            for j in 0..nj {
+                let (t, q) = locals.at(f, j);
+                if self.parents[j] < 0 {
+                    let inv = rq.conjugate();
+                    lp.push(inv * (t - rp));
+                    lr.push(inv * q);
+                } else {
+                    lp.push(t);
+                    lr.push(q);
+                }
+            }
+        }
+        // Keep each joint's quaternions in one hemisphere over time so differences and later
+        // interpolation take the short way.
+        for f in 1..n {
+            for j in 0..nd {
+                if lr[f * nd + j].dot(lr[(f - 1) * nd + j]) < 0.0 {
+                    lr[f * nd + j] = -lr[f * nd + j];
+                }
+            }
+        }
+        // Velocities by central differences within the clip (one-sided at its ends).
+        let geometry = Geometry { world, root, dt: 1.0 / self.fps };
+        for f in 0..n {
+            let (a, b) = geometry.span(f);
+            let inv_h = self.fps / (b - a) as f64;
+            for j in 0..nd {
+                let i = f * nd + j;
+                out.positions[i] = lp[i].as_vec3();
+                out.rotations[i] = lr[i].as_quat();
+                out.velocities[i] = ((lp[b * nd + j] - lp[a * nd + j]) * inv_h).as_vec3();
+                let dq = lr[b * nd + j] * lr[a * nd + j].conjugate();
+                out.angular_velocities[i] = (scaled_axis(dq) * inv_h).as_vec3();
+            }
+        }
+
+        let toe_speed = |side: usize, f: usize| self.toe_sites[side].as_ref().map(|s| geometry.velocity(f, s.joint as usize, s.offset.as_dvec3()).length());
+        let radius = (c.contact_filter * self.fps).round() as usize;
+        contacts(n, toe_speed, c.contact_speed, radius, &mut scratch.contacts, out.contacts);
+        raw_features(&geometry, self.groups, self.num_dims, out.features);
+    }
+}
+
+/// Rotation vector (axis × angle) of a unit quaternion, taking the short way. Same value as
+/// `to_scaled_axis` but without `atan2` for the small rotations between nearby frames:
+/// angle = 2·atan(x), x = |v|/w, by its Taylor series when x < 0.1 (truncation error
+/// < x¹²/13 < 1e-13 relative, far below f32 storage precision).
+fn scaled_axis(q: DQuat) -> DVec3 {
+    let q = if q.w < 0.0 { -q } else { q };
+    let v = DVec3::new(q.x, q.y, q.z);
+    let s = v.length();
+    if s < 1e-12 {
+        return 2.0 * v;
+    }
+    let inv_w = 1.0 / q.w;
+    let x = s * inv_w;
+    if x < 0.1 {
+        let x2 = x * x;
+        // 2·atan(x)/s = (2/w)·atan(x)/x
+        let series = 1.0 - x2 * (1.0 / 3.0 - x2 * (1.0 / 5.0 - x2 * (1.0 / 7.0 - x2 * (1.0 / 9.0 - x2 * (1.0 / 11.0)))));
+        v * (2.0 * inv_w * series)
+    } else {
+        v * (2.0 * s.atan2(q.w) / s)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn scaled_axis_is_exact_for_small_and_large_rotations() {
+        for angle in [0.0, 1e-9, 1e-4, 0.05, 0.19, 0.21, 1.0, 3.0, 6.0] {
+            for axis in [DVec3::X, DVec3::new(1.0, -2.0, 0.5).normalize()] {
+                let q = DQuat::from_axis_angle(axis, angle);
+                // The short way round: angles past π come back as 2π − angle about −axis.
+                let short = if angle > std::f64::consts::PI { angle - std::f64::consts::TAU } else { angle };
+                let expected = axis * short;
+                assert!((scaled_axis(q) - expected).length() < 1e-12, "angle {angle}");
+                assert!((scaled_axis(-q) - expected).length() < 1e-12, "angle {angle}, negated");
+            }
+        }
+    }
+}

@@ -1,0 +1,158 @@
+//! One source take as it will be resampled: unit scale, up axis, frame range, rate, mirroring
+//! and tags resolved from the config (docs/database.md); then its local transforms resampled
+//! to the database rate.
+
+use super::poses::Poses;
+use super::skeleton::Reference;
+use super::{base_name, Source};
+use crate::bvh::Bvh;
+use crate::config::{AutoScale, BuildConfig, RangeSpec, Scale, UpAxis};
+use crate::error::{Error, Result};
+use crate::roles::Role;
+use glam::{DQuat, DVec3};
+
+pub struct Take {
+    pub clip_name: String,
+    pub scale: f64,
+    /// Rotation taking source axes to Y-up (identity for Y-up sources).
+    pub up: DQuat,
+    pub source_fps: f64,
+    /// Source frames `[start, end)`.
+    pub frames: (usize, usize),
+    pub mirror: bool,
+    pub tags: Vec<String>,
+    pub ranges: Vec<RangeSpec>,
+    /// Rest offsets in metres, Y up.
+    pub offsets: Vec<DVec3>,
+}
+
+impl Take {
+    /// # Errors
+    /// A configured frame range beyond the take.
+    pub fn new(source: &Source, config: &BuildConfig, reference: &Reference, warnings: &mut Vec<String>) -> Result<Take> {
+        let bvh = &source.bvh;
+        let spec = config.clip_spec(&source.name);
+        let roles = &reference.roles;
+        let raw_offsets: Vec<DVec3> = bvh.joints.iter().map(|j| j.offset).collect();
+        let rest = reference.rest_positions(&raw_offsets);
+
+        let up = match config.up {
+            UpAxis::Y => DQuat::IDENTITY,
+            UpAxis::Z => DQuat::from_rotation_x(-std::f64::consts::FRAC_PI_2),
+            UpAxis::Auto => {
+                let hips = rest[roles[Role::Hips]];
+                let top = roles.get(Role::Head).map_or_else(
+                    || rest.iter().copied().max_by(|a, b| (*a - hips).length().total_cmp(&(*b - hips).length())).unwrap(),
+                    |h| rest[h],
+                );
+                let v = top - hips;
+                let up = if v.z.abs() > v.y.abs() && v.z.abs() > v.x.abs() {
+                    DQuat::from_rotation_x(-std::f64::consts::FRAC_PI_2 * v.z.signum())
+                } else if v.x.abs() > v.y.abs() {
+                    DQuat::from_rotation_z(std::f64::consts::FRAC_PI_2 * v.x.signum())
+                } else {
+                    DQuat::IDENTITY
+                };
+                if up != DQuat::IDENTITY {
+                    warnings.push(format!("{}: rest pose is not Y-up; converted to Y-up", source.name));
+                }
+                up
+            }
+        };
+        // Standing hip height in source units: hips above the lowest point of the rest pose.
+        let lowest = rest
+            .iter()
+            .copied()
+            .chain(bvh.joints.iter().enumerate().filter_map(|(j, b)| b.end_site.map(|e| rest[j] + e)))
+            .map(|p| (up * p).y)
+            .fold(f64::INFINITY, f64::min);
+        let hip_height = (up * rest[roles[Role::Hips]]).y - lowest;
+        let scale = match spec.and_then(|s| s.scale).unwrap_or(config.scale) {
+            Scale::Fixed(s) => s,
+            Scale::Auto(AutoScale::Auto) => {
+                if hip_height > 0.0 {
+                    [1.0, 0.01, 0.001, 0.0254].into_iter().min_by(|a, b| (hip_height * a / 0.95).ln().abs().total_cmp(&(hip_height * b / 0.95).ln().abs())).unwrap()
+                } else {
+                    1.0
+                }
+            }
+        };
+        let metres = hip_height * scale;
+        if !(0.4..=1.5).contains(&metres) {
+            warnings.push(format!(
+                "{}: standing hip height is {metres:.3} m after scale {scale}; that looks implausible for a person — check the unit scale (--scale)",
+                source.name
+            ));
+        }
+        // Frame Time is usually printed with few digits (0.00833333): snap to the whole rate.
+        let fps = bvh.fps();
+        let source_fps = if (fps - fps.round()).abs() < 0.01 { fps.round() } else { fps };
+        let frames = match spec.and_then(|s| s.frames) {
+            Some([s, e]) => {
+                if e > bvh.num_frames {
+                    return Err(Error::config(format!("{}: frames [{s}, {e}] but the take has {} frames", source.name, bvh.num_frames)));
+                }
+                (s, e)
+            }
+            None => (0, bvh.num_frames),
+        };
+        let stem = base_name(&source.name).trim_end_matches(".bvh").trim_end_matches(".BVH").to_string();
+        let clip_name = if frames == (0, bvh.num_frames) { stem } else { format!("{stem}[{}-{}]", frames.0, frames.1) };
+        Ok(Take {
+            clip_name,
+            scale,
+            up,
+            source_fps,
+            frames,
+            mirror: spec.and_then(|s| s.mirror).unwrap_or(config.mirror),
+            tags: spec.map(|s| s.tags.clone()).unwrap_or_default(),
+            ranges: spec.map(|s| s.ranges.clone()).unwrap_or_default(),
+            offsets: raw_offsets.iter().map(|&o| up * o * scale).collect(),
+        })
+    }
+
+    /// Number of frames after resampling to `fps`.
+    pub fn num_out(&self, fps: f64) -> usize {
+        let count = self.frames.1 - self.frames.0;
+        if count == 0 {
+            0
+        } else {
+            ((count - 1) as f64 * fps / self.source_fps + 1e-9).floor() as usize + 1
+        }
+    }
+
+    /// Local transforms (BVH joints, metres, Y up) resampled to `fps` (linear / slerp between
+    /// source frames). Takes other than the reference get the reference's bone lengths; their
+    /// animated translations (root motion) are scaled by the leg-length ratio `root_scale` so
+    /// the feet keep their stride.
+    #[allow(clippy::too_many_arguments)]
+    pub fn resample(&self, bvh: &Bvh, fps: f64, ref_offsets: &[DVec3], animated: &[bool], root_scale: f64, is_reference: bool, out: &mut Poses) {
+        let num_joints = bvh.joints.len();
+        let count = self.frames.1 - self.frames.0;
+        let num_out = self.num_out(fps);
+        out.clear(num_joints);
+        out.positions.reserve(num_out * num_joints);
+        out.rotations.reserve(num_out * num_joints);
+        let convert = self.up != DQuat::IDENTITY;
+        let sample = |frame: usize, j: usize| {
+            let (t, q) = bvh.local_transform(self.frames.0 + frame, j);
+            let t = if is_reference || animated[j] { self.up * t * self.scale * if animated[j] { root_scale } else { 1.0 } } else { ref_offsets[j] };
+            (t, if convert { self.up * q * self.up.conjugate() } else { q })
+        };
+        for k in 0..num_out {
+            let s = k as f64 * self.source_fps / fps;
+            let i = (s + 1e-9).floor() as usize;
+            let a = s - i as f64;
+            for j in 0..num_joints {
+                let (t, q) = if a < 1e-6 || i + 1 >= count {
+                    sample(i.min(count - 1), j)
+                } else {
+                    let (t0, q0) = sample(i, j);
+                    let (t1, q1) = sample(i + 1, j);
+                    (t0.lerp(t1, a), q0.slerp(q1, a))
+                };
+                out.push(t, q);
+            }
+        }
+    }
+}

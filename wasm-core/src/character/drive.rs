@@ -1,0 +1,124 @@
+//! What moves the simulated character (docs/method.md §4, §9): keyboard/gamepad input through
+//! the velocity and rotation springs, a path, or a tracked (VR) user; and the trajectory each
+//! of them predicts for the query.
+
+use crate::controller::{desired_rotation, desired_velocity, yaw_facing, ChangeDetector, ControllerSettings, Input, Path, Simulation};
+use crate::spring::{quat_abs, spring_damper_exact, spring_damper_exact_quat, spring_rotation_predict};
+use glam::{Quat, Vec3};
+
+/// A tracked user (VR), as given each frame: raw, the drive smooths it.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Tracked {
+    /// The head centre projected on the floor (y ignored), m.
+    pub position: Vec3,
+    /// The head's ground velocity (y ignored), m/s.
+    pub velocity: Vec3,
+    /// Predicted body yaw, radians, 0 = facing +Z.
+    pub yaw: f32,
+}
+
+/// The source of motion.
+#[derive(Clone, Debug)]
+pub enum Mode {
+    /// Keyboard/gamepad [`Input`] through the velocity and rotation springs.
+    Input,
+    /// Along a polyline, `time` seconds since its start.
+    Path { path: Path, time: f32 },
+    /// Along with a tracked user.
+    Tracked(Tracked),
+}
+
+/// The drive: its mode, what it asks for now, and the detectors of sharp changes (which force a
+/// search: Holden's trigger).
+#[derive(Clone, Debug)]
+pub struct Drive {
+    pub mode: Mode,
+    pub desired_velocity: Vec3,
+    pub desired_rotation: Quat,
+    velocity_change: ChangeDetector,
+    rotation_change: ChangeDetector,
+}
+
+impl Default for Drive {
+    fn default() -> Self {
+        Drive {
+            mode: Mode::Input,
+            desired_velocity: Vec3::ZERO,
+            desired_rotation: Quat::IDENTITY,
+            velocity_change: ChangeDetector::default(),
+            rotation_change: ChangeDetector::default(),
+        }
+    }
+}
+
+impl Drive {
+    /// Moves `simulation` by `dt` under the mode (`input` is used in input mode only). Returns
+    /// whether what is asked for changed sharply (velocity or facing rate above the thresholds).
+    pub fn update(&mut self, simulation: &mut Simulation, settings: &ControllerSettings, thresholds: (f32, f32), input: &Input, dt: f32) -> bool {
+        let (velocity, rotation) = match &mut self.mode {
+            Mode::Input => {
+                let v = desired_velocity(input, simulation.rotation, settings);
+                (v, desired_rotation(input, v, simulation.rotation))
+            }
+            Mode::Path { path, time } => {
+                // The simulated character rides the path exactly; its facing follows the
+                // path direction through the rotation spring.
+                *time += dt;
+                let (p, v) = path.sample(*time);
+                simulation.position = p;
+                simulation.velocity = v;
+                simulation.acceleration = Vec3::ZERO;
+                (v, yaw_facing(v).unwrap_or(simulation.rotation))
+            }
+            Mode::Tracked(t) => {
+                // The simulated character *is* the user's head on the floor; its velocity is
+                // the head's ground velocity, spring-smoothed (§9): the head bobs and sways
+                // every step, the trajectory must not.
+                simulation.position = Vec3::new(t.position.x, 0.0, t.position.z);
+                let goal = Vec3::new(t.velocity.x, 0.0, t.velocity.z);
+                spring_damper_exact(&mut simulation.velocity, &mut simulation.acceleration, goal, settings.velocity_halflife, dt);
+                (goal, Quat::from_rotation_y(t.yaw))
+            }
+        };
+        let velocity_jump = (velocity - self.desired_velocity).length();
+        let rotation_jump = quat_abs(rotation * self.desired_rotation.inverse()).to_scaled_axis().length();
+        let sharp_velocity = self.velocity_change.update(velocity_jump, dt, thresholds.0);
+        let sharp_rotation = self.rotation_change.update(rotation_jump, dt, thresholds.1);
+        self.desired_velocity = velocity;
+        self.desired_rotation = rotation;
+        match self.mode {
+            Mode::Input => simulation.update(velocity, rotation, settings, dt),
+            // The path or the user sets the position; only the facing is sprung.
+            Mode::Path { .. } | Mode::Tracked(_) => {
+                spring_damper_exact_quat(&mut simulation.rotation, &mut simulation.angular_velocity, rotation, settings.rotation_halflife, dt);
+            }
+        }
+        sharp_velocity || sharp_rotation
+    }
+
+    /// Where the simulated character will be, and facing, after each of `times` seconds (world).
+    pub fn predict(&self, simulation: &Simulation, settings: &ControllerSettings, times: &[f32], positions: &mut [Vec3], rotations: &mut [Quat]) {
+        let s = simulation;
+        match &self.mode {
+            Mode::Input => s.predict(self.desired_velocity, self.desired_rotation, settings, times, positions, rotations),
+            Mode::Path { path, time } => {
+                for (i, &t) in times.iter().enumerate() {
+                    let (p, v) = path.sample(time + t);
+                    positions[i] = p;
+                    let goal = yaw_facing(v).unwrap_or(s.rotation);
+                    let (mut q, mut w) = (s.rotation, s.angular_velocity);
+                    spring_damper_exact_quat(&mut q, &mut w, goal, settings.rotation_halflife, t);
+                    rotations[i] = q;
+                }
+            }
+            Mode::Tracked(_) => {
+                // §9: positions p̂ + t·v (t = 1/3, 2/3, 1 s at the default offsets); directions
+                // the smoothed yaw sprung on toward the predicted one.
+                for (i, &t) in times.iter().enumerate() {
+                    positions[i] = s.position + s.velocity * t;
+                }
+                spring_rotation_predict(rotations, s.rotation, s.angular_velocity, self.desired_rotation, settings.rotation_halflife, times);
+            }
+        }
+    }
+}

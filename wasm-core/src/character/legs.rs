@@ -1,0 +1,144 @@
+//! Leg touch-ups of the shown pose (docs/method.md §7, §9): the foot lock holds each toe in
+//! contact where the contact began (blended in and out by [`FootLock`]) and the leg reaches it
+//! by the two-bone IK; a hips drop (VR crouching) lowers the hips with the feet kept where they
+//! are. Only the touched subtrees are recomputed by FK afterwards.
+
+use super::pose::Pose;
+use super::settings::CharacterSettings;
+use crate::database::Database;
+use crate::ik::{knee_bend_direction, leg_ik, FootLock, LegJoints};
+use crate::kinematics::subtree_range;
+use glam::{Quat, Vec3};
+use std::ops::Range;
+
+#[derive(Clone, Debug)]
+pub struct Legs {
+    legs: [Option<LegJoints>; 2],
+    /// Joint ranges to recompute after each leg's IK.
+    leg_ranges: [Range<usize>; 2],
+    locks: [FootLock; 2],
+    /// Height of a planted toe on the floor, if known ([`Database::toe_height_in_contact`]).
+    pub toe_floor: Option<f32>,
+    /// How far the hips are lowered below the animation (m), legs bent by IK to keep the feet
+    /// planted; the hips joint (the child of the root above the legs) and its subtree.
+    pub hips_drop: f32,
+    hips: Option<usize>,
+    hips_range: Range<usize>,
+    /// The drop applied to the pose by the last update, undone before the next one: like the
+    /// leg IK it is a touch-up of the output, never a state the animation continues.
+    applied_drop: f32,
+    previous_toes: [Vec3; 2],
+    /// Toe points of the shown pose (world), after the touch-ups.
+    pub toes: [Vec3; 2],
+}
+
+impl Legs {
+    pub fn new(db: &Database) -> Legs {
+        let parents = &db.skeleton.parents;
+        let legs = [LegJoints::from_skeleton(&db.skeleton, "left"), LegJoints::from_skeleton(&db.skeleton, "right")];
+        let range = |leg: &Option<LegJoints>| leg.map_or(0..0, |l| subtree_range(parents, l.upper_leg));
+        // The hips: the ancestor of the legs directly under the root.
+        let hips = legs.iter().flatten().next().and_then(|leg| {
+            let mut k = leg.upper_leg;
+            while parents[k] > 0 {
+                k = parents[k] as usize;
+            }
+            (parents[k] == 0).then_some(k)
+        });
+        Legs {
+            leg_ranges: [range(&legs[0]), range(&legs[1])],
+            legs,
+            locks: [FootLock::new(); 2],
+            toe_floor: None,
+            hips_drop: 0.0,
+            hips_range: hips.map_or(0..0, |h| subtree_range(parents, h)),
+            hips,
+            applied_drop: 0.0,
+            previous_toes: [Vec3::ZERO; 2],
+            toes: [Vec3::ZERO; 2],
+        }
+    }
+
+    fn toe(&self, pose: &Pose, side: usize) -> Option<Vec3> {
+        let leg = self.legs[side].as_ref()?;
+        Some(pose.world_positions[leg.toe] + pose.world_rotations[leg.toe] * leg.toe_offset)
+    }
+
+    /// Unlocks both feet and restarts their velocity estimate from the shown pose (its world
+    /// transforms must be current).
+    pub fn reset(&mut self, pose: &Pose) {
+        for side in 0..2 {
+            if let Some(toe) = self.toe(pose, side) {
+                self.previous_toes[side] = toe;
+                self.toes[side] = toe;
+                self.locks[side].reset(toe, Vec3::ZERO);
+            }
+        }
+    }
+
+    /// Undoes the last update's hips drop on the inertialized pose (call before playing on).
+    pub fn undo_drop(&mut self, pose: &mut Pose) {
+        if let (Some(h), true) = (self.hips, self.applied_drop != 0.0) {
+            pose.positions[h].y += self.applied_drop;
+            self.applied_drop = 0.0;
+        }
+    }
+
+    /// Whether each foot is locked now.
+    pub fn locked(&self) -> [bool; 2] {
+        [self.locks[0].is_locked(), self.locks[1].is_locked()]
+    }
+
+    /// Touches up the shown pose, whose world transforms must be current; they are current
+    /// again afterwards. `facing` breaks a tie for a straight leg's bend direction.
+    pub fn apply(&mut self, db: &Database, pose: &mut Pose, settings: &CharacterSettings, facing: Quat, dt: f32) {
+        let parents = &db.skeleton.parents;
+        // Toe targets from the pose as animated (before any hips drop).
+        let mut targets = [None; 2];
+        for side in 0..2 {
+            let Some(toe) = self.toe(pose, side) else { continue };
+            let velocity = if dt > 0.0 { (toe - self.previous_toes[side]) / dt } else { Vec3::ZERO };
+            self.previous_toes[side] = toe;
+            if !settings.foot_lock {
+                self.locks[side].reset(toe, velocity);
+                targets[side] = Some((toe, toe));
+                continue;
+            }
+            let contact = pose.contacts[side] != 0;
+            self.locks[side].floor = if settings.foot_lock_floor { self.toe_floor } else { None };
+            let target = self.locks[side].update(contact, toe, velocity, dt, settings.foot_lock_unlock_radius, settings.foot_lock_halflife);
+            targets[side] = Some((toe, target));
+        }
+        let dropped = match self.hips {
+            Some(h) if self.hips_drop > 0.0 => {
+                // The root is a pure yaw, so the hips' local y is world height above the root.
+                let drop = self.hips_drop.min(0.6 * pose.positions[h].y.max(0.0));
+                pose.positions[h].y -= drop;
+                self.applied_drop = drop;
+                pose.forward_kinematics(parents, self.hips_range.clone());
+                drop > 0.0
+            }
+            _ => false,
+        };
+        for side in 0..2 {
+            let (Some(leg), Some((toe, target))) = (&self.legs[side], targets[side]) else { continue };
+            // Unlocked and blended out: the animation is already right, leave the leg alone.
+            if !dropped && (target - toe).length_squared() < 1e-10 {
+                continue;
+            }
+            // Keep the knee in the animation's own bend plane, even a slightly backward
+            // (hyperextended) one: a pole on the other side makes the solver turn the leg half
+            // a turn about the hip–ankle axis in one frame. Facing only breaks an exact tie.
+            let (hip, knee, ankle) = (pose.world_positions[leg.upper_leg], pose.world_positions[leg.lower_leg], pose.world_positions[leg.foot]);
+            let bend = knee_bend_direction(hip, knee, ankle);
+            let pole = if bend.length_squared() > 1e-8 { bend } else { facing * Vec3::Z };
+            leg_ik(leg, parents, &pose.world_positions, &pose.world_rotations, target, pole, 0.0, 1e-4, &mut pose.output_rotations);
+            pose.forward_kinematics(parents, self.leg_ranges[side].clone());
+        }
+        for side in 0..2 {
+            if let Some(toe) = self.toe(pose, side) {
+                self.toes[side] = toe;
+            }
+        }
+    }
+}

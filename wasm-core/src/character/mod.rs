@@ -1,0 +1,275 @@
+//! One motion-matched character (docs/method.md §3–7). Each [`Character::update`], in order:
+//! 1. **drive** ([`drive`]): input, a path or a tracked user moves the simulated character;
+//! 2. **search scheduling** ([`schedule`]): on a timer, a sharp change or a clip end, the
+//!    [`query`] is searched and a jump is inertialized;
+//! 3. **root motion** ([`root`]): the database plays at its own rate, moving the root, which is
+//!    then kept with the simulated character (adjustment, clamping);
+//! 4. **pose** ([`pose`]): the frame playing, inertialized, and its world transforms (the one FK);
+//! 5. **legs** ([`legs`]): foot lock and hips drop by leg IK, touched-up subtrees re-run by FK.
+//!
+//! Every buffer is allocated by [`Character::new`]: `update` allocates nothing.
+
+pub mod drive;
+pub mod legs;
+pub mod pose;
+pub mod query;
+pub mod root;
+pub mod schedule;
+pub mod settings;
+
+pub use drive::Tracked;
+pub use schedule::CharacterStats;
+pub use settings::CharacterSettings;
+
+use crate::controller::{Input, Path, Simulation};
+use crate::database::Database;
+use crate::quality::SkatingMeter;
+use crate::search::SearchIndex;
+use drive::{Drive, Mode};
+use glam::{Quat, Vec3};
+use legs::Legs;
+use pose::Pose;
+use query::Query;
+use root::RootMotion;
+use schedule::{Outcome, Schedule};
+
+/// A character playing one database.
+pub struct Character {
+    pub settings: CharacterSettings,
+    pub simulation: Simulation,
+    pub stats: CharacterStats,
+    /// Current database frame, and the fraction of a frame accumulated toward the next one.
+    frame: usize,
+    frame_fraction: f32,
+    drive: Drive,
+    schedule: Schedule,
+    query: Query,
+    root: RootMotion,
+    pose: Pose,
+    legs: Legs,
+    skating: SkatingMeter,
+}
+
+impl Character {
+    /// A character standing at the origin facing +Z, playing from the first valid frame.
+    pub fn new(db: &Database, settings: CharacterSettings) -> Character {
+        let frame = db.valid.iter().position(|&v| v != 0).unwrap_or(0);
+        let mut c = Character {
+            settings,
+            simulation: Simulation::default(),
+            stats: CharacterStats::default(),
+            frame,
+            frame_fraction: 0.0,
+            drive: Drive::default(),
+            schedule: Schedule::new(),
+            query: Query::new(db),
+            root: RootMotion::default(),
+            pose: Pose::new(db.num_joints()),
+            legs: Legs::new(db),
+            skating: SkatingMeter::default(),
+        };
+        c.pose.play(db, frame, c.settings.inertialize, c.settings.inertialization_halflife, 0.0);
+        c.pose.set_root(c.root.position, c.root.rotation);
+        c.reset_feet(db);
+        c
+    }
+
+    /// Unlocks both feet and restarts their velocity estimate from the current pose.
+    fn reset_feet(&mut self, db: &Database) {
+        self.pose.reset_output(&db.skeleton.parents);
+        self.legs.reset(&self.pose);
+        self.skating.reset();
+    }
+
+    /// Places the character (and its simulated twin) at a world position and yaw.
+    pub fn teleport(&mut self, db: &Database, position: Vec3, rotation: Quat) {
+        self.root.position = Vec3::new(position.x, 0.0, position.z);
+        self.root.rotation = rotation;
+        self.simulation = Simulation { position: self.root.position, rotation, ..Simulation::default() };
+        self.schedule.force = true;
+        self.pose.set_root(self.root.position, self.root.rotation);
+        self.reset_feet(db);
+    }
+
+    /// Height of a planted toe on this database's floor (m): foot locks plant toes there
+    /// (with `foot_lock_floor`). Usually `db.toe_height_in_contact()`, computed once per
+    /// database and shared by its characters.
+    pub fn set_toe_floor(&mut self, height: Option<f32>) {
+        self.legs.toe_floor = height;
+    }
+
+    /// Lowers the hips `drop` metres below the animation, the legs bending by IK so that the
+    /// feet stay where the animation (or the foot lock) puts them: crouching for a VR user
+    /// whose head is lower than calibrated, with any database (docs/method.md §9's fallback to
+    /// crouch databases). Clamped to [0, 60% of the hip height].
+    pub fn set_hips_drop(&mut self, drop: f32) {
+        self.legs.hips_drop = if drop.is_finite() { drop.max(0.0) } else { 0.0 };
+    }
+
+    /// Follow `path` from its start (or `None` to return to input control).
+    pub fn set_path(&mut self, path: Option<Path>) {
+        self.drive.mode = match path {
+            Some(path) => Mode::Path { path, time: 0.0 },
+            None => Mode::Input,
+        };
+        self.schedule.force = true;
+    }
+
+    /// Follow a tracked user (VR) from now on: call every frame with the raw head floor
+    /// position, ground velocity and body yaw (docs/method.md §9). The velocity and yaw are
+    /// spring-smoothed here. Back to input control with [`Self::set_path`]`(None)`.
+    pub fn set_tracked(&mut self, tracked: Tracked) {
+        if !matches!(self.drive.mode, Mode::Tracked(_)) {
+            // Start from the user, not from wherever the simulation was.
+            self.simulation.velocity = tracked.velocity;
+            self.simulation.acceleration = Vec3::ZERO;
+            self.schedule.force = true;
+        }
+        self.drive.mode = Mode::Tracked(tracked);
+    }
+
+    /// Restrict searches to frames where `mask` is true (e.g. a tag), or lift it with `None`.
+    ///
+    /// # Panics
+    /// If the mask's length is not the database's frame count.
+    pub fn set_mask(&mut self, db: &Database, mask: Option<Vec<bool>>) {
+        assert!(mask.as_ref().is_none_or(|m| m.len() == db.num_frames), "mask length must equal the frame count");
+        self.schedule.mask = mask;
+        self.schedule.force = true;
+    }
+
+    /// Forces a search at the next update.
+    pub fn request_search(&mut self) {
+        self.schedule.force = true;
+    }
+
+    /// Prepares a switch away from `from` (the database used so far) to another one with the
+    /// same skeleton and feature layout, passed to the next [`Self::update`]: that update
+    /// searches the new database from the current pose, and the jump is inertialized like any
+    /// other transition (VR: crouch ↔ stand by head height). A search mask belongs to a
+    /// database, so it is lifted (set a new one with [`Self::set_mask`] after the switch).
+    ///
+    /// # Panics
+    /// If `from` is not the database the character was playing.
+    pub fn switch_database(&mut self, from: &Database) {
+        self.query.set_pose(from.feature(self.frame));
+        self.schedule.mask = None;
+        self.schedule.switching = true;
+        self.schedule.force = true;
+    }
+
+    pub fn frame(&self) -> usize {
+        self.frame
+    }
+    /// The simulated character's position and facing (where the user wants the avatar).
+    pub fn simulation_transform(&self) -> (Vec3, Quat) {
+        (self.simulation.position, self.simulation.rotation)
+    }
+    pub fn root_position(&self) -> Vec3 {
+        self.root.position
+    }
+    pub fn root_rotation(&self) -> Quat {
+        self.root.rotation
+    }
+    /// Joint 0: root world transform; others: local transforms (inertialized, hips dropped).
+    pub fn pose_positions(&self) -> &[Vec3] {
+        &self.pose.positions
+    }
+    /// The shown local rotations: inertialized, with foot-lock IK on the legs.
+    pub fn pose_rotations(&self) -> &[Quat] {
+        &self.pose.output_rotations
+    }
+    /// World positions of every joint of the shown pose.
+    pub fn world_positions(&self) -> &[Vec3] {
+        &self.pose.world_positions
+    }
+    /// World rotations of every joint of the shown pose.
+    pub fn world_rotations(&self) -> &[Quat] {
+        &self.pose.world_rotations
+    }
+    /// The toe points (left, right) of the shown pose, world.
+    pub fn toes(&self) -> [Vec3; 2] {
+        self.legs.toes
+    }
+    /// Whether each foot (left, right) is locked to the floor now.
+    pub fn foot_locked(&self) -> [bool; 2] {
+        self.legs.locked()
+    }
+    /// Foot contacts of the current frame (left, right).
+    pub fn contacts(&self) -> [u8; 2] {
+        self.pose.contacts
+    }
+    /// The last query (normalized features) and the predicted trajectory (world space).
+    pub fn query(&self) -> &[f32] {
+        &self.query.values
+    }
+    pub fn predicted_positions(&self) -> &[Vec3] {
+        &self.query.predicted_positions
+    }
+    pub fn predicted_rotations(&self) -> &[Quat] {
+        &self.query.predicted_rotations
+    }
+    /// Sliding of the shown pose's planted toes since the last teleport ([`SkatingMeter`]).
+    pub fn skating(&self) -> &SkatingMeter {
+        &self.skating
+    }
+
+    /// Advances the character by `dt` seconds of real time under `input` (ignored unless the
+    /// drive is input). `db` must be the database the character was created for, or another
+    /// with the same skeleton and features (call [`Self::switch_database`] before switching).
+    ///
+    /// `index` must be built from `db`.
+    pub fn update(&mut self, db: &Database, index: &SearchIndex, input: &Input, dt: f32) {
+        let dt = dt.max(0.0);
+        self.legs.undo_drop(&mut self.pose);
+        let s = &self.settings;
+        let thresholds = (s.velocity_change_threshold, s.rotation_change_threshold);
+        if self.drive.update(&mut self.simulation, &s.controller, thresholds, input, dt) {
+            self.schedule.force = true;
+        }
+
+        if self.schedule.is_due(db, self.frame, &self.settings) {
+            self.search(db, index);
+        }
+
+        // Play the database at its own rate, whatever the render rate.
+        self.frame_fraction += dt * self.settings.playback_speed * db.fps;
+        while self.frame_fraction >= 1.0 {
+            self.frame_fraction -= 1.0;
+            let clip_end = db.clips[db.clip_at(self.frame)].end as usize;
+            let next = if self.frame + 1 < clip_end { self.frame + 1 } else { self.frame };
+            self.root.step(db, self.frame, next, self.settings.inertialization_halflife);
+            self.frame = next;
+            self.schedule.count_frame();
+        }
+        let s = &self.settings;
+        self.pose.play(db, self.frame, s.inertialize, s.inertialization_halflife, dt);
+        self.root.keep_with(&self.simulation, s, dt);
+        self.pose.set_root(self.root.position, self.root.rotation);
+        self.pose.reset_output(&db.skeleton.parents);
+        self.legs.apply(db, &mut self.pose, &self.settings, self.root.rotation, dt);
+        self.skating.update(self.legs.toes, self.pose.contacts);
+    }
+
+    fn search(&mut self, db: &Database, index: &SearchIndex) {
+        assert_eq!(self.query.values.len(), db.num_features(), "the database's feature layout differs from the character's");
+        // Pose part: the current frame's own features (captured from the old database when
+        // switching); trajectory part: the drive's prediction.
+        if !self.schedule.switching {
+            self.query.set_pose(db.feature(self.frame));
+        }
+        self.query.set_trajectory(db, &self.drive, &self.simulation, &self.settings.controller, self.root.position, self.root.rotation);
+        if let Outcome::Jump(frame) = self.schedule.search(index, &self.settings, self.frame, &self.query, &mut self.stats) {
+            self.transition(db, frame);
+        }
+    }
+
+    /// Jumps to `frame`, inertializing from what is being output now.
+    fn transition(&mut self, db: &Database, frame: usize) {
+        self.stats.transitions += 1;
+        let inertialize = self.settings.inertialize;
+        self.pose.transition(db, frame, inertialize);
+        self.root.transition(db, frame, inertialize);
+        self.frame = frame;
+    }
+}

@@ -1,0 +1,87 @@
+//! When to search and what to search for (docs/method.md §3): every `search_interval` database
+//! frames, at once on a sharp input change or a new drive, and at a clip's end. The frame
+//! playing is the bar: a jump happens only to something strictly better, outside ±radius.
+
+use super::query::Query;
+use super::settings::CharacterSettings;
+use crate::database::Database;
+use crate::search::{SearchIndex, SearchOptions};
+
+/// Counters and the last search, for debug views and the quality harness.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct CharacterStats {
+    pub searches: u64,
+    pub transitions: u64,
+    /// Cost of the current frame at the last search, and of the frame it chose.
+    pub current_cost: f32,
+    pub best_cost: f32,
+}
+
+#[derive(Clone, Debug, Default)]
+pub struct Schedule {
+    frames_since_search: u32,
+    /// Search at the next update, whatever the timer says.
+    pub force: bool,
+    /// Set by a database switch: the next search runs in the new database with the pose
+    /// features captured from the old one, and has no bar.
+    pub switching: bool,
+    /// Frames a search may return (`None`: all valid ones).
+    pub mask: Option<Vec<bool>>,
+}
+
+/// What a search decided.
+pub enum Outcome {
+    /// Keep playing.
+    Stay,
+    /// Jump to this frame.
+    Jump(usize),
+}
+
+impl Schedule {
+    /// A schedule whose first update searches.
+    pub fn new() -> Schedule {
+        Schedule { force: true, ..Schedule::default() }
+    }
+
+    /// Whether a search is due before playing on from `frame`.
+    pub fn is_due(&self, db: &Database, frame: usize, settings: &CharacterSettings) -> bool {
+        let at_clip_end = !self.switching && frame + 1 >= db.clips[db.clip_at(frame)].end as usize;
+        self.force || self.frames_since_search >= settings.search_interval || at_clip_end
+    }
+
+    /// One database frame was played.
+    pub fn count_frame(&mut self) {
+        self.frames_since_search += 1;
+    }
+
+    /// Searches `index` for `query` (whose pose part must be filled, see [`Query`]) from the
+    /// frame playing.
+    pub fn search(&mut self, index: &SearchIndex, settings: &CharacterSettings, frame: usize, query: &Query, stats: &mut CharacterStats) -> Outcome {
+        self.force = false;
+        self.frames_since_search = 0;
+        let switching = std::mem::take(&mut self.switching);
+        let r = settings.exclude_radius;
+        let options = SearchOptions {
+            beta_pose: settings.beta_pose,
+            beta_trajectory: settings.beta_trajectory,
+            exclude: (!switching).then(|| (frame.saturating_sub(r), frame + r + 1)),
+            mask: if switching { None } else { self.mask.as_deref() },
+        };
+        // The current frame is the bar: jump only to something strictly better. After a
+        // switch every frame is new: no bar.
+        let valid_now = !switching && index.is_valid(frame) && self.mask.as_ref().is_none_or(|m| m[frame]);
+        let bar = if valid_now { index.cost(frame, &query.values, &options) } else { f32::INFINITY };
+        let best = index.search(settings.search_method, &query.values, &options, bar);
+        stats.searches += 1;
+        stats.current_cost = bar;
+        match best {
+            Some((frame, cost)) => {
+                stats.best_cost = cost;
+                Outcome::Jump(frame)
+            }
+            // Nothing searchable in the new database: cut to its first frame.
+            None if switching => Outcome::Jump(0),
+            None => Outcome::Stay,
+        }
+    }
+}

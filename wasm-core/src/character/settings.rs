@@ -1,0 +1,101 @@
+//! Everything a user can tune on a character, live (the demo's panel, `Character.settings` in
+//! the TS API). JSON with the field names below; missing fields keep their defaults, unknown
+//! ones are errors (docs/runtime.md lists them with their meaning).
+
+use crate::controller::ControllerSettings;
+use crate::search::SearchMethod;
+
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct CharacterSettings {
+    pub controller: ControllerSettings,
+    /// Database frames between searches (10 at 60 fps).
+    pub search_interval: u32,
+    /// β_q (pose / quality) and β_r (trajectory / responsiveness).
+    pub beta_pose: f32,
+    pub beta_trajectory: f32,
+    /// Frames around the current one a search may not return.
+    pub exclude_radius: usize,
+    /// Sharp-change triggers: rate of change of the desired velocity (m/s²) and facing (rad/s).
+    pub velocity_change_threshold: f32,
+    pub rotation_change_threshold: f32,
+    pub inertialize: bool,
+    pub inertialization_halflife: f32,
+    pub adjustment: bool,
+    pub adjustment_position_halflife: f32,
+    pub adjustment_rotation_halflife: f32,
+    /// Adjustment per frame is capped at this × the character's speed × dt, so a standing
+    /// character never slides (docs/method.md §6).
+    pub adjustment_max_ratio: f32,
+    /// …but never below this speed (m/s), so a standing character is still brought back under
+    /// its simulated character (a tracked VR user who stands still must find the avatar under
+    /// them, not α away); the foot lock turns the drift into a corrective step. 0 = off.
+    pub adjustment_min_speed: f32,
+    pub clamping: bool,
+    /// α: the root never ends farther than this from the simulated character (m).
+    pub clamp_distance: f32,
+    /// With `clamping`, the root's yaw stays within this angle (rad) of the simulated
+    /// character's: the data has little turning on the spot, and a tracked (VR) user who turns
+    /// in place must see the avatar turn with them.
+    pub clamp_angle: f32,
+    /// Database playback rate multiplier.
+    pub playback_speed: f32,
+    /// All methods return the same frame; AABB is the fast one, the others are for comparison.
+    pub search_method: SearchMethod,
+    /// Pin toes in contact to the floor with two-bone leg IK (docs/method.md §7).
+    pub foot_lock: bool,
+    /// A locked toe unlocks when the animation drifts farther than this (m).
+    pub foot_lock_unlock_radius: f32,
+    /// Plant locked toes at the floor height (see [`super::Character::set_toe_floor`]) rather
+    /// than wherever they touched down.
+    pub foot_lock_floor: bool,
+    /// Blend in and out of a lock (exact half-life; Holden's 0.1 s).
+    pub foot_lock_halflife: f32,
+}
+
+impl Default for CharacterSettings {
+    fn default() -> Self {
+        CharacterSettings {
+            controller: ControllerSettings::default(),
+            search_interval: 10,
+            beta_pose: 1.0,
+            beta_trajectory: 1.0,
+            exclude_radius: 20,
+            velocity_change_threshold: 50.0,
+            rotation_change_threshold: 50.0,
+            inertialize: true,
+            inertialization_halflife: 0.1,
+            adjustment: true,
+            adjustment_position_halflife: 0.1,
+            adjustment_rotation_halflife: 0.2,
+            adjustment_max_ratio: 0.5,
+            clamping: true,
+            clamp_distance: 0.15,
+            clamp_angle: std::f32::consts::FRAC_PI_4,
+            playback_speed: 1.0,
+            search_method: SearchMethod::Aabb,
+            foot_lock: true,
+            foot_lock_unlock_radius: 0.2,
+            adjustment_min_speed: 0.0,
+            foot_lock_floor: true,
+            foot_lock_halflife: 0.12,
+        }
+    }
+}
+
+impl CharacterSettings {
+    /// These settings with a JSON object's fields applied (`{"beta_pose": 1.5}`).
+    ///
+    /// # Errors
+    /// Not a JSON object, an unknown field, or a value of the wrong type.
+    pub fn patched(&self, json: &str) -> Result<CharacterSettings, String> {
+        let patch: serde_json::Value = serde_json::from_str(json).map_err(|e| format!("settings: {e}"))?;
+        let patch = patch.as_object().ok_or("settings: expected a JSON object")?;
+        let mut current = serde_json::to_value(self).map_err(|e| e.to_string())?;
+        let obj = current.as_object_mut().ok_or("settings: expected a JSON object")?;
+        for (k, v) in patch {
+            obj.insert(k.clone(), v.clone());
+        }
+        serde_json::from_value(current).map_err(|e| format!("settings: {e}"))
+    }
+}
