@@ -33,7 +33,8 @@ export interface BandwidthResult {
 }
 
 export function measureBandwidth(o: BandwidthOptions): BandwidthResult {
-  const stream = new InputStream();
+  let clockMs = 0;
+  const stream = new InputStream(() => clockMs);
   const stateHz = o.stateHz ?? 1;
   let up = 0;
   let down = 0;
@@ -57,6 +58,7 @@ export function measureBandwidth(o: BandwidthOptions): BandwidthResult {
   for (let f = 0; f < frames; f++) {
     const t = f / o.frameHz;
     const dt = 1 / o.frameHz;
+    clockMs = t * 1000;
     const a = o.changeEveryFrame ? t * 0.7 : 0;
     if (o.mode === 'desktop') {
       step.ticks = stream.clock.ticksFor(dt);

@@ -4,8 +4,10 @@
  * `recordTracked` leave in the step), batches them into MOVE / TRACKED messages at the send
  * rate, keeps PATH messages in step order, and produces STATE messages (periodic, on request).
  *
- * Time: a message's `time` is the sender's simulation clock (the sum of its step ticks, in ms),
- * so step times are exact from the ticks and receivers play them out evenly.
+ * Time: a message's `time` is the sender's wall clock (ms since this stream started) at its last
+ * step; a STATE's, when it was queued. Steps inside a message are timed back from it by their
+ * ticks. A wall clock (not the sum of the ticks) keeps the receivers' clock mapping steady when
+ * the sender stalls or its tab is hidden: it simply sends no steps for a while.
  */
 import {
   createMoveStep,
@@ -58,7 +60,7 @@ function identityTracker(): TrackerPose {
 export class InputStream {
   /** Last sequence number used (messages start at 1). */
   seq = 0;
-  /** Simulation clock, ticks. */
+  /** Simulation clock, ticks (steps recorded since the stream started). */
   simTicks = 0;
   readonly clock = new TickClock();
   /** Room metres per database unit and α (m) of tracked mode. */
@@ -75,9 +77,26 @@ export class InputStream {
   private moveSteps: MoveStep[] = [];
   private trackedSteps: TrackedStep[] = [];
   private queue: Uint8Array[] = [];
+  private readonly now: () => number;
+  private startMs: number;
+  /** Wall time (ms since start) of the last recorded step, and the last time put in a message. */
+  private lastStepMs = 0;
+  private lastSentTime = 0;
 
-  get timeMs(): number {
-    return Math.floor((this.simTicks * 1000) / TICKS_PER_SECOND) >>> 0;
+  /** `now`: the wall clock in ms (default `performance.now`; tests pass a simulated one). */
+  constructor(now: () => number = () => performance.now()) {
+    this.now = now;
+    this.startMs = now();
+  }
+
+  private wallMs(): number {
+    return Math.max(0, Math.round(this.now() - this.startMs));
+  }
+
+  /** A message time: never earlier than the last one sent (u32 ms). */
+  private stamp(ms: number): number {
+    this.lastSentTime = Math.max(this.lastSentTime, ms);
+    return this.lastSentTime >>> 0;
   }
 
   /**
@@ -94,6 +113,7 @@ export class InputStream {
     this.moveSteps.push({ ...step });
     Object.assign(this.lastMove, step);
     this.simTicks += step.ticks;
+    this.lastStepMs = this.wallMs();
     if (this.moveSteps.length === MAX_STEPS) this.batch();
     return step;
   }
@@ -107,6 +127,7 @@ export class InputStream {
     this.trackedSteps.push({ ...step });
     Object.assign(this.lastTracked, step);
     this.simTicks += step.ticks;
+    this.lastStepMs = this.wallMs();
     if (this.trackedSteps.length === MAX_STEPS) this.batch();
     return step;
   }
@@ -134,7 +155,7 @@ export class InputStream {
   /** Starts following a path from the next step on (the PATH message follows earlier steps). */
   setPath(points: Float32Array, speeds: Float32Array, looped: boolean): Uint8Array {
     this.batch();
-    const bytes = encodePath({ seq: this.seq + 1, time: this.timeMs, points, speeds, looped });
+    const bytes = encodePath({ seq: this.seq + 1, time: this.stamp(this.wallMs()), points, speeds, looped });
     this.seq++;
     this.queue.push(bytes);
     this.drive = 'path';
@@ -151,12 +172,16 @@ export class InputStream {
   restart(): void {
     this.seq = 0;
     this.simTicks = 0;
+    this.startMs = this.now();
+    this.lastStepMs = 0;
+    this.lastSentTime = 0;
+    this.clock.reset();
     this.moveSteps = [];
     this.trackedSteps = [];
     this.queue = [];
     if (this.drive === 'path' && this.path) {
       this.seq++;
-      this.queue.push(encodePath({ seq: this.seq, time: 0, ...this.path }));
+      this.queue.push(encodePath({ seq: this.seq, time: this.stamp(0), ...this.path }));
     }
   }
 
@@ -178,7 +203,7 @@ export class InputStream {
   private encodeState(): Uint8Array {
     return encodeState({
       seq: this.seq,
-      time: this.timeMs,
+      time: this.stamp(this.wallMs()),
       frame: this.root.frame,
       rootX: this.root.rootX,
       rootZ: this.root.rootZ,
@@ -195,13 +220,13 @@ export class InputStream {
   private batch(): void {
     if (this.moveSteps.length) {
       this.seq++;
-      this.queue.push(encodeMove({ seq: this.seq, time: this.timeMs, ...this.root, steps: this.moveSteps }));
+      this.queue.push(encodeMove({ seq: this.seq, time: this.stamp(this.lastStepMs), ...this.root, steps: this.moveSteps }));
       this.moveSteps = [];
     }
     if (this.trackedSteps.length) {
       this.seq++;
       this.queue.push(
-        encodeTracked({ seq: this.seq, time: this.timeMs, ...this.root, scale: this.scale, alpha: this.alpha, trackers: this.trackers, steps: this.trackedSteps }),
+        encodeTracked({ seq: this.seq, time: this.stamp(this.lastStepMs), ...this.root, scale: this.scale, alpha: this.alpha, trackers: this.trackers, steps: this.trackedSteps }),
       );
       this.trackedSteps = [];
     }

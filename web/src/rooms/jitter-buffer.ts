@@ -7,8 +7,9 @@
  * `offset` being the smallest transit seen in a sliding window (clock offset + base latency,
  * so the two clocks need no synchronization) and `delay` adapting to the measured jitter: the
  * 95th percentile of (transit − offset) plus the longest span an item covers plus a margin,
- * clamped to [minDelayMs, maxDelayMs]. The applied delay follows that target at a bounded slew
- * (the playout clock runs at most ±10% off real time), so adapting never makes motion jump.
+ * clamped to [minDelayMs, maxDelayMs]. The mapping in use (offset + delay) follows its target at
+ * a bounded slew — the playout clock runs at most ±10% off real time — so neither a new delay
+ * nor a shifted offset ever makes the motion jump or freeze.
  *
  * Items come out in sequence order once due: an item covering sender time
  * (time − span, time] is due when `time − span` ≤ the playout time. Duplicates and items older
@@ -65,7 +66,7 @@ interface Entry<T> {
 
 export class JitterBuffer<T> {
   readonly options: Required<JitterBufferOptions>;
-  /** The delay in use (ms) and the one it is moving to. */
+  /** The delay in use (ms: the mapping in use − offset) and the one it is moving to. */
   delayMs: number;
   targetDelayMs: number;
   /** The smallest transit in the window (ms): sender → local clock offset + base latency. */
@@ -82,6 +83,8 @@ export class JitterBuffer<T> {
   private readonly sorted: Float64Array;
   private samples = 0;
   private lastClock = NaN;
+  /** The sender → local mapping in use (offset + delay), ms; NaN before the first item. */
+  private mappingMs = NaN;
 
   constructor(options: JitterBufferOptions = {}) {
     this.options = {
@@ -143,8 +146,8 @@ export class JitterBuffer<T> {
 
   /** The sender time that plays at local time `nowMs` (NaN before the first item). */
   playoutTime(nowMs: number): number {
-    this.slewDelay(nowMs);
-    return nowMs - this.offsetMs - this.delayMs;
+    this.slewMapping(nowMs);
+    return nowMs - this.mappingMs;
   }
 
   /** The next item in sequence order if it is due at `nowMs`. */
@@ -195,11 +198,14 @@ export class JitterBuffer<T> {
     }
   }
 
-  private slewDelay(nowMs: number): void {
+  private slewMapping(nowMs: number): void {
     const elapsed = Number.isFinite(this.lastClock) ? Math.max(0, nowMs - this.lastClock) : 0;
     this.lastClock = nowMs;
+    const target = this.offsetMs + this.targetDelayMs;
+    if (!Number.isFinite(target)) return;
+    if (!Number.isFinite(this.mappingMs)) this.mappingMs = this.offsetMs + this.delayMs;
     const step = elapsed * this.options.slew;
-    const d = this.targetDelayMs - this.delayMs;
-    this.delayMs += Math.max(-step, Math.min(step, d));
+    this.mappingMs += Math.max(-step, Math.min(step, target - this.mappingMs));
+    this.delayMs = this.mappingMs - this.offsetMs;
   }
 }

@@ -13,6 +13,8 @@ interface Options {
   duplicates?: number;
   /** Create the receiver only at this time (s), starting from the sender's last STATE. */
   joinAt?: number;
+  /** The sender takes no steps in [from, to) s (a hidden tab: its messages keep flowing). */
+  pause?: [number, number];
   seed?: number;
 }
 
@@ -22,8 +24,9 @@ interface Options {
  */
 function simulate(o: Options) {
   const rand = seededRandom(o.seed ?? 1);
+  let senderNow = 0;
   const a = new TestCharacter();
-  const stream = new InputStream();
+  const stream = new InputStream(() => senderNow);
   const local = new LocalAvatar(a, stream);
   const b = new TestCharacter();
   const notes: string[] = [];
@@ -50,11 +53,11 @@ function simulate(o: Options) {
   // Sender: a display at 60 Hz (VR 90 Hz) with frame-time jitter; messages at 20 Hz (VR 30 Hz).
   const frameMs = o.vr ? 1000 / 90 : 1000 / 60;
   const sendMs = o.vr ? 1000 / 30 : 50;
-  let senderNow = 0;
   let nextSend = sendMs;
   let nextState = 1000;
   let recvNow = 0;
   let maxExcess = 0;
+  let maxStepsPerFrame = 0;
   let prevDisplay: [number, number] | null = null;
   const displayTrace: { t: number; error: number }[] = [];
   const positionsA: { t: number; x: number; z: number }[] = [];
@@ -75,7 +78,9 @@ function simulate(o: Options) {
       }
       if (!remote) continue;
       const sim0 = [b.rootX, b.rootZ, b.simulatedSeconds, remote.stats.gapSeconds];
+      const steps0 = remote.stats.stepsApplied;
       remote.update(recvNow, 1 / 60);
+      maxStepsPerFrame = Math.max(maxStepsPerFrame, remote.stats.stepsApplied - steps0);
       if (remote.ready) {
         const d: [number, number] = [b.displayX, b.displayZ];
         if (prevDisplay) {
@@ -99,6 +104,18 @@ function simulate(o: Options) {
     const dt = (frameMs * (0.8 + 0.4 * rand()) + (rand() < 0.02 ? 20 : 0)) / 1000;
     senderNow += dt * 1000;
     const t = senderNow / 1000;
+    if (o.pause && t >= o.pause[0] && t < o.pause[1]) {
+      if (senderNow >= nextState) {
+        stream.queueState();
+        nextState += 1000;
+      }
+      if (senderNow >= nextSend) {
+        send(senderNow);
+        nextSend += sendMs;
+      }
+      receiverStep(senderNow);
+      continue;
+    }
     if (o.vr) {
       const ang = t * 0.8;
       const vx = Math.cos(ang) * 1.2;
@@ -131,7 +148,7 @@ function simulate(o: Options) {
   }
   send(senderNow);
   receiverStep(senderNow + 3000); // the sender stands still; the receiver plays everything out
-  return { a, b, remote: remote!, notes, maxExcess, displayTrace, sent };
+  return { a, b, remote: remote!, notes, maxExcess, maxStepsPerFrame, displayTrace, sent };
 }
 
 describe('RemoteAvatar', () => {
@@ -160,6 +177,18 @@ describe('RemoteAvatar', () => {
     const head = r.b.trackers![0];
     expect(head.position[1]).toBeGreaterThan(1.55);
     expect(Math.hypot(head.position[0] - r.a.tracked.headX, head.position[2] - r.a.tracked.headZ)).toBeLessThan(0.01);
+  });
+
+  it('a sender that pauses (hidden tab) and resumes: still exact, nothing guessed, no fast-forward', () => {
+    const r = simulate({ seconds: 6, pause: [2, 4], seed: 11 });
+    expect(r.b.rootX).toBe(r.a.rootX);
+    expect(r.b.rootZ).toBe(r.a.rootZ);
+    expect(r.b.updates).toBe(r.a.updates);
+    expect(r.remote.stats.extrapolatedSeconds + r.remote.stats.gapSeconds).toBe(0);
+    expect(r.remote.stats.lostMessages).toBe(0);
+    // 60 Hz sender steps on a 60 Hz receiver: at most a few steps in one frame, never a burst.
+    expect(r.maxStepsPerFrame).toBeLessThanOrEqual(3);
+    expect(r.remote.buffer.delayMs).toBeLessThan(150);
   });
 
   it('a lost message: the gap is simulated, the display blends to the sender (no pop) and converges', () => {

@@ -84,6 +84,8 @@ export class RemoteAvatar {
   private trackerTimeB = NaN;
   /** Lost time played in the current gap (ms), reset when a message plays. */
   private gapMs = 0;
+  /** Messages were declared lost and their time is being played with the last input. */
+  private inGap = false;
 
   constructor(
     readonly character: DrivenCharacter,
@@ -156,6 +158,7 @@ export class RemoteAvatar {
     this.measure(s.rootX, s.rootZ, s.rootYaw);
     this.lastEnd = s.time;
     this.current = null;
+    this.inGap = false;
     this.ready = true;
   }
 
@@ -179,18 +182,23 @@ export class RemoteAvatar {
               this.note(`${lost} message(s) lost before seq ${head}`);
               this.stats.lostMessages += lost;
               this.buffer.skipTo(head - 1);
+              this.inGap = true;
             }
-            if (this.buffer.releasedSeq + 1 === head && this.buffer.size > 0) {
-              this.extrapolate(Math.min(playout, this.buffer.nextStart()));
-            } else if (this.buffer.size === 0) this.stats.underflows++;
+            // Only lost time is guessed: a sender that paused (a hidden tab) or stalled took no
+            // steps then, so its receivers take none either.
+            if (this.inGap) this.extrapolate(Math.min(playout, this.buffer.nextStart()));
+            else if (this.buffer.size === 0) this.stats.underflows++;
           }
           break;
         }
         const m = r.item;
         const start = r.time - r.span;
         if (r.missingBefore > 0) this.note(`${r.missingBefore} message(s) lost before seq ${r.seq}`);
-        // Message times are whole ms of the sender's clock: consecutive messages meet within 1 ms.
-        if (this.ready && Number.isFinite(this.lastEnd) && start > this.lastEnd + 1.5) this.fillGap((start - this.lastEnd) / 1000);
+        // Messages lost (or never sent to us: before a snapshot) and not yet played as they passed.
+        if (r.missingBefore > 0 && !this.inGap && this.ready && Number.isFinite(this.lastEnd) && start > this.lastEnd + 1.5) {
+          this.fillGap((start - this.lastEnd) / 1000);
+        }
+        this.inGap = false;
         if (m.type === 'state') {
           if (!this.ready) this.resetTo(m);
           else {

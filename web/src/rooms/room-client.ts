@@ -84,7 +84,8 @@ type Listeners = { [K in keyof RoomClientEvents]: Set<RoomClientEvents[K]> };
 const FINAL_CODES = new Set<number>([CloseCode.malformed, CloseCode.badVersion, CloseCode.notJoined]);
 
 export class RoomClient {
-  readonly stream = new InputStream();
+  /** The local member's outgoing stream (kept across reconnects; `LocalAvatar` records into it). */
+  readonly stream: InputStream;
   status: RoomStatus = 'closed';
   memberId = 0;
   readonly members = new Map<number, MemberInfo>();
@@ -115,6 +116,7 @@ export class RoomClient {
     encodeJoin(options.join); // throws on a name, URL or database the server would refuse
     this.o = options;
     this.now = options.now ?? (() => performance.now());
+    this.stream = new InputStream(this.now);
   }
 
   on<K extends keyof RoomClientEvents>(event: K, fn: RoomClientEvents[K]): () => void {
