@@ -15,6 +15,8 @@ interface Options {
   joinAt?: number;
   /** The sender takes no steps in [from, to) s (a hidden tab: its messages keep flowing). */
   pause?: [number, number];
+  /** The receiver gets no frames in [from, to) s (its page is hidden) but keeps receiving. */
+  receiverHidden?: [number, number];
   seed?: number;
 }
 
@@ -77,6 +79,10 @@ function simulate(o: Options) {
         if (remote) remote.receive(decodeClientMessage(bytes) as StreamMessage, at);
       }
       if (!remote) continue;
+      if (o.receiverHidden && recvNow >= o.receiverHidden[0] * 1000 && recvNow < o.receiverHidden[1] * 1000) {
+        prevDisplay = null;
+        continue;
+      }
       const sim0 = [b.rootX, b.rootZ, b.simulatedSeconds, remote.stats.gapSeconds];
       const steps0 = remote.stats.stepsApplied;
       remote.update(recvNow, 1 / 60);
@@ -189,6 +195,16 @@ describe('RemoteAvatar', () => {
     // 60 Hz sender steps on a 60 Hz receiver: at most a few steps in one frame, never a burst.
     expect(r.maxStepsPerFrame).toBeLessThanOrEqual(3);
     expect(r.remote.buffer.delayMs).toBeLessThan(150);
+  });
+
+  it('a receiver whose page was hidden (no frames for 10 s) starts over and shows the sender again', () => {
+    const r = simulate({ seconds: 16, receiverHidden: [2, 12], seed: 13 });
+    expect(r.remote.stats.resyncs).toBeGreaterThanOrEqual(1);
+    expect(r.notes.some((n) => /buffer full/.test(n))).toBe(true);
+    const back = r.displayTrace.filter((p) => p.t > 14_000);
+    expect(back.length).toBeGreaterThan(60);
+    for (const p of back) expect(p.error).toBeLessThan(0.02);
+    expect(r.displayTrace.at(-1)!.error).toBeLessThan(0.0015);
   });
 
   it('a lost message: the gap is simulated, the display blends to the sender (no pop) and converges', () => {

@@ -48,6 +48,8 @@ export interface RemoteAvatarStats {
   lostMessages: number;
   /** Lost time played with the last input as it passed (s), and all at once after a snapshot (s). */
   extrapolatedSeconds: number;
+  /** Times the playout buffer overflowed (no frames played it) and the avatar started over. */
+  resyncs: number;
   gapSeconds: number;
   refused: number;
   underflows: number;
@@ -60,7 +62,7 @@ function poseCopy(): TrackerPose {
 export class RemoteAvatar {
   readonly buffer: JitterBuffer<StreamMessage>;
   readonly drift: DriftCorrector;
-  readonly stats: RemoteAvatarStats = { stepsApplied: 0, lostMessages: 0, extrapolatedSeconds: 0, gapSeconds: 0, refused: 0, underflows: 0 };
+  readonly stats: RemoteAvatarStats = { stepsApplied: 0, lostMessages: 0, extrapolatedSeconds: 0, resyncs: 0, gapSeconds: 0, refused: 0, underflows: 0 };
   /** True once placed by a state (snapshot or in-stream) or a first message. */
   ready = false;
   /** The trackers shown this frame (VR members). */
@@ -119,7 +121,19 @@ export class RemoteAvatar {
     if (m.type === 'path') {
       for (const p of m.points) if (!this.inWorld(p * (this.scale || 1))) return this.refuse('path point beyond the world limit');
     }
-    return this.buffer.push(m.seq, m.time, nowMs, m, stepSeconds(m) * 1000);
+    const result = this.buffer.push(m.seq, m.time, nowMs, m, stepSeconds(m) * 1000);
+    if (result === 'overflow') {
+      // Nobody has been playing this avatar (a hidden page gets no frames): forget the backlog
+      // and start over from this message; the avatar snaps to the sender once frames resume.
+      this.note(`playout buffer full (${this.buffer.size} messages not played): starting over at seq ${m.seq}`);
+      this.stats.resyncs++;
+      this.buffer.skipTo(m.seq - 1);
+      this.current = null;
+      this.inGap = false;
+      this.ready = false;
+      return this.buffer.push(m.seq, m.time, nowMs, m, stepSeconds(m) * 1000);
+    }
+    return result;
   }
 
   /** The late-join snapshot the server cached (state and path may be null). */
