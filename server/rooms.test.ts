@@ -158,7 +158,7 @@ describe('room server', () => {
       const d = performance.now() - t0;
       expect(left).toEqual({ type: 'memberLeft', id: silent.memberId, reason: 'timeout' });
       expect(d).toBeGreaterThan(900);
-      expect(d).toBeLessThan(1600);
+      expect(d).toBeLessThan(2000); // the timeout + the 250 ms sweep + a busy machine's slack
       expect((await silent.waitClosed()).code).toBe(1006); // terminated, no handshake for a silent peer
       expect(server.rooms.membersOf(room)).toEqual([talker.memberId]);
     } finally {
