@@ -251,7 +251,17 @@ async function stepWasm() {
     if (mtime(out) > mtime(WASM_OUT) && fs.existsSync(path.join(PKG_DIR, 'mmcore.js'))) {
       return `${path.relative(ROOT, out)} is newer than the cargo output`;
     }
-    await run(wasmBindgenBin(), ['--target', 'web', '--out-dir', PKG_DIR, '--out-name', 'mmcore', WASM_OUT]);
+    // --omit-default-module-path: the library passes the module's URL itself (assets.ts), so no
+    // `new URL('mmcore_bg.wasm', import.meta.url)` is left for a bundler to inline or rewrite.
+    await run(wasmBindgenBin(), ['--target', 'web', '--omit-default-module-path', '--out-dir', PKG_DIR, '--out-name', 'mmcore', WASM_OUT]);
+  });
+  await step('wasm', 'WASM module served beside the other assets (public/mmcore_bg.wasm)', async () => {
+    // The library fetches its module from its asset folder (web/src/assets.ts): the site root
+    // in development, the folder of dist/mm-avatar.js when built.
+    const src = path.join(PKG_DIR, 'mmcore_bg.wasm');
+    const out = path.join(ROOT, 'public', 'mmcore_bg.wasm');
+    if (mtime(out) >= mtime(src)) return 'public/mmcore_bg.wasm is current';
+    fs.copyFileSync(src, out);
   });
 }
 

@@ -37,7 +37,7 @@ fn perpendicular(v: Vec3, axis: Vec3) -> Option<Vec3> {
 /// bone), small angles are kept: the half-way form `normalize(from × to, 1 + from·to)` is exact.
 /// Opposite vectors turn by π about `fallback_axis` (made perpendicular to `from`).
 #[inline]
-fn rotation_arc(from: Vec3, to: Vec3, fallback_axis: Vec3) -> Quat {
+pub(crate) fn rotation_arc(from: Vec3, to: Vec3, fallback_axis: Vec3) -> Quat {
     let w = 1.0 + from.dot(to);
     if w < 1e-6 {
         let axis = perpendicular(fallback_axis, from).unwrap_or_else(|| from.any_orthonormal_vector());

@@ -1,6 +1,7 @@
 //! Motion matching core: BVH import, motion database build, the `.mmdb` format, search and
 //! the runtime (springs, trajectory, inertialization, IK).
-//! The pure core never touches wasm-bindgen; `bindings` is the only JS-facing file.
+//! The pure core never touches wasm-bindgen; `bindings/` is the only JS-facing module, one
+//! file per `Raw*` class, mirrored file for file by the TypeScript raw layer (`web/src/core/`).
 
 pub mod aabb;
 pub mod builder;
@@ -19,6 +20,7 @@ pub mod kinematics;
 pub mod lanes;
 pub mod parallel;
 pub mod quality;
+pub mod retarget;
 pub mod rng;
 pub mod roles;
 pub mod search;

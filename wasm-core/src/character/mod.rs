@@ -108,6 +108,9 @@ impl Character {
 
     /// Follow `path` from its start (or `None` to return to input control).
     pub fn set_path(&mut self, path: Option<Path>) {
+        if path.is_none() && matches!(self.drive.mode, Mode::Input) {
+            return; // already on input: nothing changes, no search is due
+        }
         self.drive.mode = match path {
             Some(path) => Mode::Path { path, time: 0.0 },
             None => Mode::Input,

@@ -1,193 +1,224 @@
 /**
- * A skinned avatar (glTF/GLB) posed each frame from a database skeleton by T-pose retargeting
- * (THESIS_NOTES §8). The demo and the VR page both use it; `pose()` allocates nothing.
+ * A skinned avatar (glTF/GLB or VRM, or any three.js object with skinned meshes) posed each
+ * frame from a character's world pose by the runtime's retargeting (docs/method.md §8): the
+ * bones' local rotations and the hips translation are computed in WASM and copied into the
+ * three.js bones here, then `Grounding` keeps planted feet on the floor. `pose()` allocates
+ * nothing.
  */
 import * as THREE from 'three';
 import { type GLTF, GLTFLoader } from 'three/addons/loaders/GLTFLoader.js';
 import { type VRM, VRMLoaderPlugin, VRMUtils } from '@pixiv/three-vrm';
-import { type Crowd } from '../core/crowd.ts';
+import { type CharacterRuntime } from '../core/character.ts';
+import { type Database } from '../core/database.ts';
+import { Retargeter } from '../core/retarget.ts';
+import { findRoles, ROLE_NAMES, type RoleName, type RoleOverrides, vrmBoneNames } from '../core/roles.ts';
+import { type FetchOptions, fetchBytes } from '../fetch.ts';
 import { Grounding } from './grounding.ts';
-import { findRoles, HUMANOID_ROLES, type HumanoidRole, type RoleOverrides } from './joint-maps.ts';
-import { forwardKinematics as restKinematics, Retargeter } from './retarget.ts';
 
-export interface Avatar {
-  /** Add this to the scene. */
-  readonly object: THREE.Object3D;
-  /** The bones posed (of every skin, plus a VRM's humanoid bones), indexed like `roles`. */
-  readonly bones: readonly THREE.Object3D[];
-  /** Humanoid role → bone index. */
-  readonly roles: ReadonlyMap<HumanoidRole, number>;
-  /** Toe (ball) height standing on the floor (the rest pose), m; NaN without toes. */
-  readonly standingToeHeight: number;
-  /**
-   * Room metres per source (database) unit horizontally, at object scale 1: the retargeter's
-   * hips scale times the scale of whatever carries the root bones.
-   */
-  readonly hipsScale: number;
-  /**
-   * Poses the bones from the source skeleton's world joint positions (J×3) and rotations (J×4)
-   * and its foot contacts (bits: 1 left, 2 right; they keep planted toes on the floor, see
-   * `Grounding`), updates world matrices, and writes the toe (ball) heights above the floor
-   * into `toeHeights` (NaN for a side without a toe bone).
-   */
-  pose(world: Float32Array, worldRotations: Float32Array, contacts: number, dt: number, toeHeights: [number, number]): void;
-  /** Frees GPU resources; remove `object` from the scene first. */
-  dispose(): void;
+export interface AvatarOptions {
+  /** Manual joint map (role → bone name) over the name conventions (and over a VRM's own map). */
+  roles?: RoleOverrides;
+  /** Name used in messages (defaults to the URL). */
+  name?: string;
 }
 
-/**
- * The skeleton to retarget onto, read from the loaded three.js objects (so GLB and VRM, any
- * number of skins, and armature nodes above the root all work): every bone of every skinned
- * mesh (and a VRM's humanoid bones), each bone's parent being its nearest ancestor in that set.
- */
-function skeletonOf(
-  scene: THREE.Object3D,
-  vrm: VRM | undefined,
-  overrides: RoleOverrides | undefined,
-): { bones: THREE.Object3D[]; parents: Int32Array; roles: Map<HumanoidRole, number> } {
+const _v = new THREE.Vector3();
+const _m = new THREE.Matrix4();
+
+/** The bones to retarget onto: every bone of every skinned mesh (and a VRM's humanoid bones). */
+function skeletonOf(root: THREE.Object3D, vrm: VRM | undefined): THREE.Object3D[] {
   const set = new Set<THREE.Object3D>();
-  scene.traverse((o) => {
+  root.traverse((o) => {
     const m = o as THREE.SkinnedMesh;
     if (m.isSkinnedMesh) for (const b of m.skeleton.bones) set.add(b);
   });
-  const vrmBones = new Map<HumanoidRole, THREE.Object3D>();
   if (vrm) {
-    for (const role of HUMANOID_ROLES) {
-      const node = vrm.humanoid.getRawBoneNode(role);
-      if (node) {
-        vrmBones.set(role, node);
-        set.add(node);
-      }
+    for (const vrmName of vrmBoneNames().values()) {
+      const node = vrm.humanoid.getRawBoneNode(vrmName as Parameters<VRM['humanoid']['getRawBoneNode']>[0]);
+      if (node) set.add(node);
     }
   }
-  const bones = [...set];
-  const index = new Map(bones.map((b, i) => [b, i]));
-  const parents = Int32Array.from(bones, (b) => {
-    for (let p = b.parent; p; p = p.parent) if (index.has(p)) return index.get(p)!;
-    return -1;
-  });
-  // A VRM says which bone is which; other models are matched by name conventions, with the
-  // caller's overrides first.
-  const roles = vrm && !overrides ? new Map([...vrmBones].map(([r, b]) => [r, index.get(b)!])) : findRoles(bones.map((b) => b.name), overrides);
-  return { bones, parents, roles };
+  return [...set];
 }
 
-/**
- * Loads a GLB or VRM (bytes) and binds it to the crowd's skeleton. `name` is used in error
- * messages.
- */
-export async function loadAvatar(bytes: Uint8Array, name: string, crowd: Crowd, overrides?: RoleOverrides): Promise<Avatar> {
-  const loader = new GLTFLoader();
-  loader.register((parser) => new VRMLoaderPlugin(parser));
-  let gltf: GLTF;
-  try {
-    gltf = await loader.parseAsync(bytes.slice().buffer, '');
-  } catch (e) {
-    throw new Error(`${name}: not a glTF/GLB/VRM model (${e instanceof Error ? e.message : String(e)})`);
-  }
-  const vrm = gltf.userData.vrm as VRM | undefined;
-  if (vrm) {
-    // VRM 0.x faces −Z; and we pose the raw bones ourselves, so the normalized rig must not
-    // overwrite them.
-    VRMUtils.rotateVRM0(vrm);
-    vrm.humanoid.autoUpdateHumanBones = false;
-  }
-  const root = vrm?.scene ?? gltf.scene;
-  root.updateMatrixWorld(true);
-  let skinned = 0;
-  root.traverse((o) => {
-    if ((o as THREE.SkinnedMesh).isSkinnedMesh) skinned++;
-    // Skinned bounds stay at the rest pose's origin; the character walks away from it.
-    o.frustumCulled = false;
-    o.castShadow = true;
-  });
-  if (skinned === 0) throw new Error(`${name}: no skinned mesh`);
-  let skeleton;
-  try {
-    skeleton = skeletonOf(root, vrm, overrides);
-  } catch (e) {
-    throw new Error(`${name}: ${e instanceof Error ? e.message : String(e)}`);
-  }
-  const { bones, parents, roles: targetRoles } = skeleton;
-  if (!targetRoles.has('hips')) throw new Error(`${name}: no hips bone found among ${bones.length} bones (${bones.slice(0, 8).map((b) => b.name).join(', ')}, …)`);
-  const restLocalRotations = new Float32Array(bones.length * 4);
-  const restLocalPositions = new Float32Array(bones.length * 3);
-  bones.forEach((b, i) => {
-    b.quaternion.toArray(restLocalRotations, i * 4);
-    b.position.toArray(restLocalPositions, i * 3);
-  });
-  // Whatever carries the root bones (an "Armature" node, a VRM 0 turn) rotates the whole rest pose.
-  const hipsBone = bones[targetRoles.get('hips')!];
-  let top = hipsBone;
-  while (parents[bones.indexOf(top)] >= 0) top = bones[parents[bones.indexOf(top)]];
-  const carrier = top.parent ? top.parent.getWorldQuaternion(new THREE.Quaternion()) : new THREE.Quaternion();
+export class Avatar {
+  /** Add this to a scene (the character's `object3d` holds it). */
+  readonly object: THREE.Object3D;
+  readonly name: string;
+  /** The bones posed, indexed like `parents` and `roles`. */
+  readonly bones: readonly THREE.Object3D[];
+  /** Parent of each bone among `bones` (its nearest ancestor in the set), −1 for none. */
+  readonly parents: Int32Array;
+  readonly roles: ReadonlyMap<RoleName, number>;
+  readonly vrm: VRM | undefined;
+  /** Toe height standing on the floor (the rest pose), avatar units; NaN without toes. */
+  readonly standingToeHeight: number;
+  /** Toe heights after the last `pose` (left, right), avatar units; NaN for a missing toe. */
+  readonly toeHeights: [number, number] = [NaN, NaN];
+  private readonly restRotations: Float32Array;
+  private readonly restPositions: Float32Array;
+  private readonly rootParentRotation: THREE.Quaternion;
+  /** Scale of whatever carries the root bones (an "Armature" in centimetres…). */
+  private readonly carrierScale: number;
+  private readonly grounding: Grounding;
+  private readonly toes: (number | undefined)[];
+  private retargeter: Retargeter | null = null;
 
-  // The .mmdb rest pose is the BVH rest: identity rotations, offsets = local positions.
-  const j = crowd.numJoints;
-  const sourceRest = new Float32Array(j * 4);
-  for (let k = 0; k < j; k++) sourceRest[4 * k + 3] = 1;
-  const sourceRestPositions = new Float64Array(j * 3);
-  restKinematics(crowd.jointParents, sourceRest, crowd.positionsOf(0), new Float64Array(j * 4), sourceRestPositions);
-  const sourceRoles = findRoles([...crowd.jointNames]);
-  const retargeter = new Retargeter({
-    sourceParents: crowd.jointParents,
-    sourceRestWorldRotations: sourceRest,
-    sourceRestWorldPositions: sourceRestPositions,
-    targetParents: parents,
-    targetRestLocalRotations: restLocalRotations,
-    targetRestLocalPositions: restLocalPositions,
-    targetRootParentRotation: carrier.toArray(),
-    sourceRoles,
-    targetRoles,
-    sourceToeHeight: crowd.toeHeight,
-  });
-  const hips = sourceRoles.get('hips') ?? 1;
-  const targetHips = targetRoles.get('hips') ?? 0;
-  const toes = [targetRoles.get('leftToes'), targetRoles.get('rightToes')];
-  const local = new Float32Array(bones.length * 4);
-  const hipsPosition = new Float32Array(3);
-  const hipsWorld = new Float32Array(3);
-  const toeWorld = new THREE.Vector3();
-  // Standing toe height in the world, read off the rest pose as loaded (any armature scale).
-  const standing = toes.filter((t) => t !== undefined).map((t) => bones[t].getWorldPosition(toeWorld).y);
-  const grounding = new Grounding(standing.length ? standing.reduce((a, b) => a + b) / standing.length : NaN);
-  return {
-    object: root,
-    bones,
-    roles: targetRoles,
-    standingToeHeight: grounding.standingToeHeight,
-    hipsScale: retargeter.hipsScale * (top.parent ? top.parent.getWorldScale(new THREE.Vector3()).x : 1),
-    pose(world, worldRotations, contacts, dt, toeHeights) {
-      hipsWorld[0] = world[3 * hips];
-      hipsWorld[1] = world[3 * hips + 1] + grounding.offset / retargeter.hipsScale;
-      hipsWorld[2] = world[3 * hips + 2];
-      retargeter.apply(worldRotations, hipsWorld, local, hipsPosition);
-      for (let b = 0; b < bones.length; b++) bones[b].quaternion.set(local[4 * b], local[4 * b + 1], local[4 * b + 2], local[4 * b + 3]);
-      bones[targetHips].position.set(hipsPosition[0], hipsPosition[1], hipsPosition[2]);
-      root.updateMatrixWorld(true);
-      for (let side = 0; side < 2; side++) {
-        const t = toes[side];
-        toeHeights[side] = t === undefined ? NaN : bones[t].getWorldPosition(toeWorld).y;
+  private constructor(root: THREE.Object3D, name: string, vrm: VRM | undefined, overrides: RoleOverrides | undefined) {
+    this.object = root;
+    this.name = name;
+    this.vrm = vrm;
+    root.updateMatrixWorld(true);
+    let skinned = 0;
+    root.traverse((o) => {
+      if ((o as THREE.SkinnedMesh).isSkinnedMesh) skinned++;
+      // Skinned bounds stay at the rest pose's origin; the character walks away from it.
+      o.frustumCulled = false;
+      o.castShadow = true;
+    });
+    if (skinned === 0) throw new Error(`${name}: no skinned mesh`);
+    const bones = skeletonOf(root, vrm);
+    const index = new Map(bones.map((b, i) => [b, i]));
+    this.bones = bones;
+    this.parents = Int32Array.from(bones, (b) => {
+      for (let p = b.parent; p; p = p.parent) if (index.has(p)) return index.get(p)!;
+      return -1;
+    });
+    // A VRM says which bone is which; other models go by the runtime's name conventions.
+    if (vrm && !overrides) {
+      const roles = new Map<RoleName, number>();
+      for (const [role, vrmName] of vrmBoneNames()) {
+        const node = vrm.humanoid.getRawBoneNode(vrmName as Parameters<VRM['humanoid']['getRawBoneNode']>[0]);
+        if (node && index.has(node)) roles.set(role, index.get(node)!);
       }
-      grounding.update(toeHeights[0], toeHeights[1], contacts, dt);
-    },
-    dispose() {
-      root.traverse((o) => {
-        const m = o as THREE.Mesh;
-        if (!m.isMesh) return;
-        m.geometry.dispose();
-        for (const mat of Array.isArray(m.material) ? m.material : [m.material]) {
-          for (const v of Object.values(mat)) if (v instanceof THREE.Texture) v.dispose();
-          mat.dispose();
-        }
-      });
-    },
-  };
+      this.roles = roles;
+    } else {
+      try {
+        this.roles = findRoles(bones.map((b) => b.name), this.parents, overrides);
+      } catch (e) {
+        throw new Error(`${name}: ${e instanceof Error ? e.message : String(e)}`);
+      }
+    }
+    if (!this.roles.has('hips')) throw new Error(`${name}: no hips bone found among ${bones.length} bones (${bones.slice(0, 8).map((b) => b.name).join(', ')}, …)`);
+    this.restRotations = new Float32Array(bones.length * 4);
+    this.restPositions = new Float32Array(bones.length * 3);
+    bones.forEach((b, i) => {
+      b.quaternion.toArray(this.restRotations, i * 4);
+      b.position.toArray(this.restPositions, i * 3);
+    });
+    // Whatever carries the root bones (an "Armature" node, a VRM 0 turn) turns and scales the rest pose.
+    let top = this.roles.get('hips')!;
+    while (this.parents[top] >= 0) top = this.parents[top];
+    const carrier = bones[top].parent;
+    this.rootParentRotation = carrier ? carrier.getWorldQuaternion(new THREE.Quaternion()) : new THREE.Quaternion();
+    this.carrierScale = carrier ? carrier.getWorldScale(new THREE.Vector3()).x / root.getWorldScale(new THREE.Vector3()).x : 1;
+    this.toes = [this.roles.get('left_toe'), this.roles.get('right_toe')];
+    const standing = this.toes.filter((t) => t !== undefined).map((t) => this.heightOf(bones[t]));
+    this.grounding = new Grounding(standing.length ? standing.reduce((a, b) => a + b) / standing.length : NaN);
+    this.standingToeHeight = this.grounding.standingToeHeight;
+  }
+
+  /** Height of a bone above the avatar object's floor (its parent's frame, avatar units). */
+  private heightOf(bone: THREE.Object3D): number {
+    bone.getWorldPosition(_v);
+    if (this.object.parent) _v.applyMatrix4(_m.copy(this.object.parent.matrixWorld).invert());
+    return _v.y;
+  }
+
+  /**
+   * Loads a GLB/VRM (URL or bytes) or wraps a three.js object that has skinned meshes. Throws
+   * an Error naming the source: not a model, no skinned mesh, no hips.
+   */
+  static async load(source: string | URL | Uint8Array | THREE.Object3D, options: AvatarOptions & FetchOptions = {}): Promise<Avatar> {
+    if (source instanceof THREE.Object3D) return new Avatar(source, options.name ?? source.name ?? 'avatar', undefined, options.roles);
+    const name = options.name ?? (source instanceof Uint8Array ? 'avatar' : String(source));
+    const bytes = source instanceof Uint8Array ? source : await fetchBytes(source, { stage: 'avatar', ...options });
+    const loader = new GLTFLoader();
+    loader.register((parser) => new VRMLoaderPlugin(parser));
+    let gltf: GLTF;
+    try {
+      gltf = await loader.parseAsync(bytes.slice().buffer, '');
+    } catch (e) {
+      throw new Error(`${name}: not a glTF/GLB/VRM model (${e instanceof Error ? e.message : String(e)})`);
+    }
+    const vrm = gltf.userData.vrm as VRM | undefined;
+    if (vrm) {
+      // VRM 0.x faces −Z; and we pose the raw bones ourselves, so the normalized rig must not
+      // overwrite them.
+      VRMUtils.rotateVRM0(vrm);
+      vrm.humanoid.autoUpdateHumanBones = false;
+    }
+    return new Avatar(vrm?.scene ?? gltf.scene, name, vrm, options.roles);
+  }
+
+  /**
+   * Binds the avatar to a database's skeleton (the retargeting is built once per database).
+   * Returns avatar metres per database metre horizontally (the character's world scale).
+   */
+  bind(database: Database): number {
+    this.retargeter?.free();
+    this.retargeter = null;
+    this.retargeter = new Retargeter(database, {
+      parents: this.parents,
+      restRotations: this.restRotations,
+      restPositions: this.restPositions,
+      roles: this.roles,
+      rootParentRotation: this.rootParentRotation.toArray(),
+    });
+    this.grounding.offset = 0;
+    return this.retargeter.hipsScale * this.carrierScale;
+  }
+
+  /** Puts every bone back in its rest pose (until the next `pose`), matrices updated. */
+  resetToRest(): void {
+    this.bones.forEach((b, i) => {
+      b.quaternion.fromArray(this.restRotations, i * 4);
+      b.position.fromArray(this.restPositions, i * 3);
+    });
+    this.object.updateMatrixWorld(true);
+  }
+
+  /** The bone of a role, if the avatar has it. */
+  bone(role: RoleName): THREE.Object3D | undefined {
+    const i = this.roles.get(role);
+    return i === undefined ? undefined : this.bones[i];
+  }
+
+  /**
+   * Poses the bones from `runtime`'s world pose (bound database), updates world matrices and
+   * the grounding (feet in contact on the floor; `dt` seconds).
+   */
+  pose(runtime: CharacterRuntime, dt: number): void {
+    const r = this.retargeter;
+    if (!r) throw new Error(`${this.name}: pose() before bind()`);
+    r.apply(runtime, this.grounding.offset / this.carrierScale);
+    const q = r.localRotations;
+    const bones = this.bones;
+    for (let b = 0; b < bones.length; b++) bones[b].quaternion.set(q[4 * b], q[4 * b + 1], q[4 * b + 2], q[4 * b + 3]);
+    const h = r.hipsPosition;
+    bones[r.targetHips].position.set(h[0], h[1], h[2]);
+    this.object.updateMatrixWorld(true);
+    for (let side = 0; side < 2; side++) {
+      const t = this.toes[side];
+      this.toeHeights[side] = t === undefined ? NaN : this.heightOf(bones[t]);
+    }
+    this.grounding.update(this.toeHeights[0], this.toeHeights[1], runtime.contacts, dt);
+  }
+
+  /** Frees the retargeting and GPU resources; remove `object` from its scene first. */
+  dispose(): void {
+    this.retargeter?.free();
+    this.retargeter = null;
+    this.object.traverse((o) => {
+      const m = o as THREE.Mesh;
+      if (!m.isMesh) return;
+      m.geometry.dispose();
+      for (const mat of Array.isArray(m.material) ? m.material : [m.material]) {
+        for (const v of Object.values(mat)) if (v instanceof THREE.Texture) v.dispose();
+        mat.dispose();
+      }
+    });
+  }
 }
 
-/** Fetches and loads an avatar by URL. */
-export async function fetchAvatar(url: string, crowd: Crowd): Promise<Avatar> {
-  const response = await fetch(url);
-  if (!response.ok) throw new Error(`${url}: HTTP ${response.status}`);
-  return loadAvatar(new Uint8Array(await response.arrayBuffer()), url, crowd);
-}
+export { ROLE_NAMES };

@@ -4,31 +4,12 @@
  * and its speed changed, as when the user steers somewhere else. Deterministic (seeded).
  */
 
-/** One feature group as listed by `mmdb inspect --json` / `RawDatabase.inspect_json()`. */
-export interface FeatureGroupInfo {
-  readonly name: string;
-  readonly kind: string;
-  readonly axes: string;
-  /** Trajectory groups are scaled by β_trajectory, the others by β_pose. */
-  readonly trajectory: boolean;
-  /** `[first, end)` dimension range. */
-  readonly dims: readonly [number, number];
-  /** Per-dimension mean and the group's scale: stored = (raw − mean) / scale. */
-  readonly mean: readonly number[];
-  readonly scale: number;
-}
+import { type FeatureGroupInfo } from '../core/database.ts';
 
 /** A query and the frame it was made from (the "current frame", excluded ±20 around it). */
 export interface BenchQuery {
   readonly source: number;
   readonly values: Float32Array;
-}
-
-/** The feature groups from the inspect JSON. */
-export function featureGroups(inspect: Record<string, unknown>): FeatureGroupInfo[] {
-  const groups = inspect['features'];
-  if (!Array.isArray(groups)) throw new Error('inspect JSON has no "features" list');
-  return groups as FeatureGroupInfo[];
 }
 
 /** mulberry32: a tiny seeded PRNG, uniform in [0, 1). */

@@ -4,14 +4,9 @@
  * zig-zag, a backward run and a stop, each 2 s, at 60 Hz.
  */
 
-/** The WASM class this needs (structural, so tests and Node can pass the module's export). */
-export interface CrowdClass {
-  new (bytes: Uint8Array, count: number): {
-    set_input(i: number, moveX: number, moveZ: number, faceX: number, faceZ: number, run: boolean, strafe: boolean): void;
-    update(dt: number): void;
-    free(): void;
-  };
-}
+import { createMoveInput } from '../core/character.ts';
+import { Crowd } from '../core/crowd.ts';
+import { Database } from '../core/database.ts';
 
 export interface RuntimeBenchResult {
   database: string;
@@ -33,13 +28,19 @@ function input(step: number): [number, number, boolean] {
 
 const quantile = (sorted: number[], q: number): number => sorted[Math.min(sorted.length - 1, Math.floor(sorted.length * q))];
 
-export function benchRuntime(RawCrowd: CrowdClass, database: string, bytes: Uint8Array, crowdSize = 256): RuntimeBenchResult {
-  const one = new RawCrowd(bytes, 1);
+/** The update benchmark on the `.mmdb` `bytes` (the WASM module must be initialized). */
+export function benchRuntime(database: string, bytes: Uint8Array, crowdSize = 256): RuntimeBenchResult {
+  const db = Database.fromBytes(bytes, database);
+  const one = new Crowd(db, 1);
+  const move = createMoveInput();
+  const set = (crowd: Crowd, i: number, step: number) => {
+    [move.moveX, move.moveZ, move.run] = input(step);
+    crowd.setInput(i, move);
+  };
   const times: number[] = [];
   try {
     for (let step = 0; step < 3600; step++) {
-      const [x, z, run] = input(step);
-      one.set_input(0, x, z, 0, 1, run, false);
+      set(one, 0, step);
       const t = performance.now();
       one.update(1 / 60);
       times.push(performance.now() - t);
@@ -49,14 +50,12 @@ export function benchRuntime(RawCrowd: CrowdClass, database: string, bytes: Uint
   }
   times.sort((a, b) => a - b);
 
-  const crowd = new RawCrowd(bytes, crowdSize);
+  const crowd = new Crowd(db, crowdSize);
+  db.release(); // the crowds hold it
   const crowdTimes: number[] = [];
   try {
     for (let step = 0; step < 240; step++) {
-      for (let i = 0; i < crowdSize; i++) {
-        const [x, z, run] = input(step + 37 * i);
-        crowd.set_input(i, x, z, 0, 1, run, false);
-      }
+      for (let i = 0; i < crowdSize; i++) set(crowd, i, step + 37 * i);
       const t = performance.now();
       crowd.update(1 / 60);
       crowdTimes.push(performance.now() - t);

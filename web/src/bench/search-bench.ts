@@ -1,7 +1,6 @@
 /**
- * Times the three motion-matching searches (scalar, SIMD, AABB) of `RawSearchIndex` on one
- * database, the same way in Node and in the browser: it takes the already initialized WASM
- * classes and memory, so it imports nothing that loads the module itself.
+ * Times the three motion-matching searches (scalar, SIMD, AABB) of `SearchIndex` on one
+ * database, the same way in Node and in the browser (the WASM module must be initialized).
  *
  * Per-search times: each query is run `reps` times back to back and its time is the batch time
  * over `reps`, with `reps` chosen so a batch lasts at least `minBatchMs` (browsers round
@@ -10,19 +9,11 @@
  * sometimes preempted for milliseconds, and the same query is rarely hit twice. Median and p95
  * are over the queries, so p95 reflects the hard queries rather than the scheduler.
  */
-import type { RawDatabase, RawSearchIndex } from '../core/pkg/mmcore.js';
-import { type BenchQuery, featureGroups, realisticQueries } from './queries.ts';
+import { Database } from '../core/database.ts';
+import { SEARCH_METHODS as METHODS, SearchIndex } from '../core/search.ts';
+import { type BenchQuery, realisticQueries } from './queries.ts';
 
-/** Method numbers of `RawSearchIndex.search`. */
-export const METHODS = ['scalar', 'simd', 'aabb'] as const;
 export type MethodName = (typeof METHODS)[number];
-
-/** What the benchmark needs from the initialized WASM module. */
-export interface SearchWasm {
-  readonly RawDatabase: typeof RawDatabase;
-  readonly RawSearchIndex: typeof RawSearchIndex;
-  readonly memory: WebAssembly.Memory;
-}
 
 export interface SearchBenchOptions {
   /** Number of distinct queries (default 400). */
@@ -48,9 +39,9 @@ export interface SearchBenchResult {
   readonly frames: number;
   readonly valid_frames: number;
   readonly features: number;
-  /** `RawSearchIndex.backend()`: "simd128" in the SIMD build. */
+  /** `SearchIndex.backend()`: "simd128" in the SIMD build. */
   readonly backend: string;
-  /** `RawSearchIndex.from_database` (transpose + boxes), median of 5 builds. */
+  /** Building the index (transpose + boxes), median of 5 builds. */
   readonly index_build_ms: number;
   readonly queries: number;
   /** Queries where the methods did not return the same frame and cost (expected 0). */
@@ -66,32 +57,30 @@ function percentile(sorted: readonly number[], p: number): number {
 }
 
 /** Benchmarks the searches on the `.mmdb` `bytes`; `name` labels the result. */
-export function benchSearch(wasm: SearchWasm, name: string, bytes: Uint8Array, options: SearchBenchOptions = {}): SearchBenchResult {
+export function benchSearch(name: string, bytes: Uint8Array, options: SearchBenchOptions = {}): SearchBenchResult {
   const numQueries = options.queries ?? 400;
   const minBatchMs = options.minBatchMs ?? 0.5;
-  const db = new wasm.RawDatabase(bytes);
-  let index: RawSearchIndex | null = null;
+  const db = Database.fromBytes(bytes, name);
+  let index: SearchIndex | null = null;
   try {
     const buildTimes: number[] = [];
     for (let i = 0; i < 5; i++) {
       const t = performance.now();
-      const built = wasm.RawSearchIndex.from_database(db);
+      const built = new SearchIndex(db);
       buildTimes.push(performance.now() - t);
       index?.free();
       index = built;
     }
-    const ix = index as RawSearchIndex;
-    const numFrames = ix.num_frames();
-    const numDims = ix.num_features();
-    const groups = featureGroups(JSON.parse(db.inspect_json()) as Record<string, unknown>);
+    const ix = index as SearchIndex;
+    const numFrames = ix.numFrames;
+    const numDims = ix.numFeatures;
     // Copied out (`realisticQueries` slices): views over WASM memory die when it grows.
-    const features = new Float32Array(wasm.memory.buffer, db.features_ptr(), numFrames * numDims);
-    const queries = realisticQueries(features, groups, (f) => ix.is_valid(f), numQueries, options.seed ?? 1);
+    const queries = realisticQueries(db.featureMatrix, db.features, (f) => ix.isValid(f), numQueries, options.seed ?? 1);
     let validFrames = 0;
-    for (let f = 0; f < numFrames; f++) validFrames += ix.is_valid(f) ? 1 : 0;
+    for (let f = 0; f < numFrames; f++) validFrames += ix.isValid(f) ? 1 : 0;
 
     // Nothing allocates in WASM from here on, so this view stays valid.
-    const query = new Float32Array(wasm.memory.buffer, ix.query_ptr(), numDims);
+    const query = ix.query;
     const run = (method: number, q: BenchQuery): number => {
       query.set(q.values);
       return ix.search(method, 1, 1, q.source - EXCLUDE_RADIUS, q.source + EXCLUDE_RADIUS + 1, Infinity);
@@ -99,7 +88,7 @@ export function benchSearch(wasm: SearchWasm, name: string, bytes: Uint8Array, o
 
     let mismatches = 0;
     for (const q of queries) {
-      const found = METHODS.map((_, m) => [run(m, q), ix.last_cost()]);
+      const found = METHODS.map((_, m) => [run(m, q), ix.lastCost]);
       if (found.some(([f, c]) => f !== found[0][0] || c !== found[0][1])) mismatches++;
     }
 
@@ -136,7 +125,7 @@ export function benchSearch(wasm: SearchWasm, name: string, bytes: Uint8Array, o
       frames: numFrames,
       valid_frames: validFrames,
       features: numDims,
-      backend: wasm.RawSearchIndex.backend(),
+      backend: SearchIndex.backend(),
       index_build_ms: [...buildTimes].sort((a, b) => a - b)[2],
       queries: queries.length,
       mismatches,
@@ -144,6 +133,6 @@ export function benchSearch(wasm: SearchWasm, name: string, bytes: Uint8Array, o
     };
   } finally {
     index?.free();
-    db.free();
+    db.release();
   }
 }

@@ -2,9 +2,9 @@
  * `DatabaseBuilder`: builds `.mmdb` bytes from BVH files in the page (wraps the WASM
  * `RawBuilder` and owns its lifetime).
  */
-import { RawBuilder } from './pkg/mmcore.js';
+import { RawBuilder } from './raw.ts';
+import { asError } from './wasm.ts';
 
-const asError = (e: unknown): Error => (e instanceof Error ? e : new Error(String(e)));
 
 export class DatabaseBuilder {
   private raw: RawBuilder | null;

@@ -1,10 +1,13 @@
 /**
- * `Database`: a loaded `.mmdb` motion database, wrapping the WASM `RawDatabase` and owning its
- * lifetime (`free()`). Pose arrays are exposed as zero-copy typed views over WASM memory.
+ * `Database`: a loaded `.mmdb` motion database (wraps `RawDatabase`, which also holds the search
+ * index). One database is shared by any number of characters: it is reference-counted
+ * (`retain`/`release`) and its WASM memory is freed with the last reference.
  */
-import { RawDatabase } from './pkg/mmcore.js';
+import { type FetchOptions, fetchBytes } from '../fetch.ts';
+import { RawDatabase } from './raw.ts';
+import { type RoleName } from './roles.ts';
 import { ViewCache } from './view-cache.ts';
-import { wasmMemory } from './wasm.ts';
+import { asError, initWasm, wasmMemory } from './wasm.ts';
 
 /** One clip (a contiguous range of frames from one source file). */
 export interface ClipInfo {
@@ -16,56 +19,84 @@ export interface ClipInfo {
   readonly mirrored: boolean;
 }
 
-/** A named point rigidly attached to a joint (see docs/mmdb-format.md, `SKEL`). */
-export interface SiteInfo {
+/** A tag and its [start, end) frame ranges. */
+export interface TagInfo {
   readonly name: string;
-  /** Joint index, or -1 when the skeleton has no such joint. */
-  readonly joint: number;
+  readonly ranges: readonly [number, number][];
+}
+
+/** One feature group (see docs/mmdb-format.md). */
+export interface FeatureGroupInfo {
+  name: string;
+  kind: 'position' | 'velocity' | 'direction';
+  trajectory: boolean;
+  axes: 'xyz' | 'xz';
+  joint: string;
+  offsets: number[];
+  /** [first, end) feature dimensions. */
+  dims: [number, number];
+  mean: number[];
+  /** raw = normalized × scale + mean (one scale per group). */
+  scale: number;
+}
+
+interface Summary {
+  num_frames: number;
+  fps: number;
+  joints: { name: string; parent: number }[];
+  sites: { name: string; joint: number }[];
+  clips: { name: string; start: number; end: number; mirrored: boolean }[];
+  tags: { name: string; ranges: [number, number][] }[];
+  features: FeatureGroupInfo[];
+  toe_height_in_contact: number | null;
 }
 
 export class Database {
+  /** Where it came from (a URL or a file name), for messages. */
+  readonly name: string;
   readonly numFrames: number;
   readonly numJoints: number;
   /** Frames per second of the database (frame time is 1 / fps). */
   readonly fps: number;
-  /** Floats per frame in the feature matrix. */
   readonly numFeatures: number;
-  readonly numClips: number;
   readonly jointNames: readonly string[];
   /** Parent index of each joint; -1 for joint 0 (the virtual root). */
   readonly jointParents: Int32Array;
   readonly clips: readonly ClipInfo[];
+  readonly tags: readonly TagInfo[];
+  readonly features: readonly FeatureGroupInfo[];
+  /** Joint of each role present in the skeleton (`left_toe` may be a foot's end point). */
+  readonly roles: ReadonlyMap<RoleName, number>;
+  /** Height of a planted toe above the floor (m), if the database knows it. */
+  readonly toeHeight: number | undefined;
 
-  private raw: RawDatabase | null;
+  private raw_: RawDatabase | null;
+  private references = 1;
+  private readonly onFree: (() => void) | undefined;
   private readonly _localPositions: ViewCache<Float32Array>;
   private readonly _localRotations: ViewCache<Float32Array>;
   private readonly _contacts: ViewCache<Uint8Array>;
   private readonly _features: ViewCache<Float32Array>;
   private readonly _worldPositions: ViewCache<Float32Array>;
   private readonly _worldRotations: ViewCache<Float32Array>;
-  private _inspect: Record<string, unknown> | null = null;
 
-  private constructor(raw: RawDatabase) {
-    this.raw = raw;
-    this.numFrames = raw.num_frames();
-    this.numJoints = raw.num_joints();
-    this.fps = raw.fps();
+  private constructor(raw: RawDatabase, name: string, onFree?: () => void) {
+    this.raw_ = raw;
+    this.name = name;
+    this.onFree = onFree;
+    const s = JSON.parse(raw.inspect_json()) as Summary;
+    this.numFrames = s.num_frames;
+    this.numJoints = s.joints.length;
+    this.fps = s.fps;
     this.numFeatures = raw.num_features();
-    this.numClips = raw.num_clips();
-    const names: string[] = [];
-    this.jointParents = new Int32Array(this.numJoints);
-    for (let j = 0; j < this.numJoints; j++) {
-      names.push(raw.joint_name(j));
-      this.jointParents[j] = raw.joint_parent(j);
-    }
-    this.jointNames = names;
-    const clips: ClipInfo[] = [];
-    for (let c = 0; c < this.numClips; c++) {
-      clips.push({ name: raw.clip_name(c), start: raw.clip_start(c), end: raw.clip_end(c), mirrored: raw.clip_mirrored(c) });
-    }
-    this.clips = clips;
-    const F = this.numFrames;
-    const J = this.numJoints;
+    this.jointNames = s.joints.map((j) => j.name);
+    this.jointParents = Int32Array.from(s.joints.map((j) => j.parent));
+    this.clips = s.clips.map((c) => ({ name: c.name, start: c.start, end: c.end, mirrored: c.mirrored }));
+    this.tags = s.tags.map((t) => ({ name: t.name, ranges: t.ranges }));
+    this.features = s.features;
+    this.roles = new Map(s.sites.filter((x) => x.joint >= 0).map((x) => [x.name as RoleName, x.joint]));
+    this.toeHeight = s.toe_height_in_contact ?? undefined;
+    const F = this.numFrames, J = this.numJoints;
     this._localPositions = new ViewCache(Float32Array, F * J * 3);
     this._localRotations = new ViewCache(Float32Array, F * J * 4);
     this._contacts = new ViewCache(Uint8Array, F * 2);
@@ -75,115 +106,128 @@ export class Database {
   }
 
   /**
-   * Parses and validates `.mmdb` bytes (copied into WASM memory).
-   * Precondition: the WASM module is initialized (`initWasm()`).
-   * Throws an Error naming what is wrong with a bad file.
+   * Parses and validates `.mmdb` bytes (copied into WASM memory). The WASM module must be
+   * initialized (`initWasm()`). Throws an Error naming `name` and what is wrong.
    */
-  static fromBytes(bytes: Uint8Array): Database {
+  static fromBytes(bytes: Uint8Array, name = 'database', onFree?: () => void): Database {
     let raw: RawDatabase;
     try {
       raw = new RawDatabase(bytes);
     } catch (e) {
-      // wasm-bindgen may throw a JsValue string rather than an Error.
-      throw e instanceof Error ? e : new Error(String(e));
+      throw new Error(`${name}: ${asError(e).message}`);
     }
-    return new Database(raw);
+    return new Database(raw, name, onFree);
   }
 
-  /** Fetches and loads a `.mmdb` file; rejects with a message naming the URL on failure. */
-  static async fetch(url: string, init?: RequestInit): Promise<Database> {
-    let res: Response;
-    try {
-      res = await fetch(url, { headers: { Accept: 'application/octet-stream' }, ...init });
-    } catch (e) {
-      throw new Error(`could not fetch ${url}: ${e instanceof Error ? e.message : String(e)}`);
-    }
-    // A dev server's SPA fallback answers unknown paths with index.html: treat that as missing.
-    const type = res.headers.get('content-type') ?? '';
-    if (!res.ok || type.includes('text/html')) {
-      throw new Error(`could not load ${url}: ${res.ok ? 'not found (the server answered with an HTML page)' : `HTTP ${res.status} ${res.statusText}`}`);
-    }
-    const bytes = new Uint8Array(await res.arrayBuffer());
-    try {
-      return Database.fromBytes(bytes);
-    } catch (e) {
-      throw new Error(`${url}: ${e instanceof Error ? e.message : String(e)}`);
-    }
+  /** Fetches and loads a `.mmdb` file (initializing the WASM module if needed). */
+  static async fetch(url: string | URL, options: FetchOptions = {}): Promise<Database> {
+    const [bytes] = await Promise.all([fetchBytes(url, { stage: 'database', ...options }), initWasm()]);
+    return Database.fromBytes(bytes, String(url));
   }
 
-  private get r(): RawDatabase {
-    if (!this.raw) throw new Error('Database used after free()');
-    return this.raw;
+  /** The binding, for the other raw-layer classes. */
+  get raw(): RawDatabase {
+    if (!this.raw_) throw new Error(`${this.name}: database used after it was freed`);
+    return this.raw_;
+  }
+
+  get isFreed(): boolean {
+    return this.raw_ === null;
+  }
+
+  /** One more owner (a character); pair with `release()`. */
+  retain(): this {
+    this.raw; // throws when freed
+    this.references++;
+    return this;
+  }
+
+  /** Drops one owner; the last one frees the WASM memory. */
+  release(): void {
+    if (!this.raw_) return;
+    if (--this.references > 0) return;
+    this.raw_.free();
+    this.raw_ = null;
+    this.onFree?.();
   }
 
   /** Local positions, `F×J×3` (joint 0: world position of the virtual root). */
   get localPositions(): Float32Array {
-    return this._localPositions.get(wasmMemory(), this.r.local_positions_ptr());
+    return this._localPositions.get(wasmMemory(), this.raw.local_positions_ptr());
   }
 
   /** Local rotations `(x, y, z, w)`, `F×J×4`. */
   get localRotations(): Float32Array {
-    return this._localRotations.get(wasmMemory(), this.r.local_rotations_ptr());
+    return this._localRotations.get(wasmMemory(), this.raw.local_rotations_ptr());
   }
 
   /** Foot contacts, `F×2` (left, right); 1 = in contact. */
   get contacts(): Uint8Array {
-    return this._contacts.get(wasmMemory(), this.r.contacts_ptr());
+    return this._contacts.get(wasmMemory(), this.raw.contacts_ptr());
   }
 
   /** Normalized feature matrix, `F×D`. */
-  get features(): Float32Array {
-    return this._features.get(wasmMemory(), this.r.features_ptr());
+  get featureMatrix(): Float32Array {
+    return this._features.get(wasmMemory(), this.raw.features_ptr());
   }
 
   /**
-   * World positions (`J×3`) of `frame` by forward kinematics. The returned view is reused: it
-   * is overwritten by the next call. Allocates nothing after the first call.
+   * World joint positions (`J×3`) of `frame` (the runtime's FK). The view is reused: the next
+   * call overwrites it. Rotations of the same frame: `worldRotations()`.
    */
   worldPositions(frame: number): Float32Array {
-    return this._worldPositions.get(wasmMemory(), this.r.world_positions(frame));
+    return this._worldPositions.get(wasmMemory(), this.raw.world_positions(frame));
   }
 
   /** World rotations (`J×4`) of the frame of the last `worldPositions()` call (reused view). */
   worldRotations(): Float32Array {
-    return this._worldRotations.get(wasmMemory(), this.r.world_rotations_ptr());
+    return this._worldRotations.get(wasmMemory(), this.raw.world_rotations_ptr());
+  }
+
+  /** World joint positions of the rest pose (J×3, a copy). */
+  restPositions(): Float32Array {
+    return this._worldPositions.get(wasmMemory(), this.raw.rest_positions()).slice();
   }
 
   /** Index of the clip containing `frame`. */
   clipAt(frame: number): number {
-    return this.r.clip_at(frame);
+    return this.raw.clip_at(frame);
   }
 
-  /** The same JSON as `mmdb inspect --json`, parsed (cached). */
-  inspect(): Record<string, unknown> {
-    this._inspect ??= JSON.parse(this.r.inspect_json()) as Record<string, unknown>;
-    return this._inspect;
+  /** Tags whose ranges contain `frame`. */
+  tagsAt(frame: number): string[] {
+    return this.tags.filter((t) => t.ranges.some(([s, e]) => frame >= s && frame < e)).map((t) => t.name);
   }
+}
 
-  /** Named sites (`left_foot`, `left_toe`, ...) from the inspect JSON, when it lists them. */
-  sites(): SiteInfo[] {
-    const raw = this.inspect()['sites'];
-    if (!Array.isArray(raw)) return [];
-    const out: SiteInfo[] = [];
-    for (const s of raw as unknown[]) {
-      if (s && typeof s === 'object') {
-        const o = s as Record<string, unknown>;
-        const name = typeof o['name'] === 'string' ? o['name'] : undefined;
-        const joint = typeof o['joint'] === 'number' ? o['joint'] : typeof o['joint_index'] === 'number' ? o['joint_index'] : undefined;
-        if (name !== undefined && joint !== undefined) out.push({ name, joint });
-      }
-    }
-    return out;
+/** Databases loaded by URL, shared by everyone who asks for the same one. */
+const shared = new Map<string, Promise<Database>>();
+
+/**
+ * Loads a database once and shares it: every call with the same URL gets the same `Database`
+ * with one more reference (`release()` it when done; characters retain their own). Bytes are
+ * loaded as a new, unshared database.
+ */
+export async function loadDatabase(source: string | URL | Uint8Array, options: FetchOptions = {}): Promise<Database> {
+  if (source instanceof Uint8Array) {
+    await initWasm();
+    return Database.fromBytes(source, 'database');
   }
-
-  /** Index of the joint named `name`, or -1. */
-  jointIndex(name: string): number {
-    return this.jointNames.indexOf(name);
+  const href = new URL(String(source), typeof location !== 'undefined' ? location.href : undefined).href;
+  let pending = shared.get(href);
+  if (pending) {
+    const db = await pending;
+    if (!db.isFreed) return db.retain();
   }
-
-  /** Releases the WASM-side database. Views obtained earlier must not be used afterwards. */
-  free(): void {
-    this.raw?.free();
-    this.raw = null;
+  pending = (async () => {
+    const [bytes] = await Promise.all([fetchBytes(href, { stage: 'database', ...options }), initWasm()]);
+    return Database.fromBytes(bytes, href, () => shared.delete(href));
+  })();
+  shared.set(href, pending);
+  try {
+    return await pending;
+  } catch (e) {
+    shared.delete(href);
+    throw e;
   }
 }

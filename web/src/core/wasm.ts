@@ -1,11 +1,13 @@
 /**
- * Loads the `mmcore` WASM module once and exposes its linear memory.
+ * Loads the WASM module once and exposes its linear memory. Many characters and databases
+ * share this one module.
  *
- * Browser: `initWasm()` fetches `pkg/mmcore_bg.wasm` (built by scripts/setup.mjs).
- * Node (vitest, scripts): `initWasm()` reads the same file from disk, or call
- * `initWasmSync(bytes)` with the module's bytes.
+ * Browser: `initWasm(url?)` fetches the module from `url`, default `mmcore_bg.wasm` beside the
+ * library's assets (see `assets.ts`). Node (vitest, scripts): `initWasm()` reads the built file
+ * from disk, or call `initWasmSync(bytes)`.
  */
-import init, { initSync } from './pkg/mmcore.js';
+import { initWasmModule, initWasmModuleSync, live_objects } from './raw.ts';
+import { assetUrl } from '../assets.ts';
 
 /** What the module's initializer returns: its exports, including `memory`. */
 export interface WasmExports {
@@ -20,22 +22,28 @@ const isNode = typeof process !== 'undefined' && !!process.versions?.node && typ
 /** Initializes from the module bytes, synchronously. A no-op when already initialized. */
 export function initWasmSync(bytes: BufferSource): WasmExports {
   if (_exports) return _exports;
-  _exports = initSync({ module: bytes }) as unknown as WasmExports;
+  _exports = initWasmModuleSync({ module: bytes }) as unknown as WasmExports;
   return _exports;
 }
 
 /** Initializes the module (once; later calls return the same promise). */
-export function initWasm(): Promise<WasmExports> {
+export function initWasm(url?: string | URL): Promise<WasmExports> {
   if (_exports) return Promise.resolve(_exports);
   _pending ??= (async () => {
-    if (isNode) {
-      // Kept out of the browser bundle: the specifier is not a literal vite can follow.
+    if (isNode && url === undefined) {
+      // Kept out of the browser bundle: the specifier is not a literal a bundler can follow.
       const fsModule = 'node:fs/promises';
       const { readFile } = (await import(/* @vite-ignore */ fsModule)) as typeof import('node:fs/promises');
       const bytes = await readFile(new URL('./pkg/mmcore_bg.wasm', import.meta.url));
       return initWasmSync(bytes);
     }
-    _exports = (await init()) as unknown as WasmExports;
+    const where = url ?? assetUrl('mmcore_bg.wasm');
+    try {
+      _exports = (await initWasmModule({ module_or_path: where })) as unknown as WasmExports;
+    } catch (e) {
+      _pending = null;
+      throw new Error(`could not load the motion-matching core ${String(where)}: ${e instanceof Error ? e.message : String(e)}`);
+    }
     return _exports;
   })();
   return _pending;
@@ -43,11 +51,31 @@ export function initWasm(): Promise<WasmExports> {
 
 /** The module's exports; throws if `initWasm()` / `initWasmSync()` has not completed. */
 export function wasmExports(): WasmExports {
-  if (!_exports) throw new Error('mmcore WASM module is not initialized: await initWasm() first');
+  if (!_exports) throw new Error('the motion-matching core is not initialized: await initWasm() first');
   return _exports;
 }
 
 /** The WASM linear memory. Its `buffer` is replaced (and old views detached) when memory grows. */
 export function wasmMemory(): WebAssembly.Memory {
   return wasmExports().memory;
+}
+
+/** Live WASM objects and the module's memory size: what a page can watch for leaks. */
+export interface LiveObjects {
+  databases: number;
+  characters: number;
+  crowds: number;
+  retargeters: number;
+  /** Bytes of WASM linear memory (it never shrinks; freed memory is reused). */
+  memoryBytes: number;
+}
+
+export function liveObjects(): LiveObjects {
+  const counts = JSON.parse(live_objects()) as Omit<LiveObjects, 'memoryBytes'>;
+  return { ...counts, memoryBytes: wasmMemory().buffer.byteLength };
+}
+
+/** wasm-bindgen may throw a string rather than an Error. */
+export function asError(e: unknown): Error {
+  return e instanceof Error ? e : new Error(String(e));
 }

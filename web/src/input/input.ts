@@ -1,23 +1,6 @@
-/**
- * What a player asks the character for this frame, on the ground plane in world space — the
- * `Input` of the Rust controller (`RawCrowd.set_input`). Devices write into one preallocated
- * `MoveInput` each frame (no allocation per frame).
- */
-export interface MoveInput {
-  /** Desired move direction (x, z); length 0–1 is the stick magnitude. */
-  moveX: number;
-  moveZ: number;
-  /** Desired facing (x, z), unit length; used while strafing. */
-  faceX: number;
-  faceZ: number;
-  run: boolean;
-  /** Keep facing (faceX, faceZ) while moving in any direction (side-steps, backwards). */
-  strafe: boolean;
-}
+import { createMoveInput, type MoveInput } from '../core/character.ts';
 
-export function createMoveInput(): MoveInput {
-  return { moveX: 0, moveZ: 0, faceX: 0, faceZ: 1, run: false, strafe: false };
-}
+export { createMoveInput, type MoveInput };
 
 /**
  * The ground directions of a camera: where "forward" (W, stick up) and "right" point in the

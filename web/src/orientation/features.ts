@@ -10,26 +10,14 @@
  * Per frame nothing is allocated: the input lives in one preallocated Float32Array.
  */
 
+import { headingYaw as hmdYaw } from '../yaw.ts';
+
 export const NUM_TRACKERS = 3;
 export const NUM_INPUTS = 42;
 /** Start of the previous-orientation slot (6 floats) in the input. */
 export const PREV_OFFSET = 36;
 /** A frame gap longer than this (s) is a discontinuity (paused session): velocities are zero. */
 export const MAX_DT = 0.25;
-
-/**
- * Yaw of the HMD (radians, 0 = looking along +Z): the floor projection of its view direction d
- * (local −Z), made robust for straight-up/-down looks by subtracting d.y times the floor
- * projection of its up vector u — identical to the plain projection for a head without roll.
- */
-export function hmdYaw(x: number, y: number, z: number, w: number): number {
-  const dx = -2 * (x * z + y * w);
-  const dy = -2 * (y * z - x * w);
-  const dz = -(1 - 2 * (x * x + y * y));
-  const ux = 2 * (x * y - z * w);
-  const uz = 2 * (y * z + x * w);
-  return Math.atan2(dx - dy * ux, dz - dy * uz);
-}
 
 /** Writes the 6D of a pure yaw φ — (cos φ, 0, −sin φ, 0, 1, 0) — into `out` at `offset`. */
 export function writeYaw6d(out: Float32Array, offset: number, phi: number): void {
@@ -39,12 +27,6 @@ export function writeYaw6d(out: Float32Array, offset: number, phi: number): void
   out[offset + 3] = 0;
   out[offset + 4] = 1;
   out[offset + 5] = 0;
-}
-
-/** Wraps an angle to [−π, π). */
-export function wrapAngle(a: number): number {
-  const t = (a + Math.PI) % (2 * Math.PI);
-  return (t < 0 ? t + 2 * Math.PI : t) - Math.PI;
 }
 
 /**

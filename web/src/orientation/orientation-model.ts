@@ -12,7 +12,8 @@
  *   4. body yaw = HMD yaw + φ (radians, 0 = facing +Z, as the character's yaw).
  */
 import * as ort from 'onnxruntime-web/wasm';
-import { NUM_INPUTS, OrientationFeatures, wrapAngle } from './features.ts';
+import { wrapAngle } from '../yaw.ts';
+import { NUM_INPUTS, OrientationFeatures } from './features.ts';
 
 /** The model the app serves (relative to the page). */
 export const DEFAULT_MODEL_URL = 'models/orientation.onnx';

@@ -6,7 +6,7 @@
  * than `walkSpeed` the dead zone closes (people look where they walk), so walking turns the body.
  */
 import { type BodyYawPredictor, type TrackerPose } from './body-yaw.ts';
-import { headingYaw, wrapAngle } from './yaw.ts';
+import { headingYaw, wrapAngle } from '../yaw.ts';
 
 export interface HeadingYawOptions {
   /** Half-width of the dead zone, rad (25°). */

@@ -1,5 +1,5 @@
 /**
- * The orientation network as a BodyYawPredictor (THESIS_NOTES §9), on the browser runner of
+ * The orientation network as a BodyYawPredictor (docs/method.md §9), on the browser runner of
  * web/src/orientation (`OrientationModel`, onnxruntime-web's WASM backend; contract in
  * docs/orientation-model.md).
  *
@@ -14,9 +14,9 @@
  * hand trackers.ts shows; the network was trained with controllers that stop moving, which a
  * hand hanging at the side resembles more than a pose left floating in the room).
  */
-import { OrientationModel } from '../orientation/orientation-model.ts';
+import { type OrientationModel } from '../orientation/orientation-model.ts';
 import { type BodyYawPredictor, type TrackerPose } from './body-yaw.ts';
-import { headingYaw } from './yaw.ts';
+import { headingYaw } from '../yaw.ts';
 
 export class NetworkYawPredictor implements BodyYawPredictor {
   readonly name = 'network';
@@ -106,7 +106,11 @@ export class NetworkYawPredictor implements BodyYawPredictor {
   }
 }
 
-/** Loads the model at `url`; rejects with a message the page shows when it cannot. */
-export async function loadNetworkPredictor(url: string): Promise<NetworkYawPredictor> {
-  return new NetworkYawPredictor(await OrientationModel.create(url));
+/**
+ * Loads the model at `url` (and onnxruntime-web with it, on demand: pages that never use the
+ * network never fetch it); rejects with a message the page shows when it cannot.
+ */
+export async function loadNetworkPredictor(url: string | URL): Promise<NetworkYawPredictor> {
+  const { OrientationModel } = await import('../orientation/orientation-model.ts');
+  return new NetworkYawPredictor(await OrientationModel.create(String(url)));
 }

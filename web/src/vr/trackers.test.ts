@@ -1,7 +1,7 @@
 import { describe, expect, it } from 'vitest';
 import { HEAD, LEFT, RIGHT, TrackerSample } from './tracker-sample.ts';
 import { FROZEN, MISSING, TRACKED, TrackerState } from './trackers.ts';
-import { headingYaw } from './yaw.ts';
+import { headingYaw } from '../yaw.ts';
 
 /** A head walking along +Z at `speed`, hands in front at waist height; yaw 0 = looking along +Z. */
 function walk(sample: TrackerSample, time: number, speed: number): void {

@@ -18,7 +18,7 @@
  * Everything is preallocated SoA (indices HEAD, LEFT, RIGHT); `update` allocates nothing.
  */
 import { HEAD, LEFT, NUM_TRACKERS, RIGHT, type TrackerSample } from './tracker-sample.ts';
-import { headingYaw } from './yaw.ts';
+import { headingYaw } from '../yaw.ts';
 
 /** Tracker status values (`TrackerState.status`). */
 export const TRACKED = 0;

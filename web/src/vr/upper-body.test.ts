@@ -4,7 +4,7 @@ import { type HumanoidRole } from '../avatar/joint-maps.ts';
 import { type TrackerPose } from './body-yaw.ts';
 import { solveTwoBoneIK } from './two-bone-ik.ts';
 import { UpperBody } from './upper-body.ts';
-import { headingYaw } from './yaw.ts';
+import { headingYaw } from '../yaw.ts';
 import { seededRandom } from '../bench/queries.ts';
 
 /** A T-posed humanoid upper body facing +Z (left = +X), bones with arbitrary rest rotations. */

@@ -1,8 +1,9 @@
 /**
- * The VR upper body (THESIS_NOTES §9), applied to a posed avatar after retargeting: the spine
+ * The VR upper body (docs/method.md §9), applied to a posed avatar after retargeting: the spine
  * twists from the animated root yaw toward the HMD's heading, the head takes the HMD's rotation,
- * and each arm reaches its controller by analytic two-bone IK (two-bone-ik.ts) after a clavicle
- * heuristic, the hand taking the controller's rotation.
+ * and each arm reaches its controller by the runtime's two-bone IK (`TwoBoneIk`, the same
+ * solver as the foot lock's legs) after a clavicle heuristic, the hand taking the controller's
+ * rotation.
  *
  * Hands: the grip pose (WebXR: origin at the fist's centre, −Z toward the thumb along the held
  * rod, +X out of the back of the right hand / palm of the left) is related to the hand bone once,
@@ -14,16 +15,16 @@
  * allocates nothing.
  */
 import * as THREE from 'three';
-import { type HumanoidRole } from '../avatar/joint-maps.ts';
+import { TwoBoneIk } from '../core/ik.ts';
+import { type RoleName } from '../core/roles.ts';
 import { type TrackerPose } from './body-yaw.ts';
-import { rotateBoneWorld, setWorldQuaternion, solveTwoBoneIK } from './two-bone-ik.ts';
-import { headingYaw, wrapAngle } from './yaw.ts';
+import { headingYaw, wrapAngle } from '../yaw.ts';
 
 /** What UpperBody needs of an avatar (avatar.ts `Avatar` is one). */
 export interface UpperBodyRig {
   readonly object: THREE.Object3D;
   readonly bones: readonly THREE.Object3D[];
-  readonly roles: ReadonlyMap<HumanoidRole, number>;
+  readonly roles: ReadonlyMap<RoleName, number>;
 }
 
 export interface UpperBodyOptions {
@@ -82,7 +83,7 @@ interface Arm {
   handRest: THREE.Vector3;
 }
 
-const SPINE_ROLES = ['spine', 'chest', 'upperChest', 'neck'] as const;
+const SPINE_ROLES = ['spine', 'chest', 'upper_chest', 'neck'] as const;
 const UP = new THREE.Vector3(0, 1, 0);
 
 const _q = new THREE.Quaternion();
@@ -97,6 +98,30 @@ const _from = new THREE.Vector3();
 const _to = new THREE.Vector3();
 const _q3 = new THREE.Quaternion();
 const _pos = new THREE.Vector3();
+const _q2b = new THREE.Quaternion();
+const _lowerWorld = new THREE.Quaternion();
+const _p = new THREE.Vector3();
+const _scale = new THREE.Vector3();
+const _world = new THREE.Quaternion();
+const _parent = new THREE.Quaternion();
+
+/** Pre-multiplies `bone`'s world rotation by `delta` (world frame), writing its local rotation. */
+function rotateBoneWorld(bone: THREE.Object3D, delta: THREE.Quaternion): void {
+  bone.matrixWorld.decompose(_p, _world, _scale);
+  _world.premultiply(delta);
+  setWorldQuaternion(bone, _world);
+}
+
+/** Sets `bone`'s local rotation so its world rotation is `world` (parent's matrixWorld current). */
+function setWorldQuaternion(bone: THREE.Object3D, world: THREE.Quaternion): void {
+  if (bone.parent) {
+    bone.parent.matrixWorld.decompose(_p, _parent, _scale);
+    bone.quaternion.copy(_parent.invert()).multiply(world);
+  } else {
+    bone.quaternion.copy(world);
+  }
+  bone.quaternion.normalize();
+}
 
 export class UpperBody {
   readonly options: UpperBodyOptions;
@@ -109,11 +134,12 @@ export class UpperBody {
   private readonly head: THREE.Object3D | null;
   private readonly headFromHmd = new THREE.Quaternion();
   private readonly arms: Arm[] = [];
+  private readonly ik = new TwoBoneIk();
 
   constructor(rig: UpperBodyRig, options: Partial<UpperBodyOptions> = {}) {
     this.options = { ...DEFAULT_UPPER_BODY_OPTIONS, ...options };
     this.object = rig.object;
-    const bone = (role: HumanoidRole): THREE.Object3D | null => {
+    const bone = (role: RoleName): THREE.Object3D | null => {
       const i = rig.roles.get(role);
       return i === undefined ? null : rig.bones[i];
     };
@@ -133,8 +159,8 @@ export class UpperBody {
       if (b) this.spine.push({ bone: b, weight: this.options.spineWeights[k], torso: role !== 'neck' });
     });
 
-    const leftUpper = bone('leftUpperArm');
-    const rightUpper = bone('rightUpperArm');
+    const leftUpper = bone('left_upper_arm');
+    const rightUpper = bone('right_upper_arm');
     // Rest facing: left × up (facing +Z, left is +X); +Z if the arms are missing.
     const forward = new THREE.Vector3(0, 0, 1);
     if (leftUpper && rightUpper) {
@@ -151,9 +177,9 @@ export class UpperBody {
     }
 
     for (const [side, prefix] of [[1, 'left'], [-1, 'right']] as const) {
-      const upper = bone(`${prefix}UpperArm`);
-      const lower = bone(`${prefix}LowerArm`);
-      const hand = bone(`${prefix}Hand`);
+      const upper = bone(`${prefix}_upper_arm`);
+      const lower = bone(`${prefix}_lower_arm`);
+      const hand = bone(`${prefix}_hand`);
       if (!upper || !lower || !hand) continue;
       const lowerRest = rest(lower);
       const handRest = rest(hand);
@@ -171,7 +197,7 @@ export class UpperBody {
       const inverse = gripRest.clone().invert();
       this.arms.push({
         side,
-        clavicle: bone(`${prefix}Shoulder`),
+        clavicle: bone(`${prefix}_shoulder`),
         upper,
         lower,
         hand,
@@ -232,7 +258,7 @@ export class UpperBody {
       this.stretchToward(arm);
       // Torso frame: outward = side·R_y(ψ)·(1, 0, 0) = side·(cos ψ, 0, −sin ψ); backward = −(sin ψ, 0, cos ψ).
       _pole.set(arm.side * cy * o.poleOut - sy * o.poleBack, -o.poleDown, -arm.side * sy * o.poleOut - cy * o.poleBack);
-      solveTwoBoneIK(arm.upper, arm.lower, arm.hand, _target, _pole);
+      this.reach(arm);
       setWorldQuaternion(arm.hand, _q.copy(_q2).multiply(arm.handFromGrip));
       arm.hand.updateWorldMatrix(false, true);
       _pos.setFromMatrixPosition(arm.hand.matrixWorld);
@@ -242,6 +268,28 @@ export class UpperBody {
       this.handPositions[3 * j + 1] = _pos.y;
       this.handPositions[3 * j + 2] = _pos.z;
     }
+  }
+
+  /**
+   * The arm reaches `_target` bending toward `_pole`: the runtime's two-bone IK gives world
+   * rotation deltas of the upper and lower arm, applied to the bones (the lower arm's delta
+   * already includes the upper's).
+   */
+  private reach(arm: Arm): void {
+    _a.setFromMatrixPosition(arm.upper.matrixWorld);
+    _v.setFromMatrixPosition(arm.lower.matrixWorld);
+    _pos.setFromMatrixPosition(arm.hand.matrixWorld);
+    this.ik.solve(_a, _v, _pos, _target, _pole, 0, _q, _q2b);
+    arm.lower.matrixWorld.decompose(_p, _lowerWorld, _scale);
+    rotateBoneWorld(arm.upper, _q);
+    arm.upper.updateWorldMatrix(false, true);
+    setWorldQuaternion(arm.lower, _lowerWorld.premultiply(_q2b));
+    arm.lower.updateWorldMatrix(false, true);
+  }
+
+  /** Frees the IK solver's WASM memory. */
+  dispose(): void {
+    this.ik.free();
   }
 
   /** Lengthens forearm and hand (up to `maxStretch`) when `_target` is beyond the arm's reach. */

@@ -1,0 +1,61 @@
+//! `RawBuilder`: builds a database in the page from BVH files (drag and drop), and `bvh_info`.
+
+use super::js_error;
+use crate::builder::{self, Source};
+use crate::config::BuildConfig;
+use crate::{format, Bvh};
+use wasm_bindgen::prelude::*;
+
+/// Add files, then `build()`.
+#[wasm_bindgen]
+pub struct RawBuilder {
+    config: BuildConfig,
+    sources: Vec<Source>,
+    warnings: Vec<String>,
+}
+
+#[wasm_bindgen]
+impl RawBuilder {
+    /// `config_json` uses the `mmdb build --config` schema; `"{}"` means the defaults.
+    #[wasm_bindgen(constructor)]
+    pub fn new(config_json: &str) -> Result<RawBuilder, JsError> {
+        let config = BuildConfig::from_json(config_json).map_err(js_error)?;
+        Ok(RawBuilder { config, sources: Vec::new(), warnings: Vec::new() })
+    }
+
+    /// Parses a BVH file now, so a bad file is reported (file:line) when it is added.
+    pub fn add_bvh(&mut self, name: &str, bytes: &[u8]) -> Result<(), JsError> {
+        let bvh = Bvh::parse(name, bytes).map_err(js_error)?;
+        self.sources.push(Source { name: name.to_string(), bvh });
+        Ok(())
+    }
+
+    pub fn num_files(&self) -> usize {
+        self.sources.len()
+    }
+
+    /// The `.mmdb` bytes of a database built from the added files.
+    pub fn build(&mut self) -> Result<Vec<u8>, JsError> {
+        let out = builder::build(&self.config, &self.sources).map_err(js_error)?;
+        self.warnings = out.warnings;
+        Ok(format::to_bytes(&out.database))
+    }
+
+    /// Warnings of the last build, as a JSON array of strings.
+    pub fn warnings_json(&self) -> String {
+        serde_json::to_string(&self.warnings).unwrap_or_default()
+    }
+}
+
+/// Parses BVH bytes and returns a JSON summary (joints, frames, fps); throws on bad input.
+#[wasm_bindgen]
+pub fn bvh_info(name: &str, bytes: &[u8]) -> Result<String, JsError> {
+    let bvh = Bvh::parse(name, bytes).map_err(js_error)?;
+    Ok(serde_json::json!({
+        "num_joints": bvh.joints.len(),
+        "num_frames": bvh.num_frames,
+        "fps": bvh.fps(),
+        "joints": bvh.joints.iter().map(|j| j.name.as_str()).collect::<Vec<_>>(),
+    })
+    .to_string())
+}

@@ -1,0 +1,215 @@
+//! `RawCharacter`: one motion-matched character on a shared database. The per-frame recipe's
+//! runtime half: input → update → world pose, read as zero-copy views.
+
+use super::database::{RawDatabase, Shared};
+use super::{Kind, LiveToken};
+use crate::character::{Character, CharacterSettings, Tracked};
+use crate::controller::{Input, Path};
+use crate::database::{Axes, FeatureKind};
+use glam::{Quat, Vec2, Vec3};
+use std::rc::Rc;
+use wasm_bindgen::prelude::*;
+
+#[wasm_bindgen]
+pub struct RawCharacter {
+    shared: Rc<Shared>,
+    pub(crate) character: Character,
+    input: Input,
+    /// Root x, y, z, yaw; simulation position (3) and facing (4); toes (6): per-frame outputs.
+    root: [f32; 4],
+    simulation: [f32; 7],
+    toes: [f32; 6],
+    /// Matched trajectory (world x, z, direction x, z per point).
+    matched: Vec<f32>,
+    _live: LiveToken,
+}
+
+#[wasm_bindgen]
+impl RawCharacter {
+    /// A character standing at the origin facing +Z on `database` (shared, not copied), with
+    /// the default settings patched by `settings_json` (`"{}"` for none).
+    #[wasm_bindgen(constructor)]
+    pub fn new(database: &RawDatabase, settings_json: &str) -> Result<RawCharacter, JsError> {
+        let shared = Rc::clone(&database.shared);
+        let settings = CharacterSettings::default().patched(settings_json).map_err(|e| JsError::new(&e))?;
+        let mut character = Character::new(&shared.db, settings);
+        character.set_toe_floor(shared.toe_floor);
+        let points = shared.db.groups.iter().find(|g| g.is_trajectory && g.kind == FeatureKind::Position).map_or(0, |g| g.offsets.len());
+        let mut c = RawCharacter {
+            shared,
+            character,
+            input: Input::default(),
+            root: [0.0; 4],
+            simulation: [0.0; 7],
+            toes: [0.0; 6],
+            matched: vec![0.0; points * 4],
+            _live: LiveToken::new(Kind::Character),
+        };
+        c.write_outputs();
+        Ok(c)
+    }
+
+    /// Move input: direction (x, z) with length 0–1, facing (x, z) used when strafing, run and
+    /// strafe flags.
+    pub fn set_input(&mut self, move_x: f32, move_z: f32, face_x: f32, face_z: f32, run: bool, strafe: bool) {
+        self.input = Input { direction: Vec2::new(move_x, move_z), facing: Vec2::new(face_x, face_z), run, strafe };
+    }
+
+    /// Follow a path on the floor: `points` as x, z pairs (≥ 2 points), `speeds` in m/s per
+    /// segment (one fewer than the points, or as many when `looped`). Throws with the reason on
+    /// a bad path; the character keeps its current drive then.
+    pub fn set_path(&mut self, points: &[f32], speeds: &[f32], looped: bool) -> Result<(), JsError> {
+        if points.len() % 2 != 0 {
+            return Err(JsError::new(&format!("path points must be x, z pairs, got {} numbers", points.len())));
+        }
+        let points: Vec<Vec3> = points.chunks_exact(2).map(|p| Vec3::new(p[0], 0.0, p[1])).collect();
+        let path = Path::new(&points, speeds, looped).map_err(|e| JsError::new(&e))?;
+        self.character.set_path(Some(path));
+        Ok(())
+    }
+
+    /// Back to move input (from a path or a tracked user).
+    pub fn clear_path(&mut self) {
+        self.character.set_path(None);
+    }
+
+    /// Follow a tracked user (VR); call every frame. `head_x, head_z`: the head centre on the
+    /// floor (m); `velocity_x, velocity_z`: its raw ground velocity (m/s); `yaw`: the predicted
+    /// body yaw (rad, 0 = +Z). The runtime smooths velocity and yaw.
+    pub fn set_tracked(&mut self, head_x: f32, head_z: f32, velocity_x: f32, velocity_z: f32, yaw: f32) {
+        self.character.set_tracked(Tracked { position: Vec3::new(head_x, 0.0, head_z), velocity: Vec3::new(velocity_x, 0.0, velocity_z), yaw });
+    }
+
+    /// Lowers the hips `drop` m below the animation, legs bent by IK to keep the feet planted.
+    pub fn set_hips_drop(&mut self, drop: f32) {
+        self.character.set_hips_drop(drop);
+    }
+
+    /// Places the character at (x, z) facing `yaw` (rad, 0 = +Z), searching afresh.
+    pub fn teleport(&mut self, x: f32, z: f32, yaw: f32) {
+        self.character.teleport(&self.shared.db, Vec3::new(x, 0.0, z), Quat::from_rotation_y(yaw));
+        self.write_outputs();
+    }
+
+    /// Settings patch as JSON (`CharacterSettings` fields; unknown ones throw).
+    pub fn set_settings_json(&mut self, json: &str) -> Result<(), JsError> {
+        self.character.settings = self.character.settings.patched(json).map_err(|e| JsError::new(&e))?;
+        Ok(())
+    }
+    pub fn settings_json(&self) -> String {
+        serde_json::to_string(&self.character.settings).unwrap_or_default()
+    }
+
+    /// Advances the character by `dt` seconds.
+    pub fn update(&mut self, dt: f32) {
+        let s = &*self.shared;
+        self.character.update(&s.db, &s.index, &self.input, dt);
+        self.write_outputs();
+    }
+
+    fn write_outputs(&mut self) {
+        let c = &self.character;
+        let (p, q) = (c.root_position(), c.root_rotation());
+        let forward = q * Vec3::Z;
+        self.root = [p.x, p.y, p.z, forward.x.atan2(forward.z)];
+        let (sp, sq) = c.simulation_transform();
+        self.simulation[..3].copy_from_slice(&sp.to_array());
+        self.simulation[3..].copy_from_slice(&sq.to_array());
+        let [l, r] = c.toes();
+        self.toes[..3].copy_from_slice(&l.to_array());
+        self.toes[3..].copy_from_slice(&r.to_array());
+    }
+
+    /// `J×3` f32 world positions of the shown pose.
+    pub fn world_positions_ptr(&self) -> *const f32 {
+        self.character.world_positions().as_ptr().cast()
+    }
+    /// `J×4` f32 world rotations (x, y, z, w) of the shown pose.
+    pub fn world_rotations_ptr(&self) -> *const f32 {
+        self.character.world_rotations().as_ptr().cast()
+    }
+    /// 4 f32: root x, y, z (m) and yaw (rad, 0 = +Z).
+    pub fn root_ptr(&self) -> *const f32 {
+        self.root.as_ptr()
+    }
+    /// 7 f32: the simulated character's position (3) and facing quaternion (4).
+    pub fn simulation_ptr(&self) -> *const f32 {
+        self.simulation.as_ptr()
+    }
+    /// 6 f32: the toe points (left xyz, right xyz) of the shown pose.
+    pub fn toes_ptr(&self) -> *const f32 {
+        self.toes.as_ptr()
+    }
+    /// Number of predicted trajectory points.
+    pub fn num_predictions(&self) -> usize {
+        self.character.predicted_positions().len()
+    }
+    /// `K×3` world positions of the predicted trajectory at the last search.
+    pub fn predicted_positions_ptr(&self) -> *const f32 {
+        self.character.predicted_positions().as_ptr().cast()
+    }
+    /// `K×4` world facings of the predicted trajectory at the last search.
+    pub fn predicted_rotations_ptr(&self) -> *const f32 {
+        self.character.predicted_rotations().as_ptr().cast()
+    }
+    /// Number of points of [`Self::matched_trajectory`].
+    pub fn num_matched(&self) -> usize {
+        self.matched.len() / 4
+    }
+    /// The trajectory stored with the frame playing (what was matched), in the world: per
+    /// point x, z and a facing direction x, z. Returns a pointer to `K×4` f32.
+    pub fn matched_trajectory(&mut self) -> *const f32 {
+        let db = &self.shared.db;
+        let (p, q) = (self.character.root_position(), self.character.root_rotation());
+        let f = db.feature(self.character.frame());
+        let raw = |d: usize| f[d] * db.feature_scale[d] + db.feature_mean[d];
+        let position = db.groups.iter().find(|g| g.is_trajectory && g.kind == FeatureKind::Position && g.axes == Axes::Xz);
+        let direction = db.groups.iter().find(|g| g.is_trajectory && g.kind == FeatureKind::Direction && g.axes == Axes::Xz);
+        if let Some(g) = position {
+            for k in 0..g.offsets.len().min(self.matched.len() / 4) {
+                let d = g.first_dim + 2 * k;
+                let at = p + q * Vec3::new(raw(d), 0.0, raw(d + 1));
+                let dir = match direction.filter(|h| h.offsets.len() == g.offsets.len()) {
+                    Some(h) => q * Vec3::new(raw(h.first_dim + 2 * k), 0.0, raw(h.first_dim + 2 * k + 1)),
+                    None => q * Vec3::Z,
+                };
+                self.matched[4 * k..4 * k + 4].copy_from_slice(&[at.x, at.z, dir.x, dir.z]);
+            }
+        }
+        self.matched.as_ptr()
+    }
+    pub fn frame(&self) -> usize {
+        self.character.frame()
+    }
+    /// Index of the clip playing (names in the database's inspect JSON).
+    pub fn clip(&self) -> usize {
+        self.shared.db.clip_at(self.character.frame())
+    }
+    /// Contacts of the frame playing as bits: 1 left, 2 right.
+    pub fn contacts(&self) -> u32 {
+        let [l, r] = self.character.contacts();
+        l as u32 | (r as u32) << 1
+    }
+    /// Foot locks as bits: 1 left, 2 right.
+    pub fn foot_locks(&self) -> u32 {
+        let [l, r] = self.character.foot_locked();
+        l as u32 | (r as u32) << 1
+    }
+    pub fn searches(&self) -> f64 {
+        self.character.stats.searches as f64
+    }
+    pub fn transitions(&self) -> f64 {
+        self.character.stats.transitions as f64
+    }
+    /// Cost of the playing frame and of the chosen one at the last search.
+    pub fn search_cost(&self) -> f32 {
+        self.character.stats.current_cost
+    }
+    pub fn best_cost(&self) -> f32 {
+        self.character.stats.best_cost
+    }
+    /// Planted-toe sliding of the shown pose since the last teleport (m, `SkatingMeter`).
+    pub fn skating(&self) -> f32 {
+        self.character.skating().distance
+    }
+}

@@ -1,0 +1,431 @@
+/**
+ * `Character`: the library's front door for one animated person. A database (shared) and an
+ * avatar (or none: the skeleton) become a three.js object to add to any scene; `update(dt)`
+ * runs the per-frame recipe once — drive → runtime update (search, playback, inertialization,
+ * foot lock, world pose) → avatar retarget → skin (at render) — and the debug views.
+ *
+ * One position space. The runtime works in database metres; the avatar may be smaller or
+ * larger than the mocap actor, so the whole character is drawn at `worldScale` (avatar metres
+ * per database metre: the avatar's hips scale) — avatar, skeleton, debug views and the root
+ * reported to callers all go through the same two conversions (`toDatabase`, `fromDatabase`),
+ * through `object3d`'s own transform. Camera, path and input positions are in the frame of
+ * `object3d`'s parent.
+ */
+import * as THREE from 'three';
+import { Avatar, type AvatarOptions } from '../avatar/avatar.ts';
+import { CharacterRuntime, createMoveInput, type MoveInput, type RuntimeSettings } from '../core/character.ts';
+import { type Database, loadDatabase } from '../core/database.ts';
+import { type FetchOptions } from '../fetch.ts';
+import { DebugViews } from '../views/debug-views.ts';
+import { SkeletonView } from '../views/skeleton-view.ts';
+
+/** Root of the character: position (m) and yaw (rad, 0 = facing +Z) in `object3d`'s parent frame. */
+export interface Root {
+  x: number;
+  y: number;
+  z: number;
+  yaw: number;
+}
+
+export interface MoveOptions {
+  run?: boolean;
+  /** Keep facing this direction (x, z) while moving (side-steps, backwards). */
+  face?: { x: number; z: number };
+}
+
+export interface PathOptions {
+  /** m/s of every segment (default 1.4, or 3.5 with `run`), or one per segment. */
+  speed?: number | readonly number[];
+  run?: boolean;
+  /** Back to the first point and round again. */
+  loop?: boolean;
+}
+
+export interface CharacterOptions {
+  /** Runtime settings over the defaults (docs/runtime.md). */
+  settings?: RuntimeSettings;
+  /** Draw the skeleton (default: only without an avatar). */
+  skeleton?: boolean;
+  /** Show the debug views (simulated character, requested and matched trajectories, foot locks). */
+  debug?: boolean;
+}
+
+export interface CreateOptions extends CharacterOptions, FetchOptions {
+  /** A database, or where to load one (shared by URL). */
+  database: Database | string | URL | Uint8Array;
+  /** An avatar, a GLB/VRM URL or bytes, a three.js object with skinned meshes, or null: skeleton only. */
+  avatar?: Avatar | string | URL | Uint8Array | THREE.Object3D | null;
+  /** Avatar loading options (manual joint map). */
+  avatarOptions?: AvatarOptions;
+}
+
+/** Walking and running speeds of paths (m/s). */
+export const WALK_SPEED = 1.4;
+export const RUN_SPEED = 3.5;
+
+const _v = new THREE.Vector3();
+const _q = new THREE.Quaternion();
+const _m = new THREE.Matrix4();
+const _e = new THREE.Euler();
+
+export class Character {
+  /** Add this to a scene. Move, turn or scale it to place the character's floor frame. */
+  readonly object3d = new THREE.Group();
+  /** The motion-matching runtime of this character. */
+  readonly runtime: CharacterRuntime;
+  /** Drawn in database units: the skeleton and the debug views. */
+  private readonly databaseSpace = new THREE.Group();
+  private avatar_: Avatar | null = null;
+  private skeletonView: SkeletonView;
+  private debugViews_: DebugViews | null = null;
+  private readonly input: MoveInput = createMoveInput();
+  private readonly root_: Root = { x: 0, y: 0, z: 0, yaw: 0 };
+  private worldScale_ = 1;
+  private following = false;
+  private showSkeleton_: boolean | undefined;
+  private disposed = false;
+
+  /**
+   * A character on `database` (retained until `dispose()`) with `avatar` (owned: disposed
+   * with the character), standing at the origin facing +Z.
+   */
+  constructor(database: Database, avatar: Avatar | null = null, options: CharacterOptions = {}) {
+    this.runtime = new CharacterRuntime(database, options.settings);
+    this.object3d.name = 'mm-character';
+    this.object3d.add(this.databaseSpace);
+    this.showSkeleton_ = options.skeleton;
+    this.skeletonView = this.makeSkeletonView(database);
+    this.setAvatar(avatar);
+    if (options.debug) this.debug = true;
+    this.draw(0);
+  }
+
+  /** Loads what is needed (database shared by URL, avatar) and makes a character. */
+  static async create(options: CreateOptions): Promise<Character> {
+    const { database, avatar, avatarOptions, ...rest } = options;
+    const db = typeof database === 'object' && !(database instanceof URL) && !(database instanceof Uint8Array) ? database.retain() : await loadDatabase(database, rest);
+    try {
+      let a: Avatar | null = null;
+      if (avatar instanceof Avatar) a = avatar;
+      else if (avatar !== null && avatar !== undefined) a = await Avatar.load(avatar, { ...avatarOptions, ...rest });
+      return new Character(db, a, options);
+    } finally {
+      db.release(); // the character holds its own reference
+    }
+  }
+
+  get database(): Database {
+    return this.runtime.database;
+  }
+
+  get avatar(): Avatar | null {
+    return this.avatar_;
+  }
+
+  /** Avatar metres per database metre: how large the character is drawn. */
+  get worldScale(): number {
+    return this.worldScale_;
+  }
+
+  /**
+   * Swaps the avatar (null: the skeleton). The character keeps standing where it stands: the
+   * runtime is re-placed for the new scale. The old avatar is disposed.
+   */
+  setAvatar(avatar: Avatar | null): void {
+    const before = this.disposed ? null : this.root;
+    const scale = avatar ? avatar.bind(this.database) : 1;
+    if (this.avatar_ && this.avatar_ !== avatar) {
+      this.object3d.remove(this.avatar_.object);
+      this.avatar_.dispose();
+    }
+    this.avatar_ = avatar;
+    if (avatar) this.object3d.add(avatar.object);
+    this.worldScale_ = scale;
+    this.databaseSpace.scale.setScalar(scale);
+    this.updateSkeletonVisibility();
+    if (before) this.teleport(before.x, before.z, before.yaw);
+  }
+
+  /**
+   * Switches to another database (same or different skeleton): the character carries over
+   * where it stands; the avatar is re-bound.
+   */
+  setDatabase(database: Database): void {
+    const before = this.root;
+    const settings = this.runtime.settings();
+    const old = this.runtime;
+    (this as { runtime: CharacterRuntime }).runtime = new CharacterRuntime(database, settings);
+    old.free();
+    this.databaseSpace.remove(this.skeletonView.object);
+    disposeObject(this.skeletonView.object);
+    this.skeletonView = this.makeSkeletonView(database);
+    const debug = this.debug;
+    this.debug = false;
+    this.debug = debug;
+    this.setAvatar(this.avatar_);
+    this.teleport(before.x, before.z, before.yaw);
+  }
+
+  private makeSkeletonView(database: Database): SkeletonView {
+    const feet = (side: 'left' | 'right') => [database.roles.get(`${side}_foot`), database.roles.get(`${side}_toe`)].filter((j): j is number => j !== undefined);
+    const view = new SkeletonView(database.jointParents, feet('left'), feet('right'));
+    this.databaseSpace.add(view.object);
+    view.object.visible = this.showSkeleton_ ?? !this.avatar_;
+    return view;
+  }
+
+  private updateSkeletonVisibility(): void {
+    this.skeletonView.object.visible = this.showSkeleton_ ?? !this.avatar_;
+  }
+
+  /** Whether the skeleton is drawn (default: only without an avatar). */
+  get showSkeleton(): boolean {
+    return this.skeletonView.object.visible;
+  }
+  set showSkeleton(on: boolean) {
+    this.showSkeleton_ = on;
+    this.updateSkeletonVisibility();
+  }
+
+  /** The debug views (simulated character, trajectories, foot locks), or null when off. */
+  get debugViews(): DebugViews | null {
+    return this.debugViews_;
+  }
+  get debug(): boolean {
+    return this.debugViews_ !== null;
+  }
+  set debug(on: boolean) {
+    if (on === this.debug) return;
+    if (on) {
+      this.debugViews_ = new DebugViews(this.runtime);
+      this.databaseSpace.add(this.debugViews_.object);
+    } else if (this.debugViews_) {
+      this.databaseSpace.remove(this.debugViews_.object);
+      this.debugViews_.dispose();
+      this.debugViews_ = null;
+    }
+  }
+
+  // ---- units: the one conversion between the caller's frame and the runtime's
+
+  /** A floor point (x, z) of `object3d`'s parent frame in database units (into `out`). */
+  toDatabase(x: number, z: number, out: THREE.Vector3 = _v): THREE.Vector3 {
+    this.object3d.updateMatrix();
+    return out.set(x, 0, z).applyMatrix4(_m.copy(this.object3d.matrix).invert()).multiplyScalar(1 / this.worldScale_);
+  }
+
+  /** A direction (x, z) of the parent frame in database axes (length kept up to scale). */
+  private directionToDatabase(x: number, z: number): THREE.Vector3 {
+    this.object3d.updateMatrix();
+    return _v.set(x, 0, z).applyQuaternion(_q.copy(this.object3d.quaternion).invert());
+  }
+
+  /** A database point in `object3d`'s parent frame (into `out`). */
+  fromDatabase(x: number, y: number, z: number, out: THREE.Vector3 = _v): THREE.Vector3 {
+    this.object3d.updateMatrix();
+    return out.set(x, y, z).multiplyScalar(this.worldScale_).applyMatrix4(this.object3d.matrix);
+  }
+
+  /** Parent-frame metres per database metre (world scale × `object3d`'s own scale). */
+  get metresPerDatabaseUnit(): number {
+    return this.worldScale_ * this.object3d.scale.x;
+  }
+
+  /** Yaw of `object3d` about +Y in its parent frame. */
+  private get frameYaw(): number {
+    return _e.setFromQuaternion(this.object3d.quaternion, 'YXZ').y;
+  }
+
+  // ---- driving
+
+  /**
+   * Move input: walk toward direction (x, z) of the parent frame, length 0–1 = stick amount
+   * (longer is clamped); (0, 0) stands. Leaves a path.
+   */
+  setMove(x: number, z: number, options: MoveOptions = {}): void {
+    const d = this.directionToDatabase(x, z);
+    this.input.moveX = d.x;
+    this.input.moveZ = d.z;
+    this.input.run = options.run ?? false;
+    this.input.strafe = options.face !== undefined;
+    if (options.face) {
+      const f = this.directionToDatabase(options.face.x, options.face.z);
+      const l = Math.hypot(f.x, f.z) || 1;
+      this.input.faceX = f.x / l;
+      this.input.faceZ = f.z / l;
+    }
+    if (this.following) {
+      this.following = false;
+      this.runtime.clearPath();
+    }
+  }
+
+  /** The move input as devices write it (parent-frame directions); see `setMove`. */
+  setInput(input: Readonly<MoveInput>): void {
+    this.setMove(input.moveX, input.moveZ, { run: input.run, face: input.strafe ? { x: input.faceX, z: input.faceZ } : undefined });
+  }
+
+  /** Walks (or runs) from where it stands to (x, z) and stops there. */
+  walkTo(x: number, z: number, options: PathOptions = {}): void {
+    const r = this.root;
+    this.followPath([[r.x, r.z], [x, z]], options);
+  }
+
+  /**
+   * Follows keypoints [[x, z], …] (parent frame) from the first, at `speed` m/s; stops at the
+   * last unless `loop`. Throws on a path the runtime cannot follow (fewer than 2 points…).
+   */
+  followPath(points: readonly (readonly [number, number])[], options: PathOptions = {}): void {
+    const loop = options.loop ?? false;
+    const base = options.run ? RUN_SPEED : WALK_SPEED;
+    const segments = loop ? points.length : points.length - 1;
+    const speeds = new Float32Array(Math.max(0, segments));
+    const k = 1 / this.metresPerDatabaseUnit;
+    for (let i = 0; i < speeds.length; i++) {
+      const s = typeof options.speed === 'number' ? options.speed : (options.speed?.[i] ?? base);
+      speeds[i] = s * k;
+    }
+    const flat = new Float32Array(points.length * 2);
+    points.forEach(([x, z], i) => {
+      const p = this.toDatabase(x, z);
+      flat[2 * i] = p.x;
+      flat[2 * i + 1] = p.z;
+    });
+    this.runtime.setPath(flat, speeds, loop);
+    this.input.moveX = this.input.moveZ = 0;
+    this.following = true;
+  }
+
+  /** Whether the character is on a path (`walkTo`, `followPath`) rather than move input. */
+  get followingPath(): boolean {
+    return this.following;
+  }
+
+  /** Stands still: no move input, no path. */
+  stop(): void {
+    this.input.moveX = this.input.moveZ = 0;
+    this.input.strafe = false;
+    this.following = false;
+    this.runtime.clearPath();
+  }
+
+  /** Places the character at (x, z) facing `yaw` (parent frame). */
+  teleport(x: number, z: number, yaw = 0): void {
+    const p = this.toDatabase(x, z);
+    this.runtime.teleport(p.x, p.z, yaw - this.frameYaw);
+    this.draw(0);
+  }
+
+  /**
+   * Tracked drive (VR): the head's floor position and ground velocity (parent frame, m, m/s)
+   * and the body yaw (rad) this frame. See `TrackedDrive` for the whole VR recipe.
+   */
+  setTracked(headX: number, headZ: number, velocityX: number, velocityZ: number, yaw: number): void {
+    this.following = false;
+    const p = this.toDatabase(headX, headZ);
+    const [px, pz] = [p.x, p.z];
+    const v = this.directionToDatabase(velocityX, velocityZ).multiplyScalar(1 / this.metresPerDatabaseUnit);
+    this.runtime.setTracked(px, pz, v.x, v.z, yaw - this.frameYaw);
+  }
+
+  /** Lowers the hips `drop` metres (parent frame) with the feet kept planted (VR crouching). */
+  setHipsDrop(drop: number): void {
+    this.runtime.setHipsDrop(drop / this.metresPerDatabaseUnit);
+  }
+
+  /** α: how far (m, parent frame) the character may lag where it is asked to be. */
+  setAlpha(alpha: number): void {
+    this.runtime.setSettings({ clamp_distance: alpha / this.metresPerDatabaseUnit });
+  }
+
+  // ---- the frame
+
+  /** Advances `dt` seconds and poses everything (the per-frame recipe). */
+  update(dt: number): void {
+    if (this.disposed) return;
+    this.runtime.setInput(this.input);
+    this.runtime.update(dt);
+    this.draw(dt);
+  }
+
+  /** Poses the avatar (and skeleton, debug views) from the runtime's world pose. */
+  private draw(dt: number): void {
+    const runtime = this.runtime;
+    if (this.avatar_) this.avatar_.pose(runtime, dt);
+    if (this.skeletonView.object.visible) {
+      const c = runtime.contacts;
+      this.skeletonView.update(runtime.worldPositions, (c & 1) !== 0, (c & 2) !== 0);
+    }
+    this.debugViews_?.update();
+  }
+
+  // ---- reading
+
+  /** Where the character stands now (parent frame; the same object, updated by each call). */
+  get root(): Readonly<Root> {
+    const r = this.runtime.root;
+    const p = this.fromDatabase(r[0], r[1], r[2]);
+    this.root_.x = p.x;
+    this.root_.y = p.y;
+    this.root_.z = p.z;
+    this.root_.yaw = r[3] + this.frameYaw;
+    return this.root_;
+  }
+
+  /** World joint position of the shown pose (parent frame), e.g. of a role's joint. */
+  jointPosition(joint: number, out = new THREE.Vector3()): THREE.Vector3 {
+    const w = this.runtime.worldPositions;
+    return this.fromDatabase(w[3 * joint], w[3 * joint + 1], w[3 * joint + 2], out);
+  }
+
+  /** The database frame playing. */
+  get frame(): number {
+    return this.runtime.frame;
+  }
+
+  /** Name of the clip playing. */
+  get clip(): string {
+    return this.database.clips[this.database.clipAt(this.runtime.frame)]?.name ?? '';
+  }
+
+  /** Tags of the frame playing (`walk`, `run`, `turn`…). */
+  get tags(): string[] {
+    return this.database.tagsAt(this.runtime.frame);
+  }
+
+  /** Foot contacts of the frame playing: bit 1 left, bit 2 right. */
+  get contacts(): number {
+    return this.runtime.contacts;
+  }
+
+  /** Runtime settings (docs/runtime.md). */
+  get settings(): RuntimeSettings {
+    return this.runtime.settings();
+  }
+  set settings(patch: RuntimeSettings) {
+    this.runtime.setSettings(patch);
+  }
+
+  /** Frees the runtime's WASM memory (and the database's, with its last character) and GPU objects. */
+  dispose(): void {
+    if (this.disposed) return;
+    this.disposed = true;
+    this.debug = false;
+    if (this.avatar_) {
+      this.object3d.remove(this.avatar_.object);
+      this.avatar_.dispose();
+      this.avatar_ = null;
+    }
+    disposeObject(this.databaseSpace);
+    this.object3d.removeFromParent();
+    this.runtime.free();
+  }
+}
+
+function disposeObject(root: THREE.Object3D): void {
+  root.traverse((o) => {
+    const m = o as THREE.Mesh;
+    m.geometry?.dispose();
+    for (const mat of Array.isArray(m.material) ? m.material : m.material ? [m.material] : []) mat.dispose();
+  });
+}

@@ -1,0 +1,190 @@
+/**
+ * `CharacterRuntime`: one motion-matched character in the runtime (wraps `RawCharacter`): input
+ * or a path or a tracked user in, the world pose out as zero-copy views. The public
+ * `Character` (../character/character.ts) adds the avatar, the scene object and units.
+ */
+import { type Database } from './database.ts';
+import { RawCharacter } from './raw.ts';
+import { ViewCache } from './view-cache.ts';
+import { asError, wasmMemory } from './wasm.ts';
+
+/**
+ * What a player asks the character for this frame, on the ground plane in world space (the
+ * runtime's `Input`). Devices write into one preallocated `MoveInput` per frame.
+ */
+export interface MoveInput {
+  /** Desired move direction (x, z); length 0–1 is the stick magnitude. */
+  moveX: number;
+  moveZ: number;
+  /** Desired facing (x, z), unit length; used while strafing. */
+  faceX: number;
+  faceZ: number;
+  run: boolean;
+  /** Keep facing (faceX, faceZ) while moving in any direction (side-steps, backwards). */
+  strafe: boolean;
+}
+
+export function createMoveInput(): MoveInput {
+  return { moveX: 0, moveZ: 0, faceX: 0, faceZ: 1, run: false, strafe: false };
+}
+
+/** The runtime settings (docs/runtime.md lists them; `CharacterSettings` in Rust). */
+export type RuntimeSettings = Record<string, unknown>;
+
+export class CharacterRuntime {
+  readonly database: Database;
+  readonly numJoints: number;
+  private raw_: RawCharacter | null;
+  private readonly views = {
+    positions: null as unknown as ViewCache<Float32Array>,
+    rotations: null as unknown as ViewCache<Float32Array>,
+    root: new ViewCache(Float32Array, 4),
+    simulation: new ViewCache(Float32Array, 7),
+    toes: new ViewCache(Float32Array, 6),
+    predictedPositions: null as unknown as ViewCache<Float32Array>,
+    predictedRotations: null as unknown as ViewCache<Float32Array>,
+    matched: null as unknown as ViewCache<Float32Array>,
+  };
+
+  /** A character on `database` (retained until `free()`), with a settings patch. */
+  constructor(database: Database, settings: RuntimeSettings = {}) {
+    try {
+      this.raw_ = new RawCharacter(database.raw, JSON.stringify(settings));
+    } catch (e) {
+      throw asError(e);
+    }
+    this.database = database.retain();
+    const j = (this.numJoints = database.numJoints);
+    const k = this.raw_.num_predictions();
+    this.views.positions = new ViewCache(Float32Array, j * 3);
+    this.views.rotations = new ViewCache(Float32Array, j * 4);
+    this.views.predictedPositions = new ViewCache(Float32Array, k * 3);
+    this.views.predictedRotations = new ViewCache(Float32Array, k * 4);
+    this.views.matched = new ViewCache(Float32Array, this.raw_.num_matched() * 4);
+  }
+
+  /** The binding, for other raw-layer classes (the retargeter). */
+  get raw(): RawCharacter {
+    if (!this.raw_) throw new Error('character used after free()');
+    return this.raw_;
+  }
+
+  get isFreed(): boolean {
+    return this.raw_ === null;
+  }
+
+  setInput(input: MoveInput): void {
+    this.raw.set_input(input.moveX, input.moveZ, input.faceX, input.faceZ, input.run, input.strafe);
+  }
+
+  /** Follow `points` (x, z pairs, database units) at `speeds` m/s per segment. Throws on a bad path. */
+  setPath(points: Float32Array, speeds: Float32Array, looped: boolean): void {
+    try {
+      this.raw.set_path(points, speeds, looped);
+    } catch (e) {
+      throw asError(e);
+    }
+  }
+
+  /** Back to move input. */
+  clearPath(): void {
+    this.raw.clear_path();
+  }
+
+  /** Tracked user (VR): head floor position, raw ground velocity, body yaw (rad). */
+  setTracked(headX: number, headZ: number, velocityX: number, velocityZ: number, yaw: number): void {
+    this.raw.set_tracked(headX, headZ, velocityX, velocityZ, yaw);
+  }
+
+  setHipsDrop(drop: number): void {
+    this.raw.set_hips_drop(drop);
+  }
+
+  teleport(x: number, z: number, yaw: number): void {
+    this.raw.teleport(x, z, yaw);
+  }
+
+  /** Patches settings; throws on unknown keys or wrong types. */
+  setSettings(patch: RuntimeSettings): void {
+    try {
+      this.raw.set_settings_json(JSON.stringify(patch));
+    } catch (e) {
+      throw asError(e);
+    }
+  }
+
+  settings(): RuntimeSettings {
+    return JSON.parse(this.raw.settings_json()) as RuntimeSettings;
+  }
+
+  update(dt: number): void {
+    this.raw.update(dt);
+  }
+
+  /** World joint positions of the shown pose, J×3 (zero-copy view). */
+  get worldPositions(): Float32Array {
+    return this.views.positions.get(wasmMemory(), this.raw.world_positions_ptr());
+  }
+  /** World joint rotations of the shown pose, J×4 (x, y, z, w). */
+  get worldRotations(): Float32Array {
+    return this.views.rotations.get(wasmMemory(), this.raw.world_rotations_ptr());
+  }
+  /** Root x, y, z and yaw (rad, 0 = +Z). */
+  get root(): Float32Array {
+    return this.views.root.get(wasmMemory(), this.raw.root_ptr());
+  }
+  /** The simulated character: position (3), facing quaternion (4). */
+  get simulation(): Float32Array {
+    return this.views.simulation.get(wasmMemory(), this.raw.simulation_ptr());
+  }
+  /** Toe points of the shown pose: left xyz, right xyz. */
+  get toes(): Float32Array {
+    return this.views.toes.get(wasmMemory(), this.raw.toes_ptr());
+  }
+  /** K×3 world positions of the trajectory asked for at the last search. */
+  get predictedPositions(): Float32Array {
+    return this.views.predictedPositions.get(wasmMemory(), this.raw.predicted_positions_ptr());
+  }
+  /** K×4 world facings of that trajectory. */
+  get predictedRotations(): Float32Array {
+    return this.views.predictedRotations.get(wasmMemory(), this.raw.predicted_rotations_ptr());
+  }
+  /** The trajectory stored with the frame playing: per point x, z, direction x, z (world). */
+  matchedTrajectory(): Float32Array {
+    return this.views.matched.get(wasmMemory(), this.raw.matched_trajectory());
+  }
+
+  get frame(): number {
+    return this.raw.frame();
+  }
+  /** Bits: 1 left foot, 2 right foot. */
+  get contacts(): number {
+    return this.raw.contacts();
+  }
+  get footLocks(): number {
+    return this.raw.foot_locks();
+  }
+  get searches(): number {
+    return this.raw.searches();
+  }
+  get transitions(): number {
+    return this.raw.transitions();
+  }
+  get searchCost(): number {
+    return this.raw.search_cost();
+  }
+  get bestCost(): number {
+    return this.raw.best_cost();
+  }
+  /** Planted-toe sliding since the last teleport, database units (the runtime's measure). */
+  get skating(): number {
+    return this.raw.skating();
+  }
+
+  free(): void {
+    if (!this.raw_) return;
+    this.raw_.free();
+    this.raw_ = null;
+    this.database.release();
+  }
+}

@@ -1,0 +1,20 @@
+/**
+ * The only importer of the generated WASM package (`./pkg`, built by scripts/setup.mjs): the
+ * raw layer's front. Everything else in the library reaches the `Raw*` classes through here,
+ * wrapped one class per file (this folder mirrors `wasm-core/src/bindings/` file for file).
+ */
+export {
+  default as initWasmModule,
+  initSync as initWasmModuleSync,
+  bvh_info,
+  find_roles_json,
+  live_objects,
+  role_names_json,
+  RawBuilder,
+  RawCharacter,
+  RawCrowd,
+  RawDatabase,
+  RawRetargeter,
+  RawSearchIndex,
+  RawTwoBoneIk,
+} from './pkg/mmcore.js';

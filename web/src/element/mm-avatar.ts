@@ -1,0 +1,359 @@
+/**
+ * `<mm-avatar>`: a motion-matched character in any web page, built on the public API
+ * (`Character`, `Stage`, `MoveControls`). The contract (README "Embed it"):
+ *
+ * - attributes, all optional: `avatar` (GLB/VRM URL; default the shipped avatar; `none`: the
+ *   skeleton), `database` (.mmdb URL; default the shipped locomotion database), `controls`
+ *   (space-separated `keyboard gamepad path none`; default `keyboard gamepad`; the keyboard
+ *   acts only while the element has focus), `camera` (`follow` | `fixed`), `loading`
+ *   (`eager` | `lazy`: wait until near the viewport), `debug`, `alt`;
+ * - properties and methods: `character`, `root` ({x, y, z, yaw}, m / rad, the element's floor
+ *   frame), `walkTo(x, z, {run})`, `setMove(x, z, {run})`, `stop()`, `ready` (a promise), and
+ *   `timeStep` (null: real time; a number: fixed seconds per frame, for tests and recordings);
+ * - events: `progress` (`detail: {stage, loaded, total, url}`), `load` (first animated frame),
+ *   `error` (`detail: {message, url}`), and a visible message inside the element;
+ * - removing the element frees its WASM memory and GPU objects; adding it again rebuilds it.
+ */
+import * as THREE from 'three';
+import { DEFAULT_AVATAR, DEFAULT_DATABASE, assetUrl } from '../assets.ts';
+import { Avatar } from '../avatar/avatar.ts';
+import { Character, type MoveOptions, type PathOptions, type Root } from '../character/character.ts';
+import { type Database, loadDatabase } from '../core/database.ts';
+import { type FetchProgress, errorMessage } from '../fetch.ts';
+import { MoveControls } from '../input/move-controls.ts';
+import { FollowCamera } from '../views/follow-camera.ts';
+import { Stage } from '../views/stage.ts';
+
+const STYLE = `
+:host { display: block; position: relative; width: 100%; height: 360px; overflow: hidden; background: #1d2126; border-radius: 6px; outline: none; contain: content; }
+:host(:focus-visible) { box-shadow: 0 0 0 3px #7aa7ff; }
+.view { position: absolute; inset: 0; }
+.view canvas { display: block; width: 100%; height: 100%; touch-action: none; }
+.status { position: absolute; left: 0; right: 0; bottom: 0; padding: 6px 10px; font: 13px/1.35 system-ui, sans-serif; color: #e6e9ee; background: rgba(20, 23, 28, 0.82); pointer-events: none; }
+.status[hidden] { display: none; }
+.status.error { color: #ffd2cc; background: rgba(90, 20, 20, 0.88); pointer-events: auto; }
+.hint { position: absolute; right: 8px; top: 6px; font: 11px system-ui, sans-serif; color: #9aa3ad; pointer-events: none; }
+`;
+
+export interface ProgressDetail extends FetchProgress {}
+
+export interface ErrorDetail {
+  message: string;
+  url: string;
+}
+
+type ControlName = 'keyboard' | 'gamepad' | 'path';
+
+const _look = new THREE.Vector3();
+const _ndc = new THREE.Vector2();
+const _ray = new THREE.Raycaster();
+const _floor = new THREE.Plane(new THREE.Vector3(0, 1, 0), 0);
+const _hit = new THREE.Vector3();
+
+export class MMAvatarElement extends HTMLElement {
+  static readonly observedAttributes = ['avatar', 'database', 'controls', 'camera', 'debug', 'alt'];
+
+  /** The character, once loaded (null before `load` and after removal). */
+  character: Character | null = null;
+  /** The element's stage (scene, camera, renderer), once loaded. */
+  stage: Stage | null = null;
+  /** Seconds per frame; null: the real time between frames (clamped to 0.1 s). */
+  timeStep: number | null = null;
+  /** Resolves at the first animated frame of the current load. */
+  ready: Promise<void>;
+  /** Called after every update, before rendering (pages read state here; nothing allocated). */
+  afterUpdate: ((dt: number) => void) | null = null;
+  /** Milliseconds of the last `Character.update` (runtime, retarget). */
+  lastUpdateMs = 0;
+
+  private readonly view: HTMLDivElement;
+  private readonly status: HTMLDivElement;
+  private readonly controls = new MoveControls();
+  private camera: FollowCamera | null = null;
+  private abort: AbortController | null = null;
+  private observer: IntersectionObserver | null = null;
+  private resolveReady: () => void = () => {};
+  private last = 0;
+  private loadedOnce = false;
+  private generation = 0;
+  private downAt = { x: 0, y: 0 };
+
+  constructor() {
+    super();
+    const shadow = this.attachShadow({ mode: 'open' });
+    const style = document.createElement('style');
+    style.textContent = STYLE;
+    this.view = document.createElement('div');
+    this.view.className = 'view';
+    this.status = document.createElement('div');
+    this.status.className = 'status';
+    this.status.setAttribute('role', 'status');
+    shadow.append(style, this.view, this.status);
+    this.ready = new Promise((r) => (this.resolveReady = r));
+    this.addEventListener('pointerdown', (e) => {
+      this.downAt = { x: e.clientX, y: e.clientY };
+      this.focus({ preventScroll: true });
+    });
+    this.addEventListener('pointerup', (e) => this.onClick(e));
+    // Arrow keys and Space drive the character, not the page's scroll, while it has focus.
+    this.addEventListener('keydown', (e) => {
+      if (this.controls.keyboardEnabled && /^(Arrow(Up|Down|Left|Right)|Space)$/.test(e.code)) e.preventDefault();
+    });
+  }
+
+  connectedCallback(): void {
+    if (!this.hasAttribute('tabindex')) this.tabIndex = 0;
+    this.setAttribute('role', 'img');
+    this.updateAlt();
+    this.controls.attach(this);
+    this.applyControls();
+    if (this.getAttribute('loading') === 'lazy' && typeof IntersectionObserver !== 'undefined') {
+      this.say('Waiting to come into view…');
+      this.observer = new IntersectionObserver(
+        (entries) => {
+          if (entries.some((e) => e.isIntersecting)) {
+            this.observer?.disconnect();
+            this.observer = null;
+            void this.load();
+          }
+        },
+        { rootMargin: '200px' },
+      );
+      this.observer.observe(this);
+    } else {
+      void this.load();
+    }
+  }
+
+  disconnectedCallback(): void {
+    this.teardown();
+    this.controls.dispose();
+  }
+
+  attributeChangedCallback(name: string, before: string | null, after: string | null): void {
+    if (before === after || !this.isConnected) return;
+    if (name === 'controls') this.applyControls();
+    else if (name === 'alt') this.updateAlt();
+    else if (name === 'debug' && this.character) this.character.debug = this.hasAttribute('debug');
+    else if (name === 'avatar' && this.character) void this.swapAvatar();
+    else if (name === 'database' && this.loadedOnce) {
+      this.teardown();
+      void this.load();
+    }
+  }
+
+  // ---- the API
+
+  /** Where the character stands ({x, y, z} m and yaw rad in the element's floor frame). */
+  get root(): Root {
+    const r = this.character?.root;
+    return r ? { x: r.x, y: r.y, z: r.z, yaw: r.yaw } : { x: 0, y: 0, z: 0, yaw: 0 };
+  }
+
+  /** Walks (or runs) to floor point (x, z) and stops there. */
+  walkTo(x: number, z: number, options: PathOptions = {}): void {
+    this.need().walkTo(x, z, options);
+  }
+
+  /** Move input: direction (x, z) with length 0–1; (0, 0) stands. */
+  setMove(x: number, z: number, options: MoveOptions = {}): void {
+    this.need().setMove(x, z, options);
+  }
+
+  /** Follows keypoints [[x, z], …] (see `Character.followPath`). */
+  followPath(points: readonly (readonly [number, number])[], options: PathOptions = {}): void {
+    this.need().followPath(points, options);
+  }
+
+  stop(): void {
+    this.character?.stop();
+  }
+
+  /** Client pixel of floor point (x, z) (tests and tools). */
+  screenOf(x: number, z: number): { x: number; y: number } {
+    const stage = this.stage;
+    if (!stage) return { x: NaN, y: NaN };
+    const v = new THREE.Vector3(x, 0, z).project(stage.camera);
+    const rect = this.view.getBoundingClientRect();
+    return { x: rect.left + ((v.x + 1) / 2) * rect.width, y: rect.top + ((1 - v.y) / 2) * rect.height };
+  }
+
+  private need(): Character {
+    if (!this.character) throw new Error('<mm-avatar>: not loaded yet (wait for the "load" event or `await el.ready`)');
+    return this.character;
+  }
+
+  // ---- loading
+
+  private url(attribute: string, fallback: string): string {
+    const v = this.getAttribute(attribute)?.trim();
+    return v ? new URL(v, document.baseURI).href : assetUrl(fallback).href;
+  }
+
+  private async load(): Promise<void> {
+    const generation = ++this.generation;
+    this.abort = new AbortController();
+    const signal = this.abort.signal;
+    const progress = (p: FetchProgress) => {
+      if (generation !== this.generation) return;
+      const mb = (n: number) => (n / 1e6).toFixed(1);
+      this.say(`Loading the ${p.stage}… ${mb(p.loaded)}${p.total ? ` / ${mb(p.total)}` : ''} MB`);
+      this.dispatchEvent(new CustomEvent<ProgressDetail>('progress', { detail: { ...p } }));
+    };
+    const databaseUrl = this.url('database', DEFAULT_DATABASE);
+    const avatarAttr = this.getAttribute('avatar')?.trim();
+    const avatarUrl = avatarAttr === 'none' ? null : this.url('avatar', DEFAULT_AVATAR);
+    this.say('Loading the motion-matching core…');
+    let database: Database;
+    let avatar: Avatar | null = null;
+    let avatarNote = '';
+    try {
+      const avatarLoad = avatarUrl ? Avatar.load(avatarUrl, { onProgress: progress, signal }).catch((e: unknown) => e as Error) : Promise.resolve(null);
+      database = await loadDatabase(databaseUrl, { onProgress: progress, signal });
+      const a = await avatarLoad;
+      if (a instanceof Avatar) avatar = a;
+      else if (a) {
+        // A failed avatar is not a failed element: the skeleton walks, and the note says why.
+        avatarNote = `Avatar unavailable, showing the skeleton: ${errorMessage(a)}`;
+        this.dispatchEvent(new CustomEvent<ErrorDetail>('error', { detail: { message: avatarNote, url: avatarUrl ?? '' } }));
+      }
+    } catch (e) {
+      if (signal.aborted || generation !== this.generation) return;
+      this.fail(errorMessage(e), databaseUrl);
+      return;
+    }
+    if (signal.aborted || generation !== this.generation) {
+      database.release();
+      avatar?.dispose();
+      return;
+    }
+    try {
+      this.stage = new Stage(this.view, { antialias: true });
+      this.stage.scene.fog = null;
+      const character = new Character(database, avatar, { debug: this.hasAttribute('debug') });
+      database.release(); // the character holds its own reference
+      this.character = character;
+      this.stage.scene.add(character.object3d);
+      this.stage.camera.position.set(1.8, 1.5, 3.2);
+      this.camera = new FollowCamera(this.stage.camera, this.stage.renderer.domElement);
+      this.camera.controls.enableZoom = false; // the page scrolls, not the camera
+      this.camera.follow(0, 0, 0);
+    } catch (e) {
+      this.fail(errorMessage(e), databaseUrl);
+      return;
+    }
+    this.say(avatarNote || null);
+    this.last = performance.now();
+    this.stage.renderer.setAnimationLoop((now: number) => this.frame(now, generation));
+  }
+
+  private async swapAvatar(): Promise<void> {
+    const character = this.character;
+    if (!character) return;
+    const attr = this.getAttribute('avatar')?.trim();
+    if (attr === 'none') {
+      character.setAvatar(null);
+      return;
+    }
+    const url = this.url('avatar', DEFAULT_AVATAR);
+    try {
+      const avatar = await Avatar.load(url, { onProgress: (p) => this.dispatchEvent(new CustomEvent('progress', { detail: { ...p } })) });
+      if (this.character === character) character.setAvatar(avatar);
+      else avatar.dispose();
+    } catch (e) {
+      const message = `Avatar unavailable, keeping the current one: ${errorMessage(e)}`;
+      this.say(message);
+      this.dispatchEvent(new CustomEvent<ErrorDetail>('error', { detail: { message, url } }));
+    }
+  }
+
+  private frame(now: number, generation: number): void {
+    const character = this.character;
+    const stage = this.stage;
+    if (!character || !stage || generation !== this.generation) return;
+    const dt = this.timeStep ?? Math.min(0.1, Math.max(0, (now - this.last) / 1000));
+    this.last = now;
+    stage.camera.getWorldDirection(_look);
+    const input = this.controls.read(_look.x, _look.z, character.root.yaw, dt);
+    if (input) character.setInput(input);
+    const t0 = performance.now();
+    character.update(dt);
+    this.lastUpdateMs = performance.now() - t0;
+    this.afterUpdate?.(dt);
+    const r = character.root;
+    if (this.getAttribute('camera') !== 'fixed') this.camera?.follow(r.x, r.z, dt);
+    else this.camera?.controls.update();
+    stage.grid.follow(r.x, r.z);
+    stage.render();
+    if (!this.loadedOnce) {
+      this.loadedOnce = true;
+      this.resolveReady();
+      this.dispatchEvent(new Event('load'));
+    }
+  }
+
+  private teardown(): void {
+    this.generation++;
+    this.abort?.abort();
+    this.abort = null;
+    this.observer?.disconnect();
+    this.observer = null;
+    this.character?.dispose();
+    this.character = null;
+    this.stage?.dispose();
+    this.stage = null;
+    this.camera?.controls.dispose();
+    this.camera = null;
+    if (this.loadedOnce) {
+      this.loadedOnce = false;
+      this.ready = new Promise((r) => (this.resolveReady = r));
+    }
+  }
+
+  // ---- controls and messages
+
+  private applyControls(): void {
+    const list = (this.getAttribute('controls') ?? 'keyboard gamepad').split(/\s+/).filter(Boolean) as (ControlName | 'none')[];
+    this.controls.keyboardEnabled = list.includes('keyboard');
+    this.controls.gamepadEnabled = list.includes('gamepad');
+  }
+
+  /** `controls="path"`: a click on the floor walks there (Shift-click runs). */
+  private onClick(e: PointerEvent): void {
+    const controls = (this.getAttribute('controls') ?? '').split(/\s+/);
+    if (!controls.includes('path') || !this.character || !this.stage || e.button !== 0) return;
+    if (Math.hypot(e.clientX - this.downAt.x, e.clientY - this.downAt.y) > 4) return; // an orbit drag
+    const rect = this.view.getBoundingClientRect();
+    _ndc.set(((e.clientX - rect.left) / rect.width) * 2 - 1, -((e.clientY - rect.top) / rect.height) * 2 + 1);
+    _ray.setFromCamera(_ndc, this.stage.camera);
+    const p = _ray.ray.intersectPlane(_floor, _hit);
+    if (p) this.character.walkTo(p.x, p.z, { run: e.shiftKey });
+  }
+
+  private updateAlt(): void {
+    this.setAttribute('aria-label', this.getAttribute('alt') ?? 'An animated character');
+  }
+
+  /** Shows `text` over the view (null hides it). */
+  private say(text: string | null, error = false): void {
+    this.status.hidden = text === null;
+    this.status.textContent = text ?? '';
+    this.status.classList.toggle('error', error);
+  }
+
+  private fail(message: string, url: string): void {
+    this.say(message, true);
+    this.dispatchEvent(new CustomEvent<ErrorDetail>('error', { detail: { message, url } }));
+  }
+}
+
+/** Registers `<mm-avatar>` (or another tag name); a no-op when it is already defined. */
+export function defineMMAvatar(tag = 'mm-avatar'): void {
+  if (!customElements.get(tag)) customElements.define(tag, MMAvatarElement);
+}
+
+declare global {
+  interface HTMLElementTagNameMap {
+    'mm-avatar': MMAvatarElement;
+  }
+}

@@ -1,0 +1,92 @@
+/**
+ * The motion-matching avatar engine for the web: the one public entry.
+ *
+ * ```ts
+ * import { Character, defineMMAvatar } from 'mm-avatar';
+ * const character = await Character.create({ database: 'databases/locomotion.mmdb', avatar: 'avatars/ubc_male.glb' });
+ * scene.add(character.object3d);
+ * character.walkTo(3, 2);
+ * renderer.setAnimationLoop(() => { character.update(1 / 60); renderer.render(scene, camera); });
+ * ```
+ *
+ * Or in any page: `<script type="module" src="mm-avatar.js"></script><mm-avatar></mm-avatar>`.
+ *
+ * @packageDocumentation
+ */
+
+// Characters: a database and an avatar → a three.js object; the per-frame recipe.
+export { Character, RUN_SPEED, WALK_SPEED } from './character/character.ts';
+export type { CharacterOptions, CreateOptions, MoveOptions, PathOptions, Root } from './character/character.ts';
+export { Avatar } from './avatar/avatar.ts';
+export type { AvatarOptions } from './avatar/avatar.ts';
+
+// The embeddable element.
+export { MMAvatarElement, defineMMAvatar } from './element/mm-avatar.ts';
+export type { ErrorDetail, ProgressDetail } from './element/mm-avatar.ts';
+
+// Databases, loading, the WASM module.
+export { Database, loadDatabase } from './core/database.ts';
+export type { ClipInfo, FeatureGroupInfo, TagInfo } from './core/database.ts';
+export { DatabaseBuilder } from './core/builder.ts';
+export { initWasm, initWasmSync, liveObjects } from './core/wasm.ts';
+export type { LiveObjects } from './core/wasm.ts';
+export { DEFAULT_AVATAR, DEFAULT_DATABASE, DEFAULT_ORIENTATION_MODEL, assetUrl, setAssetBase } from './assets.ts';
+export { errorMessage, fetchBytes } from './fetch.ts';
+export type { FetchOptions, FetchProgress } from './fetch.ts';
+
+// The runtime underneath (advanced: crowds, benchmarks, tools).
+export { CharacterRuntime, createMoveInput } from './core/character.ts';
+export type { MoveInput, RuntimeSettings } from './core/character.ts';
+export { Crowd } from './core/crowd.ts';
+export { SEARCH_METHODS, SearchIndex } from './core/search.ts';
+export { ROLE_NAMES, findRoles } from './core/roles.ts';
+export type { RoleName, RoleOverrides } from './core/roles.ts';
+export { RUNTIME_SETTINGS } from './character/settings.ts';
+export type { SettingInfo } from './character/settings.ts';
+
+// Devices.
+export { MoveControls } from './input/move-controls.ts';
+export { KeyboardInput } from './input/keyboard.ts';
+export { readGamepad } from './input/gamepad.ts';
+export { CameraBasis } from './input/input.ts';
+
+// Scene helpers.
+export { Stage } from './views/stage.ts';
+export { FollowCamera } from './views/follow-camera.ts';
+export { SkeletonView } from './views/skeleton-view.ts';
+export { DebugViews } from './views/debug-views.ts';
+export { PathEditor } from './views/path-editor.ts';
+export { RootMarker } from './views/root-marker.ts';
+export { Playback } from './views/playback.ts';
+export { UpdateTimer } from './views/update-timer.ts';
+
+// VR: tracked devices drive the character.
+export { CROUCH_DEADBAND, DEFAULT_ALPHA, HMD_TO_HEAD_CENTRE, TrackedDrive, VR_SETTINGS } from './vr/tracked-drive.ts';
+export { HEAD, LEFT, NUM_TRACKERS, RIGHT, TrackerSample, sampleXRFrame } from './vr/tracker-sample.ts';
+export { TrackerState } from './vr/trackers.ts';
+export type { BodyYawPredictor, TrackerPose } from './vr/body-yaw.ts';
+export { HeadingYawPredictor } from './vr/fallback-yaw.ts';
+export { NetworkYawPredictor, loadNetworkPredictor } from './vr/network-yaw.ts';
+export { RecordingPlayer, TrackerRecorder, decodeRecording, encodeRecordingJson } from './vr/recording.ts';
+export type { Recording } from './vr/recording.ts';
+export { SCRIPT_DURATION, scriptedSample } from './vr/scripted-motion.ts';
+export { EnterVrButton } from './vr/enter-vr-button.ts';
+export { SpectatorView } from './vr/spectator-view.ts';
+export { UpperBody } from './vr/upper-body.ts';
+
+// Page helpers.
+export { installDropTarget, sortDroppedFiles } from './ui/drop.ts';
+export type { DroppedFiles } from './ui/drop.ts';
+export { showError } from './ui/error-box.ts';
+
+// Angles (project convention: yaw 0 faces +Z, positive turns +Z toward +X).
+export { bodyYaw, headingYaw, wrapAngle, yawOf } from './yaw.ts';
+
+// Benchmarks (the bench page, `npm run bench`).
+export { benchSearch } from './bench/search-bench.ts';
+export type { SearchBenchResult } from './bench/search-bench.ts';
+export { benchRuntime } from './bench/runtime-bench.ts';
+export type { RuntimeBenchResult } from './bench/runtime-bench.ts';
+export { realisticQueries, seededRandom } from './bench/queries.ts';
+export { benchReplay, stats } from './vr/replay-bench.ts';
+export type { ReplayBenchResult, Stats } from './vr/replay-bench.ts';

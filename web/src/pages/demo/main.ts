@@ -1,0 +1,248 @@
+/**
+ * The desktop demo (index.html): `<mm-avatar>` full page, plus a panel with every runtime knob,
+ * path editing, view toggles and the database choice; files dropped on the page (BVH → a
+ * database built here, `.mmdb`, `.glb`/`.vrm`); a HUD. Only the library's public entry is used.
+ *
+ * URL parameters: `db=<url>`, `avatar=<url>|none`, `roles=<JSON role → bone name>` (manual
+ * joint map), `skeleton=1`, `shadows=0`, `dt=fixed` (exactly 1/60 s per frame, for tests).
+ * State for tests is on `window.__mm`.
+ */
+import GUI from 'lil-gui';
+import * as THREE from 'three';
+import {
+  Avatar, Database, DatabaseBuilder, type DroppedFiles, PathEditor, RUNTIME_SETTINGS, type RoleOverrides, UpdateTimer,
+  defineMMAvatar, errorMessage, installDropTarget, showError,
+} from '../../index.ts';
+
+const hook = {
+  ready: false,
+  error: null as string | null,
+  /** The last message for a file that could not be used (the page keeps working). */
+  fileError: null as string | null,
+  updates: 0,
+  frame: 0,
+  root: [0, 0, 0],
+  yaw: 0,
+  contacts: 0,
+  /** Contact onsets per foot (left, right): feet alternate. */
+  steps: [0, 0],
+  searches: 0,
+  transitions: 0,
+  /** Avatar toe heights (m) and its standing toe height; toe height − standing for each foot in contact. */
+  avatarToes: [NaN, NaN],
+  avatarStandingToe: NaN,
+  toeErrors: [] as number[],
+  /** Avatar hips (x, z) and where the foot-lock rings and the avatar's toes are (x, z, NaN when unlocked). */
+  hips: [NaN, NaN],
+  lockRings: [NaN, NaN, NaN, NaN],
+  toes: [NaN, NaN, NaN, NaN],
+  database: '',
+  databaseFrames: 0,
+  avatar: '',
+  databaseLoads: 0,
+  path: { points: [] as number[], following: false },
+  screenOf: (x: number, z: number) => ({ x: x * 0, y: z * 0 }),
+};
+declare global {
+  interface Window {
+    __mm: typeof hook;
+  }
+}
+window.__mm = hook;
+
+const fail = (message: string) => {
+  hook.error = hook.error ? `${hook.error}\n${message}` : message;
+  showError(message);
+};
+const fileError = (message: string) => {
+  hook.fileError = message;
+  showError(message);
+};
+window.addEventListener('error', (e) => fail(`error: ${e.message}`));
+window.addEventListener('unhandledrejection', (e) => fail(`error: ${errorMessage(e.reason)}`));
+
+defineMMAvatar();
+const params = new URLSearchParams(location.search);
+const el = document.createElement('mm-avatar');
+el.id = 'avatar';
+el.setAttribute('controls', 'keyboard gamepad');
+el.setAttribute('alt', 'A motion-matched character; focus it and walk with WASD');
+if (params.get('db')) el.setAttribute('database', params.get('db')!);
+// A manual joint map (?roles=) applies when the page loads the avatar itself, below.
+let roles: RoleOverrides | undefined;
+try {
+  roles = params.has('roles') ? (JSON.parse(params.get('roles')!) as RoleOverrides) : undefined;
+} catch (e) {
+  fileError(`?roles= must be JSON like {"head":"Head_M"}: ${errorMessage(e)}`);
+}
+const avatarParam = params.get('avatar');
+if (avatarParam === 'none' || roles) el.setAttribute('avatar', 'none');
+else if (avatarParam) el.setAttribute('avatar', avatarParam);
+if (params.get('dt') === 'fixed') el.timeStep = 1 / 60;
+document.getElementById('viewport')!.append(el);
+el.addEventListener('error', (e) => fileError((e as unknown as CustomEvent<{ message: string }>).detail.message));
+
+el.addEventListener('load', async () => {
+  const character = el.character!;
+  const stage = el.stage!;
+  const view = { mesh: true, skeleton: params.get('skeleton') === '1', shadows: params.get('shadows') !== '0', simulation: true, trajectory: true, matched: true, locks: true };
+  character.debug = true;
+  const apply = () => {
+    if (character.avatar) character.avatar.object.visible = view.mesh;
+    character.showSkeleton = view.skeleton || !character.avatar || !view.mesh;
+    const d = character.debugViews!;
+    d.simulation.visible = view.simulation;
+    d.requested.object.visible = view.trajectory;
+    d.matched.object.visible = view.matched;
+    d.locks.visible = view.locks;
+    stage.enableShadows(view.shadows);
+  };
+  const useAvatar = (avatar: Avatar | null) => {
+    character.setAvatar(avatar);
+    hook.avatar = avatar?.name.split('/').pop() ?? '';
+    hook.avatarStandingToe = avatar?.standingToeHeight ?? NaN;
+    apply();
+  };
+  const databases: Record<string, Database | string> = { [character.database.name.split('/').pop()!.replace(/\.mmdb$/, '')]: character.database };
+  const useDatabase = (db: Database, name: string) => {
+    character.setDatabase(db);
+    hook.database = name;
+    hook.databaseFrames = db.numFrames;
+    hook.databaseLoads++;
+    apply();
+  };
+  hook.database = Object.keys(databases)[0];
+  hook.databaseFrames = character.database.numFrames;
+  hook.databaseLoads = 1;
+  useAvatar(character.avatar);
+  if (roles && avatarParam !== 'none') {
+    const url = avatarParam ?? 'avatars/ubc_male.glb';
+    await Avatar.load(url, { roles }).then(useAvatar, (e: unknown) => fileError(errorMessage(e)));
+  }
+
+  // ---- path mode
+  const path = new PathEditor(stage.camera, stage.renderer.domElement);
+  stage.scene.add(path.object);
+  hook.path.points = path.points;
+  hook.screenOf = (x, z) => el.screenOf(x, z);
+  path.onEditStart = () => {
+    if (path.points.length === 0) path.add(character.root.x, character.root.z, path.walkSpeed);
+  };
+  const follow = () => {
+    if (path.points.length < 4) return fileError('Path: place at least 2 keypoints (turn on "edit", then click the floor).');
+    const points = [];
+    for (let i = 0; i < path.points.length; i += 2) points.push([path.points[i], path.points[i + 1]] as const);
+    character.followPath(points, { speed: [...path.segmentSpeeds()], loop: path.looped && points.length >= 3 });
+    hook.path.following = true;
+    path.editing = false;
+    editing.updateDisplay();
+  };
+  const stopPath = () => {
+    character.stop();
+    hook.path.following = false;
+  };
+
+  // ---- panel
+  const gui = new GUI({ title: 'Motion matching' });
+  const choice = { database: hook.database };
+  const databaseSelect = gui.add(choice, 'database', Object.keys(databases)).onChange(async (name: string) => {
+    const entry = databases[name];
+    if (!entry || name === hook.database) return;
+    try {
+      useDatabase(typeof entry === 'string' ? await Database.fetch(entry) : entry, name);
+    } catch (e) {
+      fileError(errorMessage(e));
+    }
+  });
+  const folder = (title: string) => gui.addFolder(title).close();
+  const viewFolder = folder('View');
+  for (const key of ['mesh', 'skeleton', 'shadows'] as const) viewFolder.add(view, key).onChange(apply);
+  const debugFolder = folder('Debug views');
+  for (const key of ['simulation', 'trajectory', 'matched', 'locks'] as const) debugFolder.add(view, key).onChange(apply);
+  const pathFolder = folder('Path mode');
+  const editing = pathFolder.add(path, 'editing').name('edit (click the floor)');
+  pathFolder.add(path, 'walkSpeed', 0.3, 3, 0.1).name('speed (m/s)');
+  pathFolder.add(path, 'runSpeed', 1, 6, 0.1).name('Shift-click speed');
+  pathFolder.add(path, 'looped').name('loop').onChange(() => path.redraw());
+  pathFolder.add({ follow }, 'follow').name('follow the path');
+  pathFolder.add({ stop: stopPath }, 'stop').name('stop (back to keys)');
+  pathFolder.add({ clear: () => (stopPath(), path.clear()) }, 'clear');
+  const settings = character.settings;
+  const runtime = gui.addFolder('Runtime');
+  const groups = new Map<string, GUI>();
+  for (const s of RUNTIME_SETTINGS) {
+    if (!groups.has(s.group)) groups.set(s.group, runtime.addFolder(s.group).close());
+    const c = s.range ? groups.get(s.group)!.add(settings, s.key, ...s.range) : groups.get(s.group)!.add(settings, s.key, s.options);
+    c.name(s.label).onChange((v: unknown) => (el.character!.settings = { [s.key]: v }));
+  }
+
+  // ---- dropped files: BVH → a database built here; .mmdb; .glb/.vrm → the avatar
+  installDropTarget(document.body, document.getElementById('drop-overlay')!, (files: DroppedFiles) => void onDrop(files));
+  const onDrop = async (files: DroppedFiles) => {
+    if (files.unknown.length) fileError(`Not used (drop .bvh, .mmdb, .glb or .vrm): ${files.unknown.join(', ')}`);
+    const read = async (f: File) => new Uint8Array(await f.arrayBuffer());
+    try {
+      let bytes: Uint8Array | null = null;
+      let name = '';
+      if (files.bvh.length) {
+        const builder = new DatabaseBuilder({});
+        try {
+          for (const f of files.bvh) builder.addBvh(f.name, await read(f));
+          bytes = builder.build();
+          name = files.bvh.length === 1 ? files.bvh[0].name : `${files.bvh[0].name} + ${files.bvh.length - 1} more`;
+        } finally {
+          builder.free();
+        }
+      } else if (files.databases.length) [bytes, name] = [await read(files.databases[0]), files.databases[0].name];
+      if (bytes) {
+        const db = Database.fromBytes(bytes, name);
+        databases[name] = db;
+        useDatabase(db, name);
+        databaseSelect.options(Object.keys(databases)).setValue(name);
+      }
+      if (files.avatars.length) useAvatar(await Avatar.load(await read(files.avatars[0]), { name: files.avatars[0].name }));
+    } catch (e) {
+      fileError(errorMessage(e)); // names the file (and line)
+    }
+  };
+
+  // ---- per update: the hook and the HUD
+  const hud = document.getElementById('hud')!;
+  const timer = new UpdateTimer(64);
+  const v = new THREE.Vector3();
+  let previousContacts = 0;
+  el.afterUpdate = () => {
+    const r = character.root;
+    const rt = character.runtime;
+    const contacts = character.contacts;
+    hook.path.following = character.followingPath; // a move key takes the character back from a path
+    const onsets = contacts & ~previousContacts;
+    previousContacts = contacts;
+    if (onsets & 1) hook.steps[0]++;
+    if (onsets & 2) hook.steps[1]++;
+    hook.updates++;
+    [hook.root[0], hook.root[1], hook.root[2], hook.yaw] = [r.x, r.y, r.z, r.yaw];
+    [hook.contacts, hook.frame, hook.searches, hook.transitions] = [contacts, rt.frame, rt.searches, rt.transitions];
+    const avatar = character.avatar;
+    if (avatar && avatar.object.visible) {
+      [hook.avatarToes[0], hook.avatarToes[1]] = avatar.toeHeights;
+      for (let side = 0; side < 2; side++) if (contacts & (1 << side)) hook.toeErrors.push(avatar.toeHeights[side] - avatar.standingToeHeight);
+      if (hook.toeErrors.length >= 4096) hook.toeErrors.splice(0, 2048);
+      const hips = avatar.bone('hips')?.getWorldPosition(v);
+      [hook.hips[0], hook.hips[1]] = hips ? [hips.x, hips.z] : [NaN, NaN];
+      for (const [k, role] of [[0, 'left_toe'], [1, 'right_toe']] as const) {
+        const toe = avatar.bone(role)?.getWorldPosition(v);
+        [hook.toes[2 * k], hook.toes[2 * k + 1]] = toe ? [toe.x, toe.z] : [NaN, NaN];
+      }
+    }
+    character.debugViews?.locks.children.forEach((ring, k) => {
+      const p = ring.visible ? ring.getWorldPosition(v) : null;
+      [hook.lockRings[2 * k], hook.lockRings[2 * k + 1]] = p ? [p.x, p.z] : [NaN, NaN];
+    });
+    timer.add(el.lastUpdateMs);
+    if (hook.updates % 15 === 0) {
+      hud.textContent = `${character.clip} · frame ${rt.frame} · ${character.tags.join(' ') || '—'} · cost ${rt.searchCost.toFixed(2)} → ${rt.bestCost.toFixed(2)} · update ${timer.median().toFixed(3)} ms (median of 64)`;
+    }
+    hook.ready = true;
+  };
+});

@@ -1,0 +1,113 @@
+/**
+ * The database viewer (viewer.html): every frame of a `.mmdb` (default the locomotion database,
+ * or `?db=<url>`) in order on its skeleton, with the virtual root, foot contacts, a scrubber and
+ * a HUD. `?frame=N` starts at frame N, `?paused` starts paused (links to a moment). State for
+ * tests is on `window.__viewer`. Only the library's public entry is used.
+ */
+import { DEFAULT_DATABASE, Database, FollowCamera, Playback, RootMarker, SkeletonView, Stage, errorMessage, showError } from '../../index.ts';
+
+const hook = { numFrames: 0, frame: 0, playing: false, clipName: '', error: null as string | null, ready: false };
+declare global {
+  interface Window {
+    __viewer: typeof hook;
+  }
+}
+window.__viewer = hook;
+
+const $ = <T extends HTMLElement>(id: string) => document.getElementById(id) as T;
+const button = $<HTMLButtonElement>('play');
+const scrubber = $<HTMLInputElement>('scrubber');
+const hud = $('hud');
+
+function fail(message: string): void {
+  hook.error = hook.error ? `${hook.error}\n${message}` : message;
+  showError(message);
+  if (!hook.ready) {
+    // Nothing to play: say so in the toolbar instead of "loading…".
+    button.disabled = scrubber.disabled = true;
+    hud.textContent = 'no database loaded';
+  }
+}
+window.addEventListener('error', (e) => fail(`error: ${e.message}`));
+window.addEventListener('unhandledrejection', (e) => fail(`error: ${errorMessage(e.reason)}`));
+
+async function main(): Promise<void> {
+  const params = new URLSearchParams(location.search);
+  let stage: Stage;
+  try {
+    stage = new Stage($('viewport'));
+  } catch (e) {
+    return fail(`WebGL is not available: ${errorMessage(e)}`);
+  }
+  const camera = new FollowCamera(stage.camera, stage.renderer.domElement);
+  stage.render();
+  let db: Database;
+  try {
+    db = await Database.fetch(params.get('db') ?? DEFAULT_DATABASE, { onProgress: (p) => (hud.textContent = `loading ${p.url} · ${(p.loaded / 1e6).toFixed(1)} MB`) });
+  } catch (e) {
+    return fail(errorMessage(e));
+  }
+  if (db.numFrames === 0) return fail(`${db.name}: the database has no frames`);
+
+  // Feet colored by contact: the database's own roles (its site table).
+  const feet = (side: string) => ['foot', 'toe'].map((p) => db.roles.get(`${side}_${p}` as 'left_foot')).filter((j): j is number => j !== undefined);
+  const skeleton = new SkeletonView(db.jointParents, feet('left'), feet('right'));
+  const root = new RootMarker();
+  stage.scene.add(skeleton.object, root.object);
+
+  const playback = new Playback(db.numFrames, db.fps);
+  playback.seek(Number(params.get('frame') ?? 0) || 0);
+  if (params.has('paused')) playback.toggle();
+  hook.numFrames = db.numFrames;
+
+  // Toolbar: play/pause, scrubber (not moved under a dragging thumb), space and arrow keys.
+  let drawn = -1;
+  let shown = '';
+  let dragging = false;
+  scrubber.max = String(db.numFrames - 1);
+  button.addEventListener('click', () => playback.toggle());
+  scrubber.addEventListener('pointerdown', () => (dragging = true));
+  window.addEventListener('pointerup', () => (dragging = false));
+  scrubber.addEventListener('input', () => playback.seek(Number(scrubber.value)));
+  window.addEventListener('keydown', (e) => {
+    if (e.target instanceof HTMLInputElement && e.key !== ' ') return;
+    if (e.key === ' ') {
+      e.preventDefault();
+      playback.toggle();
+    } else if (e.key === 'ArrowRight' || e.key === 'ArrowLeft') {
+      playback.playing = false;
+      playback.step(e.key === 'ArrowRight' ? 1 : -1);
+    }
+  });
+
+  let last = performance.now();
+  let rootX = 0;
+  let rootZ = 0;
+  stage.renderer.setAnimationLoop((now: number) => {
+    const dt = Math.max(0, (now - last) / 1000);
+    last = now;
+    playback.update(dt);
+    const frame = playback.frame;
+    if (frame !== drawn) {
+      const positions = db.worldPositions(frame); // the runtime's FK
+      const contacts = db.contacts;
+      skeleton.update(positions, contacts[frame * 2] !== 0, contacts[frame * 2 + 1] !== 0);
+      root.update(positions, db.worldRotations());
+      [rootX, rootZ] = [positions[0], positions[2]];
+      drawn = frame;
+    }
+    camera.follow(rootX, rootZ, dt);
+    stage.grid.follow(rootX, rootZ);
+    const clipName = db.clips[db.clipAt(frame)]?.name ?? '';
+    const text = `clip ${clipName} · frame ${frame} / ${db.numFrames} · ${db.fps} fps`;
+    if (text !== shown) {
+      hud.textContent = shown = text;
+      if (!dragging) scrubber.value = String(frame);
+    }
+    button.textContent = playback.playing ? 'Pause' : 'Play';
+    stage.render();
+    [hook.frame, hook.playing, hook.clipName, hook.ready] = [frame, playback.playing, clipName, true];
+  });
+}
+
+main().catch((e) => fail(errorMessage(e)));

@@ -1,0 +1,257 @@
+/**
+ * The VR page (vr.html): a WebXR `immersive-vr` session on `local-floor` where the headset and
+ * both controllers drive a full-body motion-matched avatar (`TrackedDrive`). Only the
+ * library's public entry is used (plus three's Reflector and, with `emulate=1`, iwer).
+ *
+ * URL parameters: `emulate=1` (iwer, a Quest 3; `devui=0` without its panel), `replay=URL` or
+ * `replay=scripted` (play a recording on the desktop page; `bench=1` also scores it), `dt=fixed`
+ * (1/60 s per frame), `model=URL` (orientation model; a missing one falls back, visibly, to the
+ * heuristic), `predictor=heuristic`, `alpha=0.2`, `mirror=0|<texture px>`, `spectator=0`,
+ * `settings={...}` (runtime settings), `db=`, `avatar=URL|none`. State for tests: `window.__vr`.
+ */
+import * as THREE from 'three';
+import { Reflector } from 'three/addons/objects/Reflector.js';
+import {
+  Character, DEFAULT_ALPHA, DEFAULT_AVATAR, DEFAULT_DATABASE, DEFAULT_ORIENTATION_MODEL, EnterVrButton, FollowCamera, HeadingYawPredictor, LEFT,
+  type NetworkYawPredictor, RIGHT, type Recording, RecordingPlayer, SCRIPT_DURATION, SpectatorView, Stage, TrackedDrive, TrackerRecorder, TrackerSample,
+  UpdateTimer, assetUrl, benchReplay, decodeRecording, encodeRecordingJson, errorMessage, fetchBytes, loadNetworkPredictor, sampleXRFrame,
+  scriptedSample, showError,
+} from '../../index.ts';
+
+const $ = <T extends HTMLElement>(id: string) => document.getElementById(id) as T;
+const hook = {
+  ready: false, error: null as string | null, mode: 'idle' as 'idle' | 'xr' | 'replay', inXR: false, frames: 0,
+  head: [0, 0], hmd: [0, 0, 0], root: [0, 0, 0], rootYaw: 0, bodyYaw: 0,
+  predictor: '', predictorFallback: null as string | null, networkLoaded: false, predictorRuns: 0, predictorSkipped: 0, predictorFailures: 0,
+  alpha: DEFAULT_ALPHA, hipsHeight: NaN, toeHeights: [NaN, NaN], hipsDrop: 0, avatarScale: 1, handErrors: [NaN, NaN], trackerStatus: [0, 0, 0],
+  updateMs: { median: NaN, p95: NaN, last: NaN }, replayDone: false, bench: null as Awaited<ReturnType<typeof benchReplay>> | null,
+  eyeHeight: NaN, emulator: null as unknown, beforeFrame: null as ((frame: number) => void) | null,
+  enterVR: () => Promise.reject(new Error('not ready')) as Promise<void>, exitVR: () => Promise.resolve(),
+  calibrate: (_eye?: number) => undefined as void, setPredictor: (_name: string) => undefined as void, setAlpha: (_a: number) => undefined as void,
+  startRecording: () => undefined as void, stopRecording: () => '',
+};
+declare global {
+  interface Window {
+    __vr: typeof hook;
+  }
+}
+window.__vr = hook;
+const fail = (message: string) => {
+  hook.error = hook.error ? `${hook.error}\n${message}` : message;
+  showError(message);
+};
+window.addEventListener('error', (e) => fail(`error: ${e.message}`));
+window.addEventListener('unhandledrejection', (e) => fail(`error: ${errorMessage(e.reason)}`));
+
+async function loadRecording(url: string): Promise<Recording> {
+  if (url !== 'scripted') return decodeRecording(await fetchBytes(url, { stage: 'recording' }), url);
+  const recorder = new TrackerRecorder(Math.ceil(SCRIPT_DURATION * 72) + 2);
+  const s = new TrackerSample();
+  for (let f = 0; f / 72 <= SCRIPT_DURATION; f++) recorder.add((scriptedSample(f / 72, s), s));
+  return recorder.toRecording({ source: 'scripted-motion', rate: 72 });
+}
+
+async function main(): Promise<void> {
+  const params = new URLSearchParams(location.search);
+  const fixedDt = params.get('dt') === 'fixed';
+  const emulated = params.get('emulate') === '1';
+  if (emulated) {
+    // iwer's Quest 3 over Chromium's own navigator.xr (forceInstall), its panel for people.
+    const { XRDevice, metaQuest3 } = await import('iwer');
+    const device = new XRDevice(metaQuest3);
+    device.installRuntime({ forceInstall: true });
+    if (params.get('devui') !== '0') device.installDevUI((await import('@iwer/devui')).DevUI);
+    hook.emulator = device;
+  }
+  const stage = new Stage($('viewport'));
+  const renderer = stage.renderer;
+  renderer.xr.enabled = true;
+  renderer.xr.setReferenceSpaceType('local-floor');
+  stage.camera.position.set(2.2, 1.6, 3.2);
+  const spectator = new FollowCamera(stage.camera, renderer.domElement);
+  const pip = params.get('spectator') === '0' ? null : new SpectatorView($('viewport'));
+
+  const avatarParam = params.get('avatar');
+  const character = await Character.create({ database: params.get('db') ?? assetUrl(DEFAULT_DATABASE), avatar: avatarParam === 'none' ? null : (avatarParam ?? assetUrl(DEFAULT_AVATAR)) });
+  stage.scene.add(character.object3d);
+  const heuristic = new HeadingYawPredictor();
+  const drive = new TrackedDrive(character, heuristic);
+  const head = character.avatar?.bone('head') ?? null;
+  const hips = character.avatar?.bone('hips') ?? null;
+
+  const alphaInput = $<HTMLInputElement>('alpha');
+  const setAlpha = (alpha: number) => {
+    const a = Math.min(0.3, Math.max(0.1, Number.isFinite(alpha) ? alpha : DEFAULT_ALPHA));
+    drive.setAlpha(a);
+    [hook.alpha, alphaInput.value, $('alpha-value').textContent] = [a, String(a), `${a.toFixed(2)} m`];
+  };
+  setAlpha(Number(params.get('alpha') ?? DEFAULT_ALPHA));
+  if (params.get('settings')) character.settings = JSON.parse(params.get('settings')!) as Record<string, unknown>;
+  alphaInput.addEventListener('input', () => setAlpha(Number(alphaInput.value)));
+  hook.setAlpha = setAlpha;
+
+  // Body yaw: the network if it loads, else the heuristic — and the page says which and why.
+  let network: NetworkYawPredictor | null = null;
+  const modelUrl = params.get('model') ?? String(assetUrl(DEFAULT_ORIENTATION_MODEL));
+  const select = $<HTMLSelectElement>('predictor');
+  const status = $('predictor-status');
+  const showPredictor = () => {
+    hook.predictor = drive.predictor.name;
+    select.value = drive.predictor.name === 'network' ? 'network' : 'heuristic';
+    status.textContent = network ? `body yaw: ${drive.predictor.name}` : 'fallback: heuristic — the orientation model did not load';
+    status.title = hook.predictorFallback ?? `model: ${modelUrl}`;
+    status.classList.toggle('fallback', !network);
+  };
+  try {
+    network = await loadNetworkPredictor(modelUrl);
+    hook.networkLoaded = true;
+    if (params.get('predictor') !== 'heuristic') drive.setPredictor(network);
+  } catch (e) {
+    hook.predictorFallback = `orientation model unavailable (${modelUrl}): ${errorMessage(e)}`;
+    console.warn(hook.predictorFallback);
+    (select.querySelector('option[value="network"]') as HTMLOptionElement).disabled = true;
+  }
+  const choosePredictor = (name: string) => {
+    drive.setPredictor(name === 'network' && network ? network : heuristic);
+    showPredictor();
+  };
+  select.addEventListener('change', () => choosePredictor(select.value));
+  hook.setPredictor = choosePredictor;
+  showPredictor();
+
+  // A mirror in front of the start position; markers at the controller grips.
+  if (params.get('mirror') !== '0') {
+    const width = Math.max(64, Math.min(2048, Number(params.get('mirror')) || 512));
+    const mirror = new Reflector(new THREE.PlaneGeometry(1.6, 2.2), { textureWidth: width, textureHeight: Math.round(width * 1.375), color: 0xb8c0c8, multisample: 0 });
+    mirror.position.set(0, 1.1, -3);
+    stage.scene.add(mirror);
+  }
+  const markers = [0x4fa3ff, 0xff7a4f].map((color) => new THREE.Mesh(new THREE.BoxGeometry(0.04, 0.04, 0.12), new THREE.MeshStandardMaterial({ color, roughness: 0.6 })));
+  stage.scene.add(...markers);
+
+  // Enter VR; three.js copies the headset's pose into the camera while presenting: keep the
+  // spectator's and give it back afterwards.
+  const button = new EnterVrButton(renderer, fail);
+  $('vr-slot').appendChild(button.element);
+  await button.init();
+  hook.enterVR = () => button.enter();
+  hook.exitVR = () => button.exit();
+  let xrFrames = 0;
+  const spectatorPose = new THREE.Matrix4();
+  renderer.xr.addEventListener('sessionstart', () => (spectatorPose.copy(stage.camera.matrix), drive.reset(), (xrFrames = 0)));
+  renderer.xr.addEventListener('sessionend', () => (spectatorPose.decompose(stage.camera.position, stage.camera.quaternion, stage.camera.scale), stage.resize(), drive.reset()));
+
+  // Recording and calibration.
+  const recorder = new TrackerRecorder();
+  let recording = false;
+  const recordButton = $<HTMLButtonElement>('record');
+  hook.startRecording = () => (recorder.clear(), (recording = true), (recordButton.textContent = 'Stop recording'));
+  hook.stopRecording = () => {
+    [recording, recordButton.textContent] = [false, 'Record'];
+    return recorder.frames === 0 ? '' : encodeRecordingJson(recorder.toRecording({ page: 'vr.html', mode: hook.mode, eyeHeight: hook.eyeHeight, userAgent: navigator.userAgent }));
+  };
+  recordButton.addEventListener('click', () => {
+    if (!recording) return hook.startRecording();
+    const text = hook.stopRecording();
+    if (!text) return;
+    const a = document.createElement('a');
+    a.href = URL.createObjectURL(new Blob([text], { type: 'application/json' }));
+    a.download = `vr-session-${new Date().toISOString().replace(/[:.]/g, '-')}.json`;
+    a.click();
+    setTimeout(() => URL.revokeObjectURL(a.href), 1000);
+  });
+  hook.calibrate = (eyeHeight = drive.trackers.head.position[1]) => {
+    try {
+      drive.calibrate(eyeHeight);
+      [hook.eyeHeight, hook.avatarScale] = [eyeHeight, drive.scale];
+      setAlpha(hook.alpha);
+      $('calibrate').textContent = `Calibrated ${eyeHeight.toFixed(2)} m`;
+    } catch (e) {
+      fail(errorMessage(e));
+    }
+  };
+  $('calibrate').addEventListener('click', () => hook.calibrate());
+
+  // Replay (and its benchmark).
+  const replayUrl = params.get('replay');
+  const player = replayUrl ? new RecordingPlayer(await loadRecording(replayUrl)) : null;
+  const recordedEye = player?.recording.meta.eyeHeight;
+  if (typeof recordedEye === 'number') hook.calibrate(recordedEye);
+  if (player && params.get('bench') === '1') {
+    hook.bench = await benchReplay(drive, player, network, heuristic, replayUrl ?? '');
+    choosePredictor(network && params.get('predictor') !== 'heuristic' ? 'network' : 'heuristic');
+  }
+
+  const sample = new TrackerSample();
+  const timer = new UpdateTimer(600);
+  let replayTime = 0;
+  let last = performance.now();
+  renderer.setAnimationLoop((now: number, frame?: XRFrame) => {
+    const realDt = Math.min(0.1, Math.max(0, (now - last) / 1000));
+    last = now;
+    hook.beforeFrame?.(hook.frames);
+    const space = renderer.xr.getReferenceSpace();
+    if (frame && space) {
+      hook.mode = 'xr';
+      sampleXRFrame(frame, space, fixedDt ? xrFrames++ / 60 : now / 1000, sample, emulated);
+    } else if (player) {
+      hook.mode = 'replay';
+      player.sampleAt(replayTime, sample);
+      replayTime += fixedDt ? 1 / 60 : realDt;
+      hook.replayDone = replayTime > player.duration;
+    } else {
+      // Desktop, no XR: a user standing still at the origin (or where the last session ended).
+      hook.mode = 'idle';
+      if (hook.frames === 0) scriptedSample(0, sample);
+      sample.time = hook.frames / 60;
+    }
+    hook.inXR = renderer.xr.isPresenting;
+    if (recording) recorder.add(sample);
+    if (drive.upperBody) drive.upperBody.options.hideHead = hook.inXR; // first person: not in the eyes' view
+    drive.update(sample, fixedDt ? 1 / 60 : undefined);
+    timer.add(drive.lastUpdateMs);
+    const tr = drive.trackers;
+    [tr.left, tr.right].forEach((view, k) => {
+      markers[k].position.fromArray(view.position);
+      markers[k].quaternion.fromArray(view.rotation);
+    });
+    const root = character.root;
+    if (!hook.inXR) spectator.follow(root.x, root.z, fixedDt ? 1 / 60 : realDt);
+    stage.grid.follow(root.x, root.z);
+    stage.render();
+    if (pip) {
+      pip.visible = hook.inXR;
+      if (hook.inXR) {
+        // Others see the head that first person hides.
+        const hidden = head ? head.scale.x : 1;
+        head?.scale.setScalar(1);
+        head?.updateMatrixWorld(true);
+        pip.render(stage.scene, root.x, root.z, root.yaw);
+        head?.scale.setScalar(hidden);
+        head?.updateMatrixWorld(true);
+      }
+    }
+    hook.frames++;
+    [hook.head[0], hook.head[1]] = drive.headFloor;
+    [hook.hmd[0], hook.hmd[1], hook.hmd[2]] = tr.head.position;
+    [hook.root[0], hook.root[1], hook.root[2], hook.rootYaw, hook.bodyYaw] = [root.x, root.y, root.z, root.yaw, drive.yaw];
+    hook.predictor = drive.predictor.name;
+    if (network) [hook.predictorRuns, hook.predictorSkipped, hook.predictorFailures] = [network.runs, network.skipped, network.failures];
+    hook.hipsHeight = hips ? hips.matrixWorld.elements[13] : NaN;
+    const scale = character.object3d.scale.x;
+    [hook.toeHeights[0], hook.toeHeights[1]] = character.avatar ? character.avatar.toeHeights.map((h) => h * scale) : [NaN, NaN];
+    hook.hipsDrop = drive.hipsDrop;
+    if (drive.upperBody) [hook.handErrors[0], hook.handErrors[1]] = drive.upperBody.handError;
+    [hook.trackerStatus[0], hook.trackerStatus[1], hook.trackerStatus[2]] = [tr.status[0], tr.status[LEFT], tr.status[RIGHT]];
+    hook.updateMs.last = drive.lastUpdateMs;
+    if (hook.frames % 30 === 0) {
+      [hook.updateMs.median, hook.updateMs.p95] = [timer.median(), timer.quantile(0.95)];
+      const ratio = Number.isFinite(hook.eyeHeight) ? ` · height ${(tr.head.position[1] / hook.eyeHeight).toFixed(2)}` : '';
+      const bench = hook.bench ? ` · bench median ${hook.bench.median.toFixed(3)} ms` : '';
+      $('hud').textContent = `${hook.mode} · frame ${hook.frames} · VR update ${hook.updateMs.median.toFixed(2)} ms${network ? ` · model runs ${network.runs}` : ''}${ratio}${bench}`;
+    }
+    hook.ready = true;
+  });
+}
+
+main().catch((e: unknown) => fail(errorMessage(e)));

@@ -1,0 +1,106 @@
+/**
+ * A ready three.js stage for a character: renderer, camera, lights, a 1 m floor grid, optional
+ * floor shadows, resize handling (the element, the demo, the viewer and the VR page use it).
+ */
+import * as THREE from 'three';
+import { FloorGrid } from './floor-grid.ts';
+
+export class Stage {
+  readonly renderer: THREE.WebGLRenderer;
+  readonly scene = new THREE.Scene();
+  readonly camera: THREE.PerspectiveCamera;
+  readonly grid = new FloorGrid(20);
+  readonly sun: THREE.DirectionalLight;
+  /** Catches shadows on the floor (invisible otherwise); see `enableShadows`. */
+  private shadowCatcher: THREE.Mesh | null = null;
+
+  private readonly observer: ResizeObserver | null = null;
+
+  /** A canvas appended to `container`, sized to it (and kept so). */
+  constructor(
+    private readonly container: HTMLElement,
+    options: { antialias?: boolean } = {},
+  ) {
+    this.renderer = new THREE.WebGLRenderer({ antialias: options.antialias ?? true, preserveDrawingBuffer: true });
+    this.renderer.setPixelRatio(Math.min(window.devicePixelRatio, 2));
+    this.renderer.outputColorSpace = THREE.SRGBColorSpace;
+    container.appendChild(this.renderer.domElement);
+
+    this.scene.background = new THREE.Color(0x1d2126);
+    this.scene.fog = new THREE.Fog(0x1d2126, 8, 20);
+
+    this.camera = new THREE.PerspectiveCamera(45, 1, 0.05, 200);
+    this.camera.position.set(1.5, 1.4, 2.3);
+
+    const hemi = new THREE.HemisphereLight(0xdde8ff, 0x30281e, 1.4);
+    this.scene.add(hemi);
+    const sun = new THREE.DirectionalLight(0xffffff, 2.0);
+    sun.position.set(3, 6, 4);
+    this.sun = sun;
+    this.scene.add(sun, sun.target);
+
+    this.scene.add(this.grid.object);
+
+    this.resize();
+    if (typeof ResizeObserver !== 'undefined') {
+      this.observer = new ResizeObserver(() => this.resize());
+      this.observer.observe(container);
+    }
+  }
+
+  /** Frees the renderer and every geometry, material and texture in the scene. */
+  dispose(): void {
+    this.observer?.disconnect();
+    this.renderer.setAnimationLoop(null);
+    this.scene.traverse((o) => {
+      const m = o as THREE.Mesh;
+      m.geometry?.dispose();
+      for (const mat of Array.isArray(m.material) ? m.material : m.material ? [m.material] : []) {
+        for (const v of Object.values(mat)) if (v instanceof THREE.Texture) v.dispose();
+        mat.dispose();
+      }
+    });
+    this.renderer.dispose();
+    this.renderer.forceContextLoss();
+    this.renderer.domElement.remove();
+  }
+
+  /** Soft shadows of casters (meshes with `castShadow`) on the floor, in a box around `follow`'s point. */
+  enableShadows(on: boolean): void {
+    this.renderer.shadowMap.enabled = on;
+    this.renderer.shadowMap.type = THREE.PCFSoftShadowMap;
+    this.sun.castShadow = on;
+    if (on && !this.shadowCatcher) {
+      const s = this.sun.shadow;
+      s.mapSize.set(1024, 1024);
+      s.camera.left = s.camera.bottom = -3;
+      s.camera.right = s.camera.top = 3;
+      s.camera.near = 1;
+      s.camera.far = 20;
+      s.bias = -0.0005;
+      this.shadowCatcher = new THREE.Mesh(new THREE.PlaneGeometry(200, 200), new THREE.ShadowMaterial({ opacity: 0.35 }));
+      this.shadowCatcher.rotation.x = -Math.PI / 2;
+      this.shadowCatcher.receiveShadow = true;
+      this.scene.add(this.shadowCatcher);
+    }
+    if (this.shadowCatcher) this.shadowCatcher.visible = on;
+  }
+
+  /** Keeps the sun's shadow box over floor point (x, z). */
+  followLight(x: number, z: number): void {
+    this.sun.position.set(x + 3, 6, z + 4);
+    this.sun.target.position.set(x, 0, z);
+  }
+
+  resize(): void {
+    const w = Math.max(1, this.container.clientWidth);
+    const h = Math.max(1, this.container.clientHeight);
+    this.renderer.setSize(w, h);
+    this.camera.aspect = w / h;
+    this.camera.updateProjectionMatrix();
+  }
+
+  render(): void {
+    this.renderer.render(this.scene, this.camera);
+  }
+}

@@ -1,0 +1,171 @@
+/**
+ * The VR frame recipe (docs/method.md §9), the same for a live session and a replay: tracker
+ * sample → tracker state (velocities, missing/frozen controllers) → body yaw → the character's
+ * tracked drive (`Character.setTracked`: the runtime spring-smooths the head's ground velocity
+ * and the body yaw into the trajectory query; the root is clamped within α of the head) and the
+ * crouch (`Character.setHipsDrop`) → the character's update (runtime, world pose, retarget) →
+ * upper body (spine twist, head, arm IK). Allocates nothing per frame; `lastUpdateMs` times it.
+ *
+ * Units: the room's metres everywhere — the character converts to its database (one place,
+ * `Character.toDatabase`). Calibration scales the character (`object3d.scale`) so the avatar's
+ * eyes are at the user's.
+ *
+ * Height (docs/vr.md): crouching lowers the hips by (reference eye height − HMD height) with leg
+ * IK in the runtime (feet planted). Before a calibration the reference is the highest HMD height
+ * seen since the last reset. Standing taller (tip-toe) leaves the avatar standing.
+ */
+import { type Character } from '../character/character.ts';
+import { headingYaw } from '../yaw.ts';
+import { type BodyYawPredictor } from './body-yaw.ts';
+import { type TrackerSample } from './tracker-sample.ts';
+import { TrackerState } from './trackers.ts';
+import { UpperBody } from './upper-body.ts';
+
+/** HMD (eyes) → head centre, m backward along the heading (MMVR: HMD = head + 0.10 m forward). */
+export const HMD_TO_HEAD_CENTRE = 0.1;
+
+/** The runtime settings of the VR mode (docs/runtime.md); α is set separately (`setAlpha`). */
+export const VR_SETTINGS = {
+  clamping: true,
+  // A standing avatar walks back under its user instead of staying up to α away.
+  adjustment_min_speed: 0.15,
+  // Turning on the spot: the root may lag the predicted body yaw by at most ~20°.
+  clamp_angle: 0.35,
+  // The trajectory comes from a real person, the pose part from the frame playing: trusting the
+  // trajectory twice as much keeps a dragged avatar from staying in standing frames while its
+  // user walks (replay bench, docs/vr.md: walk root distance 15 → 5 cm).
+  beta_trajectory: 2,
+  // The avatar may catch up at its own speed (Holden's 0.5× is for a game character, whose
+  // player does not stand inside it): replay bench, mean root distance 12.6 → 9.4 cm for ~3%
+  // more skating.
+  adjustment_max_ratio: 1.0,
+} as const;
+
+/**
+ * Crouch dead band, m: the hips drop d − b once the eyes are d > 2b below the reference, easing in
+ * quadratically (d²/4b) below that, so a walk's head bob (±2 cm) does not bob the hips twice.
+ */
+export const CROUCH_DEADBAND = 0.03;
+
+/** Default α (m): the avatar root stays within it of the head's floor projection. */
+export const DEFAULT_ALPHA = 0.2;
+
+export class TrackedDrive {
+  readonly trackers = new TrackerState();
+  readonly upperBody: UpperBody | null;
+  predictor: BodyYawPredictor;
+  /** Head centre on the floor (x, z, room m) and body yaw of the last frame. */
+  readonly headFloor = new Float64Array(2);
+  yaw = 0;
+  /** Milliseconds of the last `update`. */
+  lastUpdateMs = 0;
+  /** Standing eye (head joint) heights at scale 1: the database skeleton's and the avatar's, m. */
+  readonly databaseEyeHeight: number;
+  readonly avatarEyeHeight: number;
+  /** The user's calibrated eye height (NaN before `calibrate`), and the reference used now. */
+  calibratedEyeHeight = NaN;
+  referenceEyeHeight = NaN;
+  /** Hips drop of the last frame (room m). */
+  hipsDrop = 0;
+  /** α in room metres. */
+  private alpha = DEFAULT_ALPHA;
+
+  constructor(
+    readonly character: Character,
+    predictor: BodyYawPredictor,
+  ) {
+    this.predictor = predictor;
+    const avatar = character.avatar;
+    // The upper body and the eye height are read off the rest pose (the next update poses again).
+    avatar?.resetToRest();
+    this.upperBody = avatar ? new UpperBody({ object: avatar.object, bones: avatar.bones, roles: avatar.roles }) : null;
+    // The database skeleton's rest (a standing T-pose): its head joint's height, by the runtime's FK.
+    const head = character.database.roles.get('head');
+    const rest = character.database.restPositions();
+    this.databaseEyeHeight = head === undefined ? 1.6 : rest[3 * head + 1] - Math.min(...rest.filter((_, i) => i % 3 === 1));
+    const headBone = avatar?.bone('head');
+    if (headBone) {
+      avatar!.object.updateMatrixWorld(true);
+      this.avatarEyeHeight = headBone.matrixWorld.elements[13];
+    } else {
+      this.avatarEyeHeight = this.databaseEyeHeight * character.worldScale;
+    }
+    character.settings = VR_SETTINGS;
+    this.setAlpha(DEFAULT_ALPHA);
+  }
+
+  /** The character's scale (1 until calibrated). */
+  get scale(): number {
+    return this.character.object3d.scale.x;
+  }
+
+  /** α (room m): how far the avatar root may be from the head's floor projection. */
+  setAlpha(alpha: number): void {
+    this.alpha = alpha;
+    this.character.setAlpha(alpha);
+  }
+
+  get clampDistance(): number {
+    return this.alpha;
+  }
+
+  /**
+   * The user stands straight: `eyeHeight` (the HMD's height, m) becomes the crouch reference and
+   * the character is scaled so the avatar's eyes are at that height.
+   */
+  calibrate(eyeHeight: number): void {
+    if (!(eyeHeight > 0.5 && eyeHeight < 2.6)) throw new RangeError(`calibrate: an eye height of ${eyeHeight} m is not a standing person's`);
+    this.calibratedEyeHeight = eyeHeight;
+    this.referenceEyeHeight = eyeHeight;
+    const r = this.character.root;
+    this.character.object3d.scale.setScalar(eyeHeight / this.avatarEyeHeight);
+    this.character.object3d.updateMatrixWorld(true);
+    this.character.teleport(r.x, r.z, r.yaw);
+    this.setAlpha(this.alpha);
+  }
+
+  /** Switches the body-yaw predictor (it restarts from the HMD heading). */
+  setPredictor(p: BodyYawPredictor): void {
+    this.predictor = p;
+    p.reset();
+  }
+
+  /** Forgets tracker and predictor history (session start, recentre). */
+  reset(): void {
+    this.trackers.reset();
+    this.predictor.reset();
+    this.referenceEyeHeight = this.calibratedEyeHeight;
+  }
+
+  /** Runs one frame. `dt` overrides the animation step (fixed-step tests); default the trackers' dt. */
+  update(sample: TrackerSample, dt?: number): void {
+    const t0 = performance.now();
+    const tr = this.trackers;
+    tr.update(sample);
+    const step = dt ?? tr.dt;
+    const head = tr.head;
+    this.yaw = this.predictor.update(head, tr.left, tr.right, step);
+    const q = head.rotation;
+    const heading = headingYaw(q[0], q[1], q[2], q[3]);
+    this.headFloor[0] = head.position[0] - HMD_TO_HEAD_CENTRE * Math.sin(heading);
+    this.headFloor[1] = head.position[2] - HMD_TO_HEAD_CENTRE * Math.cos(heading);
+
+    // Crouch: the hips go down as far as the eyes did (tip-toe: no drop).
+    const eye = head.position[1];
+    if (!(this.calibratedEyeHeight > 0) && tr.status[0] === 0 && !(eye <= this.referenceEyeHeight)) this.referenceEyeHeight = eye;
+    const d = this.referenceEyeHeight > 0 ? this.referenceEyeHeight - eye : 0;
+    const b = CROUCH_DEADBAND;
+    this.hipsDrop = d <= 0 ? 0 : d < 2 * b ? (d * d) / (4 * b) : d - b;
+
+    const character = this.character;
+    character.setTracked(this.headFloor[0], this.headFloor[1], head.velocity[0], head.velocity[2], this.yaw);
+    character.setHipsDrop(this.hipsDrop);
+    character.update(step);
+    this.upperBody?.apply(head, tr.left, tr.right, character.root.yaw);
+    this.lastUpdateMs = performance.now() - t0;
+  }
+
+  dispose(): void {
+    this.upperBody?.dispose();
+  }
+}
