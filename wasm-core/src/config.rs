@@ -26,11 +26,12 @@ pub enum AutoScale {
 #[derive(Clone, Copy, Debug, PartialEq, Deserialize, Default)]
 #[serde(rename_all = "lowercase")]
 pub enum UpAxis {
-    /// Detected from the rest pose (hips → head direction).
+    /// Detected from the motion (hips → head, feet → hips).
     #[default]
     Auto,
     Y,
     Z,
+    X,
 }
 
 /// Everything that decides how a database is built. `Default` is the product's defaults.
@@ -62,6 +63,15 @@ pub struct BuildConfig {
     /// Feature groups; `None` = the 27-float locomotion set (THESIS_NOTES §2).
     pub features: Option<Vec<FeatureSpec>>,
     pub clips: Vec<ClipSpec>,
+    /// Add a time-reversed copy of every clip (per clip: `ClipSpec::reverse`).
+    pub reverse: bool,
+    /// A 100STYLE `Frame_Cuts.csv` (path relative to the config): each `<Style>_<TYPE>.bvh`
+    /// without its own `frames` uses the usable window the CSV gives (read by the CLI into
+    /// [`BuildConfig::cuts`]).
+    pub frame_cuts: Option<String>,
+    /// Frame windows per source file name, from `frame_cuts` (`crate::frame_cuts::parse`).
+    #[serde(skip)]
+    pub cuts: HashMap<String, [usize; 2]>,
 }
 
 impl Default for BuildConfig {
@@ -80,6 +90,9 @@ impl Default for BuildConfig {
             root_facing_window: 1.0,
             features: None,
             clips: Vec::new(),
+            reverse: false,
+            frame_cuts: None,
+            cuts: HashMap::new(),
         }
     }
 }
@@ -130,6 +143,10 @@ pub struct ClipSpec {
     /// Per-file overrides.
     pub scale: Option<Scale>,
     pub mirror: Option<bool>,
+    /// Add a time-reversed copy (walking played backward is a plausible back-step).
+    pub reverse: Option<bool>,
+    /// Whole-clip tags of the reversed copy (default: `tags`), e.g. `["backward"]`.
+    pub reverse_tags: Option<Vec<String>>,
 }
 
 #[derive(Clone, Debug, Deserialize)]
@@ -174,6 +191,12 @@ impl BuildConfig {
             }
         }
         Ok(())
+    }
+
+    /// The frame window `frame_cuts` gives a source file, if any.
+    pub fn frame_cuts_of(&self, file_name: &str) -> Option<[usize; 2]> {
+        let base = file_name.rsplit(['/', '\\']).next().unwrap_or(file_name);
+        self.cuts.get(base).copied()
     }
 
     /// The spec for a source file: the first clip entry whose `file` pattern matches its name

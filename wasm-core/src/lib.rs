@@ -13,6 +13,7 @@ pub mod crowd;
 pub mod database;
 pub mod error;
 pub mod format;
+pub mod frame_cuts;
 pub mod ik;
 pub mod inertialize;
 pub mod inspect;

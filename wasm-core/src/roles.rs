@@ -9,6 +9,7 @@
 //! common ancestor of the two legs). Names are compared normalized: namespace dropped
 //! (`mixamorig:`), lowercase, alphanumerics only.
 
+use glam::DVec3;
 use std::collections::HashMap;
 
 /// A body part. Snake-case names ([`Role::name`]) are the vocabulary's spelling everywhere
@@ -232,15 +233,30 @@ impl std::fmt::Display for OverrideError {
 }
 
 /// Finds the joint of every role in a skeleton of `names` whose parents are `parents`
-/// (negative for none).
-///
-/// `overrides` (role name → joint name, exact or normalized; `""` leaves the role unmapped)
-/// win over the name conventions. The hips, unless overridden, are the closest common ancestor
-/// of the two upper legs when both are found (any convention then works), else found by name.
+/// (negative for none), by name only (see [`find_roles_in`] for the geometric fallback).
 ///
 /// # Errors
 /// An override naming an unknown role or a joint the skeleton does not have.
 pub fn find_roles<S: AsRef<str>>(names: &[S], parents: &[i32], overrides: &HashMap<String, String>) -> Result<Roles, OverrideError> {
+    find_roles_in(names, parents, None, overrides)
+}
+
+/// Finds the joint of every role in a skeleton of `names` whose parents are `parents`
+/// (negative for none).
+///
+/// `overrides` (role name → joint name, exact or normalized; `""` leaves the role unmapped)
+/// win over everything else. Then the name conventions: the hips, unless overridden, are the
+/// closest common ancestor of the two upper legs when both are found, else found by name.
+///
+/// With a `shape` (bone lengths and a few poses), names are only a hint: the skeleton's
+/// topology and geometry find the humanoid ([`find_humanoid`]) whatever the joints are called,
+/// and the name-based roles are kept only if they agree with it — legs and feet found, each
+/// chain in hierarchy order, left on the geometric left. Roles the names missed are filled
+/// from the geometry; when the names disagree, the geometry's roles are used.
+///
+/// # Errors
+/// An override naming an unknown role or a joint the skeleton does not have.
+pub fn find_roles_in<S: AsRef<str>>(names: &[S], parents: &[i32], shape: Option<&Shape>, overrides: &HashMap<String, String>) -> Result<Roles, OverrideError> {
     let normalized: Vec<String> = names.iter().map(|n| normalize_name(n.as_ref())).collect();
     let mut roles = Roles::default();
     let mut used = vec![false; names.len()];
@@ -262,6 +278,7 @@ pub fn find_roles<S: AsRef<str>>(names: &[S], parents: &[i32], overrides: &HashM
         roles.set(role, Some(j));
         used[j] = true;
     }
+    let overridden = (roles, used.clone());
     let find = |candidates: &[&str], role: Role, used: &[bool]| {
         candidates.iter().find_map(|c| {
             let c = match role.side() {
@@ -287,7 +304,343 @@ pub fn find_roles<S: AsRef<str>>(names: &[S], parents: &[i32], overrides: &HashM
         };
         roles.set(Role::Hips, hips);
     }
+    let Some(shape) = shape else { return Ok(roles) };
+    let Ok(humanoid) = find_humanoid(parents, shape) else { return Ok(roles) };
+    if !names_agree(&roles, &humanoid, parents) {
+        // The names are wrong or partial where it matters: start again from the overrides.
+        (roles, used) = overridden;
+    }
+    for (role, j) in humanoid.roles.iter() {
+        if !fixed[role.index()] && !roles.contains(role) && !used[j] {
+            roles.set(role, Some(j));
+            used[j] = true;
+        }
+    }
     Ok(roles)
+}
+
+/// Whether name-based roles can be trusted next to the geometry's: both legs found down to the
+/// feet as chains of the hierarchy (hips above upper leg above lower leg above foot), each leg
+/// on the side the geometry says, and the hips where the geometry puts them.
+fn names_agree(by_name: &Roles, humanoid: &Humanoid, parents: &[i32]) -> bool {
+    use Role::*;
+    let chain = |roles: [Role; 4]| {
+        let joints: Option<Vec<usize>> = roles.iter().map(|&r| by_name.get(r)).collect();
+        joints.is_some_and(|j| j.windows(2).all(|w| is_ancestor(parents, w[0], w[1])))
+    };
+    let on_side = |upper: Role, leg: usize| by_name.get(upper).is_some_and(|j| j == leg || is_ancestor(parents, leg, j));
+    chain([Hips, LeftUpperLeg, LeftLowerLeg, LeftFoot])
+        && chain([Hips, RightUpperLeg, RightLowerLeg, RightFoot])
+        && by_name.get(Hips) == humanoid.roles.get(Hips)
+        && (!humanoid.sided || (on_side(LeftUpperLeg, humanoid.legs[0]) && on_side(RightUpperLeg, humanoid.legs[1])))
+}
+
+/// Whether `a` is a proper ancestor of `b` (any joint order; a parent cycle ends the walk).
+fn is_ancestor(parents: &[i32], a: usize, b: usize) -> bool {
+    let mut j = b;
+    for _ in 0..parents.len() {
+        match parents.get(j) {
+            Some(&p) if p >= 0 => {
+                j = p as usize;
+                if j == a {
+                    return true;
+                }
+            }
+            _ => return false,
+        }
+    }
+    false
+}
+
+/// What role detection may measure besides names: bone lengths and a few poses.
+pub struct Shape<'a> {
+    /// Each joint's rest offset from its parent (any unit; only lengths are used, so a rest pose
+    /// with the legs pointing up is fine).
+    pub offsets: &'a [DVec3],
+    /// Each joint's end-site offset (a BVH leaf's `End Site`), if any.
+    pub end_sites: &'a [Option<DVec3>],
+    /// Model-space joint positions (and end-site points) in one or more poses: frames of the
+    /// motion for a BVH, whose rest pose may be anything; the rest pose for an avatar. Left and
+    /// right come from them. Empty: the rest pose of `offsets`.
+    pub poses: &'a [ShapePose],
+}
+
+/// One pose of a [`Shape`].
+#[derive(Clone, Debug, Default)]
+pub struct ShapePose {
+    /// Model-space position of every joint.
+    pub joints: Vec<DVec3>,
+    /// Model-space position of every joint's end site (`None` without one).
+    pub ends: Vec<Option<DVec3>>,
+}
+
+/// A humanoid found from topology and geometry alone ([`find_humanoid`]).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Humanoid {
+    pub roles: Roles,
+    /// First joint of the left and right leg branches (the hips' children they hang from).
+    pub legs: [usize; 2],
+    /// First joint of the left and right arm branches (clavicles, or upper arms without).
+    pub arms: [usize; 2],
+    /// Whether the poses told left from right (they need toes or foot end sites); if not, the
+    /// first-listed limb of each pair is taken as the left one.
+    pub sided: bool,
+}
+
+/// Typical proportions of an adult, relative to thigh + shin: upper arm 0.35, forearm 0.27
+/// (CMU subject 16: 0.35, 0.25; CMU Daz: 0.34, 0.29; 100STYLE: 0.37, 0.30). They tell the upper
+/// arm from a long clavicle (CMU's is 0.23).
+const UPPER_ARM: f64 = 0.35;
+const FOREARM: f64 = 0.27;
+
+/// Finds a humanoid in a skeleton without its names (docs/database.md, "Roles"):
+/// 1. **limbs** are pairs of sibling branches of the same shape (joint tree) and length; the
+///    two longest pairs where one hangs below the other's parent are the legs (the lower pair)
+///    and the arms;
+/// 2. the **hips** are the legs' parent; the **spine** joints run from the hips to the arms'
+///    parent (spine, chest, upper chest); the **head** is at the end of the remaining branch
+///    there (before a branching — eyes — or a short end joint), the neck at its start;
+/// 3. along each leg's main chain the two longest consecutive bones are the thigh and shin,
+///    then the foot and toe; along an arm the two bones closest to the typical upper arm and
+///    forearm proportions are the arm, then the hand, the joint before them the shoulder;
+/// 4. **left** is `up × forward` in the poses: up from the hips to the head, forward from the
+///    feet to the toes (right-handed axes, as BVH and glTF are).
+///
+/// # Errors
+/// The part that could not be found: the legs, the arms, a foot, a hand or the head.
+pub fn find_humanoid(parents: &[i32], shape: &Shape) -> Result<Humanoid, String> {
+    let n = parents.len();
+    if shape.offsets.len() != n || shape.end_sites.len() != n {
+        return Err(format!("{n} joints but {} offsets and {} end sites", shape.offsets.len(), shape.end_sites.len()));
+    }
+    let mut children = vec![Vec::new(); n];
+    for (j, &p) in parents.iter().enumerate() {
+        if p >= 0 && (p as usize) < n {
+            children[p as usize].push(j);
+        }
+    }
+    // Parent-first order (any input order; a cycle leaves its joints out).
+    let mut order: Vec<usize> = (0..n).filter(|&j| parents[j] < 0 || parents[j] as usize >= n).collect();
+    let mut k = 0;
+    while k < order.len() {
+        order.extend(children[order[k]].iter().copied());
+        k += 1;
+    }
+    let bone = |j: usize| shape.offsets[j].length();
+    let end = |j: usize| shape.end_sites[j].map_or(0.0, |e| e.length());
+    // Reach: the longest path of bones below a joint; shape: its joint tree, as a canonical id.
+    let mut reach = vec![0.0f64; n];
+    let mut shape_id = vec![0usize; n];
+    let mut shapes: HashMap<Vec<usize>, usize> = HashMap::new();
+    for &j in order.iter().rev() {
+        reach[j] = children[j].iter().map(|&c| bone(c) + reach[c]).fold(end(j), f64::max);
+        let mut key: Vec<usize> = children[j].iter().map(|&c| shape_id[c]).collect();
+        key.sort_unstable();
+        let next = shapes.len();
+        shape_id[j] = *shapes.entry(key).or_insert(next);
+    }
+    let limb = |c: usize| bone(c) + reach[c];
+    // The main chain of a branch: follow the child with the longest reach to a leaf.
+    let main_chain = |start: usize| {
+        let mut chain = vec![start];
+        let mut j = start;
+        while let Some(&c) = children[j].iter().max_by(|&&a, &&b| limb(a).total_cmp(&limb(b))) {
+            chain.push(c);
+            j = c;
+        }
+        chain
+    };
+    // Bone length from each chain joint to the next (the last: its end site).
+    let segments = |chain: &[usize]| -> Vec<f64> { (0..chain.len()).map(|i| chain.get(i + 1).map_or(end(chain[i]), |&c| bone(c))).collect() };
+    let leg_bones = |start: usize| {
+        let chain = main_chain(start);
+        let s = segments(&chain);
+        (0..chain.len().saturating_sub(1)).map(|i| (s[i] + s[i + 1], i)).max_by(|a, b| a.0.total_cmp(&b.0)).map(|(sum, i)| (sum, i, chain))
+    };
+
+    // 1. Pairs of sibling limbs of one shape and similar reach.
+    let mut pairs: Vec<(usize, usize, usize)> = Vec::new(); // parent, a, b
+    for p in 0..n {
+        let c = &children[p];
+        for (x, &a) in c.iter().enumerate() {
+            for &b in &c[x + 1..] {
+                let (la, lb) = (limb(a), limb(b));
+                if shape_id[a] == shape_id[b] && la > 0.0 && la.min(lb) >= 0.8 * la.max(lb) {
+                    pairs.push((p, a, b));
+                }
+            }
+        }
+    }
+    if pairs.is_empty() {
+        return Err("no pair of matching limbs (legs) found".into());
+    }
+    let size = |&(_, a, b): &(usize, usize, usize)| limb(a).max(limb(b));
+    let inside = |branch: usize, j: usize| j == branch || is_ancestor(parents, branch, j);
+    let mut best: Option<(f64, usize, usize)> = None;
+    for (x, legs) in pairs.iter().enumerate() {
+        for (y, arms) in pairs.iter().enumerate() {
+            let (lp, ap) = (legs.0, arms.0);
+            let below = ap == lp || is_ancestor(parents, lp, ap);
+            let apart = !inside(legs.1, ap) && !inside(legs.2, ap) && !inside(arms.1, lp) && !inside(arms.2, lp);
+            let comparable = size(arms) >= 0.3 * size(legs) && size(legs) >= 0.3 * size(arms);
+            // Limbs hanging off one joint: the legs are the pair with the longer two bones.
+            let longer = ap != lp || leg_bones(legs.1).map(|l| l.0) >= leg_bones(arms.1).map(|l| l.0);
+            if x != y && below && apart && comparable && longer {
+                let score = size(legs) + size(arms);
+                if best.is_none_or(|b| score > b.0) {
+                    best = Some((score, x, y));
+                }
+            }
+        }
+    }
+    let Some((_, x, y)) = best else {
+        return Err("found one pair of matching limbs but no second (legs and arms) above or beside it".into());
+    };
+    let (hips, leg_a, leg_b) = pairs[x];
+    let (chest, arm_a, arm_b) = pairs[y];
+
+    // 3. Leg and arm chains.
+    let leg = |start: usize| -> Result<(usize, usize, usize, Option<usize>, f64), String> {
+        let (sum, i, chain) = leg_bones(start).ok_or("a leg has no bones")?;
+        let foot = *chain.get(i + 2).ok_or("no foot joint below a knee")?;
+        Ok((chain[i], chain[i + 1], foot, chain.get(i + 3).copied(), sum))
+    };
+    let (la, lb) = (leg(leg_a)?, leg(leg_b)?);
+    let thigh_shin = 0.5 * (la.4 + lb.4);
+    let arm = |start: usize| -> Result<(Option<usize>, usize, usize, usize), String> {
+        let chain = main_chain(start);
+        let s = segments(&chain);
+        let score = |i: usize| (s[i] / thigh_shin - UPPER_ARM).abs() + (s[i + 1] / thigh_shin - FOREARM).abs();
+        let i = (0..chain.len().saturating_sub(2)).min_by(|&a, &b| score(a).total_cmp(&score(b))).ok_or("no hand joint below an elbow")?;
+        Ok((i.checked_sub(1).map(|k| chain[k]), chain[i], chain[i + 1], chain[i + 2]))
+    };
+    let (aa, ab) = (arm(arm_a)?, arm(arm_b)?);
+
+    // 2. Spine and head.
+    let mut spine = Vec::new();
+    let mut j = chest;
+    while j != hips {
+        spine.push(j);
+        match parents[j] {
+            p if p >= 0 => j = p as usize,
+            _ => break,
+        }
+    }
+    spine.reverse();
+    let neck_start = children[chest]
+        .iter()
+        .copied()
+        .filter(|&c| c != arm_a && c != arm_b && c != leg_a && c != leg_b)
+        .max_by(|&a, &b| limb(a).total_cmp(&limb(b)))
+        .ok_or("no head (a branch beside the arms)")?;
+    let mut neck_chain = vec![neck_start];
+    let mut j = neck_start;
+    while children[j].len() == 1 {
+        j = children[j][0];
+        neck_chain.push(j);
+    }
+    // A short leaf after the head is its end (`HeadTop_End`), not the head.
+    if neck_chain.len() >= 2 && children[j].is_empty() && end(j) < 0.05 * thigh_shin {
+        neck_chain.pop();
+    }
+    let head = *neck_chain.last().unwrap();
+
+    // 4. Left and right.
+    let rest;
+    let poses = if shape.poses.is_empty() {
+        rest = [rest_pose(parents, &order, shape)];
+        &rest[..]
+    } else {
+        shape.poses
+    };
+    let tip = |pose: &ShapePose, foot: usize, toe: Option<usize>| toe.map(|t| pose.joints[t]).or(pose.ends[foot]);
+    let (mut legs_left, mut arms_left, mut sided) = (0.0, 0.0, false);
+    for pose in poses {
+        let p = &pose.joints;
+        let (Some(ta), Some(tb)) = (tip(pose, la.2, la.3), tip(pose, lb.2, lb.3)) else { continue };
+        let up = p[head] - p[hips];
+        let forward = (ta + tb - p[la.2] - p[lb.2]) * 0.5;
+        let left = up.cross(forward).normalize_or_zero();
+        sided |= left != DVec3::ZERO;
+        legs_left += (p[la.0] - p[lb.0]).dot(left);
+        arms_left += (p[aa.1] - p[ab.1]).dot(left);
+    }
+    let (left_leg, right_leg) = if legs_left >= 0.0 { (la, lb) } else { (lb, la) };
+    let legs = if legs_left >= 0.0 { [leg_a, leg_b] } else { [leg_b, leg_a] };
+    let (left_arm, right_arm) = if arms_left >= 0.0 { (aa, ab) } else { (ab, aa) };
+    let arms = if arms_left >= 0.0 { [arm_a, arm_b] } else { [arm_b, arm_a] };
+
+    use Role::*;
+    let mut roles = Roles::default();
+    roles.set(Hips, Some(hips));
+    for (leg, [upper, lower, foot, toe]) in [(left_leg, [LeftUpperLeg, LeftLowerLeg, LeftFoot, LeftToe]), (right_leg, [RightUpperLeg, RightLowerLeg, RightFoot, RightToe])] {
+        roles.set(upper, Some(leg.0));
+        roles.set(lower, Some(leg.1));
+        roles.set(foot, Some(leg.2));
+        roles.set(toe, leg.3);
+    }
+    for (arm, [shoulder, upper, lower, hand]) in
+        [(left_arm, [LeftShoulder, LeftUpperArm, LeftLowerArm, LeftHand]), (right_arm, [RightShoulder, RightUpperArm, RightLowerArm, RightHand])]
+    {
+        roles.set(shoulder, arm.0);
+        roles.set(upper, Some(arm.1));
+        roles.set(lower, Some(arm.2));
+        roles.set(hand, Some(arm.3));
+    }
+    roles.set(Spine, spine.first().copied());
+    roles.set(Chest, spine.get(1).copied());
+    roles.set(UpperChest, if spine.len() >= 3 { spine.last().copied() } else { None });
+    roles.set(Neck, (neck_chain.len() >= 2).then_some(neck_chain[0]));
+    roles.set(Head, Some(head));
+    Ok(Humanoid { roles, legs, arms, sided })
+}
+
+/// The rest pose of a shape's offsets (identity rotations).
+fn rest_pose(parents: &[i32], parent_first: &[usize], shape: &Shape) -> ShapePose {
+    let n = parents.len();
+    let mut joints = vec![DVec3::ZERO; n];
+    for &j in parent_first {
+        joints[j] = shape.offsets[j] + if parents[j] >= 0 { joints[parents[j] as usize] } else { DVec3::ZERO };
+    }
+    let ends = (0..n).map(|j| shape.end_sites[j].map(|e| joints[j] + e)).collect();
+    ShapePose { joints, ends }
+}
+
+/// The opposite-side joint of every joint (itself for centre joints), for mirroring: by name
+/// ([`mirror_name`]) where the other side's name exists; else, inside the limbs of a
+/// `humanoid`, the joint at the same place of the opposite limb's tree.
+pub fn mirror_pairs<S: AsRef<str>>(names: &[S], parents: &[i32], humanoid: Option<&Humanoid>) -> Vec<usize> {
+    let mut pairs: Vec<usize> =
+        names.iter().enumerate().map(|(j, n)| mirror_name(n.as_ref()).and_then(|m| names.iter().position(|x| x.as_ref() == m)).unwrap_or(j)).collect();
+    let Some(h) = humanoid else { return pairs };
+    let n = parents.len();
+    let mut children = vec![Vec::new(); n];
+    for (j, &p) in parents.iter().enumerate() {
+        if p >= 0 && (p as usize) < n {
+            children[p as usize].push(j);
+        }
+    }
+    let preorder = |start: usize| {
+        let (mut out, mut stack) = (Vec::new(), vec![start]);
+        while let Some(j) = stack.pop() {
+            out.push(j);
+            stack.extend(children[j].iter().rev());
+        }
+        out
+    };
+    for [a, b] in [h.legs, h.arms] {
+        let (ta, tb) = (preorder(a), preorder(b));
+        if ta.len() != tb.len() {
+            continue;
+        }
+        for (&x, &y) in ta.iter().zip(&tb) {
+            if pairs[x] == x && pairs[y] == y {
+                pairs[x] = y;
+                pairs[y] = x;
+            }
+        }
+    }
+    pairs
 }
 
 /// The closest joint that is an ancestor of both `a` and `b` (not `a` or `b` themselves).

@@ -151,7 +151,17 @@ fn build(args: &[String]) -> CliResult {
                 Error::Config(m) => Error::Config(format!("{}: {m}", path.display())),
                 e => e,
             })?;
-            let files = config_files(&config, path.parent().unwrap_or(Path::new(".")))?;
+            let dir = path.parent().unwrap_or(Path::new("."));
+            let mut config = config;
+            if let Some(csv) = &config.frame_cuts {
+                let csv_path = dir.join(csv);
+                let text = String::from_utf8_lossy(&read(&csv_path)?).into_owned();
+                config.cuts = mmcore::frame_cuts::parse(&text).map_err(|e| match e {
+                    Error::Config(m) => Error::Config(format!("{}: {m}", csv_path.display())),
+                    e => e,
+                })?;
+            }
+            let files = config_files(&config, dir)?;
             (config, files)
         }
         None => (BuildConfig::default(), a.positional.iter().map(PathBuf::from).collect()),
@@ -187,6 +197,9 @@ fn build(args: &[String]) -> CliResult {
     std::fs::write(output, &bytes).map_err(|e| Error::Io(format!("{output}: {e}")))?;
     for w in &out.warnings {
         eprintln!("mmdb: warning: {w}");
+    }
+    for note in out.retarget_notes() {
+        eprintln!("mmdb: {note}");
     }
     let db = &out.database;
     if a.has("--json") {

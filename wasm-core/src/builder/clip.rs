@@ -18,6 +18,7 @@ use glam::{DQuat, DVec3};
 pub struct Scratch {
     pub locals: Poses,
     pub mirrored: Poses,
+    pub reversed: Poses,
     world: Poses,
     root_xz: Vec<f64>,
     facing: Vec<f64>,

@@ -1,9 +1,11 @@
 //! Building a [`Database`] from BVH takes (docs/method.md §1–2), stage by stage:
-//! 1. [`skeleton`]: the reference take's roles and skeleton; every take shares its topology;
-//! 2. [`take`]: per take, unit scale, up axis, frame range, then resampling to the database
-//!    rate with bone lengths normalized onto the reference skeleton;
+//! 1. [`skeleton`]: the reference take's roles (names checked against topology and geometry,
+//!    `crate::roles`) and skeleton; [`sample`] gives the poses they are measured on;
+//! 2. [`take`]: per take, unit scale and up axis measured on its motion, frame range, then
+//!    resampling to the database rate — with bone lengths normalized onto the reference
+//!    skeleton, or, for another skeleton topology, [`retarget`]ed onto it;
 //! 3. [`repair`]: 1–3-frame rotation glitches of the capture bridged;
-//! 4. [`mirror`]: optional mirrored copy of each take;
+//! 4. [`mirror`] and [`reverse`]: optional mirrored and time-reversed copies of each take;
 //! 5. [`clip`]: world transforms, the virtual root ([`root`]), local rows and velocities,
 //!    [`contacts`], raw features;
 //! 6. [`features`]: normalization and validity; clips and tags assembled here.
@@ -17,8 +19,11 @@ mod features;
 mod mirror;
 mod poses;
 mod repair;
+pub mod retarget;
+mod reverse;
 mod root;
 mod rows;
+mod sample;
 mod skeleton;
 mod take;
 
@@ -28,8 +33,10 @@ use crate::database::{Clip, Database, Tag};
 use crate::error::{Error, Result};
 use crate::roles::Role;
 use clip::{ClipBuilder, Scratch};
+use poses::Poses;
+use retarget::{Retargeter, RetargetReport, Rig};
 use rows::{Accumulator, Rows};
-use skeleton::{check_topology, Reference};
+use skeleton::{same_topology, Reference};
 use std::collections::{BTreeMap, HashMap};
 use take::Take;
 
@@ -43,6 +50,33 @@ pub struct Source {
 pub struct BuildOutput {
     pub database: Database,
     pub warnings: Vec<String>,
+    /// Takes of another skeleton retargeted onto the reference one: (source name, report).
+    pub retargeted: Vec<(String, RetargetReport)>,
+}
+
+impl BuildOutput {
+    /// One line per retargeted take: leg ratio and end-effector errors.
+    pub fn retarget_notes(&self) -> Vec<String> {
+        self.retargeted
+            .iter()
+            .map(|(name, r)| {
+                let missing = if r.unmapped.is_empty() { String::new() } else { format!("; at rest (no source joint): {}", r.unmapped.join(", ")) };
+                format!(
+                    "{name}: retargeted onto the reference skeleton (legs ×{:.3}, hips {:+.1} cm); error vs the scaled source, mean / max: ankles {:.1} / {:.1} cm, toes {:.1} / {:.1} cm, hands {:.1} / {:.1} cm, head {:.1} / {:.1} cm{missing}",
+                    r.leg_ratio,
+                    100.0 * r.floor_shift,
+                    100.0 * r.feet.mean,
+                    100.0 * r.feet.max,
+                    100.0 * r.toes.mean,
+                    100.0 * r.toes.max,
+                    100.0 * r.hands.mean,
+                    100.0 * r.hands.max,
+                    100.0 * r.head.mean,
+                    100.0 * r.head.max
+                )
+            })
+            .collect()
+    }
 }
 
 /// Name of joint 0 in every database.
@@ -52,11 +86,21 @@ fn base_name(path: &str) -> &str {
     path.rsplit(['/', '\\']).next().unwrap_or(path)
 }
 
+/// One clip to build: a take, mirrored and/or reversed.
+#[derive(Clone, Copy)]
+struct Plan {
+    take: usize,
+    mirrored: bool,
+    reversed: bool,
+    start: usize,
+    frames: usize,
+}
+
 /// Builds one database from `sources` (at least one) as `config` says.
 ///
 /// # Errors
-/// No sources, a source whose skeleton differs from the reference's, roles that cannot be
-/// found, a bad feature or clip spec, or no take long enough to build from.
+/// No sources, a skeleton that is not a humanoid (the message says which part is missing),
+/// roles that cannot be found, a bad feature or clip spec, or no take long enough to build from.
 pub fn build(config: &BuildConfig, sources: &[Source]) -> Result<BuildOutput> {
     if sources.is_empty() {
         return Err(Error::config("no BVH files to build from"));
@@ -70,13 +114,16 @@ pub fn build(config: &BuildConfig, sources: &[Source]) -> Result<BuildOutput> {
         None => 0,
     };
     let ref_source = &sources[reference_index];
+    let reference = Reference::new(config, ref_source, Take::frame_range(ref_source, config)?, true)?;
+    // Each take's own skeleton when it is not the reference's topology (then retargeted).
+    let mut foreign: Vec<Option<Reference>> = Vec::with_capacity(sources.len());
     for s in sources {
-        check_topology(ref_source, s)?;
+        foreign.push(if same_topology(ref_source, s) { None } else { Some(Reference::new(config, s, Take::frame_range(s, config)?, false)?) });
     }
-    let reference = Reference::new(config, ref_source)?;
+    let rig_of = |t: usize| foreign[t].as_ref().unwrap_or(&reference);
 
     // Per-take unit scale and axis conversion, then the reference's rest skeleton (metres, Y up).
-    let takes: Vec<Take> = sources.iter().map(|s| Take::new(s, config, &reference, &mut warnings)).collect::<Result<_>>()?;
+    let takes: Vec<Take> = sources.iter().enumerate().map(|(t, s)| Take::new(s, config, &rig_of(t).roles, &mut warnings)).collect::<Result<_>>()?;
     let ref_take = &takes[reference_index];
     let ref_offsets = ref_take.offsets.clone();
     let ref_leg = reference.leg_length(&ref_offsets);
@@ -99,9 +146,11 @@ pub fn build(config: &BuildConfig, sources: &[Source]) -> Result<BuildOutput> {
             warnings.push(format!("{}: skipped, fewer than 2 frames at {fps} fps", sources[t].name));
             continue;
         }
-        for mirrored in [false, true].into_iter().take(if take.mirror { 2 } else { 1 }) {
-            plans.push((t, mirrored, num_frames, n));
-            num_frames += n;
+        for reversed in [false, true].into_iter().take(if take.reverse { 2 } else { 1 }) {
+            for mirrored in [false, true].into_iter().take(if take.mirror { 2 } else { 1 }) {
+                plans.push(Plan { take: t, mirrored, reversed, start: num_frames, frames: n });
+                num_frames += n;
+            }
         }
     }
     if num_frames == 0 {
@@ -120,73 +169,112 @@ pub fn build(config: &BuildConfig, sources: &[Source]) -> Result<BuildOutput> {
         num_dims,
     };
     let root_scales: Vec<f64> =
-        takes.iter().enumerate().map(|(t, take)| if t == reference_index { 1.0 } else { ref_leg / reference.leg_length(&take.offsets) }).collect();
-    // A take and its mirror are one job (the mirror reuses the resampled take).
-    let mut jobs: Vec<(usize, Vec<Rows>)> = Vec::new();
+        takes.iter().enumerate().map(|(t, take)| if t == reference_index { 1.0 } else { ref_leg / rig_of(t).leg_length(&take.offsets) }).collect();
+    let target_rig = Rig { parents: &reference.parents, roles: &reference.roles, offsets: &ref_offsets, end_sites: &ref_take.end_sites };
+    // Retargeted takes stand their planted toes at the reference take's planted toe height.
+    let toe_floor = if foreign.iter().any(Option::is_some) {
+        let mut poses = Poses::default();
+        ref_take.resample(&ref_source.bvh, fps, &ref_offsets, &reference.animated_translation, 1.0, true, &mut poses);
+        retarget::toe_floor_of(&poses, &target_rig)
+    } else {
+        None
+    };
+    // A take's variants (mirrored, reversed) are one job: they reuse the resampled take.
+    let mut jobs: Vec<(usize, Vec<(Plan, Rows)>)> = Vec::new();
     let mut rest_rows = out.rows();
-    for &(t, mirrored, _, n) in &plans {
-        let (rows, tail) = rest_rows.split_at(n, nd, num_dims);
+    for &plan in &plans {
+        let (rows, tail) = rest_rows.split_at(plan.frames, nd, num_dims);
         rest_rows = tail;
         match jobs.last_mut() {
-            Some((last, list)) if *last == t && mirrored => list.push(rows),
-            _ => jobs.push((t, vec![rows])),
+            Some((last, list)) if *last == plan.take => list.push((plan, rows)),
+            _ => jobs.push((plan.take, vec![(plan, rows)])),
         }
     }
     let pool = std::sync::Mutex::new(Vec::<Scratch>::new());
-    let spike_warnings = std::sync::Mutex::new(Vec::<String>::new());
-    crate::parallel::for_each(jobs, |(t, rows)| {
+    let job_notes = std::sync::Mutex::new((Vec::<String>::new(), Vec::<(usize, RetargetReport)>::new()));
+    crate::parallel::for_each(jobs, |(t, variants)| {
         let mut scratch = pool.lock().unwrap().pop().unwrap_or_default();
         let take = &takes[t];
         let mut locals = std::mem::take(&mut scratch.locals);
-        take.resample(&sources[t].bvh, fps, &ref_offsets, &reference.animated_translation, root_scales[t], t == reference_index, &mut locals);
+        match &foreign[t] {
+            Some(own) => {
+                let mut source = Poses::default();
+                take.resample(&sources[t].bvh, fps, &take.offsets, &own.animated_translation, 1.0, true, &mut source);
+                let rig = Rig { parents: &own.parents, roles: &own.roles, offsets: &take.offsets, end_sites: &take.end_sites };
+                let report = Retargeter::new(rig, target_rig, root_scales[t]).apply(&source, toe_floor, &mut locals);
+                job_notes.lock().unwrap().1.push((t, report));
+            }
+            None => take.resample(&sources[t].bvh, fps, &ref_offsets, &reference.animated_translation, root_scales[t], t == reference_index, &mut locals),
+        }
         let repaired = if config.repair_spikes { repair::repair_spikes(&mut locals) } else { Vec::new() };
         if !repaired.is_empty() {
-            let list: Vec<String> = repaired.iter().take(5).map(|&(j, f)| format!("{} at frame {f}", reference.names[j])).collect();
+            let names = &rig_of(t).names;
+            let names = if foreign[t].is_some() { &reference.names } else { names };
+            let list: Vec<String> = repaired.iter().take(5).map(|&(j, f)| format!("{} at frame {f}", names[j])).collect();
             let more = if repaired.len() > 5 { format!(" and {} more", repaired.len() - 5) } else { String::new() };
-            spike_warnings.lock().unwrap().push(format!("{}: repaired {} rotation spike(s): {}{more}", sources[t].name, repaired.len(), list.join(", ")));
+            job_notes.lock().unwrap().0.push(format!("{}: repaired {} rotation spike(s): {}{more}", sources[t].name, repaired.len(), list.join(", ")));
         }
-        let mut mirrored = std::mem::take(&mut scratch.mirrored);
-        for (i, rows) in rows.into_iter().enumerate() {
-            if i == 0 {
-                clip_builder.append(&locals, rows, &mut scratch);
+        let (mut mirrored, mut reversed) = (std::mem::take(&mut scratch.mirrored), std::mem::take(&mut scratch.reversed));
+        for (plan, rows) in variants {
+            let base = if plan.reversed {
+                reverse::reverse(&locals, &mut reversed);
+                &reversed
             } else {
-                mirror::mirror(&locals, &reference.pairs, &reference.animated_translation, &mut mirrored);
+                &locals
+            };
+            if plan.mirrored {
+                mirror::mirror(base, &reference.pairs, &reference.animated_translation, &mut mirrored);
                 clip_builder.append(&mirrored, rows, &mut scratch);
+            } else {
+                clip_builder.append(base, rows, &mut scratch);
             }
         }
-        (scratch.locals, scratch.mirrored) = (locals, mirrored);
+        (scratch.locals, scratch.mirrored, scratch.reversed) = (locals, mirrored, reversed);
         pool.lock().unwrap().push(scratch);
     });
-    let mut spike_warnings = spike_warnings.into_inner().unwrap();
+    let (mut spike_warnings, mut reports) = job_notes.into_inner().unwrap();
     spike_warnings.sort();
     warnings.extend(spike_warnings);
+    reports.sort_by_key(|(t, _)| *t);
+    let retargeted = reports.into_iter().map(|(t, r)| (sources[t].name.clone(), r)).collect();
 
     let mut clips = Vec::new();
     let mut tag_ranges: BTreeMap<String, Vec<(u32, u32)>> = BTreeMap::new();
-    for &(t, mirrored, start, num_out) in &plans {
-        let (take, source) = (&takes[t], &sources[t]);
-        let start = start as u32;
-        let name = if mirrored { format!("{} (mirror)", take.clip_name) } else { take.clip_name.clone() };
+    for plan in &plans {
+        let (take, source) = (&takes[plan.take], &sources[plan.take]);
+        let (start, num_out) = (plan.start as u32, plan.frames);
+        let mut name = take.clip_name.clone();
+        if plan.reversed {
+            name += " (reversed)";
+        }
+        if plan.mirrored {
+            name += " (mirror)";
+        }
         clips.push(Clip {
             name,
             source: base_name(&source.name).to_string(),
             start,
             end: start + num_out as u32,
-            mirrored,
+            mirrored: plan.mirrored,
             source_fps: take.source_fps as f32,
             scale: take.scale as f32,
-            root_scale: root_scales[t] as f32,
+            root_scale: root_scales[plan.take] as f32,
         });
-        // Tags: whole clip, then source-frame ranges mapped to database frames.
-        let to_db = |s: usize| start + ((s.saturating_sub(take.frames.0)) as f64 * fps / take.source_fps).round().min(num_out as f64) as u32;
-        for tag in &take.tags {
+        // Tags: whole clip, then source-frame ranges mapped to database frames (mirrored in
+        // time for a reversed copy).
+        let to_db = |s: usize| ((s.saturating_sub(take.frames.0)) as f64 * fps / take.source_fps).round().min(num_out as f64) as u32;
+        let whole = if plan.reversed { take.reverse_tags.as_ref().unwrap_or(&take.tags) } else { &take.tags };
+        for tag in whole {
             tag_ranges.entry(tag.clone()).or_default().push((start, start + num_out as u32));
         }
         for r in &take.ranges {
-            let (s, e) = (to_db(r.frames[0]), to_db(r.frames[1]));
+            let (mut s, mut e) = (to_db(r.frames[0]), to_db(r.frames[1]));
+            if plan.reversed {
+                (s, e) = (num_out as u32 - e, num_out as u32 - s);
+            }
             if e > s {
                 for tag in &r.tags {
-                    tag_ranges.entry(tag.clone()).or_default().push((s, e));
+                    tag_ranges.entry(tag.clone()).or_default().push((start + s, start + e));
                 }
             }
         }
@@ -223,6 +311,7 @@ pub fn build(config: &BuildConfig, sources: &[Source]) -> Result<BuildOutput> {
             valid,
         },
         warnings,
+        retargeted,
     })
 }
 

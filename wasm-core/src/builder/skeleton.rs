@@ -8,13 +8,15 @@ use crate::config::BuildConfig;
 use crate::database::{Site, Skeleton};
 use crate::error::{Error, Result};
 use crate::kinematics::local_to_model;
-use crate::roles::{self, Role, Roles};
+use super::sample::sample_poses;
+use crate::roles::{self, Role, Roles, Shape};
 use glam::{DQuat, DVec3, Vec3};
 
 /// Roles without which no database can be built.
 const REQUIRED: [Role; 5] = [Role::Hips, Role::LeftUpperLeg, Role::RightUpperLeg, Role::LeftFoot, Role::RightFoot];
 
-/// What every take is measured against: the reference take's names, hierarchy and roles.
+/// What every take is measured against: the reference take's names, hierarchy and roles. The
+/// same description serves another skeleton's takes (`super::retarget`).
 pub struct Reference {
     pub names: Vec<String>,
     /// Parent per BVH joint, negative for the root.
@@ -27,31 +29,45 @@ pub struct Reference {
 }
 
 impl Reference {
-    /// Reads the reference take's skeleton and finds its roles (config overrides first).
+    /// Reads a take's skeleton and finds its roles: config overrides first (those naming joints
+    /// this skeleton has), then names checked against the topology and the geometry of poses
+    /// sampled from the motion in `frames` (`roles::find_roles_in`).
     ///
     /// # Errors
-    /// A bad role override, or a required role (hips, upper legs, feet) that cannot be found.
-    pub fn new(config: &BuildConfig, source: &Source) -> Result<Reference> {
+    /// A bad role override, or a required role (hips, upper legs, feet) that cannot be found:
+    /// the message says which part the geometry did not find either.
+    pub fn new(config: &BuildConfig, source: &Source, frames: (usize, usize), is_reference: bool) -> Result<Reference> {
         let bvh = &source.bvh;
         let names: Vec<String> = bvh.joints.iter().map(|j| j.name.clone()).collect();
         let parents: Vec<i32> = bvh.joints.iter().map(|j| j.parent.map_or(-1, |p| p as i32)).collect();
-        let roles = roles::find_roles(&names, &parents, &config.roles).map_err(|e| Error::config(format!("roles: {e}")))?;
+        let offsets: Vec<DVec3> = bvh.joints.iter().map(|j| j.offset).collect();
+        let end_sites: Vec<Option<DVec3>> = bvh.joints.iter().map(|j| j.end_site).collect();
+        let poses = sample_poses(bvh, frames, 16);
+        let shape = Shape { offsets: &offsets, end_sites: &end_sites, poses: &poses };
+        let overrides = if is_reference {
+            config.roles.clone()
+        } else {
+            // Overrides describe the reference skeleton; another skeleton keeps those that fit.
+            let known: Vec<String> = names.iter().map(|n| roles::normalize_name(n)).collect();
+            config.roles.iter().filter(|(_, j)| j.is_empty() || known.contains(&roles::normalize_name(j))).map(|(r, j)| (r.clone(), j.clone())).collect()
+        };
+        let roles = roles::find_roles_in(&names, &parents, Some(&shape), &overrides).map_err(|e| Error::config(format!("roles: {e}")))?;
+        let humanoid = roles::find_humanoid(&parents, &shape);
         for role in REQUIRED {
             if !roles.contains(role) {
+                let why = match &humanoid {
+                    Err(e) => format!("not a humanoid skeleton: {e}"),
+                    Ok(_) => format!("could not find the {} joint", role.name().replace('_', " ")),
+                };
                 return Err(Error::config(format!(
-                    "{}: could not find the {} joint by name among [{}]; name it in the config, e.g. \"roles\": {{\"{}\": \"<joint name>\"}}",
+                    "{}: {why} (joints: {}); name the joints in the config, e.g. \"roles\": {{\"{}\": \"<joint name>\"}}",
                     source.name,
-                    role.name().replace('_', " "),
                     names.join(", "),
                     role.name()
                 )));
             }
         }
-        let pairs = names
-            .iter()
-            .enumerate()
-            .map(|(j, n)| roles::mirror_name(n).and_then(|m| names.iter().position(|x| *x == m)).unwrap_or(j))
-            .collect();
+        let pairs = roles::mirror_pairs(&names, &parents, humanoid.as_ref().ok());
         let animated_translation = bvh.joints.iter().map(|j| j.channels.iter().any(|c| matches!(c, Channel::PosX | Channel::PosY | Channel::PosZ))).collect();
         Ok(Reference { names, parents, roles, pairs, animated_translation })
     }
@@ -117,28 +133,9 @@ impl Reference {
     }
 }
 
-/// Every file of one database shares one skeleton topology (names and parents).
-///
-/// # Errors
-/// The first joint where `source` differs from `reference`.
-pub fn check_topology(reference: &Source, source: &Source) -> Result<()> {
+/// Whether `source` has the reference's skeleton topology (names and parents, joint by joint).
+/// Takes that do not are retargeted onto it (`super::retarget`).
+pub fn same_topology(reference: &Source, source: &Source) -> bool {
     let (a, b) = (&reference.bvh.joints, &source.bvh.joints);
-    let parent_name = |joints: &[crate::bvh::BvhJoint], j: usize| joints[j].parent.map_or("none".to_string(), |p| joints[p].name.clone());
-    for j in 0..a.len().max(b.len()) {
-        let same = j < a.len() && j < b.len() && a[j].name == b[j].name && parent_name(a, j) == parent_name(b, j);
-        if !same {
-            let describe = |joints: &[crate::bvh::BvhJoint]| match joints.get(j) {
-                Some(x) => format!("'{}' (child of '{}')", x.name, parent_name(joints, j)),
-                None => "no joint".into(),
-            };
-            return Err(Error::config(format!(
-                "{}: joint {j} is {} but the reference skeleton {} has {}: all files of one database must share one skeleton topology",
-                source.name,
-                describe(b),
-                reference.name,
-                describe(a)
-            )));
-        }
-    }
-    Ok(())
+    a.len() == b.len() && a.iter().zip(b).all(|(x, y)| x.name == y.name && x.parent == y.parent)
 }

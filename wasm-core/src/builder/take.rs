@@ -1,14 +1,14 @@
-//! One source take as it will be resampled: unit scale, up axis, frame range, rate, mirroring
-//! and tags resolved from the config (docs/database.md); then its local transforms resampled
-//! to the database rate.
+//! One source take as it will be resampled: unit scale and up axis measured on its motion, frame
+//! range, rate, mirroring, reversal and tags resolved from the config (docs/database.md); then
+//! its local transforms resampled to the database rate.
 
 use super::poses::Poses;
-use super::skeleton::Reference;
+use super::sample::{median, sample_poses};
 use super::{base_name, Source};
 use crate::bvh::Bvh;
 use crate::config::{AutoScale, BuildConfig, RangeSpec, Scale, UpAxis};
 use crate::error::{Error, Result};
-use crate::roles::Role;
+use crate::roles::{Role, Roles, ShapePose};
 use glam::{DQuat, DVec3};
 
 pub struct Take {
@@ -20,53 +20,99 @@ pub struct Take {
     /// Source frames `[start, end)`.
     pub frames: (usize, usize),
     pub mirror: bool,
+    /// Add a time-reversed copy (`super::reverse`).
+    pub reverse: bool,
     pub tags: Vec<String>,
+    /// Whole-clip tags of the reversed copy (default: `tags`).
+    pub reverse_tags: Option<Vec<String>>,
     pub ranges: Vec<RangeSpec>,
     /// Rest offsets in metres, Y up.
     pub offsets: Vec<DVec3>,
+    /// End-site offsets in metres, Y up.
+    pub end_sites: Vec<Option<DVec3>>,
 }
 
 impl Take {
+    /// The source frame range `[start, end)` configured for a source (default: the whole take).
+    ///
     /// # Errors
     /// A configured frame range beyond the take.
-    pub fn new(source: &Source, config: &BuildConfig, reference: &Reference, warnings: &mut Vec<String>) -> Result<Take> {
+    pub fn frame_range(source: &Source, config: &BuildConfig) -> Result<(usize, usize)> {
+        let bvh = &source.bvh;
+        let configured = config.clip_spec(&source.name).and_then(|s| s.frames).or_else(|| config.frame_cuts_of(&source.name));
+        match configured {
+            Some([s, e]) => {
+                if e > bvh.num_frames || e <= s {
+                    return Err(Error::config(format!("{}: frames [{s}, {e}] but the take has {} frames", source.name, bvh.num_frames)));
+                }
+                Ok((s, e))
+            }
+            None => Ok((0, bvh.num_frames)),
+        }
+    }
+
+    /// Resolves a take: its frame range, up axis and unit scale measured on its own motion
+    /// (`roles` are its skeleton's), rate, mirroring and tags.
+    ///
+    /// # Errors
+    /// A configured frame range beyond the take.
+    pub fn new(source: &Source, config: &BuildConfig, roles: &Roles, warnings: &mut Vec<String>) -> Result<Take> {
         let bvh = &source.bvh;
         let spec = config.clip_spec(&source.name);
-        let roles = &reference.roles;
+        let frames = Take::frame_range(source, config)?;
         let raw_offsets: Vec<DVec3> = bvh.joints.iter().map(|j| j.offset).collect();
-        let rest = reference.rest_positions(&raw_offsets);
 
-        let up = match config.up {
-            UpAxis::Y => DQuat::IDENTITY,
-            UpAxis::Z => DQuat::from_rotation_x(-std::f64::consts::FRAC_PI_2),
-            UpAxis::Auto => {
-                let hips = rest[roles[Role::Hips]];
-                let top = roles.get(Role::Head).map_or_else(
-                    || rest.iter().copied().max_by(|a, b| (*a - hips).length().total_cmp(&(*b - hips).length())).unwrap(),
-                    |h| rest[h],
-                );
-                let v = top - hips;
-                let up = if v.z.abs() > v.y.abs() && v.z.abs() > v.x.abs() {
-                    DQuat::from_rotation_x(-std::f64::consts::FRAC_PI_2 * v.z.signum())
-                } else if v.x.abs() > v.y.abs() {
-                    DQuat::from_rotation_z(std::f64::consts::FRAC_PI_2 * v.x.signum())
-                } else {
-                    DQuat::IDENTITY
-                };
-                if up != DQuat::IDENTITY {
-                    warnings.push(format!("{}: rest pose is not Y-up; converted to Y-up", source.name));
-                }
-                up
+        // Up and units from the motion: in any frame a person's head is above the hips and the
+        // hips above the feet, whatever the rest pose (Unity humanoids: legs up) or axes.
+        let poses = sample_poses(bvh, frames, 32);
+        let feet: Vec<usize> = [Role::LeftFoot, Role::RightFoot, Role::LeftToe, Role::RightToe].into_iter().filter_map(|r| roles.get(r)).collect();
+        let hips = roles[Role::Hips];
+        let mut up_sum = DVec3::ZERO;
+        for pose in &poses {
+            let low = feet.iter().map(|&f| pose.joints[f]).sum::<DVec3>() / feet.len().max(1) as f64;
+            up_sum += match roles.get(Role::Head) {
+                Some(h) => (pose.joints[h] - pose.joints[hips]).normalize_or_zero() + (pose.joints[hips] - low).normalize_or_zero(),
+                None => (pose.joints[hips] - low).normalize_or_zero(),
+            };
+        }
+        let half_pi = std::f64::consts::FRAC_PI_2;
+        let detected = {
+            let v = up_sum;
+            if v.z.abs() > v.y.abs() && v.z.abs() > v.x.abs() {
+                DQuat::from_rotation_x(-half_pi * v.z.signum())
+            } else if v.x.abs() > v.y.abs() {
+                DQuat::from_rotation_z(half_pi * v.x.signum())
+            } else if v.y < 0.0 {
+                DQuat::from_rotation_z(std::f64::consts::PI)
+            } else {
+                DQuat::IDENTITY
             }
         };
-        // Standing hip height in source units: hips above the lowest point of the rest pose.
-        let lowest = rest
-            .iter()
-            .copied()
-            .chain(bvh.joints.iter().enumerate().filter_map(|(j, b)| b.end_site.map(|e| rest[j] + e)))
-            .map(|p| (up * p).y)
-            .fold(f64::INFINITY, f64::min);
-        let hip_height = (up * rest[roles[Role::Hips]]).y - lowest;
+        let up = match config.up {
+            UpAxis::Y => DQuat::IDENTITY,
+            UpAxis::Z => DQuat::from_rotation_x(-half_pi),
+            UpAxis::X => DQuat::from_rotation_z(half_pi),
+            UpAxis::Auto => {
+                if detected != DQuat::IDENTITY {
+                    let axis = if up_sum.z.abs() > up_sum.y.abs() && up_sum.z.abs() > up_sum.x.abs() {
+                        if up_sum.z > 0.0 { "Z" } else { "-Z" }
+                    } else if up_sum.x.abs() > up_sum.y.abs() {
+                        if up_sum.x > 0.0 { "X" } else { "-X" }
+                    } else {
+                        "-Y"
+                    };
+                    warnings.push(format!("{}: the motion is {axis}-up; rotated to Y-up", source.name));
+                }
+                detected
+            }
+        };
+        // Standing hip height in source units: the hips above the lowest foot point (joints and
+        // end sites), median over the sampled frames.
+        let height = |pose: &ShapePose| {
+            let lowest = feet.iter().flat_map(|&f| [Some(pose.joints[f]), pose.ends[f]]).flatten().map(|p| (up * p).y).fold(f64::INFINITY, f64::min);
+            (up * pose.joints[hips]).y - lowest
+        };
+        let hip_height = median(poses.iter().map(height).filter(|h| h.is_finite()).collect());
         let scale = match spec.and_then(|s| s.scale).unwrap_or(config.scale) {
             Scale::Fixed(s) => s,
             Scale::Auto(AutoScale::Auto) => {
@@ -87,15 +133,6 @@ impl Take {
         // Frame Time is usually printed with few digits (0.00833333): snap to the whole rate.
         let fps = bvh.fps();
         let source_fps = if (fps - fps.round()).abs() < 0.01 { fps.round() } else { fps };
-        let frames = match spec.and_then(|s| s.frames) {
-            Some([s, e]) => {
-                if e > bvh.num_frames {
-                    return Err(Error::config(format!("{}: frames [{s}, {e}] but the take has {} frames", source.name, bvh.num_frames)));
-                }
-                (s, e)
-            }
-            None => (0, bvh.num_frames),
-        };
         let stem = base_name(&source.name).trim_end_matches(".bvh").trim_end_matches(".BVH").to_string();
         let clip_name = if frames == (0, bvh.num_frames) { stem } else { format!("{stem}[{}-{}]", frames.0, frames.1) };
         Ok(Take {
@@ -105,9 +142,12 @@ impl Take {
             source_fps,
             frames,
             mirror: spec.and_then(|s| s.mirror).unwrap_or(config.mirror),
+            reverse: spec.and_then(|s| s.reverse).unwrap_or(config.reverse),
             tags: spec.map(|s| s.tags.clone()).unwrap_or_default(),
+            reverse_tags: spec.and_then(|s| s.reverse_tags.clone()),
             ranges: spec.map(|s| s.ranges.clone()).unwrap_or_default(),
             offsets: raw_offsets.iter().map(|&o| up * o * scale).collect(),
+            end_sites: bvh.joints.iter().map(|j| j.end_site.map(|e| up * e * scale)).collect(),
         })
     }
 
