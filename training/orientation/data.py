@@ -30,12 +30,21 @@ DATA_DIR = Path(os.environ.get("ORIENTATION_DATA_DIR", TRAINING / "data"))
 MOCAP_DIR = Path(os.environ.get("MMDB_MOCAP_DIR", REPO.parent / "shared" / "mocap"))
 MMDB_BIN = Path(os.environ.get("MMDB_BIN", REPO / "wasm-core" / "target" / "release" / "mmdb"))
 
-# (folder, CMU subject). Subject 03 walks loops with many full turns on uneven ground, 08 walks
-# and 09 runs on the other skeleton: the held-out people cover both skeletons and both gaits,
-# and training keeps 16 and 127 (turns, side-steps, stops, ducking) and six cmu-daz walkers.
-TRAIN_SUBJECTS = (("cmu-asf", "16"), ("cmu-asf", "127"), ("cmu-daz", "02"), ("cmu-daz", "05"),
-                  ("cmu-daz", "06"), ("cmu-daz", "07"), ("cmu-daz", "10"), ("cmu-daz", "12"))
-TEST_SUBJECTS = (("cmu-asf", "03"), ("cmu-daz", "08"), ("cmu-daz", "09"))
+# (folder, subject): a CMU subject number, or a 100STYLE style (one performer, so a style is the
+# unit held out — not a person). Held out, never trained on:
+# - cmu-asf 14: everyday actions and gestures, with most of CMU's back-steps and side-steps;
+# - cmu-asf 69: forward walks and the turn in place;
+# - 100STYLE Akimbo (hands on hips): transitions between forward, backward and side-steps, idle;
+# - cmu-asf 03 (walking loops with many full turns, uneven ground), cmu-daz 08 (walks) and 09
+#   (runs): both CMU skeletons, both gaits.
+# Training: 16 and 127 (walks, runs, turns, side-steps, stops), 02 (bending down, arm activity),
+# 91 (slow walks with turnarounds), six cmu-daz walkers, and 100STYLE Angry (backward walking,
+# side-steps, forward walking, idle; the same performer as Akimbo, another arm style).
+TRAIN_SUBJECTS = (("cmu-asf", "16"), ("cmu-asf", "127"), ("cmu-asf", "02"), ("cmu-asf", "91"),
+                  ("cmu-daz", "02"), ("cmu-daz", "05"), ("cmu-daz", "06"), ("cmu-daz", "07"),
+                  ("cmu-daz", "10"), ("cmu-daz", "12"), ("100style", "Angry"))
+TEST_SUBJECTS = (("cmu-asf", "14"), ("cmu-asf", "69"), ("100style", "Akimbo"), ("cmu-asf", "03"),
+                 ("cmu-daz", "08"), ("cmu-daz", "09"))
 
 SOURCE_FPS = 120.0
 
@@ -48,15 +57,24 @@ def subject_name(folder: str, subject: str) -> str:
     return f"{folder}_{subject}"
 
 
+def file_pattern(folder: str, subject: str) -> str:
+    """The subject's takes: `cmu_<n>_*.bvh`, or `<Style>_*.bvh` in 100STYLE."""
+    return f"{subject}_*.bvh" if folder == "100style" else f"cmu_{subject}_*.bvh"
+
+
 def database_config(folder: str, subject: str, mocap_dir: Path, config_dir: Path) -> dict:
-    """The builder config for one subject (all its takes, 120 fps, mirrored, units auto)."""
+    """The builder config for one subject (all its takes, 120 fps, mirrored, units auto; 100STYLE
+    takes cut to the usable windows of its Frame_Cuts.csv)."""
     bvh_dir = mocap_dir / folder
-    pattern = f"cmu_{subject}_*.bvh"
+    pattern = file_pattern(folder, subject)
     if not any(bvh_dir.glob(pattern)):
         raise DataError(f"no mocap files {bvh_dir / pattern} (is ../shared/mocap beside the repo? "
                         f"MMDB_MOCAP_DIR overrides)")
     rel = os.path.relpath(bvh_dir, config_dir)
-    return {"fps": SOURCE_FPS, "mirror": True, "scale": "auto", "clips": [{"file": f"{rel}/{pattern}"}]}
+    config = {"fps": SOURCE_FPS, "mirror": True, "scale": "auto", "clips": [{"file": f"{rel}/{pattern}"}]}
+    if (bvh_dir / "Frame_Cuts.csv").exists():
+        config["frame_cuts"] = f"{rel}/Frame_Cuts.csv"
+    return config
 
 
 def ensure_database(folder: str, subject: str, data_dir: Path = DATA_DIR, mocap_dir: Path = MOCAP_DIR,
@@ -74,7 +92,7 @@ def ensure_database(folder: str, subject: str, data_dir: Path = DATA_DIR, mocap_
     if not cli.is_file():
         raise DataError(f"mmdb CLI not built at {cli} (run `npm run build` or "
                         f"`cargo build --release` in wasm-core/)")
-    sources = list((mocap_dir / folder).glob(f"cmu_{subject}_*.bvh"))
+    sources = list((mocap_dir / folder).glob(file_pattern(folder, subject)))
     newest = max([config_path.stat().st_mtime, cli.stat().st_mtime] + [p.stat().st_mtime for p in sources])
     if out.exists() and out.stat().st_mtime >= newest:
         return out
@@ -144,6 +162,7 @@ class MocapClip:
     mirrored: bool
     fps: float
     body_yaw: np.ndarray  # (n,) virtual-root yaw, unwrapped
+    root_pos: np.ndarray  # (n, 3) virtual-root position (hips on the floor)
     head_pos: np.ndarray  # (n, 3)
     head_rot: np.ndarray  # (n, 4)
     hand_pos: np.ndarray  # (2, n, 3) left, right
@@ -153,6 +172,15 @@ class MocapClip:
     @property
     def num_frames(self) -> int:
         return len(self.body_yaw)
+
+    @property
+    def classes(self) -> np.ndarray:
+        """Motion class per frame (`motion_classes.classify`), computed once."""
+        if getattr(self, "_classes", None) is None:
+            from .motion_classes import classify
+
+            self._classes = classify(self.root_pos, self.body_yaw, self.hand_pos, self.head_pos, self.fps)
+        return self._classes
 
     @property
     def seconds(self) -> float:
@@ -175,7 +203,7 @@ def load_clips(path: Path, subject: str, mirrored: bool | None = None) -> list[M
         sl = slice(c.start, c.end)
         clips.append(MocapClip(
             name=c.name, subject=subject, mirrored=c.mirrored, fps=float(db.fps),
-            body_yaw=np.unwrap(yaw_all[sl]),
+            body_yaw=np.unwrap(yaw_all[sl]), root_pos=db.local_positions[sl, 0].astype(np.float64),
             head_pos=pos[sl, rig.head], head_rot=quat_hemisphere(rot[sl, rig.head]),
             hand_pos=np.stack([pos[sl, j] for j in rig.hands]),
             hand_rot=np.stack([quat_hemisphere(rot[sl, j]) for j in rig.hands]),

@@ -28,6 +28,7 @@ from pathlib import Path
 import numpy as np
 
 from . import data
+from .motion_classes import CLASSES
 from .predictors import OnnxModel, dead_zone, hmd_forward, run_network, sequence_features, yaw_error_deg
 from .simulate import EVAL_AUGMENT, TrackerSequence, simulate, without_look_around
 from .train import MODELS_DIR, PUBLIC_MODEL
@@ -61,11 +62,20 @@ class Result:
     p95: float
 
 
-def stats(err: np.ndarray, times: np.ndarray, lengths: np.ndarray) -> Result:
-    B, T = err.shape
-    mask = (np.arange(T)[None, :] < lengths[:, None]) & (times >= WARMUP)
+def scored(times: np.ndarray, lengths: np.ndarray) -> np.ndarray:
+    """The frames that count: inside each sequence, after the first `WARMUP` seconds."""
+    T = times.shape[1]
+    return (np.arange(T)[None, :] < lengths[:, None]) & (times >= WARMUP)
+
+
+def stats(err: np.ndarray, times: np.ndarray, lengths: np.ndarray, where: np.ndarray | None = None) -> Result:
+    mask = scored(times, lengths)
+    if where is not None:
+        mask &= where
     e = np.where(mask, err, np.nan)
     v = e[mask]
+    if v.size == 0:
+        return Result(e, float("nan"), float("nan"), float("nan"))
     return Result(e, float(v.mean()), float(np.median(v)), float(np.percentile(v, 95)))
 
 
@@ -76,15 +86,40 @@ def evaluate(seqs: list[TrackerSequence], models: dict[str, object]) -> tuple[di
     truth = np.zeros((B, T))
     dt = np.full((B, T), 1.0 / 90)
     times = np.zeros((B, T))
+    classes = np.full((B, T), -2)
     for b, s in enumerate(seqs):
         n = s.num_frames
         truth[b, :n], dt[b, :n] = s.body_yaw, s.dt
         times[b, :n] = np.cumsum(s.dt) - s.dt[0]
+        if s.classes is not None:
+            classes[b, :n] = s.classes
     preds = {name: run_network(m, feats, hmd) for name, m in models.items()}
     preds["HMD forward"] = hmd_forward(hmd)
     preds["dead zone 25°"] = dead_zone(hmd, dt)
     out = {name: stats(yaw_error_deg(p, truth), times, lengths) for name, p in preds.items()}
-    return out, {"times": times, "lengths": lengths, "truth": truth, "hmd": hmd, "preds": preds}
+    return out, {"times": times, "lengths": lengths, "truth": truth, "hmd": hmd, "preds": preds, "classes": classes}
+
+
+def per_class(arrays: dict, names: list[str]) -> dict[str, dict[str, Result]]:
+    """Errors of the predictors `names` per motion class (`motion_classes.CLASSES`)."""
+    out = {}
+    for name in names:
+        err = yaw_error_deg(arrays["preds"][name], arrays["truth"])
+        out[name] = {c: stats(err, arrays["times"], arrays["lengths"], arrays["classes"] == i) for i, c in enumerate(CLASSES)}
+    return out
+
+
+def class_table(arrays: dict, names: list[str]) -> str:
+    """Markdown: mean / p95 per motion class and the seconds scored in each."""
+    res = per_class(arrays, names)
+    mask = scored(arrays["times"], arrays["lengths"])
+    dt = np.diff(arrays["times"], axis=1, prepend=0.0)
+    secs = [float(dt[mask & (arrays["classes"] == i)].sum()) for i in range(len(CLASSES))]
+    rows = ["| predictor | " + " | ".join(f"{c} ({s:.0f} s)" for c, s in zip(CLASSES, secs)) + " |",
+            "|---|" + "---|" * len(CLASSES)]
+    for n in names:
+        rows.append(f"| {n} | " + " | ".join(f"{res[n][c].mean:.1f}° / {res[n][c].p95:.1f}°" for c in CLASSES) + " |")
+    return "\n".join(rows)
 
 
 def table(results: dict[str, dict[str, Result]]) -> str:
@@ -100,7 +135,7 @@ def table(results: dict[str, dict[str, Result]]) -> str:
 
 def per_subject(results: dict[str, dict[str, Result]], seqs: dict[str, list]) -> str:
     """Mean error per held-out subject (markdown table), every predictor, both conditions."""
-    subjects = [s for _, s in data.TEST_SUBJECTS]
+    subjects = [data.subject_name(*s) for s in data.TEST_SUBJECTS]
     conds = list(results)
     names = list(next(iter(results.values())))
     rows = ["| predictor | " + " | ".join(f"{c}: {s}" for c in conds for s in subjects) + " |",
@@ -109,7 +144,7 @@ def per_subject(results: dict[str, dict[str, Result]], seqs: dict[str, list]) ->
         cells = []
         for c in conds:
             for subj in subjects:
-                idx = [i for i, q in enumerate(seqs[c]) if q.name.startswith(f"cmu_{subj}_")]
+                idx = [i for i, q in enumerate(seqs[c]) if q.subject == subj]
                 cells.append(f"{np.nanmean(results[c][n].errors[idx]):.1f}°")
         rows.append(f"| {n} | " + " | ".join(cells) + " |")
     return "\n".join(rows)
@@ -190,7 +225,8 @@ def run(quick: bool = False, make_plots: bool = True, models: dict[str, Path] | 
     log(f"held-out subjects {', '.join(data.subject_name(*s) for s in data.TEST_SUBJECTS)}: "
         f"{len(clips)} takes × {len(EVAL_FPS)} frame rates × 2 conditions, {frames} scored frames")
     written = plots(results, arrays, seqs) if make_plots else []
-    return results, written, per_subject(results, seqs)
+    nets = [n for n in loaded] + ["HMD forward"]
+    return results, written, per_subject(results, seqs), class_table(arrays["with look-around"], nets)
 
 
 def main(argv=None) -> int:
@@ -198,13 +234,20 @@ def main(argv=None) -> int:
     ap.add_argument("--quick", action="store_true", help="a quarter of the takes")
     ap.add_argument("--no-plots", action="store_true")
     ap.add_argument("--json", type=Path, help="also write the numbers here")
+    ap.add_argument("--model", action="append", metavar="NAME=PATH",
+                    help="evaluate these ONNX models instead of the committed ones (repeatable)")
     ap.add_argument("--chromium", action=argparse.BooleanOptionalAction, default=Path("/usr/bin/chromium").exists(),
                     help="also time the model in headless Chromium (default: when /usr/bin/chromium exists)")
     args = ap.parse_args(argv)
     t0 = time.perf_counter()
-    results, written, subjects = run(args.quick, not args.no_plots)
+    models = None
+    if args.model:
+        models = dict(m.split("=", 1) for m in args.model)
+    results, written, subjects, classes = run(args.quick, not args.no_plots and models is None, models)
     print("\nmean / median / p95 |body yaw error| over all scored frames:\n")
     print(table(results))
+    print("\nmean / p95 per motion class (with look-around):\n")
+    print(classes)
     print("\nmean per held-out subject:\n")
     print(subjects)
     print()

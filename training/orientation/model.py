@@ -1,7 +1,9 @@
 """The orientation MLP, the r-step feedback rollout, and ONNX export.
 
-Network (THESIS_NOTES §9): 42 inputs → 32 → ReLU → 32 → ReLU → 6. The released MMVR model has a
-ReLU after the first hidden layer only; the thesis describes (and we use) one after each.
+Network (docs/method.md §9): 42 inputs → hidden layers with a ReLU after **each** → 6. The
+thesis's size is 2 × 32 (the released MMVR model has a ReLU after the first hidden layer only);
+the hidden sizes are a training parameter here (`TrainConfig.hidden`), chosen by held-out error
+within the browser's time budget (docs/orientation-model.md, "Model size").
 Input normalization (x − mean) / std is part of the module, so the exported ONNX graph takes the
 raw features of `features.py` — a runtime needs no statistics file.
 """
@@ -21,17 +23,19 @@ INPUT_NAME, OUTPUT_NAME = "features", "orientation6d"
 
 
 class OrientationNet(nn.Module):
-    def __init__(self, mean: np.ndarray | None = None, std: np.ndarray | None = None):
+    def __init__(self, mean: np.ndarray | None = None, std: np.ndarray | None = None,
+                 hidden: tuple[int, ...] = (HIDDEN, HIDDEN)):
         super().__init__()
         self.register_buffer("mean", torch.zeros(NUM_INPUTS))
         self.register_buffer("inv_std", torch.ones(NUM_INPUTS))
         if mean is not None:
             self.set_normalization(mean, std)
-        self.mlp = nn.Sequential(
-            nn.Linear(NUM_INPUTS, HIDDEN), nn.ReLU(),
-            nn.Linear(HIDDEN, HIDDEN), nn.ReLU(),
-            nn.Linear(HIDDEN, 6),
-        )
+        self.hidden = tuple(hidden)
+        layers, width = [], NUM_INPUTS
+        for h in self.hidden:
+            layers += [nn.Linear(width, h), nn.ReLU()]
+            width = h
+        self.mlp = nn.Sequential(*layers, nn.Linear(width, 6))
 
     def set_normalization(self, mean: np.ndarray, std: np.ndarray) -> None:
         """Dimensions that never vary (the constant parts of the previous-orientation 6D) get
@@ -81,7 +85,10 @@ def state_to_numpy(net: OrientationNet) -> dict[str, np.ndarray]:
 
 
 def net_from_state(state: dict) -> OrientationNet:
-    net = OrientationNet()
+    """The network of a saved state dict (hidden sizes read off the weight shapes)."""
+    weights = sorted((k for k in state if k.startswith("mlp.") and k.endswith(".weight")), key=lambda k: int(k.split(".")[1]))
+    hidden = tuple(int(np.asarray(state[k]).shape[0]) for k in weights[:-1])
+    net = OrientationNet(hidden=hidden)
     net.load_state_dict({k: torch.as_tensor(np.asarray(v)) for k, v in state.items()})
     return net.eval()
 

@@ -7,6 +7,8 @@ the two baselines it is compared with (HMD-forward, dead-zone).
 3. run the model; φ = atan2(−out[2], out[0]); if the output is not finite or degenerate
    (|(out[0], out[2])| ≤ 1e-6), keep the previous body yaw (or the HMD yaw after a reset);
 4. body yaw = HMD yaw + φ, fed back at the next frame.
+A previous body yaw that is not finite (however it got there) counts as a reset: the slot gets
+φ⁻ = 0 and the fallback is the HMD yaw, so the loop never keeps a NaN.
 It runs many sequences side by side (one batch row each) to evaluate quickly.
 """
 
@@ -64,19 +66,28 @@ def sequence_features(seqs: list[TrackerSequence]) -> tuple[np.ndarray, np.ndarr
 
 def run_network(model: Callable[[np.ndarray], np.ndarray], feats: np.ndarray, hmd_yaw: np.ndarray,
                 inject: dict[int, tuple[np.ndarray, np.ndarray]] | None = None,
-                finite: np.ndarray | None = None) -> np.ndarray:
+                finite: np.ndarray | None = None,
+                inject_yaw: dict[int, tuple[np.ndarray, np.ndarray]] | None = None) -> np.ndarray:
     """Body yaw (B, T) predicted in the feedback loop from a reset at frame 0.
 
     `inject` maps a frame to (rows, values (len(rows), 6)) written into those rows' previous
-    slot instead of the fed-back prediction (garbage for the robustness tests). If `finite` is
-    a (B, T) bool array, it receives whether each raw network output was finite."""
+    slot instead of the fed-back prediction (garbage for the robustness tests); `inject_yaw`
+    maps a frame to (rows, values (len(rows),)) replacing those rows' previous body yaw itself
+    (NaN, ±inf: a corrupted state). If `finite` is a (B, T) bool array, it receives whether each
+    raw network output was finite."""
     B, T, _ = feats.shape
     x = np.zeros((B, 42), dtype=np.float32)
     body = np.zeros((B, T))
     prev_world = None
     for t in range(T):
+        if inject_yaw is not None and t in inject_yaw and prev_world is not None:
+            rows, values = inject_yaw[t]
+            prev_world = prev_world.copy()
+            prev_world[rows] = values
         x[:, :36] = feats[:, t]
-        x[:, 36:] = yaw_slot(0.0 if prev_world is None else prev_world - hmd_yaw[:, t])
+        known = np.zeros(B, dtype=bool) if prev_world is None else np.isfinite(prev_world)
+        previous = np.where(known, prev_world if prev_world is not None else 0.0, hmd_yaw[:, t])
+        x[:, 36:] = yaw_slot(previous - hmd_yaw[:, t])
         if inject is not None and t in inject:
             rows, values = inject[t]
             x[rows, 36:] = values
@@ -84,8 +95,7 @@ def run_network(model: Callable[[np.ndarray], np.ndarray], feats: np.ndarray, hm
         if finite is not None:
             finite[:, t] = np.isfinite(out).all(axis=1)
         phi, ok = relative_yaw_of_output(out)
-        fallback = hmd_yaw[:, t] if prev_world is None else prev_world
-        body[:, t] = np.where(ok, hmd_yaw[:, t] + phi, fallback)
+        body[:, t] = np.where(ok, hmd_yaw[:, t] + phi, previous)
         prev_world = body[:, t]
     return body
 

@@ -81,6 +81,8 @@ class TrackerSequence:
     rot: np.ndarray  # (n, 3, 4) quaternions (x, y, z, w)
     body_yaw: np.ndarray  # (n,) ground truth, unwrapped radians, 0 = +Z
     look_yaw: np.ndarray = field(default=None)  # (n,) the added head yaw (0 without look-around)
+    classes: np.ndarray = field(default=None)  # (n,) motion class per frame (motion_classes)
+    subject: str = ""
 
     @property
     def num_frames(self) -> int:
@@ -152,6 +154,7 @@ def simulate(clip: MocapClip, rng: np.random.Generator, aug: Augment = TRAIN_AUG
         raise ValueError(f"clip {clip.name} is too short for {fps} fps at speed {speed:.2f}")
     dt = np.diff(t, prepend=t[0] - 1.0 / fps)
     body_yaw, head_pos, head_rot, hand_pos, hand_rot = _sample(clip, t * speed)
+    classes = clip.classes[np.clip(np.rint(t * speed * clip.fps).astype(int), 0, clip.num_frames - 1)]
     rig = clip.rig
     n = len(t)
 
@@ -204,7 +207,8 @@ def simulate(clip: MocapClip, rng: np.random.Generator, aug: Augment = TRAIN_AUG
     if sr > 0:
         rot = quat_mul(rot, quat_from_rotvec(rng.normal(0.0, sr, (n, 3, 3))))
     return TrackerSequence(name=f"{clip.name} @{fps:g}Hz x{speed:.2f}", fps=fps, dt=dt, pos=pos,
-                           rot=rot, body_yaw=body_yaw, look_yaw=look_yaw)
+                           rot=rot, body_yaw=body_yaw, look_yaw=look_yaw, classes=classes,
+                           subject=clip.subject)
 
 
 def without_look_around(aug: Augment) -> Augment:

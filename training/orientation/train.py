@@ -64,6 +64,7 @@ class TrainConfig:
     init_mix: tuple[float, float, float] = (0.6, 0.25, 0.15)  # truth, truth + noise, random
     init_noise_deg: float = 30.0
     grad_through: bool = False  # back-propagate through all r steps (slower) instead of the last
+    hidden: tuple[int, ...] = (32, 32)
     augment: Augment = field(default_factory=lambda: TRAIN_AUGMENT)
     subjects: tuple = data.TRAIN_SUBJECTS
     max_batches_per_epoch: int | None = None
@@ -124,7 +125,8 @@ def fast_rollout(net: OrientationNet, feats: torch.Tensor, dyaw: torch.Tensor, p
     `test_orientation_model.py` checks it equals `model.rollout`. Unless `grad_through`, the
     first r − 1 steps run without autograd (the fed-back estimates are inputs).
     """
-    l1, l2, l3 = net.mlp[0], net.mlp[2], net.mlp[4]
+    linear = [m for m in net.mlp if isinstance(m, torch.nn.Linear)]
+    l1, middle, l3 = linear[0], linear[1:-1], linear[-1]
     m, iv = net.mean[36:], net.inv_std[36:]
     fixed = torch.tensor([0.0, 0.0, 0.0, 0.0, 1.0, 0.0])
     const = ((fixed - m) * iv) @ l1.weight[:, 36:].T + l1.bias
@@ -132,6 +134,11 @@ def fast_rollout(net: OrientationNet, feats: torch.Tensor, dyaw: torch.Tensor, p
     pre = ((feats - net.mean[:36]) * net.inv_std[:36]) @ l1.weight[:, :36].T + const
     cd, sd = torch.cos(dyaw), torch.sin(dyaw)
     w3, b3 = l3.weight[[0, 2]], l3.bias[[0, 2]]
+
+    def hidden(h):
+        for layer in middle:
+            h = torch.relu(torch.addmm(layer.bias, h, layer.weight.T))
+        return h
     c, s = prev0[:, :1], prev0[:, 1:]
     r = feats.shape[1]
 
@@ -143,13 +150,13 @@ def fast_rollout(net: OrientationNet, feats: torch.Tensor, dyaw: torch.Tensor, p
             if t > 0:
                 c, s = turn(c, s, t)
             h = torch.relu(pre[:, t] + c * wc + s * ws)
-            o = torch.addmm(b3, torch.relu(torch.addmm(l2.bias, h, l2.weight.T)), w3.T)
+            o = torch.addmm(b3, hidden(h), w3.T)
             n = torch.rsqrt(o[:, :1] * o[:, :1] + o[:, 1:] * o[:, 1:] + 1e-8)
             c, s = o[:, :1] * n, -o[:, 1:] * n
     if r > 1:
         c, s = turn(c, s, r - 1)
     h = torch.relu(pre[:, r - 1] + c * wc + s * ws)
-    return l3(torch.relu(l2(h)))
+    return l3(hidden(h))
 
 
 def batch_tensors(ep: Epoch, starts: np.ndarray, cfg: TrainConfig, rng: np.random.Generator):
@@ -178,7 +185,7 @@ def train(cfg: TrainConfig, clips=None, log=print, time_budget: float | None = N
     log(f"training r={cfg.r} on {len(clips)} clips ({sum(c.seconds for c in clips):.0f} s of mocap "
         f"incl. mirrored), {cfg.epochs} epochs, batch {cfg.batch}, seed {cfg.seed}")
     ep = simulate_epoch(clips, rng, cfg)
-    net = OrientationNet(*normalization(ep))
+    net = OrientationNet(*normalization(ep), hidden=cfg.hidden)
     opt = torch.optim.AdamW(net.parameters(), lr=cfg.lr, weight_decay=cfg.weight_decay)
     sched = torch.optim.lr_scheduler.ExponentialLR(opt, gamma=cfg.lr_decay)
     history, t0 = [], time.perf_counter()
@@ -219,6 +226,7 @@ def save(net: OrientationNet, cfg: TrainConfig, history: list, onnx_path: Path, 
     """The ONNX model, plus (in `side_dir`, not served) its weights as .npz for the PyTorch
     parity tests and its config and training history as .json."""
     meta = {"model": name, "r": str(cfg.r), "seed": str(cfg.seed), "epochs": str(len(history)),
+            "hidden": "x".join(str(h) for h in cfg.hidden),
             "look_around": str(cfg.augment.look_around), "train_subjects": " ".join(
                 data.subject_name(*s) for s in cfg.subjects)}
     export_onnx(net, onnx_path, meta)
@@ -243,6 +251,8 @@ def main(argv=None) -> int:
                     help="train only this model (repeatable); default: all")
     ap.add_argument("--quick", action="store_true", help="tiny smoke run: one small subject, 3 short epochs")
     ap.add_argument("--epochs", type=int)
+    ap.add_argument("--hidden", help="hidden layer sizes, e.g. 64,64 (an experiment: with --out-dir)")
+    ap.add_argument("--seed", type=int)
     ap.add_argument("--out-dir", type=Path, help="write every model here instead of the committed paths")
     args = ap.parse_args(argv)
     if hasattr(sys.stdout, "reconfigure"):
@@ -258,6 +268,10 @@ def main(argv=None) -> int:
                           max_batches_per_epoch=40)
         if args.epochs:
             cfg = replace(cfg, epochs=args.epochs)
+        if args.hidden:
+            cfg = replace(cfg, hidden=tuple(int(h) for h in args.hidden.split(",")))
+        if args.seed is not None:
+            cfg = replace(cfg, seed=args.seed)
         if clips is None or args.quick:
             clips = data.load_subjects(cfg.subjects, mirrored=None)
         net, history = train(cfg, clips)

@@ -65,6 +65,9 @@ pub struct BuildConfig {
     pub clips: Vec<ClipSpec>,
     /// Add a time-reversed copy of every clip (per clip: `ClipSpec::reverse`).
     pub reverse: bool,
+    /// Tag what the body does from the virtual root: `idle`, `turn_in_place`, `sidestep`,
+    /// `backward` (`builder::tags`).
+    pub motion_tags: bool,
     /// A 100STYLE `Frame_Cuts.csv` (path relative to the config): each `<Style>_<TYPE>.bvh`
     /// without its own `frames` uses the usable window the CSV gives (read by the CLI into
     /// [`BuildConfig::cuts`]).
@@ -91,6 +94,7 @@ impl Default for BuildConfig {
             features: None,
             clips: Vec::new(),
             reverse: false,
+            motion_tags: false,
             frame_cuts: None,
             cuts: HashMap::new(),
         }

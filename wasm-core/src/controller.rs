@@ -28,6 +28,12 @@ pub struct Speeds {
 
 /// Controller tuning. Half-lives are exact (see [`crate::spring`]): 0.33 s here is Holden's
 /// 0.27 s "halflife" (his constant halves the offset after 1.21 of his half-lives).
+///
+/// Walking speeds are the data's, not Holden's (1.75 / 1.5 / 1.25 m/s for his data set): the
+/// default databases side-step at 0.45–0.85 m/s and walk backward at 0.65–1.26 m/s (median 1.07;
+/// 100STYLE), so the walk asks for 0.8 m/s sideways and 1.1 m/s backward. Asking for motion the
+/// data lacks makes the clamp drag the character: strafing at 1.5 m/s skated 35 cm/s with the
+/// foot lock, at 0.8 m/s 2 cm/s (docs/runtime.md, quality table).
 #[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct ControllerSettings {
@@ -40,7 +46,7 @@ pub struct ControllerSettings {
 impl Default for ControllerSettings {
     fn default() -> Self {
         ControllerSettings {
-            walk: Speeds { forward: 1.75, side: 1.5, backward: 1.25 },
+            walk: Speeds { forward: 1.75, side: 0.8, backward: 1.1 },
             run: Speeds { forward: 4.0, side: 3.0, backward: 2.5 },
             velocity_halflife: 0.33,
             rotation_halflife: 0.33,
@@ -222,7 +228,7 @@ mod tests {
         let fwd = Input { direction: Vec2::new(0.0, 1.0), ..Default::default() };
         assert!(close(desired_velocity(&fwd, facing, &s), Vec3::new(0.0, 0.0, 1.75)));
         let back = Input { direction: Vec2::new(0.0, -1.0), ..Default::default() };
-        assert!(close(desired_velocity(&back, facing, &s), Vec3::new(0.0, 0.0, -1.25)));
+        assert!(close(desired_velocity(&back, facing, &s), Vec3::new(0.0, 0.0, -1.1)));
         let side = Input { direction: Vec2::new(1.0, 0.0), run: true, ..Default::default() };
         assert!(close(desired_velocity(&side, facing, &s), Vec3::new(3.0, 0.0, 0.0)));
         // Facing +X, stick +X is forward for the character.

@@ -27,6 +27,7 @@ pub mod roles;
 pub mod search;
 pub mod smoothing;
 pub mod spring;
+pub mod vr_replay;
 
 #[cfg(target_arch = "wasm32")]
 mod bindings;

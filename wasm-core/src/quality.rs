@@ -54,8 +54,9 @@ fn walk(direction: Vec2) -> Input {
     Input { direction, ..Default::default() }
 }
 
-/// The scripts of the issue: straight walk, run, zig-zag, circles, stop-and-go, strafe, and a
-/// 4 m path square.
+/// The scripts: straight walk, run, zig-zag, circles, stop-and-go, strafe (walking side-steps,
+/// 3 s each way), back-pedal (walking backward, facing forward), turning on the spot (the facing
+/// turns a quarter every 2 s, no travel), and a 4 m path square.
 pub fn scripts() -> Vec<Script> {
     vec![
         Script { name: "straight walk", input: |_| walk(Vec2::Y), path: None },
@@ -74,6 +75,19 @@ pub fn scripts() -> Vec<Script> {
                 facing: Vec2::Y,
                 strafe: true,
                 run: false,
+            },
+            path: None,
+        },
+        Script {
+            name: "back-pedal",
+            input: |t| Input { direction: if t % 6.0 < 4.0 { -Vec2::Y } else { Vec2::ZERO }, facing: Vec2::Y, strafe: true, run: false },
+            path: None,
+        },
+        Script {
+            name: "turn on the spot",
+            input: |t| {
+                let quarter = (t / 2.0).floor() * std::f32::consts::FRAC_PI_2;
+                Input { direction: Vec2::ZERO, facing: Vec2::new(quarter.sin(), quarter.cos()), strafe: true, run: false }
             },
             path: None,
         },
@@ -214,4 +228,48 @@ pub fn table(reports: &[Report]) -> String {
         );
     }
     out
+}
+
+/// How well `db` can play what `other` shows: for every valid frame of `other` (inside `mask`),
+/// its features (pose and trajectory) as a query on `db` — renormalized from `other`'s
+/// normalization to `db`'s — and the cost of the best match. Low means `db` holds that motion.
+///
+/// # Errors
+/// The two databases' feature layouts differ.
+pub fn coverage(db: &Database, other: &Database, mask: Option<&[bool]>) -> Result<Vec<f32>, String> {
+    let same = db.groups.len() == other.groups.len()
+        && db.groups.iter().zip(&other.groups).all(|(a, b)| a.name == b.name && a.num_dims == b.num_dims && a.first_dim == b.first_dim);
+    if !same {
+        return Err("coverage: the databases' feature layouts differ".into());
+    }
+    let index = crate::search::SearchIndex::new(db).map_err(|e| e.to_string())?;
+    let d = db.num_features();
+    let mut query = vec![0.0f32; d];
+    let mut costs = Vec::new();
+    let options = crate::search::SearchOptions::default();
+    for f in 0..other.num_frames {
+        if other.valid[f] == 0 || mask.is_some_and(|m| !m[f]) {
+            continue;
+        }
+        let x = other.feature(f);
+        for k in 0..d {
+            let raw = x[k] * other.feature_scale[k] + other.feature_mean[k];
+            query[k] = (raw - db.feature_mean[k]) / db.feature_scale[k];
+        }
+        if let Some((_, cost)) = index.search(crate::search::SearchMethod::Aabb, &query, &options, f32::INFINITY) {
+            costs.push(cost);
+        }
+    }
+    Ok(costs)
+}
+
+/// Mean, median and 90th percentile of `values` (NaN when empty).
+pub fn summarize(values: &[f32]) -> (f32, f32, f32) {
+    if values.is_empty() {
+        return (f32::NAN, f32::NAN, f32::NAN);
+    }
+    let mut v = values.to_vec();
+    v.sort_by(f32::total_cmp);
+    let q = |p: f32| v[((v.len() - 1) as f32 * p).round() as usize];
+    (v.iter().sum::<f32>() / v.len() as f32, q(0.5), q(0.9))
 }

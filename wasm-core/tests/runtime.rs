@@ -137,7 +137,9 @@ fn quality_harness_is_sane() {
         if let Some(d) = r.max_path_distance {
             assert!(d <= settings.clamp_distance + 0.02, "{}: {d} m from the path", r.script);
         }
-        assert!(r.travelled > 5.0, "{}: the character hardly moved ({} m)", r.script, r.travelled);
+        if r.script != "turn on the spot" {
+            assert!(r.travelled > 5.0, "{}: the character hardly moved ({} m)", r.script, r.travelled);
+        }
         assert!(r.searches_per_second >= 5.0 && r.searches_per_second < 30.0, "{}: {} searches/s", r.script, r.searches_per_second);
         let limit = 2.0 * quality::joint_max_angular_speeds(db).into_iter().fold(0.0, f32::max);
         assert!(r.max_angular_speed < limit, "{}: a joint turned at {} rad/s (limit {limit})", r.script, r.max_angular_speed);

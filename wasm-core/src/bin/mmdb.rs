@@ -17,7 +17,10 @@ const USAGE: &str = "usage:
   mmdb dump DB.mmdb            (every array as JSON)
   mmdb bench FILE.bvh... [--json] [--seconds S]
   mmdb bench-runtime DB.mmdb [--json]   (per-character update time, characters per 4 ms)
-  mmdb quality DB.mmdb [--json] [--seconds S]   (scripted inputs: distance, skating, pops)";
+  mmdb quality DB.mmdb [--json] [--seconds S] [--settings JSON]   (scripted inputs: distance, skating, pops)
+  mmdb replay DB.mmdb REC.json [--alpha A] [--yaw truth|hmd|YAW.json] [--settings JSON] [--json]
+              (a VR recording through the tracked drive: root distance, skating, update time)
+  mmdb coverage DB.mmdb OTHER.mmdb [--tag TAG] [--json]   (how well DB matches OTHER's frames: best search cost)";
 
 fn main() -> ExitCode {
     let args: Vec<String> = std::env::args().skip(1).collect();
@@ -29,6 +32,8 @@ fn main() -> ExitCode {
         Some("bench") => bench(&args[1..]),
         Some("bench-runtime") => bench_runtime(&args[1..]),
         Some("quality") => quality(&args[1..]),
+        Some("coverage") => coverage(&args[1..]),
+        Some("replay") => replay(&args[1..]),
         Some("-h" | "--help" | "help") => {
             println!("{USAGE}");
             return ExitCode::SUCCESS;
@@ -447,16 +452,85 @@ fn bench_runtime(args: &[String]) -> CliResult {
 /// The quality harness: each scripted input for `--seconds` (60) at 60 Hz.
 fn quality(args: &[String]) -> CliResult {
     use mmcore::quality;
-    let a = Args::parse(args, &["--seconds"], &["--json"])?;
+    let a = Args::parse(args, &["--seconds", "--settings"], &["--json"])?;
     let [path] = a.positional.as_slice() else { return Err(Usage("quality needs one .mmdb file".into()).into()) };
     let (db, _) = load(path)?;
     let seconds = a.number::<f32>("--seconds")?.unwrap_or(60.0);
-    let settings = mmcore::character::CharacterSettings::default();
+    let settings = match a.get("--settings") {
+        Some(json) => mmcore::character::CharacterSettings::default().patched(json).map_err(|e| Usage(e))?,
+        None => mmcore::character::CharacterSettings::default(),
+    };
     let reports: Vec<quality::Report> = quality::scripts().iter().map(|s| quality::run(&db, &settings, s, seconds, 1.0 / 60.0)).collect();
     if a.has("--json") {
         println!("{}", serde_json::to_string_pretty(&reports).unwrap());
     } else {
         print!("{path}: {seconds} s per script at 60 Hz, α = {} m\n{}", settings.clamp_distance, quality::table(&reports));
+    }
+    Ok(())
+}
+
+fn coverage(args: &[String]) -> CliResult {
+    use mmcore::quality;
+    let a = Args::parse(args, &["--tag"], &["--json"])?;
+    let [path, other_path] = a.positional.as_slice() else { return Err(Usage("coverage needs DB.mmdb and OTHER.mmdb".into()).into()) };
+    let (db, _) = load(path)?;
+    let (other, _) = load(other_path)?;
+    let mask = match a.get("--tag") {
+        Some(t) => Some(other.tag_mask(t).ok_or_else(|| Usage(format!("{other_path} has no tag '{t}'")))?),
+        None => None,
+    };
+    let costs = quality::coverage(&db, &other, mask.as_deref()).map_err(|e| Error::config(e))?;
+    let c = quality::summarize(&costs);
+    if a.has("--json") {
+        println!("{}", serde_json::json!({"frames": costs.len(), "mean": c.0, "median": c.1, "p90": c.2}));
+    } else {
+        println!("{path} on {} frames of {other_path}: best cost mean {:.3}, median {:.3}, p90 {:.3}", costs.len(), c.0, c.1, c.2);
+    }
+    Ok(())
+}
+
+fn replay(args: &[String]) -> CliResult {
+    use mmcore::vr_replay::{self, Recording};
+    let a = Args::parse(args, &["--alpha", "--yaw", "--settings"], &["--json"])?;
+    let [path, rec_path] = a.positional.as_slice() else { return Err(Usage("replay needs DB.mmdb and REC.json".into()).into()) };
+    let (db, _) = load(path)?;
+    let text = String::from_utf8_lossy(&read(Path::new(rec_path))?).into_owned();
+    let rec = Recording::from_json(&text).map_err(|e| Error::config(format!("{rec_path}: {e}")))?;
+    let alpha = a.number::<f32>("--alpha")?.unwrap_or(0.3);
+    let n = rec.num_frames();
+    let yaw: Vec<f32> = match a.get("--yaw").unwrap_or("truth") {
+        "truth" => rec.truth_yaw.clone().ok_or_else(|| Usage(format!("{rec_path} has no truth.bodyYaw: use --yaw hmd or a file")))?,
+        "hmd" => rec.head_rotation.iter().map(|&q| vr_replay::heading_yaw(q)).collect(),
+        file => {
+            let v: Vec<f32> = serde_json::from_slice(&read(Path::new(file))?).map_err(|e| Error::config(format!("{file}: {e}")))?;
+            if v.len() != n {
+                return Err(Usage(format!("{file}: {} yaws for {n} frames", v.len())).into());
+            }
+            v
+        }
+    };
+    let settings = match a.get("--settings") {
+        Some(json) => vr_replay::vr_settings().patched(json).map_err(Usage)?,
+        None => vr_replay::vr_settings(),
+    };
+    let index = mmcore::search::SearchIndex::new(&db)?;
+    let r = vr_replay::replay(&db, &index, &rec, &yaw, alpha, &settings);
+    if a.has("--json") {
+        println!("{}", serde_json::to_string(&r).unwrap());
+    } else {
+        let d = r.root_distance.map_or("-".into(), |d| format!("{:.1} / {:.1}", 100.0 * d.mean, 100.0 * d.p95));
+        println!(
+            "{rec_path}: {} frames, {:.1} s, α {} m: root distance cm mean/p95 {d}, head gap mean {:.1} cm ({:.0}% clamped), skating {:.1} cm/s (legacy toe-height measure {:.1}), update ms median/p95 {:.4} / {:.4}",
+            r.frames,
+            r.seconds,
+            r.alpha,
+            100.0 * r.head_gap.mean,
+            100.0 * r.clamped_share,
+            r.skating,
+            r.skating_toe_height,
+            r.update_ms.median,
+            r.update_ms.p95
+        );
     }
     Ok(())
 }

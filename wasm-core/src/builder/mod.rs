@@ -25,6 +25,7 @@ mod root;
 mod rows;
 mod sample;
 mod skeleton;
+mod tags;
 mod take;
 
 use crate::bvh::Bvh;
@@ -280,6 +281,16 @@ pub fn build(config: &BuildConfig, sources: &[Source]) -> Result<BuildOutput> {
         }
     }
     ensure_unique_names(&mut clips);
+    if config.motion_tags {
+        for clip in &clips {
+            let (start, n) = (clip.start as usize, (clip.end - clip.start) as usize);
+            let ranges = tags::motion_tags(n, fps as f32, |f| (out.positions[(start + f) * nd], out.rotations[(start + f) * nd]));
+            for (name, ranges) in tags::MOTION_TAGS.iter().zip(ranges).filter(|(_, r)| !r.is_empty()) {
+                let list = tag_ranges.entry(name.to_string()).or_default();
+                list.extend(ranges.into_iter().map(|(s, e)| (s + clip.start, e + clip.start)));
+            }
+        }
+    }
 
     let (feature_mean, feature_scale) = features::normalize(&mut out.features, &groups, num_dims);
     let valid = features::validity(&clips, &groups, out.num_frames);

@@ -85,6 +85,7 @@ impl Character {
     pub fn teleport(&mut self, db: &Database, position: Vec3, rotation: Quat) {
         self.root.position = Vec3::new(position.x, 0.0, position.z);
         self.root.rotation = rotation;
+        self.root.drag_velocity = Vec3::ZERO;
         self.simulation = Simulation { position: self.root.position, rotation, ..Simulation::default() };
         self.schedule.force = true;
         self.pose.set_root(self.root.position, self.root.rotation);
@@ -138,6 +139,7 @@ impl Character {
     pub fn set_mask(&mut self, db: &Database, mask: Option<Vec<bool>>) {
         assert!(mask.as_ref().is_none_or(|m| m.len() == db.num_frames), "mask length must equal the frame count");
         self.schedule.mask = mask;
+        self.schedule.mask_changed();
         self.schedule.force = true;
     }
 
@@ -157,6 +159,7 @@ impl Character {
     pub fn switch_database(&mut self, from: &Database) {
         self.query.set_pose(from.feature(self.frame));
         self.schedule.mask = None;
+        self.schedule.mask_changed();
         self.schedule.switching = true;
         self.schedule.force = true;
     }
@@ -173,6 +176,11 @@ impl Character {
     }
     pub fn root_rotation(&self) -> Quat {
         self.root.rotation
+    }
+    /// How fast adjustment and clamping drag the root (world, m/s, smoothed): what the
+    /// database motion does not cover.
+    pub fn drag_velocity(&self) -> Vec3 {
+        self.root.drag_velocity
     }
     /// Joint 0: root world transform; others: local transforms (inertialized, hips dropped).
     pub fn pose_positions(&self) -> &[Vec3] {
@@ -261,8 +269,14 @@ impl Character {
         if !self.schedule.switching {
             self.query.set_pose(db.feature(self.frame));
         }
+        if self.settings.query_drag {
+            self.query.add_drag(db, self.root.drag_velocity, self.root.rotation);
+        }
         self.query.set_trajectory(db, &self.drive, &self.simulation, &self.settings.controller, self.root.position, self.root.rotation);
-        if let Outcome::Jump(frame) = self.schedule.search(index, &self.settings, self.frame, &self.query, &mut self.stats) {
+        let speed = self.settings.idle_exclude_speed;
+        let moving = speed > 0.0 && self.simulation.velocity.length() > speed;
+        self.schedule.refresh_idle(db);
+        if let Outcome::Jump(frame) = self.schedule.search(index, &self.settings, self.frame, &self.query, &mut self.stats, moving) {
             self.transition(db, frame);
         }
     }

@@ -23,6 +23,9 @@ struct TrajectorySlot {
 pub struct Query {
     /// Normalized features of the last query.
     pub values: Vec<f32>,
+    /// First dimension of each 3-axis velocity feature on the hips (or the root): the pose
+    /// part's body velocity, which [`Query::add_drag`] corrects.
+    body_velocity_dims: Vec<usize>,
     slots: Vec<TrajectorySlot>,
     /// Prediction times (s) of the trajectory features.
     pub times: Vec<f32>,
@@ -50,8 +53,16 @@ impl Query {
                 slots.push(TrajectorySlot { first_dim: g.first_dim + k * g.axes.num_dims(), kind: g.kind, axes: g.axes, axis: g.axis, time });
             }
         }
+        let hips = db.skeleton.site("hips").map_or(-1, |s| s.joint);
+        let body_velocity_dims = db
+            .groups
+            .iter()
+            .filter(|g| !g.is_trajectory && g.kind == FeatureKind::Velocity && g.axes == Axes::Xyz && (g.joint as i32 == hips || g.joint == 0) && g.offsets == [0])
+            .map(|g| g.first_dim)
+            .collect();
         Query {
             values: vec![0.0; db.num_features()],
+            body_velocity_dims,
             predicted_positions: vec![Vec3::ZERO; times.len()],
             predicted_rotations: vec![Quat::IDENTITY; times.len()],
             slots,
@@ -87,5 +98,23 @@ impl Query {
     /// trajectory part is overwritten by [`Query::set_trajectory`]).
     pub fn set_pose(&mut self, features: &[f32]) {
         self.values.copy_from_slice(features);
+    }
+
+    /// Adds the root's drag (`drag_velocity`, world: what adjustment and clamping move it by,
+    /// see `RootMotion::drag_velocity`) to the pose part's hips velocity, expressed in the
+    /// character's root space at `root_rotation`.
+    ///
+    /// Why: the pose part says what the character *is doing*; copied from the frame playing it
+    /// says "standing" while the clamp drags a standing character after a walking user (VR) or
+    /// sideways (strafing without side-steps), and the search keeps returning standing frames
+    /// whose planted feet then slide. With the drag the query describes the motion actually
+    /// shown, so frames that really move that way win (docs/runtime.md, "Dragged roots").
+    pub fn add_drag(&mut self, db: &Database, drag_velocity: Vec3, root_rotation: Quat) {
+        let v = root_rotation.inverse() * drag_velocity;
+        for &d in &self.body_velocity_dims {
+            for (k, x) in [v.x, v.y, v.z].into_iter().enumerate() {
+                self.values[d + k] += x / db.feature_scale[d + k];
+            }
+        }
     }
 }

@@ -19,7 +19,14 @@ pub struct RootMotion {
     velocity_offset_rate: Vec3,
     angular_offset: Vec3,
     angular_offset_rate: Vec3,
+    /// Velocity the root gets from adjustment and clamping (not from the database), world,
+    /// smoothed over [`DRAG_HALFLIFE`]: how fast the character is being dragged.
+    pub drag_velocity: Vec3,
 }
+
+/// Smoothing of [`RootMotion::drag_velocity`]: the clamp moves the root in steps of a frame,
+/// the adjustment by a decaying spring; a fifth of a second shows the drag, not the steps.
+const DRAG_HALFLIFE: f32 = 0.2;
 
 impl Default for RootMotion {
     fn default() -> Self {
@@ -32,6 +39,7 @@ impl Default for RootMotion {
             velocity_offset_rate: Vec3::ZERO,
             angular_offset: Vec3::ZERO,
             angular_offset_rate: Vec3::ZERO,
+            drag_velocity: Vec3::ZERO,
         }
     }
 }
@@ -79,6 +87,15 @@ impl RootMotion {
 
     /// Adjustment toward the simulated character, then clamping at α (docs/method.md §6).
     pub fn keep_with(&mut self, simulation: &Simulation, s: &CharacterSettings, dt: f32) {
+        let before = self.position;
+        self.adjust_and_clamp(simulation, s, dt);
+        if dt > 0.0 {
+            let drag = (self.position - before) / dt;
+            self.drag_velocity += (drag - self.drag_velocity) * (1.0 - (-dt / DRAG_HALFLIFE).exp2());
+        }
+    }
+
+    fn adjust_and_clamp(&mut self, simulation: &Simulation, s: &CharacterSettings, dt: f32) {
         if s.adjustment && dt > 0.0 {
             // Exact exponential approach with the given half-life, capped by the character's
             // own speed so that an idle character is never dragged.

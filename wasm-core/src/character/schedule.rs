@@ -27,6 +27,20 @@ pub struct Schedule {
     pub switching: bool,
     /// Frames a search may return (`None`: all valid ones).
     pub mask: Option<Vec<bool>>,
+    idle: IdleMask,
+}
+
+/// The database's frames *not* tagged `idle`, and their intersection with the user's mask: the
+/// frames a search may return while the character is asked to move
+/// (`CharacterSettings::idle_exclude_speed`). Rebuilt when the database changes (allocation at
+/// a switch only).
+#[derive(Clone, Debug, Default)]
+struct IdleMask {
+    /// Address and frame count of the database it was made for.
+    key: (usize, usize),
+    not_idle: Option<Vec<bool>>,
+    combined: Vec<bool>,
+    combined_current: bool,
 }
 
 /// What a search decided.
@@ -49,6 +63,28 @@ impl Schedule {
         self.force || self.frames_since_search >= settings.search_interval || at_clip_end
     }
 
+    /// The user's search mask changed: the idle-excluding mask follows.
+    pub fn mask_changed(&mut self) {
+        self.idle.combined_current = false;
+    }
+
+    /// Makes the idle mask current for `db`.
+    pub fn refresh_idle(&mut self, db: &Database) {
+        let key = (db as *const Database as usize, db.num_frames);
+        if self.idle.key != key {
+            self.idle = IdleMask { key, not_idle: db.tag_mask("idle").map(|m| m.into_iter().map(|i| !i).collect()), ..IdleMask::default() };
+        }
+        if !self.idle.combined_current {
+            if let (Some(user), Some(not_idle)) = (&self.mask, &self.idle.not_idle) {
+                if user.len() == not_idle.len() {
+                    self.idle.combined.clear();
+                    self.idle.combined.extend(user.iter().zip(not_idle).map(|(a, b)| *a && *b));
+                }
+            }
+            self.idle.combined_current = true;
+        }
+    }
+
     /// One database frame was played.
     pub fn count_frame(&mut self) {
         self.frames_since_search += 1;
@@ -56,20 +92,29 @@ impl Schedule {
 
     /// Searches `index` for `query` (whose pose part must be filled, see [`Query`]) from the
     /// frame playing.
-    pub fn search(&mut self, index: &SearchIndex, settings: &CharacterSettings, frame: usize, query: &Query, stats: &mut CharacterStats) -> Outcome {
+    ///
+    /// `moving`: the character is asked to move (faster than `idle_exclude_speed`), so frames
+    /// tagged `idle` are not returned (see [`Schedule::refresh_idle`], called before).
+    pub fn search(&mut self, index: &SearchIndex, settings: &CharacterSettings, frame: usize, query: &Query, stats: &mut CharacterStats, moving: bool) -> Outcome {
         self.force = false;
         self.frames_since_search = 0;
         let switching = std::mem::take(&mut self.switching);
         let r = settings.exclude_radius;
+        let mask = match (moving && !switching, &self.mask, &self.idle.not_idle) {
+            (true, Some(_), Some(_)) if self.idle.combined_current && !self.idle.combined.is_empty() => Some(self.idle.combined.as_slice()),
+            (true, None, Some(not_idle)) => Some(not_idle.as_slice()),
+            (_, user, _) if !switching => user.as_deref(),
+            _ => None,
+        };
         let options = SearchOptions {
             beta_pose: settings.beta_pose,
             beta_trajectory: settings.beta_trajectory,
             exclude: (!switching).then(|| (frame.saturating_sub(r), frame + r + 1)),
-            mask: if switching { None } else { self.mask.as_deref() },
+            mask,
         };
         // The current frame is the bar: jump only to something strictly better. After a
         // switch every frame is new: no bar.
-        let valid_now = !switching && index.is_valid(frame) && self.mask.as_ref().is_none_or(|m| m[frame]);
+        let valid_now = !switching && index.is_valid(frame) && mask.is_none_or(|m| m[frame]);
         let bar = if valid_now { index.cost(frame, &query.values, &options) } else { f32::INFINITY };
         let best = index.search(settings.search_method, &query.values, &options, bar);
         stats.searches += 1;

@@ -51,6 +51,13 @@ pub struct CharacterSettings {
     pub foot_lock_floor: bool,
     /// Blend in and out of a lock (exact half-life; Holden's 0.1 s).
     pub foot_lock_halflife: f32,
+    /// Add the root's drag by adjustment and clamping to the query's hips velocity, so a
+    /// dragged character does not keep matching standing frames (`query::Query::add_drag`).
+    pub query_drag: bool,
+    /// While the character is asked to move faster than this (m/s: the simulated character's
+    /// velocity), searches skip frames tagged `idle` (built with `"motion_tags": true`), so a
+    /// walking user is never matched with standing frames dragged by the clamp. 0 = off.
+    pub idle_exclude_speed: f32,
 }
 
 impl Default for CharacterSettings {
@@ -79,6 +86,8 @@ impl Default for CharacterSettings {
             adjustment_min_speed: 0.0,
             foot_lock_floor: true,
             foot_lock_halflife: 0.12,
+            query_drag: false,
+            idle_exclude_speed: 0.0,
         }
     }
 }

@@ -1,0 +1,225 @@
+//! A VR session replayed natively (docs/vr.md, "Replays"): a tracker recording
+//! (docs/vr-recording.md, JSON version 1) drives a character through the tracked drive exactly as
+//! the VR page's frame recipe does (`web/src/vr/tracked-drive.ts`) — head velocity differentiated
+//! over the real frame time and lightly smoothed, the head centre 0.10 m behind the eyes on the
+//! floor, the body yaw from a given source (the orientation network's output computed by
+//! `training/replay.py`, the recording's truth, or HMD forward), crouch by hips drop, the VR
+//! settings — and measures what the replay bench measures: user↔avatar root distance (against
+//! the recording's truth), the head gap α clamps, foot skating and the update time.
+//!
+//! It is for the runtime's numbers without a browser; the page's own bench adds rendering,
+//! retargeting, arm IK and the network's run.
+
+use crate::character::{Character, CharacterSettings, Tracked};
+use crate::controller::Input;
+use crate::database::Database;
+use crate::search::SearchIndex;
+use glam::{Quat, Vec2, Vec3};
+
+/// HMD (eyes) → head centre, m backward along the heading (`HMD_TO_HEAD_CENTRE` of the page).
+pub const HMD_TO_HEAD_CENTRE: f32 = 0.1;
+/// The page's head-velocity smoothing half-life and dt limits (`web/src/vr/trackers.ts`).
+const VELOCITY_HALFLIFE: f32 = 0.03;
+const MAX_DT: f32 = 0.1;
+const RESET_AFTER: f32 = 0.5;
+/// Crouch dead band (m), as `CROUCH_DEADBAND` of the page.
+const CROUCH_DEADBAND: f32 = 0.03;
+/// Toe height under which the legacy skating measure counts a toe as on the floor (m).
+pub const LEGACY_SKATING_HEIGHT: f32 = 0.033;
+
+/// The VR page's runtime settings (`VR_SETTINGS` in `web/src/vr/tracked-drive.ts`), α apart.
+pub fn vr_settings() -> CharacterSettings {
+    CharacterSettings { clamping: true, adjustment_min_speed: 0.15, clamp_angle: 0.35, beta_trajectory: 2.0, adjustment_max_ratio: 1.0, ..CharacterSettings::default() }
+}
+
+/// The parts of a recording the replay uses.
+#[derive(Clone, Debug, Default)]
+pub struct Recording {
+    pub time: Vec<f64>,
+    pub head_position: Vec<Vec3>,
+    pub head_rotation: Vec<Quat>,
+    /// `meta.eyeHeight`: the calibrated standing eye height (m).
+    pub eye_height: Option<f32>,
+    /// `truth.bodyYaw` and `truth.root` (x, z) when the recording was made from mocap.
+    pub truth_yaw: Option<Vec<f32>>,
+    pub truth_root: Option<Vec<Vec2>>,
+}
+
+impl Recording {
+    /// Reads the JSON encoding (version 1).
+    ///
+    /// # Errors
+    /// Not a version-1 recording, or arrays of the wrong length.
+    pub fn from_json(text: &str) -> Result<Recording, String> {
+        let v: serde_json::Value = serde_json::from_str(text).map_err(|e| format!("recording: {e}"))?;
+        if v["format"] != "mm-vr-recording" || v["version"] != 1 {
+            return Err("recording: not an mm-vr-recording of version 1".into());
+        }
+        let n = v["frames"].as_u64().ok_or("recording: no frame count")? as usize;
+        let numbers = |key: &serde_json::Value, len: usize, what: &str| -> Result<Vec<f64>, String> {
+            let a: Vec<f64> = key.as_array().ok_or(format!("recording: no {what}"))?.iter().map(|x| x.as_f64().unwrap_or(f64::NAN)).collect();
+            if a.len() != len || a.iter().any(|x| !x.is_finite()) {
+                return Err(format!("recording: {what} has {} finite numbers, expected {len}", a.len()));
+            }
+            Ok(a)
+        };
+        let time = numbers(&v["time"], n, "time")?;
+        let p = numbers(&v["position"], 9 * n, "position")?;
+        let r = numbers(&v["rotation"], 12 * n, "rotation")?;
+        let truth = &v["truth"];
+        Ok(Recording {
+            time,
+            head_position: (0..n).map(|f| Vec3::new(p[9 * f] as f32, p[9 * f + 1] as f32, p[9 * f + 2] as f32)).collect(),
+            head_rotation: (0..n).map(|f| Quat::from_xyzw(r[12 * f] as f32, r[12 * f + 1] as f32, r[12 * f + 2] as f32, r[12 * f + 3] as f32).normalize()).collect(),
+            eye_height: v["meta"]["eyeHeight"].as_f64().map(|e| e as f32),
+            truth_yaw: numbers(&truth["bodyYaw"], n, "truth.bodyYaw").ok().map(|a| a.into_iter().map(|x| x as f32).collect()),
+            truth_root: numbers(&truth["root"], 2 * n, "truth.root").ok().map(|a| a.chunks(2).map(|c| Vec2::new(c[0] as f32, c[1] as f32)).collect()),
+        })
+    }
+
+    pub fn num_frames(&self) -> usize {
+        self.time.len()
+    }
+}
+
+/// Heading yaw of an HMD rotation: where its view (−Z) points on the floor, the up axis filling
+/// in when looking straight down or up (`headingYaw` of the page, docs/orientation-model.md).
+pub fn heading_yaw(q: Quat) -> f32 {
+    let f = q * Vec3::NEG_Z;
+    let u = q * Vec3::Y;
+    (f.x - f.y * u.x).atan2(f.z - f.y * u.z)
+}
+
+/// Mean, median, 95th percentile and maximum.
+#[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize)]
+pub struct Stats {
+    pub mean: f32,
+    pub median: f32,
+    pub p95: f32,
+    pub max: f32,
+}
+
+impl Stats {
+    pub fn of(values: &[f32]) -> Stats {
+        if values.is_empty() {
+            return Stats { mean: f32::NAN, median: f32::NAN, p95: f32::NAN, max: f32::NAN };
+        }
+        let mut v = values.to_vec();
+        v.sort_by(f32::total_cmp);
+        let q = |p: f32| v[((v.len() - 1) as f32 * p).round() as usize];
+        Stats { mean: v.iter().sum::<f32>() / v.len() as f32, median: q(0.5), p95: q(0.95), max: v[v.len() - 1] }
+    }
+}
+
+/// What one replay measured (room metres).
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct ReplayReport {
+    pub frames: usize,
+    pub seconds: f32,
+    pub alpha: f32,
+    /// Avatar root ↔ the recording's true root on the floor (m), when the recording has truth.
+    pub root_distance: Option<Stats>,
+    /// Avatar root ↔ head centre on the floor (what α clamps), m.
+    pub head_gap: Stats,
+    /// Share of frames with the root clamped at α (head gap ≥ 0.98 α).
+    pub clamped_share: f32,
+    /// Planted-toe sliding by contact flag (`quality::SkatingMeter`), cm/s.
+    pub skating: f32,
+    /// The legacy measure the VR bench published before the contact-flag one (55–62 cm/s on the
+    /// held-in recordings): `d_xz·(2 − 2^(h/H))` per toe while its height h above the database's
+    /// planted toe height is under H = 3.3 cm, cm/s.
+    pub skating_toe_height: f32,
+    /// Runtime update time (ms), native.
+    pub update_ms: Stats,
+    /// Room metres per database metre (calibration).
+    pub scale: f32,
+}
+
+/// Replays `recording` on `db` at α = `alpha` (room m) with the body yaw `yaw[f]` per frame
+/// (radians, 0 = +Z; NaN keeps the previous one) and `settings` (α is set from `alpha`).
+pub fn replay(db: &Database, index: &SearchIndex, recording: &Recording, yaw: &[f32], alpha: f32, settings: &CharacterSettings) -> ReplayReport {
+    let n = recording.num_frames();
+    assert_eq!(yaw.len(), n, "one yaw per frame");
+    // Calibration: the avatar's eyes at the user's (the database skeleton's head joint height at
+    // rest stands for the avatar's eye height, as the page does without an avatar).
+    let rest = db.rest_positions();
+    let floor = rest.iter().map(|p| p.y).fold(f32::INFINITY, f32::min);
+    let db_eye = db.skeleton.site("head").filter(|s| s.joint >= 0).map_or(1.6, |s| rest[s.joint as usize].y - floor);
+    let eye = recording.eye_height.unwrap_or(db_eye);
+    let scale = eye / db_eye;
+    let settings = CharacterSettings { clamp_distance: alpha / scale, ..settings.clone() };
+    let mut c = Character::new(db, settings);
+    let toe_floor = db.toe_height_in_contact().unwrap_or(0.0);
+    c.set_toe_floor(db.toe_height_in_contact());
+    let toes: Vec<(usize, Vec3)> = ["left_toe", "right_toe"].iter().filter_map(|r| db.skeleton.site(r)).map(|s| (s.joint as usize, s.offset)).collect();
+
+    let head_floor = |f: usize| {
+        let p = recording.head_position[f];
+        let h = heading_yaw(recording.head_rotation[f]);
+        Vec2::new(p.x - HMD_TO_HEAD_CENTRE * h.sin(), p.z - HMD_TO_HEAD_CENTRE * h.cos())
+    };
+    let start = head_floor(0);
+    let start_yaw = recording.truth_yaw.as_ref().map_or(heading_yaw(recording.head_rotation[0]), |t| t[0]);
+    c.teleport(db, Vec3::new(start.x / scale, 0.0, start.y / scale), Quat::from_rotation_y(start_yaw));
+
+    let (mut velocity, mut body_yaw) = (Vec3::ZERO, start_yaw);
+    let (mut distances, mut gaps, mut times) = (Vec::with_capacity(n), Vec::with_capacity(n), Vec::with_capacity(n));
+    let (mut clamped, mut legacy) = (0usize, 0.0f32);
+    let mut previous_toes: Option<[Vec3; 2]> = None;
+    for f in 0..n {
+        let raw_dt = if f == 0 { 0.0 } else { (recording.time[f] - recording.time[f - 1]) as f32 };
+        let dt = raw_dt.clamp(0.0, MAX_DT);
+        if f > 0 && raw_dt > 0.0 && raw_dt <= RESET_AFTER {
+            let v = (recording.head_position[f] - recording.head_position[f - 1]) / raw_dt;
+            velocity += (v - velocity) * (1.0 - (-raw_dt / VELOCITY_HALFLIFE).exp2());
+        } else {
+            velocity = Vec3::ZERO;
+        }
+        if yaw[f].is_finite() {
+            body_yaw = yaw[f];
+        }
+        let floor = head_floor(f);
+        // Crouch: the hips go down as far as the eyes did.
+        let d = eye - recording.head_position[f].y;
+        let b = CROUCH_DEADBAND;
+        let drop = if d <= 0.0 { 0.0 } else if d < 2.0 * b { d * d / (4.0 * b) } else { d - b };
+        let started = std::time::Instant::now();
+        c.set_tracked(Tracked { position: Vec3::new(floor.x / scale, 0.0, floor.y / scale), velocity: Vec3::new(velocity.x, 0.0, velocity.z) / scale, yaw: body_yaw });
+        c.set_hips_drop(drop / scale);
+        c.update(db, index, &Input::default(), dt);
+        times.push(started.elapsed().as_secs_f32() * 1e3);
+        let root = c.root_position() * scale;
+        let gap = Vec2::new(root.x - floor.x, root.z - floor.y).length();
+        gaps.push(gap);
+        clamped += (gap >= 0.98 * alpha) as usize;
+        if let Some(truth) = &recording.truth_root {
+            distances.push(Vec2::new(root.x - truth[f].x, root.z - truth[f].y).length());
+        }
+        // Legacy skating: toes under 3.3 cm (room units) above the planted toe height slide,
+        // weighted by their height.
+        let (p, r) = (c.world_positions(), c.world_rotations());
+        let now = [0, 1].map(|k| toes.get(k).map_or(Vec3::ZERO, |&(j, o)| (p[j] + r[j] * o) * scale));
+        if let Some(before) = previous_toes {
+            for k in 0..2 {
+                let h = (now[k].y - toe_floor * scale).max(0.0);
+                if h < LEGACY_SKATING_HEIGHT {
+                    legacy += Vec2::new(now[k].x - before[k].x, now[k].z - before[k].z).length() * (2.0 - (h / LEGACY_SKATING_HEIGHT).exp2());
+                }
+            }
+        }
+        previous_toes = Some(now);
+    }
+    let seconds = (recording.time[n - 1] - recording.time[0]) as f32;
+    ReplayReport {
+        frames: n,
+        seconds,
+        alpha,
+        root_distance: recording.truth_root.as_ref().map(|_| Stats::of(&distances)),
+        head_gap: Stats::of(&gaps),
+        clamped_share: clamped as f32 / n as f32,
+        skating: 100.0 * c.skating().distance * scale / seconds,
+        skating_toe_height: 100.0 * legacy / seconds,
+        update_ms: Stats::of(&times),
+        scale,
+    }
+}
