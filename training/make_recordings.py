@@ -1,12 +1,20 @@
-"""Synthetic VR tracker recordings from held-in mocap, for replays, tests and `npm run bench -- --vr`.
+"""Synthetic VR tracker recordings from mocap, for replays, tests and `npm run bench -- --vr`.
 
-Each recording is one CMU take of a subject the orientation network was trained on (held in:
-`orientation.data.TRAIN_SUBJECTS`), turned into headset and controller poses by the colleague's
-tracker simulation (`orientation.simulate`, the evaluation augmentation: real speed, 72 Hz,
-tracker noise, looking around up to ±60°), written in the VR page's recording format
-(docs/vr-recording.md, JSON version 1) plus the ground truth per frame in `truth`: the mocap
-body (virtual-root) yaw and the root's floor position. Everything is shifted so the user starts
-at the origin of the room.
+Two sets:
+- **held-in** (`walk`, `turn`, `run`): CMU takes of subjects the orientation network was trained
+  on (`orientation.data.TRAIN_SUBJECTS`) — the e2e replay test uses `walk`;
+- **held-out** (`backward`, `sidestep`, `turn-in-place`, `gesture`, `moving-about`,
+  `walk-69`): people (100STYLE: a style) the network never saw (`orientation.data.TEST_SUBJECTS`),
+  and takes that are not in the VR database (`databases/vr.json`) either — the replay numbers
+  of issue 14 are measured on these. A window of each take is chosen where the named motion
+  classes (`orientation.motion_classes`) fill most of it.
+
+Each take becomes headset and controller poses by the tracker simulation
+(`orientation.simulate`, the evaluation augmentation: real speed, 72 Hz, tracker noise, looking
+around up to ±60°), written in the VR page's recording format (docs/vr-recording.md, JSON
+version 1) plus the ground truth per frame in `truth`: the mocap body (virtual-root) yaw, the
+root's floor position and the motion class. Everything is shifted so the user starts at the
+origin of the room.
 
 They are derived from the mocap, so they are not committed: `node scripts/setup.mjs test` (and
 `npm run bench -- --vr` when they are missing) writes them to public/recordings/.
@@ -24,7 +32,8 @@ from pathlib import Path
 import numpy as np
 
 import mmdb
-from orientation.data import TRAIN_SUBJECTS, ensure_database, load_clips
+from orientation.data import TEST_SUBJECTS, TRAIN_SUBJECTS, MocapClip, ensure_database, load_clips
+from orientation.motion_classes import CLASSES
 from orientation.simulate import EVAL_AUGMENT, simulate
 
 REPO = Path(__file__).resolve().parent.parent
@@ -32,12 +41,33 @@ OUT = REPO / "public" / "recordings"
 FPS = 72.0
 SEED = 6
 
-# (recording name, folder, subject, take, what it shows)
+# (recording name, folder, subject, take, what it shows, held in?, window seconds (None: the
+# whole take), the motion classes the window should hold)
 RECORDINGS = (
-    ("walk", "cmu-asf", "16", "cmu_16_32", "walk straight, 4.8 s"),
-    ("turn", "cmu-asf", "16", "cmu_16_17", "walk with a 90° left turn, 4.3 s"),
-    ("run", "cmu-asf", "127", "cmu_127_04", "walk to run, 3.7 s"),
+    ("walk", "cmu-asf", "16", "cmu_16_32", "walk straight, 4.8 s", True, None, ()),
+    ("turn", "cmu-asf", "16", "cmu_16_17", "walk with a 90° left turn, 4.3 s", True, None, ()),
+    ("run", "cmu-asf", "127", "cmu_127_04", "walk to run, 3.7 s", True, None, ()),
+    ("backward", "100style", "Akimbo", "Akimbo_TR1", "walking backward and turning, hands on hips", False, 12.0, ("backward",)),
+    ("sidestep", "100style", "Akimbo", "Akimbo_TR1", "side-steps left and right, hands on hips", False, 12.0, ("sideways",)),
+    ("turn-in-place", "cmu-asf", "69", "cmu_69_16", "a stepping turn of 153° on the spot, 2.8 s", False, None, ()),
+    ("gesture", "cmu-asf", "14", "cmu_14_26", "directing traffic, waving, pointing, a few steps", False, 20.0, ("gesturing", "standing")),
+    ("moving-about", "cmu-asf", "14", "cmu_14_18", "laughing while stepping about: forward, back, sideways", False, 20.0,
+     ("forward", "backward", "sideways")),
+    ("walk-69", "cmu-asf", "69", "cmu_69_01", "a forward walk, 3.9 s", False, None, ()),
 )
+
+
+def window(clip: MocapClip, seconds: float | None, classes: tuple[str, ...]) -> tuple[int, int]:
+    """Frames [start, end) of the `seconds`-long window of `clip` holding most frames of
+    `classes` (the whole clip when `seconds` is None or longer than it)."""
+    n = clip.num_frames
+    length = n if seconds is None else min(n, int(round(seconds * clip.fps)))
+    if length >= n or not classes:
+        return 0, length
+    wanted = np.isin(clip.classes, [CLASSES.index(c) for c in classes]).astype(float)
+    counts = np.convolve(wanted, np.ones(length), mode="valid")  # counts[s] = frames s..s+length
+    s = int(np.argmax(counts))
+    return s, s + length
 
 
 def _root_floor(db: mmdb.Database, start: int, end: int, times: np.ndarray) -> np.ndarray:
@@ -50,20 +80,34 @@ def _root_floor(db: mmdb.Database, start: int, end: int, times: np.ndarray) -> n
     return p[:, [0, 2]]
 
 
-def make(name: str, folder: str, subject: str, take: str, note: str, seed: int) -> dict:
-    if (folder, subject) not in TRAIN_SUBJECTS:
-        raise SystemExit(f"{folder} {subject} is not a training subject: recordings must be held-in")
+def _cut(clip: MocapClip, s: int, e: int) -> MocapClip:
+    """Frames [s, e) of a clip (its motion classes kept: computed on the whole take)."""
+    classes = clip.classes[s:e]
+    out = MocapClip(name=clip.name, subject=clip.subject, mirrored=clip.mirrored, fps=clip.fps,
+                    body_yaw=clip.body_yaw[s:e], root_pos=clip.root_pos[s:e], head_pos=clip.head_pos[s:e],
+                    head_rot=clip.head_rot[s:e], hand_pos=clip.hand_pos[:, s:e], hand_rot=clip.hand_rot[:, s:e],
+                    rig=clip.rig)
+    out._classes = classes
+    return out
+
+
+def make(name: str, folder: str, subject: str, take: str, note: str, held_in: bool, seconds: float | None,
+         classes: tuple[str, ...], seed: int) -> dict:
+    if held_in != ((folder, subject) in TRAIN_SUBJECTS) or (not held_in and (folder, subject) not in TEST_SUBJECTS):
+        raise SystemExit(f"{folder} {subject}: recording {name} must be {'held in' if held_in else 'held out'}")
     path = ensure_database(folder, subject)
-    clips = [c for c in load_clips(path, f"{folder}_{subject}", mirrored=False) if take in c.name]
+    clips = [c for c in load_clips(path, f"{folder}_{subject}", mirrored=False) if c.name.startswith(take)]
     if len(clips) != 1:
         raise SystemExit(f"{path}: expected one un-mirrored clip named like {take}, found {[c.name for c in clips]}")
-    clip = clips[0]
+    whole = clips[0]
+    s, e = window(whole, seconds, classes)
+    clip = _cut(whole, s, e)
     db = mmdb.load(path)
-    dbclip = next(c for c in db.clips if not c.mirrored and c.name == clip.name)
+    dbclip = next(c for c in db.clips if not c.mirrored and c.name == whole.name)
     aug = EVAL_AUGMENT.__class__(**{**EVAL_AUGMENT.__dict__, "global_yaw": False})
     seq = simulate(clip, np.random.default_rng(seed), aug, fps=FPS)
     t = np.cumsum(seq.dt) - seq.dt[0]  # speed 1: the clip's own clock
-    root = _root_floor(db, dbclip.start, dbclip.end, t)
+    root = _root_floor(db, dbclip.start + s, dbclip.start + e, t)
     origin = root[0].copy()
     pos = seq.pos.copy()
     pos[:, :, 0] -= origin[0]
@@ -77,14 +121,16 @@ def make(name: str, folder: str, subject: str, take: str, note: str, seed: int) 
         "version": 1,
         "trackers": ["head", "left", "right"],
         "frames": n,
-        "meta": {"source": f"{folder}/{take}.bvh", "subject": f"{folder}_{subject}", "heldIn": True,
-                 "description": note, "rate": FPS, "seed": seed, "eyeHeight": round(eye, 4),
-                 "lookAround": True, "generator": "training/make_recordings.py"},
+        "meta": {"source": f"{folder}/{whole.name}", "subject": f"{folder}_{subject}", "heldIn": held_in,
+                 "window": f"{s / whole.fps:.2f}-{e / whole.fps:.2f} s", "description": note, "rate": FPS,
+                 "seed": seed, "eyeHeight": round(eye, 4), "lookAround": True,
+                 "generator": "training/make_recordings.py"},
         "time": r(t, 6),
         "position": r(pos, 5),
         "rotation": r(seq.rot / np.linalg.norm(seq.rot, axis=-1, keepdims=True), 6),
         "tracked": [1] * (3 * n),
-        "truth": {"bodyYaw": r(seq.body_yaw, 5), "root": r(root, 5)},
+        "truth": {"bodyYaw": r(seq.body_yaw, 5), "root": r(root, 5),
+                  "motionClass": [int(c) for c in seq.classes]},
     }
 
 
@@ -95,12 +141,12 @@ def main(argv=None) -> int:
     args = ap.parse_args(argv)
     args.out.mkdir(parents=True, exist_ok=True)
     index = []
-    for k, (name, folder, subject, take, note) in enumerate(RECORDINGS):
+    for k, (name, folder, subject, take, note, held_in, seconds, classes) in enumerate(RECORDINGS):
         out = args.out / f"{name}.json"
         index.append(out.name)
         if out.exists() and not args.force:
             continue
-        rec = make(name, folder, subject, take, note, SEED + k)
+        rec = make(name, folder, subject, take, note, held_in, seconds, classes, SEED + k)
         out.write_text(json.dumps(rec, separators=(",", ":")))
         print(f"wrote {out} ({rec['frames']} frames, {rec['frames'] / FPS:.1f} s, {out.stat().st_size // 1024} kB)")
     (args.out / "index.json").write_text(json.dumps(index) + "\n")

@@ -3,7 +3,8 @@ import fs from 'node:fs';
 import path from 'node:path';
 import * as ort from 'onnxruntime-web/wasm';
 import { beforeAll, describe, expect, it } from 'vitest';
-import { MAX_DT, NUM_INPUTS, OrientationFeatures, hmdYaw, wrapAngle } from '../../web/src/orientation/features.ts';
+import { MAX_DT, NUM_INPUTS, OrientationFeatures } from '../../web/src/orientation/features.ts';
+import { headingYaw as hmdYaw, wrapAngle } from '../../web/src/yaw.ts';
 import { OrientationModel } from '../../web/src/orientation/orientation-model.ts';
 
 // Fixtures recorded from Python by `npm run train` (training/orientation/fixtures.py): raw
@@ -155,6 +156,21 @@ describe('OrientationModel (onnxruntime-web in Node)', () => {
       const median = times[times.length >> 1];
       console.log(`orientation model: median ${median.toFixed(3)} ms per update (features + onnxruntime-web wasm, Node ${process.version})`);
       expect(median).toBeLessThan(10);
+    } finally {
+      await model.release();
+    }
+  });
+
+  it('recovers from a NaN previous body yaw as from a reset (docs/orientation-model.md)', async () => {
+    const model = await OrientationModel.create(bytes);
+    try {
+      for (let t = 0; t < 5; t++) await model.update(seq.positions[t], seq.quaternions[t], seq.dt[t]);
+      // A corrupted state: the previous yaw is NaN. The next frame treats it as a reset.
+      (model as unknown as { _bodyYaw: number })._bodyYaw = Number.NaN;
+      const yaw = await model.update(seq.positions[5], seq.quaternions[5], seq.dt[5]);
+      expect(Number.isFinite(yaw)).toBe(true);
+      expect(model.features.input[36]).toBe(1); // previous slot: HMD forward, cos 0
+      for (let t = 6; t < 40; t++) expect(Number.isFinite(await model.update(seq.positions[t], seq.quaternions[t], seq.dt[t]))).toBe(true);
     } finally {
       await model.release();
     }

@@ -1,4 +1,4 @@
-"""Body-orientation network (THESIS_NOTES §9, thesis §"Prediction of the body orientation").
+"""Body-orientation network (docs/method.md §9, thesis §"Prediction of the body orientation").
 
 From full-body mocap (`.mmdb` files the Rust builder writes, read with `mmdb.py`) this package
 simulates what a VR user's headset and two controllers report, turns it into the 42 network

@@ -1,4 +1,4 @@
-"""The 42 network inputs from raw tracker poses (THESIS_NOTES §9; thesis Eq. for x = (x^v, x^w,
+"""The 42 network inputs from raw tracker poses (docs/method.md §9; thesis Eq. for x = (x^v, x^w,
 x^r, x^d)), and the 6D output's meaning. `docs/orientation-model.md` is the contract;
 `web/src/orientation/features.ts` computes the same numbers in the browser.
 

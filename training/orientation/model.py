@@ -115,7 +115,7 @@ def export_onnx(net: OrientationNet, path: Path, metadata: dict[str, str] | None
         node.doc_string = ""
     for value in list(model.graph.input) + list(model.graph.output) + list(model.graph.initializer):
         del value.metadata_props[:]
-    model.doc_string = ("Body-orientation network (THESIS_NOTES §9). Input: 42 raw features "
+    model.doc_string = ("Body-orientation network (docs/method.md §9). Input: 42 raw features "
                         "(docs/orientation-model.md); output: 6D body rotation in the HMD-yaw frame.")
     props = {"feature_order": ",".join(FEATURE_NAMES), "units": "m, s, rad; Y up; yaw 0 = +Z",
              **(metadata or {})}

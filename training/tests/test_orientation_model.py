@@ -25,7 +25,7 @@ def random_net(seed=0):
 
 
 def test_relu_after_each_hidden_layer():
-    # THESIS_NOTES §9: 42 → 32 → ReLU → 32 → ReLU → 6 (the released MMVR model misses one ReLU).
+    # docs/method.md §9: 42 → 32 → ReLU → 32 → ReLU → 6 (the released MMVR model misses one ReLU).
     kinds = [type(m).__name__ for m in OrientationNet().mlp]
     assert kinds == ["Linear", "ReLU", "Linear", "ReLU", "Linear"]
     shapes = [tuple(m.weight.shape) for m in OrientationNet().mlp if hasattr(m, "weight")]

@@ -25,7 +25,11 @@ def clips(mocap, mmdb_cli):
 
 def test_split_is_by_subject():
     assert not set(data.TRAIN_SUBJECTS) & set(data.TEST_SUBJECTS)
-    assert {f for f, _ in data.TEST_SUBJECTS} == {"cmu-asf", "cmu-daz"}
+    # Held out: both CMU skeletons, a 100STYLE style, and CMU 14 (back- and side-steps, gestures).
+    assert {f for f, _ in data.TEST_SUBJECTS} == {"cmu-asf", "cmu-daz", "100style"}
+    assert ("cmu-asf", "14") in data.TEST_SUBJECTS
+    # CMU Daz 02 and CMU ASF 02 are one person: both on the same side of the split.
+    assert (("cmu-asf", "02") in data.TRAIN_SUBJECTS) == (("cmu-daz", "02") in data.TRAIN_SUBJECTS)
 
 
 def test_rig_follows_the_webxr_frames(clips):

@@ -194,6 +194,17 @@ pub fn replay(db: &Database, index: &SearchIndex, recording: &Recording, yaw: &[
         clamped += (gap >= 0.98 * alpha) as usize;
         if let Some(truth) = &recording.truth_root {
             distances.push(Vec2::new(root.x - truth[f].x, root.z - truth[f].y).length());
+            if std::env::var_os("MMDB_REPLAY_TRACE").is_some() && f % 36 == 0 {
+                let clip = &db.clips[db.clip_at(c.frame())];
+                let ty = recording.truth_yaw.as_ref().map_or(0.0, |t| t[f]);
+                let (fw, lt) = (Vec2::new(ty.sin(), ty.cos()), Vec2::new(ty.cos(), -ty.sin()));
+                let e = Vec2::new(root.x, root.z) - truth[f];
+                let h = floor - truth[f];
+                eprintln!(
+                    "t {:5.2} root-truth fwd {:+.2} lat {:+.2} | head-truth fwd {:+.2} lat {:+.2} | v {:.2} {} [{}]",
+                    recording.time[f], e.dot(fw), e.dot(lt), h.dot(fw), h.dot(lt), velocity.length(), clip.name, c.frame()
+                );
+            }
         }
         // Legacy skating: toes under 3.3 cm (room units) above the planted toe height slide,
         // weighted by their height.

@@ -33,6 +33,11 @@ pub enum Mode {
 #[derive(Clone, Debug)]
 pub struct Drive {
     pub mode: Mode,
+    /// Tracked mode: where the avatar's head is relative to its root (world, on the floor,
+    /// smoothed; set by the character each frame, zero when off). The user's head is where the
+    /// avatar's head should be, so the simulated character — the root's target — is the head
+    /// minus this offset (`CharacterSettings::tracked_head_offset`).
+    pub head_offset: Vec3,
     pub desired_velocity: Vec3,
     pub desired_rotation: Quat,
     velocity_change: ChangeDetector,
@@ -43,6 +48,7 @@ impl Default for Drive {
     fn default() -> Self {
         Drive {
             mode: Mode::Input,
+            head_offset: Vec3::ZERO,
             desired_velocity: Vec3::ZERO,
             desired_rotation: Quat::IDENTITY,
             velocity_change: ChangeDetector::default(),
@@ -71,10 +77,10 @@ impl Drive {
                 (v, yaw_facing(v).unwrap_or(simulation.rotation))
             }
             Mode::Tracked(t) => {
-                // The simulated character *is* the user's head on the floor; its velocity is
-                // the head's ground velocity, spring-smoothed (§9): the head bobs and sways
-                // every step, the trajectory must not.
-                simulation.position = Vec3::new(t.position.x, 0.0, t.position.z);
+                // The simulated character is the user's head on the floor (§9), less where the
+                // avatar's head sits from its root; its velocity is the head's ground velocity,
+                // spring-smoothed: the head bobs and sways every step, the trajectory must not.
+                simulation.position = Vec3::new(t.position.x - self.head_offset.x, 0.0, t.position.z - self.head_offset.z);
                 let goal = Vec3::new(t.velocity.x, 0.0, t.velocity.z);
                 spring_damper_exact(&mut simulation.velocity, &mut simulation.acceleration, goal, settings.velocity_halflife, dt);
                 (goal, Quat::from_rotation_y(t.yaw))

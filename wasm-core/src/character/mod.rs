@@ -33,6 +33,10 @@ use query::Query;
 use root::RootMotion;
 use schedule::{Outcome, Schedule};
 
+/// Smoothing of the avatar's head offset from its root in tracked mode (s): the head sways a few
+/// cm with every step, which the user's own head already does.
+pub const HEAD_OFFSET_HALFLIFE: f32 = 0.2;
+
 /// A character playing one database.
 pub struct Character {
     pub settings: CharacterSettings,
@@ -48,6 +52,9 @@ pub struct Character {
     pose: Pose,
     legs: Legs,
     skating: SkatingMeter,
+    /// Head joint, and its smoothed floor offset from the root in the root's frame.
+    head: Option<usize>,
+    head_offset: Vec3,
 }
 
 impl Character {
@@ -67,6 +74,8 @@ impl Character {
             pose: Pose::new(db.num_joints()),
             legs: Legs::new(db),
             skating: SkatingMeter::default(),
+            head: db.skeleton.site("head").filter(|s| s.joint > 0).map(|s| s.joint as usize),
+            head_offset: Vec3::ZERO,
         };
         c.pose.play(db, frame, c.settings.inertialize, c.settings.inertialization_halflife, 0.0);
         c.pose.set_root(c.root.position, c.root.rotation);
@@ -128,6 +137,10 @@ impl Character {
             self.simulation.velocity = tracked.velocity;
             self.simulation.acceleration = Vec3::ZERO;
             self.schedule.force = true;
+            if let Some(head) = self.head {
+                let w = self.pose.world_positions[head] - self.root.position;
+                self.head_offset = self.root.rotation.inverse() * Vec3::new(w.x, 0.0, w.z);
+            }
         }
         self.drive.mode = Mode::Tracked(tracked);
     }
@@ -233,6 +246,7 @@ impl Character {
     pub fn update(&mut self, db: &Database, index: &SearchIndex, input: &Input, dt: f32) {
         let dt = dt.max(0.0);
         self.legs.undo_drop(&mut self.pose);
+        self.update_head_offset(dt);
         let s = &self.settings;
         let thresholds = (s.velocity_change_threshold, s.rotation_change_threshold);
         if self.drive.update(&mut self.simulation, &s.controller, thresholds, input, dt) {
@@ -260,6 +274,20 @@ impl Character {
         self.pose.reset_output(&db.skeleton.parents);
         self.legs.apply(db, &mut self.pose, &self.settings, self.root.rotation, dt);
         self.skating.update(self.legs.toes, self.pose.contacts);
+    }
+
+    /// Tracked mode: the shown head's floor offset from the root (last frame's pose), smoothed in
+    /// the root's frame, handed to the drive in world space.
+    fn update_head_offset(&mut self, dt: f32) {
+        let (Some(head), true, Mode::Tracked(_)) = (self.head, self.settings.tracked_head_offset, &self.drive.mode) else {
+            self.drive.head_offset = Vec3::ZERO;
+            return;
+        };
+        let world = self.pose.world_positions[head] - self.root.position;
+        let local = self.root.rotation.inverse() * Vec3::new(world.x, 0.0, world.z);
+        self.head_offset += (local - self.head_offset) * (1.0 - (-dt / HEAD_OFFSET_HALFLIFE).exp2());
+        let w = self.root.rotation * self.head_offset;
+        self.drive.head_offset = Vec3::new(w.x, 0.0, w.z);
     }
 
     fn search(&mut self, db: &Database, index: &SearchIndex) {

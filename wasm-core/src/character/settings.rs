@@ -58,6 +58,13 @@ pub struct CharacterSettings {
     /// velocity), searches skip frames tagged `idle` (built with `"motion_tags": true`), so a
     /// walking user is never matched with standing frames dragged by the clamp. 0 = off.
     pub idle_exclude_speed: f32,
+    /// Tracked (VR) drive: the user's head gives where the avatar's *head* should be, and the
+    /// root's target is that less the avatar's own head offset from its root (smoothed over
+    /// [`super::HEAD_OFFSET_HALFLIFE`]). Off (default): the root's target is the head itself
+    /// (MMVR), which puts the hips under the head however the body leans — 15 cm from the real
+    /// hips while walking backward or side-stepping; on, side-steps and backward walking follow
+    /// better but gestures and stepping about worse (docs/vr.md, "Where the root goes").
+    pub tracked_head_offset: bool,
 }
 
 impl Default for CharacterSettings {
@@ -88,6 +95,7 @@ impl Default for CharacterSettings {
             foot_lock_halflife: 0.12,
             query_drag: false,
             idle_exclude_speed: 0.0,
+            tracked_head_offset: false,
         }
     }
 }

@@ -1,5 +1,5 @@
 /**
- * The body-orientation network at run time (THESIS_NOTES §9): raw headset and controller poses
+ * The body-orientation network at run time (docs/method.md §9): raw headset and controller poses
  * in, the body's yaw out, the network's previous prediction fed back every frame.
  *
  * Runs `public/models/orientation.onnx` with onnxruntime-web's WASM backend. Mirrors
@@ -10,6 +10,8 @@
  *   3. run; φ = atan2(−out[2], out[0]); a non-finite or degenerate output keeps the previous
  *      body yaw (the HMD yaw right after a reset);
  *   4. body yaw = HMD yaw + φ (radians, 0 = facing +Z, as the character's yaw).
+ * A previous body yaw that is not finite counts as a reset (previous slot 0, fallback the HMD
+ * yaw), so the loop can never keep a NaN.
  */
 import * as ort from 'onnxruntime-web/wasm';
 import { wrapAngle } from '../yaw.ts';
@@ -94,7 +96,8 @@ export class OrientationModel {
     try {
       const f = this.features;
       f.update(positions, quaternions, dt);
-      f.setPrevious(this.hasYaw ? wrapAngle(this._bodyYaw - f.hmdYaw) : 0);
+      const known = this.hasYaw && Number.isFinite(this._bodyYaw);
+      f.setPrevious(known ? wrapAngle(this._bodyYaw - f.hmdYaw) : 0);
       const result = await this.session.run(this.feeds);
       const o = this.output;
       o.set(result[this.outputName].data as Float32Array);
@@ -103,7 +106,7 @@ export class OrientationModel {
       if (Number.isFinite(cs) && Number.isFinite(sn) && Math.hypot(cs, sn) > 1e-6) {
         this._relativeYaw = Math.atan2(sn, cs);
         this._bodyYaw = f.hmdYaw + this._relativeYaw;
-      } else if (!this.hasYaw) {
+      } else if (!known) {
         this._bodyYaw = f.hmdYaw;
         this._relativeYaw = 0;
       } else {
