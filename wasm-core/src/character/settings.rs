@@ -44,7 +44,8 @@ pub struct CharacterSettings {
     pub search_method: SearchMethod,
     /// Pin toes in contact to the floor with two-bone leg IK (docs/method.md §7).
     pub foot_lock: bool,
-    /// A locked toe unlocks when the animation drifts farther than this (m).
+    /// A locked toe unlocks when the animation drifts farther than this (m) — or than
+    /// `clamp_distance` (α) when clamping, whichever is larger.
     pub foot_lock_unlock_radius: f32,
     /// Plant locked toes at the floor height (see [`super::Character::set_toe_floor`]) rather
     /// than wherever they touched down.
