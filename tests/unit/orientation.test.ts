@@ -3,7 +3,8 @@ import fs from 'node:fs';
 import path from 'node:path';
 import * as ort from 'onnxruntime-web/wasm';
 import { beforeAll, describe, expect, it } from 'vitest';
-import { MAX_DT, NUM_INPUTS, OrientationFeatures, hmdYaw, wrapAngle } from '../../web/src/orientation/features.ts';
+import { MAX_DT, NUM_INPUTS, OrientationFeatures } from '../../web/src/orientation/features.ts';
+import { headingYaw as hmdYaw, wrapAngle } from '../../web/src/yaw.ts';
 import { OrientationModel } from '../../web/src/orientation/orientation-model.ts';
 
 // Fixtures recorded from Python by `npm run train` (training/orientation/fixtures.py): raw

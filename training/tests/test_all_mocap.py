@@ -1,6 +1,7 @@
 """Every shipped BVH file parses with the oracle and builds with the CLI on its own."""
 
 from concurrent.futures import ThreadPoolExecutor
+import json
 import os
 
 import numpy as np
@@ -8,12 +9,16 @@ import numpy as np
 import bvh_reference
 import mmdb
 
-EXPECTED_FILES = 118
-
 
 def bvh_files(mocap):
-    files = sorted(mocap.glob("cmu-*/*.bvh"))
-    assert len(files) == EXPECTED_FILES, f"expected {EXPECTED_FILES} BVH files under {mocap}, found {len(files)}"
+    """Every file the shared manifest lists (it grows: never a fixed count), all present."""
+    manifest = json.loads((mocap / "manifest.json").read_text())
+    files = sorted(mocap / e["folder"] / e["file"] for e in manifest)
+    assert files, f"{mocap}/manifest.json lists no files"
+    missing = [f for f in files if not f.is_file()]
+    assert not missing, f"listed in manifest.json but missing: {missing[:5]}"
+    on_disk = sorted(mocap.glob("*/*.bvh"))
+    assert set(on_disk) <= set(files), f"BVH files not in manifest.json: {sorted(set(on_disk) - set(files))[:5]}"
     return files
 
 

@@ -50,7 +50,10 @@ const _ray = new THREE.Raycaster();
 const _floor = new THREE.Plane(new THREE.Vector3(0, 1, 0), 0);
 const _hit = new THREE.Vector3();
 
-export class MMAvatarElement extends HTMLElement {
+/** `HTMLElement` where there is one: the module also loads in Node (SSR, tests) without a DOM. */
+const ElementBase = (typeof HTMLElement === 'undefined' ? class {} : HTMLElement) as typeof HTMLElement;
+
+export class MMAvatarElement extends ElementBase {
   static readonly observedAttributes = ['avatar', 'database', 'controls', 'camera', 'debug', 'alt'];
 
   /** The character, once loaded (null before `load` and after removal). */
