@@ -3,7 +3,8 @@
 // `npm run build` all come here. Each step checks whether its output is already up to date and
 // skips itself, so a second run with nothing changed takes a few seconds.
 //
-//   node scripts/setup.mjs build   set up everything, then stop
+//   node scripts/setup.mjs build   set up everything and build dist/ (the site, dist/mm-avatar.js,
+//                                  the module build dist/lib/ with types), then stop
 //   node scripts/setup.mjs start   set up, then run the vite dev server (port 5173) in the foreground;
 //                                  `start --https` serves HTTPS with a self-signed certificate (WebXR)
 //   node scripts/setup.mjs test    set up (plus Chromium and the Python venv), then run every test
@@ -12,7 +13,7 @@
 //
 // Environment:
 //   SETUP_SKIP=step,step   skip named steps: npm, rust-target, wasm-bindgen, wasm, cli, databases,
-//                          avatars, chromium, venv, recordings (for working on one part while another is broken)
+//                          avatars, dist, chromium, venv, recordings (for working on one part while another is broken)
 //   TEST_SUITES=a,b        run only these suites: cargo, vitest, pytest, playwright
 //
 // Node builtins only: this runs before node_modules exists.
@@ -324,6 +325,30 @@ async function stepAvatars() {
   });
 }
 
+async function stepDist() {
+  await step('dist', 'dist/ (site, mm-avatar.js, the module build and its types)', async () => {
+    const dist = path.join(ROOT, 'dist');
+    const stamp = path.join(dist, '.build-stamp');
+    const inputs = [
+      newestUnder(path.join(ROOT, 'web', 'src')),
+      newestUnder(path.join(ROOT, 'examples')),
+      newestUnder(path.join(ROOT, 'public')),
+      ...['index.html', 'viewer.html', 'vr.html', 'bench.html', 'vite.config.ts', 'tsconfig.json', 'tsconfig.lib.json', 'package.json'].map((f) => mtime(path.join(ROOT, f))),
+    ];
+    if (mtime(stamp) > Math.max(...inputs)) return 'dist/ is newer than its sources';
+    const vite = path.join(ROOT, 'node_modules', '.bin', 'vite');
+    fs.rmSync(dist, { recursive: true, force: true });
+    // The site (every page, public/ copied beside it), then the standalone element and the
+    // module for bundlers next to it (vite.config.ts has the three modes), then types.
+    await run(vite, ['build', '--logLevel', 'warn']);
+    await run(vite, ['build', '--mode', 'element', '--logLevel', 'warn']);
+    await run(vite, ['build', '--mode', 'lib', '--logLevel', 'warn']);
+    await run(path.join(ROOT, 'node_modules', '.bin', 'tsc'), ['-p', 'tsconfig.lib.json']);
+    fs.cpSync(path.join(ROOT, 'examples'), path.join(dist, 'examples'), { recursive: true });
+    fs.writeFileSync(stamp, `${new Date().toISOString()}\n`);
+  });
+}
+
 async function stepChromium() {
   await step('chromium', 'Chromium (Debian package)', async () => {
     if (fs.existsSync('/usr/bin/chromium')) return '/usr/bin/chromium exists';
@@ -481,6 +506,7 @@ async function main() {
     await stepVenv();
   }
   if (mode !== 'build') await stepRecordings();
+  if (mode !== 'start') await stepDist();
   log(`setup finished in ${secs(t0All)}`);
 
   if (mode === 'build') return 0;

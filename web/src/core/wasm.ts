@@ -17,7 +17,8 @@ export interface WasmExports {
 let _exports: WasmExports | null = null;
 let _pending: Promise<WasmExports> | null = null;
 
-const isNode = typeof process !== 'undefined' && !!process.versions?.node && typeof window === 'undefined';
+/** Node (tests, tools) rather than a browser: read the module from disk there. */
+const isNode = typeof (globalThis as { process?: { versions?: { node?: string } } }).process?.versions?.node === 'string' && typeof window === 'undefined';
 
 /** Initializes from the module bytes, synchronously. A no-op when already initialized. */
 export function initWasmSync(bytes: BufferSource): WasmExports {
@@ -33,8 +34,10 @@ export function initWasm(url?: string | URL): Promise<WasmExports> {
     if (isNode && url === undefined) {
       // Kept out of the browser bundle: the specifier is not a literal a bundler can follow.
       const fsModule = 'node:fs/promises';
-      const { readFile } = (await import(/* @vite-ignore */ fsModule)) as typeof import('node:fs/promises');
-      const bytes = await readFile(new URL('./pkg/mmcore_bg.wasm', import.meta.url));
+      const { readFile } = (await import(/* @vite-ignore */ fsModule)) as { readFile(path: URL): Promise<Uint8Array<ArrayBuffer>> };
+      // Not `new URL('literal', import.meta.url)`: bundlers would inline the module into the JS.
+      const file = ['pkg', 'mmcore_bg.wasm'].join('/');
+      const bytes = await readFile(new URL(file, import.meta.url));
       return initWasmSync(bytes);
     }
     const where = url ?? assetUrl('mmcore_bg.wasm');

@@ -5,7 +5,8 @@
  * - attributes, all optional: `avatar` (GLB/VRM URL; default the shipped avatar; `none`: the
  *   skeleton), `database` (.mmdb URL; default the shipped locomotion database), `controls`
  *   (space-separated `keyboard gamepad path none`; default `keyboard gamepad`; the keyboard
- *   acts only while the element has focus), `camera` (`follow` | `fixed`), `loading`
+ *   acts only while the element has focus), `camera` (`follow`: moves with the character;
+ *   `fixed`: stays put and turns to keep it in view), `loading`
  *   (`eager` | `lazy`: wait until near the viewport), `debug`, `alt`;
  * - properties and methods: `character`, `root` ({x, y, z, yaw}, m / rad, the element's floor
  *   frame), `walkTo(x, z, {run})`, `setMove(x, z, {run})`, `stop()`, `ready` (a promise), and
@@ -72,7 +73,8 @@ export class MMAvatarElement extends ElementBase {
   private readonly view: HTMLDivElement;
   private readonly status: HTMLDivElement;
   private readonly controls = new MoveControls();
-  private camera: FollowCamera | null = null;
+  /** The camera's orbit controls and following (once loaded): pages may enable zoom here. */
+  orbit: FollowCamera | null = null;
   private abort: AbortController | null = null;
   private observer: IntersectionObserver | null = null;
   private resolveReady: () => void = () => {};
@@ -237,10 +239,10 @@ export class MMAvatarElement extends ElementBase {
       database.release(); // the character holds its own reference
       this.character = character;
       this.stage.scene.add(character.object3d);
-      this.stage.camera.position.set(1.8, 1.5, 3.2);
-      this.camera = new FollowCamera(this.stage.camera, this.stage.renderer.domElement);
-      this.camera.controls.enableZoom = false; // the page scrolls, not the camera
-      this.camera.follow(0, 0, 0);
+      this.stage.camera.position.set(2.2, 1.8, 4.2);
+      this.orbit = new FollowCamera(this.stage.camera, this.stage.renderer.domElement);
+      this.orbit.controls.enableZoom = false; // the page scrolls, not the camera
+      this.orbit.follow(0, 0, 0);
     } catch (e) {
       this.fail(errorMessage(e), databaseUrl);
       return;
@@ -284,8 +286,12 @@ export class MMAvatarElement extends ElementBase {
     this.lastUpdateMs = performance.now() - t0;
     this.afterUpdate?.(dt);
     const r = character.root;
-    if (this.getAttribute('camera') !== 'fixed') this.camera?.follow(r.x, r.z, dt);
-    else this.camera?.controls.update();
+    if (this.getAttribute('camera') !== 'fixed') this.orbit?.follow(r.x, r.z, dt);
+    else if (this.orbit) {
+      // A camera on a tripod: it stays where it is and turns to keep the character in view.
+      this.orbit.controls.target.set(r.x, this.orbit.targetHeight, r.z);
+      this.orbit.controls.update();
+    }
     stage.grid.follow(r.x, r.z);
     stage.render();
     if (!this.loadedOnce) {
@@ -305,8 +311,8 @@ export class MMAvatarElement extends ElementBase {
     this.character = null;
     this.stage?.dispose();
     this.stage = null;
-    this.camera?.controls.dispose();
-    this.camera = null;
+    this.orbit?.controls.dispose();
+    this.orbit = null;
     if (this.loadedOnce) {
       this.loadedOnce = false;
       this.ready = new Promise((r) => (this.resolveReady = r));

@@ -85,6 +85,8 @@ el.addEventListener('error', (e) => fileError((e as unknown as CustomEvent<{ mes
 el.addEventListener('load', async () => {
   const character = el.character!;
   const stage = el.stage!;
+  el.orbit!.controls.enableZoom = true; // a full page: the wheel zooms
+  stage.camera.position.set(2.2, 1.7, 3.8);
   const view = { mesh: true, skeleton: params.get('skeleton') === '1', shadows: params.get('shadows') !== '0', simulation: true, trajectory: true, matched: true, locks: true };
   character.debug = true;
   const apply = () => {
@@ -168,7 +170,7 @@ el.addEventListener('load', async () => {
   pathFolder.add({ stop: stopPath }, 'stop').name('stop (back to keys)');
   pathFolder.add({ clear: () => (stopPath(), path.clear()) }, 'clear');
   const settings = character.settings;
-  const runtime = gui.addFolder('Runtime');
+  const runtime = gui.addFolder('Runtime').close();
   const groups = new Map<string, GUI>();
   for (const s of RUNTIME_SETTINGS) {
     if (!groups.has(s.group)) groups.set(s.group, runtime.addFolder(s.group).close());
