@@ -1,7 +1,7 @@
 //! Two-level bounding boxes (64 and 16 frames) over the feature matrix for exact pruned search.
 //!
 //! Each box holds, per feature dimension, the min and max over the *valid* frames of a run of
-//! consecutive frames (THESIS_NOTES §3). For a query `q` and weights `w`, no frame in a box
+//! consecutive frames (docs/method.md §3). For a query `q` and weights `w`, no frame in a box
 //! can cost less than `Σ_d w_d · gap_d²`, with `gap_d` the distance from `q_d` to
 //! `[min_d, max_d]` (0 inside). A search visits a 64-frame box only if that bound beats its
 //! best cost so far, then the box's four 16-frame boxes the same way, then their frames.

@@ -59,7 +59,7 @@ pub struct BuildConfig {
     /// Savitzky–Golay windows for the virtual root, seconds (31 and 61 frames at 60 fps).
     pub root_position_window: f64,
     pub root_facing_window: f64,
-    /// Feature groups; `None` = the 27-float locomotion set (THESIS_NOTES §2).
+    /// Feature groups; `None` = the 27-float locomotion set (docs/method.md §2).
     pub features: Option<Vec<FeatureSpec>>,
     pub clips: Vec<ClipSpec>,
 }

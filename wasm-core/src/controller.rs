@@ -1,4 +1,4 @@
-//! From user input to the simulated character and its predicted trajectory (THESIS_NOTES §4):
+//! From user input to the simulated character and its predicted trajectory (docs/method.md §4):
 //! the input gives a *desired velocity* and facing; springs move the simulated character toward
 //! them; the same springs, integrated analytically, predict where it will be at the feature
 //! offsets (+20/40/60 frames). A path mode drives the simulated character along a polyline.

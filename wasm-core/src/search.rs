@@ -1,4 +1,4 @@
-//! Finding the database frame whose features best match a query (THESIS_NOTES §3).
+//! Finding the database frame whose features best match a query (docs/method.md §3).
 //! [`brute_force`] is the scalar reference; [`SearchIndex`] runs the same search fast (SIMD
 //! lanes and two-level bounding boxes) and must equal it exactly.
 

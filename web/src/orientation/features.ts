@@ -5,7 +5,7 @@
  * Frames: WebXR `local-floor` space as three.js uses it (Y up, metres, quaternions x, y, z, w).
  * The headset pose is the viewer pose (looks down its local −Z); the controllers are their
  * `gripSpace` poses. Everything is re-expressed in the frame of the HMD's yaw ("R_H"), so the
- * network sees the same numbers wherever the user faces in the room (THESIS_NOTES §9).
+ * network sees the same numbers wherever the user faces in the room (docs/method.md §9).
  *
  * Per frame nothing is allocated: the input lives in one preallocated Float32Array.
  */

@@ -1,5 +1,5 @@
 /**
- * The body-orientation network at run time (THESIS_NOTES §9): raw headset and controller poses
+ * The body-orientation network at run time (docs/method.md §9): raw headset and controller poses
  * in, the body's yaw out, the network's previous prediction fed back every frame.
  *
  * Runs `public/models/orientation.onnx` with onnxruntime-web's WASM backend. Mirrors

@@ -1,5 +1,5 @@
 /**
- * Tracker state for the VR avatar (THESIS_NOTES §9): the HMD and both controller grips each frame,
+ * Tracker state for the VR avatar (docs/method.md §9): the HMD and both controller grips each frame,
  * with linear and angular velocities differentiated over the *real* frame dt (Quest Browser runs
  * at 72/90/120 Hz; MMVR's fixed 90 fps assumption is wrong elsewhere) and lightly smoothed.
  *

@@ -50,14 +50,8 @@ declare global {
 }
 window.__mm = hook;
 
-const fail = (message: string) => {
-  hook.error = hook.error ? `${hook.error}\n${message}` : message;
-  showError(message);
-};
-const fileError = (message: string) => {
-  hook.fileError = message;
-  showError(message);
-};
+const fail = (message: string) => showError((hook.error = hook.error ? `${hook.error}\n${message}` : message) && message);
+const fileError = (message: string) => showError((hook.fileError = message));
 window.addEventListener('error', (e) => fail(`error: ${e.message}`));
 window.addEventListener('unhandledrejection', (e) => fail(`error: ${errorMessage(e.reason)}`));
 

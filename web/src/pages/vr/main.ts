@@ -36,10 +36,7 @@ declare global {
   }
 }
 window.__vr = hook;
-const fail = (message: string) => {
-  hook.error = hook.error ? `${hook.error}\n${message}` : message;
-  showError(message);
-};
+const fail = (message: string) => showError((hook.error = hook.error ? `${hook.error}\n${message}` : message) && message);
 window.addEventListener('error', (e) => fail(`error: ${e.message}`));
 window.addEventListener('unhandledrejection', (e) => fail(`error: ${errorMessage(e.reason)}`));
 
@@ -107,14 +104,10 @@ async function main(): Promise<void> {
     hook.networkLoaded = true;
     if (params.get('predictor') !== 'heuristic') drive.setPredictor(network);
   } catch (e) {
-    hook.predictorFallback = `orientation model unavailable (${modelUrl}): ${errorMessage(e)}`;
-    console.warn(hook.predictorFallback);
+    console.warn((hook.predictorFallback = `orientation model unavailable (${modelUrl}): ${errorMessage(e)}`));
     (select.querySelector('option[value="network"]') as HTMLOptionElement).disabled = true;
   }
-  const choosePredictor = (name: string) => {
-    drive.setPredictor(name === 'network' && network ? network : heuristic);
-    showPredictor();
-  };
+  const choosePredictor = (name: string) => (drive.setPredictor(name === 'network' && network ? network : heuristic), showPredictor());
   select.addEventListener('change', () => choosePredictor(select.value));
   hook.setPredictor = choosePredictor;
   showPredictor();
@@ -211,10 +204,7 @@ async function main(): Promise<void> {
     drive.update(sample, fixedDt ? 1 / 60 : undefined);
     timer.add(drive.lastUpdateMs);
     const tr = drive.trackers;
-    [tr.left, tr.right].forEach((view, k) => {
-      markers[k].position.fromArray(view.position);
-      markers[k].quaternion.fromArray(view.rotation);
-    });
+    [tr.left, tr.right].forEach((view, k) => (markers[k].position.fromArray(view.position), markers[k].quaternion.fromArray(view.rotation)));
     const root = character.root;
     if (!hook.inXR) spectator.follow(root.x, root.z, fixedDt ? 1 / 60 : realDt);
     stage.grid.follow(root.x, root.z);
@@ -224,11 +214,10 @@ async function main(): Promise<void> {
       if (hook.inXR) {
         // Others see the head that first person hides.
         const hidden = head ? head.scale.x : 1;
-        head?.scale.setScalar(1);
-        head?.updateMatrixWorld(true);
+        const show = (s: number) => (head?.scale.setScalar(s), head?.updateMatrixWorld(true));
+        show(1);
         pip.render(stage.scene, root.x, root.z, root.yaw);
-        head?.scale.setScalar(hidden);
-        head?.updateMatrixWorld(true);
+        show(hidden);
       }
     }
     hook.frames++;
