@@ -119,3 +119,14 @@ describe('the repository stands alone', () => {
     for (const f of all) expect(fs.readFileSync(f, 'utf8'), rel(f)).not.toMatch(outside);
   });
 });
+
+describe('the API reference', () => {
+  it('docs/api (npm run docs) lists every name the public entry exports', () => {
+    const entry = fs.readFileSync(path.join(WEB, 'index.ts'), 'utf8');
+    const names = [...entry.matchAll(/export (?:type )?\{([^}]+)\}/g)].flatMap((m) => m[1].split(',').map((n) => n.trim().replace(/^type /, '')).filter(Boolean));
+    const index = fs.readFileSync(path.join(ROOT, 'docs/api/README.md'), 'utf8');
+    expect(names.length).toBeGreaterThan(60);
+    const missing = names.filter((n) => !index.includes(`[${n.replace(/_/g, '\\_')}]`));
+    expect(missing, 'run `npm run docs`').toEqual([]);
+  });
+});

@@ -63,7 +63,7 @@ export class CharacterRuntime {
     this.views.matched = new ViewCache(Float32Array, this.raw_.num_matched() * 4);
   }
 
-  /** The binding, for other raw-layer classes (the retargeter). */
+  /** The binding, for other raw-layer classes (the retargeter). @internal */
   get raw(): RawCharacter {
     if (!this.raw_) throw new Error('character used after free()');
     return this.raw_;

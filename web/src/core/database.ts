@@ -125,7 +125,7 @@ export class Database {
     return Database.fromBytes(bytes, String(url));
   }
 
-  /** The binding, for the other raw-layer classes. */
+  /** The binding, for the other raw-layer classes. @internal */
   get raw(): RawDatabase {
     if (!this.raw_) throw new Error(`${this.name}: database used after it was freed`);
     return this.raw_;
