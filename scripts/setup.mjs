@@ -303,25 +303,25 @@ async function stepDatabases() {
 }
 
 async function stepAvatars() {
-  await step('avatars', 'avatars (public/avatars)', async () => {
+  await step('avatars', 'avatars (public/avatars, compressed for the web)', async () => {
     if (!fs.existsSync(SHARED_AVATARS)) return `no ${SHARED_AVATARS} folder`;
     const glbs = fs.readdirSync(SHARED_AVATARS).filter((f) => f.toLowerCase().endsWith('.glb')).sort();
     if (glbs.length === 0) return 'no ../shared/avatars/*.glb';
     const outDir = path.join(ROOT, 'public', 'avatars');
     fs.mkdirSync(outDir, { recursive: true });
-    let copied = 0;
+    // The shipped avatar goes out compressed (scripts/compress-avatar.mjs, @gltf-transform:
+    // meshopt geometry, WebP textures ≤ 1024 px); redone when the source or the script is newer.
+    const script = path.join(ROOT, 'scripts', 'compress-avatar.mjs');
+    let written = 0;
     for (const f of glbs) {
       const src = path.join(SHARED_AVATARS, f);
       const out = path.join(outDir, f);
-      if (mtime(out) >= mtime(src)) continue;
-      // copyFile keeps the mode (the source may be read-only), so remove an old copy first; it
-      // does not keep the mtime, so the copy is newer than its source afterwards.
-      fs.rmSync(out, { force: true });
-      fs.copyFileSync(src, out);
-      log(`  copied ${path.relative(ROOT, out)}`);
-      copied++;
+      if (mtime(out) > Math.max(mtime(src), mtime(script))) continue;
+      fs.rmSync(out, { force: true }); // an older copy may be read-only (copied with its mode)
+      await run(process.execPath, [script, src, out]);
+      written++;
     }
-    if (copied === 0) return `${glbs.length} avatar(s) newer than ../shared/avatars`;
+    if (written === 0) return `${glbs.length} avatar(s) newer than ../shared/avatars and the compressor`;
   });
 }
 

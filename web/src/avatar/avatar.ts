@@ -7,6 +7,7 @@
  */
 import * as THREE from 'three';
 import { type GLTF, GLTFLoader } from 'three/addons/loaders/GLTFLoader.js';
+import { MeshoptDecoder } from 'three/addons/libs/meshopt_decoder.module.js';
 import { type VRM, VRMLoaderPlugin, VRMUtils } from '@pixiv/three-vrm';
 import { type CharacterRuntime } from '../core/character.ts';
 import { type Database } from '../core/database.ts';
@@ -134,6 +135,10 @@ export class Avatar {
     const name = options.name ?? (source instanceof Uint8Array ? 'avatar' : String(source));
     const bytes = source instanceof Uint8Array ? source : await fetchBytes(source, { stage: 'avatar', ...options });
     const loader = new GLTFLoader();
+    // The shipped avatar is meshopt-compressed with WebP textures (scripts/compress-avatar.mjs);
+    // the decoder runs on this thread (no worker: CSP-safe, 'wasm-unsafe-eval' only). Any other
+    // GLB/VRM loads as it is.
+    loader.setMeshoptDecoder(MeshoptDecoder);
     loader.register((parser) => new VRMLoaderPlugin(parser));
     let gltf: GLTF;
     try {
