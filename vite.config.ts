@@ -1,3 +1,6 @@
+import { createHash } from 'node:crypto';
+import fs from 'node:fs';
+import path from 'node:path';
 import { fileURLToPath } from 'node:url';
 import basicSsl from '@vitejs/plugin-basic-ssl';
 import { defineConfig } from 'vitest/config';
@@ -14,14 +17,34 @@ const root = fileURLToPath(new URL('.', import.meta.url));
  * `__MM_ASSET_BASE__` is where the library's default assets are, relative to the built module
  * (web/src/assets.ts); in development they are at the site root.
  */
+/**
+ * `__MM_ASSET_VERSIONS__` (builds only): content hash and size of each default asset in
+ * `public/` (the WASM module, databases, avatars, models), so the library asks for
+ * `…/locomotion.mmdb?v=<hash>`, which caches keep for good (web/src/assets.ts, cache.ts).
+ */
+function assetVersions(): Record<string, { v: string; bytes: number }> {
+  const out: Record<string, { v: string; bytes: number }> = {};
+  const add = (rel: string) => {
+    const bytes = fs.readFileSync(path.join(root, 'public', rel));
+    out[rel] = { v: createHash('sha256').update(bytes).digest('hex').slice(0, 16), bytes: bytes.length };
+  };
+  if (fs.existsSync(path.join(root, 'public', 'mmcore_bg.wasm'))) add('mmcore_bg.wasm');
+  for (const [dir, ext] of [['databases', /\.mmdb$/], ['avatars', /\.(glb|vrm)$/], ['models', /\.onnx$/]] as const) {
+    const d = path.join(root, 'public', dir);
+    if (fs.existsSync(d)) for (const f of fs.readdirSync(d).filter((f) => ext.test(f)).sort()) add(`${dir}/${f}`);
+  }
+  return out;
+}
+
 export default defineConfig(({ command, mode }) => {
   const build = command === 'build';
   const base = { root, publicDir: 'public' };
+  const versions = build ? { __MM_ASSET_VERSIONS__: JSON.stringify(assetVersions()) } : {};
   if (build && mode === 'element') {
     return {
       ...base,
       publicDir: false,
-      define: { __MM_ASSET_BASE__: JSON.stringify('./') },
+      define: { __MM_ASSET_BASE__: JSON.stringify('./'), ...versions },
       build: {
         outDir: 'dist',
         emptyOutDir: false,
@@ -35,7 +58,7 @@ export default defineConfig(({ command, mode }) => {
     return {
       ...base,
       publicDir: false,
-      define: { __MM_ASSET_BASE__: JSON.stringify('../') },
+      define: { __MM_ASSET_BASE__: JSON.stringify('../'), ...versions },
       build: {
         outDir: 'dist/lib',
         emptyOutDir: true,
@@ -48,7 +71,7 @@ export default defineConfig(({ command, mode }) => {
   return {
     ...base,
     // Site modules land in dist/assets/: the shared assets are one folder up.
-    define: build ? { __MM_ASSET_BASE__: JSON.stringify('../') } : {},
+    define: build ? { __MM_ASSET_BASE__: JSON.stringify('../'), ...versions } : {},
     // `npm start -- --https` / `npm run dev -- --https` (VITE_HTTPS=1): a self-signed certificate
     // made locally, because Quest Browser allows WebXR only on secure origins. The room server
     // shares the dev server's origin (/rooms/<id>).

@@ -1,6 +1,7 @@
 #!/usr/bin/env node
-// `npm run bench [-- --json] [-- --seconds S] [-- --queries N] [-- --search-only] [-- --vr] [-- --compare REV]`
-// (--vr: only the VR replay benchmark, see vrBenchmark):
+// `npm run bench [-- --json] [-- --seconds S] [-- --queries N] [-- --search-only] [-- --vr] [-- --compare REV] [-- --load]`
+// (--vr: only the VR replay benchmark, see vrBenchmark; --load: bytes and time to the first
+// animated frame of the pages, cold and warm, localhost and throttled: scripts/bench-load.mjs):
 // 1. BVH parse speed (MB/s) and database build speed (frames/s), native (the mmdb CLI) and WASM
 //    in Node, on the same files in one run so the two are comparable under the same machine
 //    noise. Medians of repeated runs.
@@ -23,6 +24,13 @@ const json = args.includes('--json');
 const seconds = Number(args[args.indexOf('--seconds') + 1]) || 2;
 const searchOnly = args.includes('--search-only');
 const numQueries = args.includes('--queries') ? Number(args[args.indexOf('--queries') + 1]) : 400;
+
+if (args.includes('--load')) {
+  // What a visitor downloads and waits for (scripts/bench-load.mjs); needs only dist/ and Chromium.
+  const { loadBenchmark } = await import('./bench-load.mjs');
+  await loadBenchmark({ json, args, log: (m) => console.error(`[bench] ${m}`) });
+  process.exit(0);
+}
 
 const mmdb = path.join(ROOT, 'wasm-core', 'target', 'release', 'mmdb');
 const pkg = path.join(ROOT, 'web', 'src', 'core', 'pkg');

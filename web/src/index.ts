@@ -25,13 +25,15 @@ export { MMAvatarElement, defineMMAvatar } from './element/mm-avatar.ts';
 export type { ErrorDetail, ProgressDetail } from './element/mm-avatar.ts';
 
 // Databases, loading, the WASM module.
-export { Database, loadDatabase } from './core/database.ts';
-export type { ClipInfo, FeatureGroupInfo, TagInfo } from './core/database.ts';
+export { Database, listDatabases, loadDatabase } from './core/database.ts';
+export type { ClipInfo, DatabaseEntry, FeatureGroupInfo, TagInfo } from './core/database.ts';
 export { DatabaseBuilder } from './core/builder.ts';
 export { initWasm, initWasmSync, liveObjects } from './core/wasm.ts';
 export type { LiveObjects, WasmExports } from './core/wasm.ts';
-export { DEFAULT_AVATAR, DEFAULT_DATABASE, DEFAULT_ORIENTATION_MODEL, assetUrl, setAssetBase } from './assets.ts';
+export { DEFAULT_AVATAR, DEFAULT_DATABASE, DEFAULT_ORIENTATION_MODEL, assetBytes, assetUrl, hasAssetVersions, setAssetBase } from './assets.ts';
 export { errorMessage, fetchBytes } from './fetch.ts';
+export { ASSET_CACHE, isVersioned } from './cache.ts';
+export { registerOfflineCache } from './offline.ts';
 export type { FetchOptions, FetchProgress } from './fetch.ts';
 
 // The runtime underneath (advanced: crowds, benchmarks, tools).
@@ -76,6 +78,7 @@ export type { OrientationFeatures } from './orientation/features.ts';
 export { RecordingPlayer, TrackerRecorder, decodeRecording, encodeRecordingJson } from './vr/recording.ts';
 export type { Recording, RecordingMeta, RecordingTruth } from './vr/recording.ts';
 export { SCRIPT_DURATION, scriptedSample } from './vr/scripted-motion.ts';
+export { loadRecording } from './vr/load-recording.ts';
 export { EnterVrButton } from './vr/enter-vr-button.ts';
 export { SpectatorView } from './vr/spectator-view.ts';
 export { UpperBody } from './vr/upper-body.ts';
@@ -85,6 +88,10 @@ export type { UpperBodyOptions, UpperBodyRig } from './vr/upper-body.ts';
 export { installDropTarget, sortDroppedFiles } from './ui/drop.ts';
 export type { DroppedFiles } from './ui/drop.ts';
 export { showError } from './ui/error-box.ts';
+export { LoadingStatus, describeProgress, shortUrl } from './ui/loading-status.ts';
+export { loadPageCharacter } from './ui/page-loader.ts';
+export { saveTextFile } from './ui/save-file.ts';
+export type { PageCharacter, PageCharacterOptions } from './ui/page-loader.ts';
 
 // Angles (project convention: yaw 0 faces +Z, positive turns +Z toward +X).
 export { bodyYaw, headingYaw, wrapAngle, yawOf } from './yaw.ts';

@@ -11,8 +11,10 @@
  * - properties and methods: `character`, `root` ({x, y, z, yaw}, m / rad, the element's floor
  *   frame), `walkTo(x, z, {run})`, `setMove(x, z, {run})`, `stop()`, `ready` (a promise), and
  *   `timeStep` (null: real time; a number: fixed seconds per frame, for tests and recordings);
- * - events: `progress` (`detail: {stage, loaded, total, url}`), `load` (first animated frame),
- *   `error` (`detail: {message, url}`), and a visible message inside the element;
+ * - events: `progress` (`detail: {stage, loaded, total, url, stalled, done, cached}`), `load`
+ *   (first animated frame), `error` (`detail: {message, url}`), and a visible status inside the
+ *   element: each stage with its URL and bytes, a stalled download after 5 s, a failed database
+ *   with a Retry button (`retry()`), a failed avatar's note over the skeleton;
  * - removing the element frees its WASM memory and GPU objects; adding it again rebuilds it.
  */
 import * as THREE from 'three';
@@ -22,6 +24,7 @@ import { Character, type MoveOptions, type PathOptions, type Root } from '../cha
 import { type Database, loadDatabase } from '../core/database.ts';
 import { type FetchProgress, errorMessage } from '../fetch.ts';
 import { MoveControls } from '../input/move-controls.ts';
+import { LoadingStatus } from '../ui/loading-status.ts';
 import { FollowCamera } from '../views/follow-camera.ts';
 import { Stage } from '../views/stage.ts';
 
@@ -33,6 +36,8 @@ const STYLE = `
 .status { position: absolute; left: 0; right: 0; bottom: 0; padding: 6px 10px; font: 13px/1.35 system-ui, sans-serif; color: #e6e9ee; background: rgba(20, 23, 28, 0.82); pointer-events: none; }
 .status[hidden] { display: none; }
 .status.error { color: #ffd2cc; background: rgba(90, 20, 20, 0.88); pointer-events: auto; }
+.status.stalled { color: #ffe9b8; background: rgba(70, 52, 10, 0.88); }
+.status button { margin-left: 8px; font: inherit; color: #fff; background: #8a2b2b; border: 1px solid #c46; border-radius: 4px; padding: 2px 10px; cursor: pointer; }
 .hint { position: absolute; right: 8px; top: 6px; font: 11px system-ui, sans-serif; color: #9aa3ad; pointer-events: none; }
 `;
 
@@ -72,6 +77,7 @@ export class MMAvatarElement extends ElementBase {
 
   private readonly view: HTMLDivElement;
   private readonly status: HTMLDivElement;
+  private readonly loading = new LoadingStatus((text, state, retry) => this.render(text, state, retry));
   private readonly controls = new MoveControls();
   /** The camera's orbit controls and following (once loaded): pages may enable zoom here. */
   orbit: FollowCamera | null = null;
@@ -113,7 +119,7 @@ export class MMAvatarElement extends ElementBase {
     this.controls.attach(this);
     this.applyControls();
     if (this.getAttribute('loading') === 'lazy' && typeof IntersectionObserver !== 'undefined') {
-      this.say('Waiting to come into view…');
+      this.loading.say('Waiting to come into view…');
       this.observer = new IntersectionObserver(
         (entries) => {
           if (entries.some((e) => e.isIntersecting)) {
@@ -201,14 +207,14 @@ export class MMAvatarElement extends ElementBase {
     const signal = this.abort.signal;
     const progress = (p: FetchProgress) => {
       if (generation !== this.generation) return;
-      const mb = (n: number) => (n / 1e6).toFixed(1);
-      this.say(`Loading the ${p.stage}… ${mb(p.loaded)}${p.total ? ` / ${mb(p.total)}` : ''} MB`);
+      this.loading.update(p);
       this.dispatchEvent(new CustomEvent<ProgressDetail>('progress', { detail: { ...p } }));
     };
     const databaseUrl = this.url('database', DEFAULT_DATABASE);
     const avatarAttr = this.getAttribute('avatar')?.trim();
     const avatarUrl = avatarAttr === 'none' ? null : this.url('avatar', DEFAULT_AVATAR);
-    this.say('Loading the motion-matching core…');
+    this.loading.reset();
+    this.loading.say(`Loading · database ${databaseUrl.split('?')[0].split('/').pop()}…`);
     let database: Database;
     let avatar: Avatar | null = null;
     let avatarNote = '';
@@ -224,7 +230,7 @@ export class MMAvatarElement extends ElementBase {
       }
     } catch (e) {
       if (signal.aborted || generation !== this.generation) return;
-      this.fail(errorMessage(e), databaseUrl);
+      this.fail(errorMessage(e), databaseUrl, true);
       return;
     }
     if (signal.aborted || generation !== this.generation) {
@@ -247,7 +253,7 @@ export class MMAvatarElement extends ElementBase {
       this.fail(errorMessage(e), databaseUrl);
       return;
     }
-    this.say(avatarNote || null);
+    this.loading.finish(avatarNote || null);
     this.last = performance.now();
     this.stage.renderer.setAnimationLoop((now: number) => this.frame(now, generation));
   }
@@ -267,7 +273,7 @@ export class MMAvatarElement extends ElementBase {
       else avatar.dispose();
     } catch (e) {
       const message = `Avatar unavailable, keeping the current one: ${errorMessage(e)}`;
-      this.say(message);
+      this.loading.finish(message);
       this.dispatchEvent(new CustomEvent<ErrorDetail>('error', { detail: { message, url } }));
     }
   }
@@ -296,6 +302,8 @@ export class MMAvatarElement extends ElementBase {
     stage.render();
     if (!this.loadedOnce) {
       this.loadedOnce = true;
+      // For load benchmarks: the page's first animated frame (scripts/bench-load.mjs).
+      if (performance.getEntriesByName('mm:first-frame').length === 0) performance.mark('mm:first-frame');
       this.resolveReady();
       this.dispatchEvent(new Event('load'));
     }
@@ -343,15 +351,28 @@ export class MMAvatarElement extends ElementBase {
     this.setAttribute('aria-label', this.getAttribute('alt') ?? 'An animated character');
   }
 
-  /** Shows `text` over the view (null hides it). */
-  private say(text: string | null, error = false): void {
-    this.status.hidden = text === null;
-    this.status.textContent = text ?? '';
-    this.status.classList.toggle('error', error);
+  /** Loads again after a failure (the Retry button does this). */
+  retry(): void {
+    this.teardown();
+    void this.load();
   }
 
-  private fail(message: string, url: string): void {
-    this.say(message, true);
+  /** Shows the status over the view (null hides it), with a Retry button when offered. */
+  private render(text: string | null, state: string, retry: (() => void) | null): void {
+    this.status.hidden = text === null;
+    this.status.textContent = text ?? '';
+    this.status.className = `status ${state}`;
+    if (retry) {
+      const button = document.createElement('button');
+      button.type = 'button';
+      button.textContent = 'Retry';
+      button.addEventListener('click', (e) => (e.stopPropagation(), retry()));
+      this.status.append(button);
+    }
+  }
+
+  private fail(message: string, url: string, retry = false): void {
+    this.loading.fail(message, retry ? () => this.retry() : null);
     this.dispatchEvent(new CustomEvent<ErrorDetail>('error', { detail: { message, url } }));
   }
 }

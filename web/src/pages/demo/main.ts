@@ -11,7 +11,7 @@ import GUI from 'lil-gui';
 import * as THREE from 'three';
 import {
   Avatar, Database, DatabaseBuilder, type DroppedFiles, PathEditor, RUNTIME_SETTINGS, type RoleOverrides, UpdateTimer,
-  defineMMAvatar, errorMessage, installDropTarget, showError,
+  defineMMAvatar, errorMessage, installDropTarget, listDatabases, registerOfflineCache, showError,
 } from '../../index.ts';
 
 const hook = {
@@ -99,7 +99,7 @@ el.addEventListener('load', async () => {
     hook.avatarStandingToe = avatar?.standingToeHeight ?? NaN;
     apply();
   };
-  const databases: Record<string, Database | string> = { [character.database.name.split('/').pop()!.replace(/\.mmdb$/, '')]: character.database };
+  const databases: Record<string, Database | string> = { [character.database.name.split('?')[0].split('/').pop()!.replace(/\.mmdb$/, '')]: character.database };
   const useDatabase = (db: Database, name: string) => {
     character.setDatabase(db);
     hook.database = name;
@@ -150,6 +150,9 @@ el.addEventListener('load', async () => {
       fileError(errorMessage(e));
     }
   });
+  // Only databases the site serves (its generated databases/index.json), besides the one loaded.
+  void listDatabases().then((list) => (list.forEach((d) => (databases[d.name] ??= d.url)), databaseSelect.options(Object.keys(databases)).setValue(hook.database)), () => undefined);
+  void registerOfflineCache(); // after the first frame: repeat visits and offline from Cache Storage
   const folder = (title: string) => gui.addFolder(title).close();
   const viewFolder = folder('View');
   for (const key of ['mesh', 'skeleton', 'shadows'] as const) viewFolder.add(view, key).onChange(apply);

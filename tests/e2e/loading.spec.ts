@@ -1,0 +1,130 @@
+// Loading and failure states as a visitor sees them (issue "Load fast and fail clearly"): an
+// offline database (message + Retry that then loads), a stalled download named after 5 s, a
+// missing avatar (the skeleton walks, with a note), a mistyped ?db= (vite's HTML fallback, and
+// the production server's 404), the database list from the generated index, and the second
+// visit working offline from the caches (production server: dist/ as `npm start` serves it).
+// Each test saves the screenshot of what the user sees to test-results/load-*.png.
+import fs from 'node:fs';
+import path from 'node:path';
+import { expect, test, type Page } from '@playwright/test';
+import { type SiteServer, startSiteServer } from '../../server/serve.ts';
+
+const ROOT = path.resolve(import.meta.dirname, '../..');
+const SHOTS = path.join(ROOT, 'test-results');
+const shot = (page: Page, name: string) => page.screenshot({ path: path.join(SHOTS, `load-${name}.png`) });
+const status = (page: Page) => page.locator('mm-avatar .status');
+
+test.beforeAll(() => fs.mkdirSync(SHOTS, { recursive: true }));
+
+test('offline database: the element names the URL and offers Retry, which then loads', async ({ page }) => {
+  test.setTimeout(120_000);
+  const db = '**/databases/locomotion.mmdb*';
+  await page.route(db, (route) => route.abort('internetdisconnected'));
+  await page.goto('/');
+  await expect(status(page)).toHaveClass(/error/);
+  await expect(status(page)).toContainText(/could not fetch the database http:\/\/127\.0\.0\.1:\d+\/databases\/locomotion\.mmdb.*offline, or the server is down/);
+  const retry = page.locator('mm-avatar .status button');
+  await expect(retry).toHaveText('Retry');
+  await shot(page, 'offline-db');
+  await page.unroute(db);
+  await retry.click();
+  await page.waitForFunction(() => window.__mm?.ready, null, { timeout: 90_000 });
+  await expect(status(page)).toBeHidden();
+});
+
+test('stalled database: after 5 s the element says what it is waiting for', async ({ page }) => {
+  test.setTimeout(60_000);
+  await page.route('**/databases/locomotion.mmdb*', () => undefined); // never answered
+  await page.goto('/');
+  await expect(status(page)).toContainText('Loading', { timeout: 10_000 });
+  const t0 = Date.now();
+  await expect(status(page)).toContainText(/Still waiting for the database \/databases\/locomotion\.mmdb: nothing received for 5 s/, { timeout: 15_000 });
+  const waited = Date.now() - t0;
+  console.log(`stall reported after ${waited} ms of the page's loading status`);
+  await expect(status(page)).toHaveClass(/stalled/);
+  await shot(page, 'stalled-db');
+});
+
+test('missing avatar: the skeleton walks and a note names the URL (demo and VR page)', async ({ page }) => {
+  test.setTimeout(120_000);
+  await page.goto('/?avatar=avatars/missing.glb');
+  await page.waitForFunction(() => window.__mm?.ready, null, { timeout: 90_000 });
+  await expect(status(page)).toContainText(/Avatar unavailable, showing the skeleton: could not load the avatar http:\/\/127\.0\.0\.1:\d+\/avatars\/missing\.glb/);
+  expect(await page.evaluate(() => window.__mm.avatar)).toBe('');
+  await expect(page.locator('#error-box')).toContainText('avatars/missing.glb');
+  await shot(page, 'missing-avatar');
+
+  await page.setViewportSize({ width: 640, height: 400 });
+  await page.goto('/vr.html?avatar=avatars/missing.glb&mirror=0');
+  await page.waitForFunction(() => window.__vr?.ready || window.__vr?.error, null, { timeout: 90_000 });
+  expect(await page.evaluate(() => window.__vr.error)).toBeNull();
+  await expect(page.locator('#error-box')).toContainText(/Avatar unavailable, showing the skeleton: .*avatars\/missing\.glb/);
+  await shot(page, 'missing-avatar-vr');
+});
+
+test('a mistyped ?db= (the dev server answers with its HTML page) names the URL; Retry is offered', async ({ page }) => {
+  await page.goto('/?db=databases/locomotoin.mmdb');
+  await expect(status(page)).toContainText(/could not load the database http:\/\/127\.0\.0\.1:\d+\/databases\/locomotoin\.mmdb: not found \(the server answered with an HTML page\)/, { timeout: 30_000 });
+  await expect(page.locator('mm-avatar .status button')).toHaveText('Retry');
+  await shot(page, 'wrong-db');
+});
+
+test('the database list offers exactly the databases the generated index lists, each served', async ({ page, request }) => {
+  test.setTimeout(90_000);
+  const index = (await (await request.get('/databases/index.json')).json()) as { databases: { name: string; file: string; bytes: number }[] };
+  expect(index.databases.length).toBeGreaterThan(0);
+  for (const d of index.databases) {
+    const head = await request.head(`/databases/${d.file}`);
+    expect(head.status(), d.file).toBe(200);
+    expect(Number(head.headers()['content-length']), d.file).toBe(d.bytes);
+  }
+  await page.goto('/');
+  await page.waitForFunction(() => window.__mm?.ready, null, { timeout: 90_000 });
+  const select = page.locator('.lil-gui select').first();
+  await expect.poll(async () => (await select.locator('option').allTextContents()).sort()).toEqual(index.databases.map((d) => d.name).sort());
+});
+
+test.describe('production server (dist/)', () => {
+  let server: SiteServer;
+  test.beforeAll(async () => {
+    expect(fs.existsSync(path.join(ROOT, 'dist', 'sw.js')), 'dist/ is built by `npm run build` (npm test builds it)').toBe(true);
+    server = await startSiteServer({ root: path.join(ROOT, 'dist'), port: 0, host: '127.0.0.1' });
+  });
+  test.afterAll(async () => server?.close());
+
+  test('a wrong ?db= is a 404 naming the URL', async ({ page }) => {
+    await page.goto(`${server.url}/?db=databases/nope.mmdb`);
+    await expect(status(page)).toContainText(/could not load the database http:\/\/127\.0\.0\.1:\d+\/databases\/nope\.mmdb: HTTP 404/, { timeout: 30_000 });
+    await shot(page, 'wrong-db-production');
+  });
+
+  test('the second visit works offline: pages from the service worker, assets from Cache Storage', async ({ page, context }) => {
+    test.setTimeout(180_000);
+    const errors: string[] = [];
+    page.on('pageerror', (e) => errors.push(e.message));
+    await page.goto(`${server.url}/`);
+    await page.waitForFunction(() => window.__mm?.ready, null, { timeout: 120_000 });
+    // The first visit leaves: an active service worker with the shell, the library's assets.
+    await page.waitForFunction(
+      async () => {
+        const reg = await navigator.serviceWorker.getRegistration();
+        const keys = await caches.keys();
+        const assets = keys.includes('mm-avatar-assets') ? (await (await caches.open('mm-avatar-assets')).keys()).map((r) => r.url) : [];
+        return !!reg?.active && keys.some((k) => k.startsWith('mm-shell-')) && ['mmcore_bg.wasm', 'locomotion.mmdb', 'ubc_male.glb'].every((f) => assets.some((u) => u.includes(f)));
+      },
+      null,
+      { timeout: 60_000, polling: 500 },
+    );
+    await context.setOffline(true);
+    await page.reload();
+    await page.waitForFunction(() => window.__mm?.ready, null, { timeout: 120_000 });
+    const u0 = await page.evaluate(() => window.__mm.updates);
+    await page.waitForFunction((u) => window.__mm.updates > u + 10, u0, { timeout: 60_000 });
+    expect(await page.evaluate(() => navigator.onLine)).toBe(false);
+    expect(await page.evaluate(() => window.__mm.avatar)).toBe('ubc_male.glb');
+    await expect(status(page)).toBeHidden();
+    await shot(page, 'offline-second-visit');
+    await context.setOffline(false);
+    expect(errors).toEqual([]);
+  });
+});
