@@ -95,7 +95,7 @@ el.addEventListener('load', async () => {
   };
   const useAvatar = (avatar: Avatar | null) => {
     character.setAvatar(avatar);
-    hook.avatar = avatar?.name.split('/').pop() ?? '';
+    hook.avatar = avatar?.name.split('?')[0].split('/').pop() ?? '';
     hook.avatarStandingToe = avatar?.standingToeHeight ?? NaN;
     apply();
   };
