@@ -154,13 +154,10 @@ impl Database {
         self.num_frames as f32 / self.fps
     }
 
-    /// Index of the clip containing `frame`.
-    ///
-    /// # Panics
-    /// If `frame >= num_frames`.
+    /// Index of the clip containing `frame` (the last clip for a frame past the end; 0 without
+    /// clips, which the loader never lets through).
     pub fn clip_at(&self, frame: usize) -> usize {
-        assert!(frame < self.num_frames, "frame {frame} out of range 0..{}", self.num_frames);
-        self.clips.partition_point(|c| c.end as usize <= frame)
+        self.clips.partition_point(|c| c.end as usize <= frame).min(self.clips.len().saturating_sub(1))
     }
 
     /// Normalized feature vector of `frame`.
