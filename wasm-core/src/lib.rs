@@ -16,6 +16,7 @@ pub mod ik;
 pub mod inertialize;
 pub mod inspect;
 pub mod joint_map;
+pub mod limits;
 pub mod lanes;
 pub mod parallel;
 pub mod quality;
