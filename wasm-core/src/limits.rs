@@ -17,6 +17,8 @@
 //! | BVH numbers | finite, abs ≤ [`MAX_ABS_BVH_VALUE`] (10⁷) | 10 km in mm, 27,000 turns in degrees; larger values overflow f32 or square to ∞ downstream |
 //! | database fps (`--fps`, config, `INFO.fps`) | [`MIN_FPS`] … [`MAX_FPS`] (1 to 1,000) | the runtime advances `fps · dt` frames per update; a huge fps spins it |
 //! | unit scale (`--scale`, config, `CLIP.scale`) | [`MIN_SCALE`] … [`MAX_SCALE`] (10⁻⁶ to 10³ m per unit) | µm to km per unit covers every real unit; outside it positions underflow or overflow f32 |
+//! | configuration windows, `contact_speed` | ≤ [`MAX_WINDOW_SECONDS`] (60 s), ≤ [`MAX_SPEED`] (100 m/s) | a window of 10³⁰⁰ s would be a 2⁶⁴-frame filter |
+//! | feature weight (config), offsets | [`MIN_WEIGHT`] … [`MAX_WEIGHT`], abs ≤ [`MAX_FEATURE_OFFSET`] frames | the feature scale is std / weight |
 //! | `.mmdb` floats | finite, abs ≤ [`MAX_ABS_STORED`] (10¹²) | squared distances of such values stay finite in f32 |
 //! | `.mmdb` quaternions | unit length ± [`QUAT_NORM_TOLERANCE`] | the writer stores unit quaternions; others scale the skeleton |
 //! | `.mmdb` feature scale | [`MIN_FEATURE_SCALE`] … [`MAX_FEATURE_SCALE`] | a query is divided by it at run time |
@@ -49,6 +51,10 @@ pub const MAX_SOURCE_FPS: f64 = 1.0 / MIN_FRAME_TIME;
 /// Unit scale, metres per source unit.
 pub const MIN_SCALE: f64 = 1e-6;
 pub const MAX_SCALE: f64 = 1e3;
+/// Longest filter or smoothing window of the configuration, seconds.
+pub const MAX_WINDOW_SECONDS: f64 = 60.0;
+/// Largest speed threshold of the configuration (`contact_speed`), m/s.
+pub const MAX_SPEED: f64 = 100.0;
 /// Magnitude of any float stored in a `.mmdb` file.
 pub const MAX_ABS_STORED: f32 = 1e12;
 /// `| |q|² − 1 |` allowed for a stored rotation.

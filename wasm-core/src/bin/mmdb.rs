@@ -2,7 +2,7 @@
 
 use mmcore::config::{AutoScale, BuildConfig, Scale};
 use mmcore::search::{self, SearchOptions};
-use mmcore::{format, inspect, Bvh, Error, Source};
+use mmcore::{format, inspect, limits, Bvh, Error, Source};
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 use std::time::Instant;
@@ -159,14 +159,18 @@ fn build(args: &[String]) -> CliResult {
     if files.is_empty() {
         return Err(Usage("build needs BVH files or --config".into()).into());
     }
+    // Range-checked here, by flag name: the config was validated before these override it.
     if let Some(fps) = a.number::<f64>("--fps")? {
+        limits::check_fps(fps).map_err(|m| Usage(format!("--fps: {m}")))?;
         config.fps = fps;
     }
     if let Some(s) = a.get("--scale") {
         config.scale = if s == "auto" {
             Scale::Auto(AutoScale::Auto)
         } else {
-            Scale::Fixed(s.parse().ok().filter(|v: &f64| *v > 0.0).ok_or_else(|| Usage(format!("--scale: '{s}' is not a positive number or 'auto'")))?)
+            let v: f64 = s.parse().map_err(|_| Usage(format!("--scale: '{}' is not a number or 'auto'", limits::quote(s))))?;
+            limits::check_scale(v).map_err(|m| Usage(format!("--scale: {m}")))?;
+            Scale::Fixed(v)
         };
     }
     if a.has("--no-repair") {
