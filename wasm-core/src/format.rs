@@ -315,8 +315,8 @@ pub fn from_bytes(bytes: &[u8]) -> Result<Database> {
         if !(MIN_SCALE as f32..=MAX_SCALE as f32).contains(&clip.scale) {
             return Err(Error::format(format!("CLIP '{name}': scale {} is outside {MIN_SCALE}..{MAX_SCALE}", clip.scale)));
         }
-        if !(clip.root_scale > 0.0 && clip.root_scale <= MAX_ROOT_SCALE) {
-            return Err(Error::format(format!("CLIP '{name}': root scale {} is outside (0, {MAX_ROOT_SCALE}]", clip.root_scale)));
+        if !(1.0 / MAX_ROOT_SCALE..=MAX_ROOT_SCALE).contains(&clip.root_scale) {
+            return Err(Error::format(format!("CLIP '{name}': root scale {:e} is outside {:e}..{MAX_ROOT_SCALE:e}", clip.root_scale, 1.0 / MAX_ROOT_SCALE)));
         }
         // Names identify clips in the page and the CLI (a linear scan: clips are few and a
         // hash set would allocate per name).
@@ -412,8 +412,8 @@ pub fn from_bytes(bytes: &[u8]) -> Result<Database> {
             return Err(Error::format(format!("FDSC: feature '{quoted}' has frame offset {o}, beyond ±{MAX_FEATURE_OFFSET}")));
         }
         let weight = r.f32("feature weight")?;
-        if !(weight > 0.0 && weight <= MAX_STORED_WEIGHT) {
-            return Err(Error::format(format!("FDSC: feature '{quoted}' has weight {weight}, outside (0, {MAX_STORED_WEIGHT}]")));
+        if !(1.0 / MAX_STORED_WEIGHT..=MAX_STORED_WEIGHT).contains(&weight) {
+            return Err(Error::format(format!("FDSC: feature '{quoted}' has weight {weight:e}, outside {:e}..{MAX_STORED_WEIGHT:e}", 1.0 / MAX_STORED_WEIGHT)));
         }
         let first_dim = r.u32("feature first dim")? as usize;
         let num = r.u32("feature dim count")? as usize;
@@ -469,10 +469,12 @@ pub fn from_bytes(bytes: &[u8]) -> Result<Database> {
     })
 }
 
-/// Largest `CLIP.root_scale` (a leg-length ratio between two subjects).
+/// Largest `CLIP.root_scale` (a leg-length ratio between two subjects; people differ by
+/// less than 3×, so 1,000× either way is corruption), and the inverse is the smallest.
 const MAX_ROOT_SCALE: f32 = 1e3;
-/// Largest feature weight a reader accepts (the configuration allows up to
-/// [`MAX_WEIGHT`](crate::limits::MAX_WEIGHT); older files may have used more).
+/// Largest feature weight a reader accepts, and the inverse the smallest (the configuration
+/// allows [`MIN_WEIGHT`](crate::limits::MIN_WEIGHT)…[`MAX_WEIGHT`](crate::limits::MAX_WEIGHT);
+/// files written before that check may have used more).
 const MAX_STORED_WEIGHT: f32 = 1e6;
 
 /// Errors on the first value that is not finite or exceeds [`MAX_ABS_STORED`] in magnitude.
@@ -744,6 +746,8 @@ mod tests {
             ("contact byte 2", Box::new(|db| db.contacts[1] = 2), "section CONT: byte 1 is 2"),
             ("huge offset", Box::new(|db| db.groups[0].offsets[0] = i32::MIN), "frame offset -2147483648"),
             ("nan weight", Box::new(|db| db.groups[0].weight = f32::NAN), "weight NaN"),
+            ("denormal weight", Box::new(|db| db.groups[0].weight = 1e-40), "weight 1e-40"),
+            ("zero root scale", Box::new(|db| db.clips[0].root_scale = 0.0), "root scale 0e0"),
             ("nan site", Box::new(|db| db.skeleton.sites[0].offset.x = f32::NAN), "SKEL site offset"),
             ("duplicate clip name", Box::new(|db| {
                 db.clips[0].end = 1;
