@@ -115,3 +115,46 @@ fn committed_corpus_replays() {
     println!("{} committed BVH corpus files", cases.len());
     check_all(&cases);
 }
+
+/// The CI form of fuzzing the parser and the builder: 20,000 random mutations (fixed seed) of
+/// the valid small cases; each parses or fails clearly, and what parses and looks like a body
+/// builds (or is refused with an error) into a database its loader accepts.
+#[test]
+fn bounded_random_mutation_run() {
+    // Valid inputs only (mutants of errors stay errors), the humanoid three times over.
+    let mut seeds: Vec<Vec<u8>> = hostile::bvh_cases().into_iter().filter(|c| c.bytes.len() <= 64 << 10 && c.expect == Expect::Ok).map(|c| c.bytes).collect();
+    seeds.extend([12, 30, 60].map(|f| hostile::humanoid_bvh(f).into_bytes()));
+    let mut rng = hostile::Rng(0x5EED_B7B5_0000_0001);
+    let config = BuildConfig { fps: 30.0, mirror: false, ..BuildConfig::default() };
+    let (mut failures, mut parsed, mut built) = (Vec::new(), 0, 0);
+    for i in 0..20_000 {
+        let bytes = hostile::mutate(&seeds[rng.below(seeds.len())], &mut rng);
+        let case = Case { name: format!("mutation {i}"), bytes, expect: Expect::Either };
+        if let Some(f) = check(&case) {
+            failures.push(f);
+            continue;
+        }
+        let Ok(bvh) = Bvh::parse(FILE, &case.bytes) else { continue };
+        parsed += 1;
+        if bvh.joints.len() < 5 {
+            continue;
+        }
+        let started = Instant::now();
+        let source = Source { name: FILE.into(), bvh };
+        match catch_unwind(AssertUnwindSafe(|| mmcore::build(&config, &[source]))) {
+            Err(_) => failures.push(format!("mutation {i}: the builder panicked")),
+            Ok(Err(_)) => {}
+            Ok(Ok(out)) => {
+                built += 1;
+                if let Err(e) = format::from_bytes(&format::to_bytes(&out.database)) {
+                    failures.push(format!("mutation {i}: the builder wrote a database its loader refuses: {e}"));
+                }
+            }
+        }
+        if started.elapsed() > Duration::from_secs(2) {
+            failures.push(format!("mutation {i}: building took {:?}", started.elapsed()));
+        }
+    }
+    println!("20000 mutations: {parsed} parsed, {built} built");
+    assert!(failures.is_empty(), "{} failures:\n{}", failures.len(), failures.iter().take(30).cloned().collect::<Vec<_>>().join("\n"));
+}

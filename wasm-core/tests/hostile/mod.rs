@@ -226,6 +226,55 @@ pub fn bvh_cases() -> Vec<Case> {
     c
 }
 
+/// Tokens the random mutator splices in: the values and keywords parsers trip on.
+pub const DICTIONARY: [&str; 16] = [
+    "nan", "1e308", "-1", "{", "}", "JOINT x\n{\n", "End Site", "\r", "\0", "Frames: 16777216", "CHANNELS 6", "\u{feff}", "OFFSET 0 0 0\n", "1e39", "Frame Time: 1e-300", "\n",
+];
+
+/// One random mutation of `input` (deterministic in `rng`): 1–2 of bit flip, interesting byte,
+/// deleted range, duplicated range, dictionary token inserted or replacing a token.
+pub fn mutate(input: &[u8], rng: &mut Rng) -> Vec<u8> {
+    let mut b = input.to_vec();
+    for _ in 0..1 + rng.below(2) {
+        let n = b.len();
+        match rng.below(6) {
+            0 if n > 0 => {
+                let at = rng.below(n);
+                b[at] ^= 1 << rng.below(8);
+            }
+            1 if n > 0 => {
+                let at = rng.below(n);
+                b[at] = b"\0\xFF\n\r {}-.e9"[rng.below(11)];
+            }
+            2 if n > 0 => {
+                let at = rng.below(n);
+                let len = rng.below(64).min(n - at);
+                b.drain(at..at + len);
+            }
+            3 if n > 0 => {
+                let at = rng.below(n);
+                let len = rng.below(256).min(n - at);
+                let piece = b[at..at + len].to_vec();
+                let to = rng.below(n + 1);
+                b.splice(to..to, piece);
+            }
+            4 => {
+                let to = rng.below(n + 1);
+                b.splice(to..to, DICTIONARY[rng.below(DICTIONARY.len())].bytes());
+            }
+            _ if n > 0 => {
+                // Replace the whitespace-delimited token around a random position.
+                let at = rng.below(n);
+                let start = b[..at].iter().rposition(|c| c.is_ascii_whitespace()).map_or(0, |p| p + 1);
+                let end = b[at..].iter().position(|c| c.is_ascii_whitespace()).map_or(n, |p| at + p);
+                b.splice(start..end, DICTIONARY[rng.below(DICTIONARY.len())].bytes());
+            }
+            _ => b.extend_from_slice(DICTIONARY[rng.below(DICTIONARY.len())].as_bytes()),
+        }
+    }
+    b
+}
+
 /// Big cases, generated in the test (never committed): depth, width, a 200 MB file.
 pub fn big_bvh_cases() -> Vec<Case> {
     vec![
