@@ -733,7 +733,8 @@ mod tests {
     /// then froze, trapped or poisoned the runtime.
     #[test]
     fn rejects_insane_values() {
-        let cases: Vec<(&str, Box<dyn Fn(&mut Database)>, &str)> = vec![
+        type Edit = Box<dyn Fn(&mut Database)>;
+        let cases: Vec<(&str, Edit, &str)> = vec![
             ("huge fps", Box::new(|db| db.fps = 1e30), "INFO.fps must be between 1 and 1000"),
             ("zero fps", Box::new(|db| db.fps = 0.0), "INFO.fps"),
             ("nan fps", Box::new(|db| db.fps = f32::NAN), "INFO.fps"),

@@ -137,7 +137,7 @@ pub fn bvh_cases() -> Vec<Case> {
         case("utf16le_no_bom", TWO.encode_utf16().flat_map(|u| u.to_le_bytes()).collect::<Vec<u8>>(), err(":1: the file is UTF-16")),
         case("utf32le", TWO.chars().flat_map(|ch| (ch as u32).to_le_bytes()).collect::<Vec<u8>>(), err(":1: the file is UTF-32")),
         case("nul_in_keyword", TWO.replacen("HIERARCHY", "HIER\0ARCHY", 1), err(":1: expected 'HIERARCHY', found 'HIER\\0ARCHY'")),
-        case("nul_in_value", TWO.replace("1 1 0 90", "1 1 0 9\00"), err(":20: frame 1: expected a number, found '9\\00'")),
+        case("nul_in_value", TWO.replace("1 1 0 90", "1 1 0 9\u{0}0"), err(":20: frame 1: expected a number, found '9\\00'")),
         case("nuls_only", vec![0u8; 4096], err(":1: expected 'HIERARCHY', found '\\0\\0\\0")),
         case("non_utf8_value", [TWO.replace("1 1 0 90", "1 1 0 9\u{1}").as_bytes()].concat().iter().map(|&b| if b == 1 { 0xFF } else { b }).collect::<Vec<u8>>(), err(":20: frame 1: expected a number, found '9\u{fffd}'")),
         case("binary_noise", (0..2048u32).map(|i| (i.wrapping_mul(2_654_435_761) >> 13) as u8).collect::<Vec<u8>>(), Expect::Either),
