@@ -25,6 +25,7 @@
 //! | `.mmdb` feature offsets | abs ≤ [`MAX_FEATURE_OFFSET`] frames | 10 s at 1,000 fps; the runtime predicts that far |
 //! | `.mmdb` allocation | ≤ [`MMDB_ALLOCATION_FACTOR`] × file size | every count is checked against the bytes that must hold it |
 //! | BVH allocation | ≤ [`BVH_ALLOCATION_FACTOR`] × file size + 1 MiB | values are at least 2 bytes of text each; non-UTF-8 text may triple when made readable |
+//! | a built database | ≤ [`MAX_DATABASE_BYTES`] (1 GiB), ≤ [`MAX_FRAMES`] frames ([`check_database_size`]) | resampling a 1 fps take to 1,000 fps grows it 1,000-fold; wasm32 has 4 GiB |
 //! | quoted input in a message | [`MAX_QUOTE_CHARS`] characters | a 1 MB token must not become a 1 MB message |
 //! | a whole message | [`MAX_MESSAGE_CHARS`] characters | same, as a backstop for every error of the crate |
 
@@ -131,6 +132,33 @@ pub fn check_scale(scale: f64) -> std::result::Result<(), String> {
     }
 }
 
+/// Largest database a build may produce, in bytes of its arrays (pose arrays, contacts,
+/// features, validity): wasm32 has 4 GiB of address space, shared with the sources and the
+/// builder's f64 intermediates (about twice the output).
+pub const MAX_DATABASE_BYTES: u64 = 1 << 30;
+
+/// Checks, before anything is allocated, that a database of `frames` frames, `joints` joints
+/// (the virtual root included) and `dims` feature dimensions stays within
+/// [`MAX_DATABASE_BYTES`] (and [`MAX_FRAMES`] frames). A builder should call this with the
+/// sum of [`resampled_frames`] over its takes: a 2 MB BVH at 1 fps resampled to 1,000 fps
+/// would otherwise ask for 156 GB.
+///
+/// # Errors
+/// A message with the frame count and size when the database would be too large.
+pub fn check_database_size(frames: usize, joints: usize, dims: usize) -> std::result::Result<(), String> {
+    // LPOS, LVEL, LAVL (12 B each), LROT (16 B) per joint; FEAT 4 B per dim; CONT 2 B, VALD 1 B.
+    let per_frame = joints as u64 * 52 + dims as u64 * 4 + 3;
+    let bytes = (frames as u64).saturating_mul(per_frame);
+    if frames > MAX_FRAMES || bytes > MAX_DATABASE_BYTES {
+        return Err(format!(
+            "the database would have {frames} frames ({:.1} GB); the limit is {MAX_FRAMES} frames and {:.1} GB — use fewer or shorter takes, or a lower fps",
+            bytes as f64 / 1e9,
+            MAX_DATABASE_BYTES as f64 / 1e9
+        ));
+    }
+    Ok(())
+}
+
 /// Frames a take of `source_frames` frames at `source_fps` gives when resampled to `fps`,
 /// the way the builder counts them, or `None` when that exceeds [`MAX_FRAMES`] (a builder
 /// can call this before allocating: a 1 fps source resampled to 1,000 fps grows 1,000-fold).
@@ -177,5 +205,8 @@ mod tests {
         assert_eq!(resampled_frames(471, 120.0, 60.0), Some(236));
         assert_eq!(resampled_frames(0, 120.0, 60.0), Some(0));
         assert_eq!(resampled_frames(MAX_FRAMES, 1.0, 1000.0), None);
+        assert!(check_database_size(100_000, 32, 27).is_ok());
+        let e = check_database_size(resampled_frames(1_000_000, 1.0, 1000.0).unwrap_or(usize::MAX), 14, 27).unwrap_err();
+        assert!(e.contains("frames") && e.len() < 200, "{e}");
     }
 }

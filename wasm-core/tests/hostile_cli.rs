@@ -73,3 +73,25 @@ fn a_flipped_fps_bit_is_refused_by_inspect() {
     assert_eq!(out.status.code(), Some(1));
     assert!(stderr(&out).contains("flipped.mmdb: INFO.fps must be between 1 and 1000"), "{}", stderr(&out));
 }
+
+/// Found by this suite: a second take whose legs have zero length gets root scale
+/// `ref_leg / 0 = ∞`; `mmdb build` exits 0 and writes a database its own loader refuses
+/// (`CLIP 'b': root scale inf`). The fix belongs in `builder.rs` (refuse, or warn and use 1,
+/// when a take's leg length is ~0); un-ignore this test with it.
+#[test]
+#[ignore = "needs a builder.rs fix: root scale of a zero-leg take is ∞"]
+fn a_take_with_zero_length_legs_is_refused_or_builds_a_loadable_database() {
+    let a = hostile::humanoid_bvh(40);
+    let mut b = a.clone();
+    for offset in ["OFFSET 0.1 -0.05 0", "OFFSET -0.1 -0.05 0", "OFFSET 0 -0.42 0", "OFFSET 0 -0.41 0", "OFFSET 0 -0.05 0.12"] {
+        b = b.replace(offset, "OFFSET 0 0 0");
+    }
+    let (pa, pb, db) = (temp("a.bvh"), temp("b.bvh"), temp("ab.mmdb"));
+    std::fs::write(&pa, a).unwrap();
+    std::fs::write(&pb, b).unwrap();
+    let out = mmdb(&["build", pa.to_str().unwrap(), pb.to_str().unwrap(), "-o", db.to_str().unwrap(), "--scale", "1"]);
+    if out.status.success() {
+        let out = mmdb(&["inspect", db.to_str().unwrap()]);
+        assert!(out.status.success(), "the builder wrote a database its loader refuses: {}", stderr(&out));
+    }
+}
