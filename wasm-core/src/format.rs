@@ -23,6 +23,11 @@ const TAGS: [&[u8; 4]; 13] =
     [b"INFO", b"SKEL", b"CLIP", b"TAGS", b"LPOS", b"LROT", b"LVEL", b"LAVL", b"CONT", b"FDSC", b"FNRM", b"FEAT", b"VALD"];
 
 /// Serializes a database.
+///
+/// Never panics. The writer trusts its input: a `Database` whose arrays disagree with its
+/// counts, or whose counts exceed `u32`, is written as is (truncated counts) and then refused
+/// by [`from_bytes`] — which is why the builder keeps databases within
+/// [`check_database_size`](crate::limits::check_database_size).
 pub fn to_bytes(db: &Database) -> Vec<u8> {
     // The big arrays are borrowed as bytes (the format is little-endian like every target we
     // build for, checked above) and copied once, into the output.

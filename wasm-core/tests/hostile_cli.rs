@@ -60,6 +60,24 @@ fn extreme_values_fail_the_build_naming_the_line() {
     }
 }
 
+/// Search and benchmark flags are range-checked too (a huge -k reserved k result slots).
+#[test]
+fn search_flags_are_bounded() {
+    let path = temp("tiny.mmdb");
+    std::fs::write(&path, mmcore::format::to_bytes(&hostile::tiny_database())).unwrap();
+    let p = path.to_str().unwrap();
+    let out = mmdb(&["search", p, "--frame", "0", "-k", "18446744073709551615", "--exclude-radius", "18446744073709551615", "--json"]);
+    assert!(out.status.success(), "{}", stderr(&out));
+    for (flag, value) in [("--beta-pose", "nan"), ("--beta-trajectory", "-1"), ("--beta-pose", "inf")] {
+        let out = mmdb(&["search", p, "--frame", "0", flag, value]);
+        assert_eq!(out.status.code(), Some(2), "{flag} {value}");
+        assert!(stderr(&out).contains(&format!("{flag}: must be 0 to 1e6")), "{}", stderr(&out));
+    }
+    let out = mmdb(&["quality", p, "--seconds", "1e300"]);
+    assert_eq!(out.status.code(), Some(2));
+    assert!(stderr(&out).contains("--seconds: must be more than 0"), "{}", stderr(&out));
+}
+
 /// One flipped bit in INFO.fps (checksum recomputed) froze the page; the loader refuses it.
 #[test]
 fn a_flipped_fps_bit_is_refused_by_inspect() {

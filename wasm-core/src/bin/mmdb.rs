@@ -249,7 +249,9 @@ fn search_cmd(args: &[String]) -> CliResult {
     )?;
     let [path] = a.positional.as_slice() else { return Err(Usage("search needs one .mmdb file".into()).into()) };
     let (db, _) = load(path)?;
-    let radius = a.number::<usize>("--exclude-radius")?.unwrap_or(20);
+    // Clamped to the database: a huge radius or k would overflow `f + radius + 1` or reserve
+    // k result slots.
+    let radius = a.number::<usize>("--exclude-radius")?.unwrap_or(20).min(db.num_frames);
     let (query, exclude) = match (a.number::<usize>("--frame")?, a.get("--query")) {
         (Some(f), None) => {
             if f >= db.num_frames {
@@ -270,13 +272,20 @@ fn search_cmd(args: &[String]) -> CliResult {
         Some(t) => Some(db.tag_mask(t).ok_or_else(|| Error::config(format!("no tag '{t}' (tags: {})", db.tags.iter().map(|t| t.name.as_str()).collect::<Vec<_>>().join(", "))))?),
         None => None,
     };
+    let beta = |flag: &str| -> Result<f32, Usage> {
+        let b = a.number::<f32>(flag)?.unwrap_or(1.0);
+        if !(0.0..=1e6).contains(&b) {
+            return Err(Usage(format!("{flag}: must be 0 to 1e6, found {b}")));
+        }
+        Ok(b)
+    };
     let options = SearchOptions {
-        beta_pose: a.number("--beta-pose")?.unwrap_or(1.0),
-        beta_trajectory: a.number("--beta-trajectory")?.unwrap_or(1.0),
+        beta_pose: beta("--beta-pose")?,
+        beta_trajectory: beta("--beta-trajectory")?,
         exclude,
         mask: mask.as_deref(),
     };
-    let k = a.number::<usize>("-k")?.unwrap_or(1).max(1);
+    let k = a.number::<usize>("-k")?.unwrap_or(1).clamp(1, db.num_frames);
     let method = match a.get("--method").unwrap_or("aabb") {
         "aabb" => search::SearchMethod::Aabb,
         "simd" => search::SearchMethod::Simd,
@@ -330,6 +339,9 @@ fn bench(args: &[String]) -> CliResult {
         return Err(Usage("bench needs BVH files".into()).into());
     }
     let seconds = a.number::<f64>("--seconds")?.unwrap_or(2.0);
+    if !(0.0..=3600.0).contains(&seconds) {
+        return Err(Usage(format!("--seconds: must be 0 to 3600, found {seconds}")).into());
+    }
     let files: Vec<(String, Vec<u8>)> =
         a.positional.iter().map(|p| read(Path::new(p)).map(|b| (p.clone(), b))).collect::<Result<_, _>>()?;
     let megabytes = files.iter().map(|(_, b)| b.len()).sum::<usize>() as f64 / 1e6;
@@ -442,6 +454,9 @@ fn quality(args: &[String]) -> CliResult {
     let [path] = a.positional.as_slice() else { return Err(Usage("quality needs one .mmdb file".into()).into()) };
     let (db, _) = load(path)?;
     let seconds = a.number::<f32>("--seconds")?.unwrap_or(60.0);
+    if !(seconds > 0.0 && seconds <= 3600.0) {
+        return Err(Usage(format!("--seconds: must be more than 0 and at most 3600, found {seconds}")).into());
+    }
     let settings = mmcore::character::CharacterSettings::default();
     let reports: Vec<quality::Report> = quality::scripts().iter().map(|s| quality::run(&db, &settings, s, seconds, 1.0 / 60.0)).collect();
     if a.has("--json") {
