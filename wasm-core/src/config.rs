@@ -3,7 +3,7 @@
 
 use crate::database::{Axes, FeatureKind};
 use crate::error::{Error, Result};
-use crate::limits::{check_fps, check_scale, quote, MAX_FEATURE_OFFSET, MAX_SPEED, MAX_WEIGHT, MAX_WINDOW_SECONDS, MIN_WEIGHT};
+use crate::limits::{check_fps, check_scale, num, quote, MAX_FEATURE_OFFSET, MAX_SPEED, MAX_WEIGHT, MAX_WINDOW_SECONDS, MIN_WEIGHT};
 use serde::Deserialize;
 use std::collections::HashMap;
 
@@ -167,13 +167,13 @@ impl BuildConfig {
             ("root_facing_window", self.root_facing_window, MAX_WINDOW_SECONDS),
         ] {
             if !(0.0..=max).contains(&v) {
-                return Err(Error::config(format!("{key} must be 0 to {max}, found {v}")));
+                return Err(Error::config(format!("{key} must be 0 to {max}, found {}", num(v))));
             }
         }
         for f in self.features.iter().flatten() {
             let name = quote(&f.name);
             if !(MIN_WEIGHT..=MAX_WEIGHT).contains(&f.weight) {
-                return Err(Error::config(format!("feature '{name}': weight must be {MIN_WEIGHT} to {MAX_WEIGHT}, found {}", f.weight)));
+                return Err(Error::config(format!("feature '{name}': weight must be {MIN_WEIGHT} to {MAX_WEIGHT}, found {}", num(f.weight))));
             }
             if f.offsets.is_empty() {
                 return Err(Error::config(format!("feature '{name}': offsets must not be empty")));

@@ -4,7 +4,7 @@
 use crate::database::{Axes, Clip, Database, FeatureGroup, FeatureKind, Site, Skeleton, Tag};
 use crate::error::{Error, Result};
 use crate::limits::{
-    quote, MAX_ABS_STORED, MAX_FEATURE_OFFSET, MAX_FEATURE_SCALE, MAX_FPS, MAX_SCALE, MAX_SOURCE_FPS, MIN_FEATURE_SCALE, MIN_FPS, MIN_SCALE,
+    num, quote, MAX_ABS_STORED, MAX_FEATURE_OFFSET, MAX_FEATURE_SCALE, MAX_FPS, MAX_SCALE, MAX_SOURCE_FPS, MIN_FEATURE_SCALE, MIN_FPS, MIN_SCALE,
     MIN_SOURCE_FPS, QUAT_NORM_TOLERANCE,
 };
 use glam::{Quat, Vec3};
@@ -242,7 +242,7 @@ pub fn from_bytes(bytes: &[u8]) -> Result<Database> {
     // The runtime advances fps·dt frames per update: a flipped exponent bit here (1e30 fps)
     // would spin it for ever.
     if !(MIN_FPS as f32..=MAX_FPS as f32).contains(&fps) {
-        return Err(Error::format(format!("INFO.fps must be between {MIN_FPS} and {MAX_FPS}, found {fps}")));
+        return Err(Error::format(format!("INFO.fps must be between {MIN_FPS} and {MAX_FPS}, found {}", num(fps))));
     }
     if num_frames == 0 {
         return Err(Error::format("INFO.num_frames is 0: a database needs at least one frame"));
@@ -315,10 +315,10 @@ pub fn from_bytes(bytes: &[u8]) -> Result<Database> {
             )));
         }
         if !(MIN_SOURCE_FPS as f32..=MAX_SOURCE_FPS as f32).contains(&clip.source_fps) {
-            return Err(Error::format(format!("CLIP '{name}': source fps {} is outside {MIN_SOURCE_FPS}..{MAX_SOURCE_FPS}", clip.source_fps)));
+            return Err(Error::format(format!("CLIP '{name}': source fps {} is outside {MIN_SOURCE_FPS}..{MAX_SOURCE_FPS}", num(clip.source_fps))));
         }
         if !(MIN_SCALE as f32..=MAX_SCALE as f32).contains(&clip.scale) {
-            return Err(Error::format(format!("CLIP '{name}': scale {} is outside {MIN_SCALE}..{MAX_SCALE}", clip.scale)));
+            return Err(Error::format(format!("CLIP '{name}': scale {} is outside {}..{}", num(clip.scale), num(MIN_SCALE), num(MAX_SCALE))));
         }
         if !(1.0 / MAX_ROOT_SCALE..=MAX_ROOT_SCALE).contains(&clip.root_scale) {
             return Err(Error::format(format!("CLIP '{name}': root scale {:e} is outside {:e}..{MAX_ROOT_SCALE:e}", clip.root_scale, 1.0 / MAX_ROOT_SCALE)));
@@ -438,7 +438,7 @@ pub fn from_bytes(bytes: &[u8]) -> Result<Database> {
     if let Some(d) = feature_scale.iter().position(|s| !(MIN_FEATURE_SCALE..=MAX_FEATURE_SCALE).contains(s)) {
         return Err(Error::format(format!(
             "FNRM: scale of dim {d} is {}, outside {MIN_FEATURE_SCALE:e}..{MAX_FEATURE_SCALE:e} (queries are divided by it)",
-            feature_scale[d]
+            num(feature_scale[d])
         )));
     }
     let features = section(b"FEAT")?.f32s(num_frames.checked_mul(num_dims).ok_or_else(|| Error::format("INFO counts overflow"))?)?;
@@ -489,7 +489,7 @@ fn check_floats(what: &str, values: &[f32]) -> Result<()> {
     let bad = values.iter().fold(false, |bad, v| bad | (v.to_bits() & 0x7FFF_FFFF > bound));
     if bad {
         let i = values.iter().position(|v| v.to_bits() & 0x7FFF_FFFF > bound).unwrap_or(0);
-        return Err(Error::format(format!("{what}: value {i} is {}, not finite or beyond ±{MAX_ABS_STORED:e}", values[i])));
+        return Err(Error::format(format!("{what}: value {i} is {}, not finite or beyond ±{MAX_ABS_STORED:e}", num(values[i]))));
     }
     Ok(())
 }

@@ -96,6 +96,18 @@ pub fn quote(text: &str) -> String {
     out
 }
 
+/// A number for a message: plain when it reads well (`60`, `0.0254`), in scientific notation
+/// otherwise (`1e300` rather than a 301-digit integer, `1e-40` rather than 40 zeros).
+/// An f32 prints as the shortest f32 (`1e30`, not `1.0000000150474662e30`).
+pub fn num<T: Copy + Into<f64> + std::fmt::Display + std::fmt::LowerExp>(v: T) -> String {
+    let x: f64 = v.into();
+    if x == 0.0 || !x.is_finite() || (1e-4..1e7).contains(&x.abs()) {
+        format!("{v}")
+    } else {
+        format!("{v:e}")
+    }
+}
+
 /// `message` cut to [`MAX_MESSAGE_CHARS`] characters (on a character boundary, then `…`).
 pub fn cap_message(mut message: String) -> String {
     if message.len() > MAX_MESSAGE_CHARS {
@@ -116,7 +128,7 @@ pub fn check_fps(fps: f64) -> std::result::Result<(), String> {
     if (MIN_FPS..=MAX_FPS).contains(&fps) {
         Ok(())
     } else {
-        Err(format!("fps must be between {MIN_FPS} and {MAX_FPS}, found {fps}"))
+        Err(format!("fps must be between {MIN_FPS} and {MAX_FPS}, found {}", num(fps)))
     }
 }
 
@@ -128,7 +140,7 @@ pub fn check_scale(scale: f64) -> std::result::Result<(), String> {
     if (MIN_SCALE..=MAX_SCALE).contains(&scale) {
         Ok(())
     } else {
-        Err(format!("scale must be between {MIN_SCALE} and {MAX_SCALE} metres per unit, found {scale}"))
+        Err(format!("scale must be between {} and {} metres per unit, found {}", num(MIN_SCALE), num(MAX_SCALE), num(scale)))
     }
 }
 
@@ -190,6 +202,17 @@ mod tests {
         assert_eq!(m.chars().count(), MAX_MESSAGE_CHARS + 1);
         assert!(m.ends_with('…'));
         assert_eq!(cap_message("short".into()), "short");
+    }
+
+    #[test]
+    fn numbers_stay_short() {
+        assert_eq!(num(60.0), "60");
+        assert_eq!(num(0.0254), "0.0254");
+        assert_eq!(num(1e300), "1e300");
+        assert_eq!(num(1e30_f32), "1e30");
+        assert_eq!(num(1e-40), "1e-40");
+        assert_eq!(num(f64::NAN), "NaN");
+        assert!(check_fps(1e300).unwrap_err().len() < 80);
     }
 
     #[test]
