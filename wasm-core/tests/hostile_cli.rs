@@ -83,7 +83,7 @@ fn search_flags_are_bounded() {
 fn a_flipped_fps_bit_is_refused_by_inspect() {
     let mut bytes = mmcore::format::to_bytes(&hostile::tiny_database());
     let info = hostile::table(&bytes).iter().find(|e| &e.0 == b"INFO").unwrap().2;
-    bytes[info + 8 + 3] ^= 0x20; // exponent bit of 60.0 → 2.6e11 fps
+    bytes[info + 8 + 3] ^= 0x20; // exponent bit of 60.0 → 1.1e21 fps
     hostile::refix(&mut bytes);
     let path = temp("flipped.mmdb");
     std::fs::write(&path, &bytes).unwrap();

@@ -96,6 +96,14 @@ fn seeds_load_and_play() {
     }
 }
 
+/// The cases the issue names (a flipped fps bit, no feature groups, an empty last group, no
+/// frames, NaN and zero scales, huge counts, overlapping sections): each its exact message.
+#[test]
+fn named_cases_give_their_messages() {
+    let failures: Vec<String> = hostile::mmdb_named_cases().iter().filter_map(check).collect();
+    assert!(failures.is_empty(), "{}", failures.join("\n"));
+}
+
 #[test]
 fn mutations_are_clear_errors_or_playable_databases() {
     let mut total = 0;

@@ -66,6 +66,10 @@ fn seeds(dir: &Path) -> Result<(), String> {
         n += 1;
     }
     write(&dir.join("mmdb/tiny.mmdb"), &format::to_bytes(&hostile::tiny_database()))?;
+    for case in hostile::mmdb_named_cases() {
+        write(&dir.join("mmdb").join(format!("{}.mmdb", case.name)), &case.bytes)?;
+        n += 1;
+    }
     write(&dir.join("mmdb/humanoid.mmdb"), &humanoid_seed()?)?;
     println!("{} seed files in {}", n + 2, dir.display());
     Ok(())
@@ -89,6 +93,11 @@ fn cases(dir: &Path) -> Result<(), String> {
         let file = format!("bvh/{}.bvh", case.name);
         write(&dir.join(&file), &case.bytes)?;
         record("bvh", file, &case.expect, Bvh::parse("case.bvh", &case.bytes).map(|_| ()));
+    }
+    for case in hostile::mmdb_named_cases() {
+        let file = format!("mmdb/{}.mmdb", case.name);
+        write(&dir.join(&file), &case.bytes)?;
+        record("mmdb", file, &case.expect, format::from_bytes(&case.bytes).map(|_| ()));
     }
     let seeds = [("tiny", format::to_bytes(&hostile::tiny_database())), ("humanoid", humanoid_seed()?)];
     for (name, seed) in &seeds {

@@ -278,6 +278,8 @@ pub fn mutate(input: &[u8], rng: &mut Rng) -> Vec<u8> {
 /// Big cases, generated in the test (never committed): depth, width, a 200 MB file.
 pub fn big_bvh_cases() -> Vec<Case> {
     vec![
+        case("deep_5k", deep(5_000), err(":770: the hierarchy is nested deeper than 256 joints")),
+        case("deep_20k", deep(20_000), err(":770: the hierarchy is nested deeper than 256 joints")),
         case("deep_100k", deep(100_000), err(":770: the hierarchy is nested deeper than 256 joints")),
         case("deep_100k_unclosed", deep(100_000).split("}\n").next().unwrap().to_string(), err(":770: the hierarchy is nested deeper than 256 joints")),
         case("wide_10k", wide(10_000), err(":4097: more than 1024 joints")),
@@ -340,6 +342,59 @@ pub fn tiny_database() -> Database {
         features: (0..20).map(|i| i as f32 * 0.1 - 1.0).collect(),
         valid: vec![1, 0, 1, 0],
     }
+}
+
+/// The `.mmdb` cases of the issue, by name, each with the message the loader must give
+/// (all with a valid checksum: the damage is what the loader must see).
+pub fn mmdb_named_cases() -> Vec<Case> {
+    let tiny = tiny_database();
+    let bytes = mmcore::format::to_bytes(&tiny);
+    let t = table(&bytes);
+    let at = |tag: &[u8; 4]| t.iter().find(|e| &e.0 == tag).unwrap().clone();
+    let edit = |f: &dyn Fn(&mut Database)| {
+        let mut db = tiny_database();
+        f(&mut db);
+        mmcore::format::to_bytes(&db)
+    };
+    let patched = |f: &dyn Fn(&mut Vec<u8>)| {
+        let mut b = bytes.clone();
+        f(&mut b);
+        refix(&mut b);
+        b
+    };
+    let info = at(b"INFO").2;
+    vec![
+        // One flipped exponent bit: 60 fps → 1.1e21 fps froze the page.
+        case("fps_bit_flip", patched(&|b| b[info + 11] ^= 0x20), err("INFO.fps must be between 1 and 1000, found 1.10680464e21")),
+        case("fps_zero", patched(&|b| b[info + 8..info + 12].copy_from_slice(&0f32.to_le_bytes())), err("INFO.fps must be between 1 and 1000, found 0")),
+        case("zero_feature_groups", edit(&|db| {
+            db.groups.clear();
+            db.feature_mean.clear();
+            db.feature_scale.clear();
+            db.features.clear();
+        }), err("INFO has 0 feature groups and 0 feature dims")),
+        case("empty_last_group", edit(&|db| {
+            db.groups[1].offsets.clear();
+            db.groups[1].num_dims = 0;
+            db.feature_mean.truncate(2);
+            db.feature_scale.truncate(2);
+            db.features = db.features.chunks(5).flat_map(|r| r[..2].to_vec()).collect();
+        }), err("FDSC: feature 'v' has no frame offsets")),
+        case("zero_frames", patched(&|b| b[info..info + 4].copy_from_slice(&0u32.to_le_bytes())), err("INFO.num_frames is 0")),
+        case("nan_feature_scale", edit(&|db| db.feature_scale[0] = f32::NAN), err("FNRM: scale of dim 0 is NaN")),
+        case("zero_clip_scale", edit(&|db| db.clips[0].scale = 0.0), err("CLIP 'a': scale 0 is outside")),
+        case("nan_position", edit(&|db| db.local_positions[1].x = f32::NAN), err("LPOS: value 3 is NaN")),
+        case("infinite_feature", edit(&|db| db.features[7] = f32::INFINITY), err("FEAT: value 7 is inf")),
+        case("section_count_huge", patched(&|b| b[12..16].copy_from_slice(&u32::MAX.to_le_bytes())), err("section table of 4294967295 entries runs past the end")),
+        case("section_length_huge", patched(&|b| { let e = at(b"FEAT").1; b[e + 16..e + 24].copy_from_slice(&u64::MAX.to_le_bytes()) }), err("section FEAT (offset")),
+        case("sections_overlap", patched(&|b| {
+            let (lpos, lvel) = (at(b"LPOS").1, at(b"LVEL").1);
+            let off: [u8; 8] = b[lpos + 8..lpos + 16].try_into().unwrap();
+            b[lvel + 8..lvel + 16].copy_from_slice(&off);
+        }), err("sections LPOS and LVEL overlap")),
+        case("clip_count_huge", patched(&|b| { let c = at(b"CLIP").2; b[c..c + 4].copy_from_slice(&u32::MAX.to_le_bytes()) }), err("CLIP clip count 4294967295 does not fit in the section")),
+        case("valid_tiny", bytes.clone(), Expect::Ok),
+    ]
 }
 
 /// Section table of a `.mmdb`: (tag, entry offset in the file, data offset, data length).
