@@ -350,7 +350,7 @@ pub fn mmdb_named_cases() -> Vec<Case> {
     let tiny = tiny_database();
     let bytes = mmcore::format::to_bytes(&tiny);
     let t = table(&bytes);
-    let at = |tag: &[u8; 4]| t.iter().find(|e| &e.0 == tag).unwrap().clone();
+    let at = |tag: &[u8; 4]| t.iter().find(|e| &e.0 == tag).copied().unwrap();
     let edit = |f: &dyn Fn(&mut Database)| {
         let mut db = tiny_database();
         f(&mut db);
