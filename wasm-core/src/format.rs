@@ -3,6 +3,10 @@
 
 use crate::database::{Axes, Clip, Database, FeatureGroup, FeatureKind, Site, Skeleton, Tag};
 use crate::error::{Error, Result};
+use crate::limits::{
+    num, quote, MAX_ABS_STORED, MAX_FEATURE_OFFSET, MAX_FEATURE_SCALE, MAX_FPS, MAX_SCALE, MAX_SOURCE_FPS, MIN_FEATURE_SCALE, MIN_FPS, MIN_SCALE,
+    MIN_SOURCE_FPS, QUAT_NORM_TOLERANCE,
+};
 use glam::{Quat, Vec3};
 
 #[cfg(target_endian = "big")]
@@ -19,6 +23,11 @@ const TAGS: [&[u8; 4]; 13] =
     [b"INFO", b"SKEL", b"CLIP", b"TAGS", b"LPOS", b"LROT", b"LVEL", b"LAVL", b"CONT", b"FDSC", b"FNRM", b"FEAT", b"VALD"];
 
 /// Serializes a database.
+///
+/// Never panics. The writer trusts its input: a `Database` whose arrays disagree with its
+/// counts, or whose counts exceed `u32`, is written as is (truncated counts) and then refused
+/// by [`from_bytes`] — which is why the builder keeps databases within
+/// [`check_database_size`](crate::limits::check_database_size).
 pub fn to_bytes(db: &Database) -> Vec<u8> {
     // The big arrays are borrowed as bytes (the format is little-endian like every target we
     // build for, checked above) and copied once, into the output.
@@ -141,6 +150,21 @@ fn small_section(db: &Database, tag: &[u8; 4]) -> Vec<u8> {
 }
 
 /// Parses and validates `.mmdb` bytes.
+///
+/// Checks structure (header, checksum, a section table whose sections lie inside the file,
+/// 16-byte aligned, without overlap or duplicates; every count against the bytes that must
+/// hold it; records ending exactly at their section's end) and values (every float finite and
+/// within ±[`MAX_ABS_STORED`](crate::limits::MAX_ABS_STORED), unit quaternions, fps in
+/// [`MIN_FPS`](crate::limits::MIN_FPS)…[`MAX_FPS`](crate::limits::MAX_FPS), sane scales,
+/// at least one frame and one feature group, each group at least one dimension, contacts and
+/// validity 0 or 1). So a database that loads can be played: nothing in it makes the runtime
+/// divide by zero, loop on a huge fps or index out of range. Heap use is at most
+/// [`MMDB_ALLOCATION_FACTOR`](crate::limits::MMDB_ALLOCATION_FACTOR) × `bytes.len()` + 64 KiB
+/// whatever the counts claim, and no input panics.
+///
+/// # Errors
+/// [`Error::Format`] naming the section and field when any check fails (see "Validation a
+/// reader must do" in `docs/mmdb-format.md`).
 pub fn from_bytes(bytes: &[u8]) -> Result<Database> {
     if bytes.len() < HEADER_LEN {
         return Err(Error::format(format!("truncated: {} bytes, shorter than the 32-byte header", bytes.len())));
@@ -148,11 +172,11 @@ pub fn from_bytes(bytes: &[u8]) -> Result<Database> {
     if bytes[..8] != MAGIC {
         return Err(Error::format("wrong magic bytes: not a .mmdb file"));
     }
-    let version = u32::from_le_bytes(bytes[8..12].try_into().unwrap());
+    let version = le_u32(&bytes[8..12]);
     if version != VERSION {
         return Err(Error::format(format!("unsupported format version {version} (this reader supports version {VERSION})")));
     }
-    let count = u32::from_le_bytes(bytes[12..16].try_into().unwrap()) as usize;
+    let count = le_u32(&bytes[12..16]) as usize;
     let file_size = u64::from_le_bytes(bytes[16..24].try_into().unwrap());
     if file_size != bytes.len() as u64 {
         return Err(Error::format(format!(
@@ -160,7 +184,7 @@ pub fn from_bytes(bytes: &[u8]) -> Result<Database> {
             bytes.len()
         )));
     }
-    let stored_crc = u32::from_le_bytes(bytes[24..28].try_into().unwrap());
+    let stored_crc = le_u32(&bytes[24..28]);
     let crc = crc32fast::hash(&bytes[HEADER_LEN..]);
     if crc != stored_crc {
         return Err(Error::format(format!("checksum mismatch (stored {stored_crc:08x}, computed {crc:08x}): the file is corrupt")));
@@ -169,24 +193,39 @@ pub fn from_bytes(bytes: &[u8]) -> Result<Database> {
     let Some(table_end) = table_end else {
         return Err(Error::format(format!("section table of {count} entries runs past the end of the file")));
     };
-    let mut sections: Vec<([u8; 4], &[u8])> = Vec::with_capacity(count);
+    // (tag, offset, data); the table is bounded by the file size above.
+    let mut sections: Vec<([u8; 4], usize, &[u8])> = Vec::with_capacity(count);
     for i in 0..count {
         let e = &bytes[HEADER_LEN + i * ENTRY_LEN..HEADER_LEN + (i + 1) * ENTRY_LEN];
         let tag: [u8; 4] = e[..4].try_into().unwrap();
-        let name = String::from_utf8_lossy(&tag).into_owned();
+        let name = tag_name(&tag);
         let offset = u64::from_le_bytes(e[8..16].try_into().unwrap());
         let length = u64::from_le_bytes(e[16..24].try_into().unwrap());
         if offset < table_end as u64 || offset.checked_add(length).is_none_or(|end| end > file_size) {
             return Err(Error::format(format!("section {name} (offset {offset}, length {length}) lies outside the file")));
         }
-        if sections.iter().any(|(t, _)| *t == tag) {
+        if offset % ALIGN as u64 != 0 {
+            return Err(Error::format(format!("section {name} starts at offset {offset}, not a multiple of {ALIGN}")));
+        }
+        if sections.iter().any(|(t, _, _)| *t == tag) {
             return Err(Error::format(format!("section {name} appears twice")));
         }
-        sections.push((tag, &bytes[offset as usize..(offset + length) as usize]));
+        // Both fit in usize: they are at most the length of a slice.
+        let (offset, length) = (offset as usize, length as usize);
+        sections.push((tag, offset, &bytes[offset..offset + length]));
+    }
+    // Sections may be stored in any order, but never share bytes: one byte must not be read
+    // as two things (a crafted file could otherwise alias, say, FEAT and LROT).
+    let mut by_offset: Vec<(usize, usize, [u8; 4])> = sections.iter().map(|&(t, o, d)| (o, o + d.len(), t)).collect();
+    by_offset.sort_unstable();
+    for w in by_offset.windows(2) {
+        if w[0].1 > w[1].0 {
+            return Err(Error::format(format!("sections {} and {} overlap", tag_name(&w[0].2), tag_name(&w[1].2))));
+        }
     }
     let section = |tag: &[u8; 4]| -> Result<Reader> {
-        sections.iter().find(|(t, _)| t == tag).map(|&(t, data)| Reader { data, pos: 0, tag: t }).ok_or_else(|| {
-            Error::format(format!("required section {} is missing", String::from_utf8_lossy(tag)))
+        sections.iter().find(|(t, _, _)| t == tag).map(|&(t, _, data)| Reader { data, pos: 0, tag: t }).ok_or_else(|| {
+            Error::format(format!("required section {} is missing", tag_name(tag)))
         })
     };
 
@@ -198,15 +237,37 @@ pub fn from_bytes(bytes: &[u8]) -> Result<Database> {
     let num_clips = info.u32("num_clips")? as usize;
     let num_tags = info.u32("num_tags")? as usize;
     let num_groups = info.u32("num_feature_groups")? as usize;
-    if !(fps > 0.0 && fps.is_finite()) {
-        return Err(Error::format(format!("INFO.fps must be a positive number, found {fps}")));
+    let flags = info.u32("flags")?;
+    info.finish()?;
+    // The runtime advances fps·dt frames per update: a flipped exponent bit here (1e30 fps)
+    // would spin it for ever.
+    if !(MIN_FPS as f32..=MAX_FPS as f32).contains(&fps) {
+        return Err(Error::format(format!("INFO.fps must be between {MIN_FPS} and {MAX_FPS}, found {}", num(fps))));
+    }
+    if num_frames == 0 {
+        return Err(Error::format("INFO.num_frames is 0: a database needs at least one frame"));
     }
     if num_joints == 0 {
         return Err(Error::format("INFO.num_joints is 0"));
     }
+    if num_groups == 0 || num_dims == 0 {
+        return Err(Error::format(format!(
+            "INFO has {num_groups} feature groups and {num_dims} feature dims: a database needs at least one of each"
+        )));
+    }
+    if flags & !1 != 0 {
+        return Err(Error::format(format!("INFO.flags is {flags:#x}: only bit 0 (mirrored clips) is defined")));
+    }
 
     let mut r = section(b"SKEL")?;
-    let mut skeleton = Skeleton { names: Vec::new(), parents: Vec::new(), offsets: Vec::new(), sites: Vec::new() };
+    // Each joint record is at least 20 bytes: check before reserving.
+    r.fits(num_joints, 20, "joint count")?;
+    let mut skeleton = Skeleton {
+        names: Vec::with_capacity(num_joints),
+        parents: Vec::with_capacity(num_joints),
+        offsets: Vec::with_capacity(num_joints),
+        sites: Vec::new(),
+    };
     for j in 0..num_joints {
         skeleton.names.push(r.string("joint name")?);
         let parent = r.i32("joint parent")?;
@@ -216,22 +277,24 @@ pub fn from_bytes(bytes: &[u8]) -> Result<Database> {
         skeleton.parents.push(parent);
         skeleton.offsets.push(r.vec3("joint offset")?);
     }
-    let num_sites = r.count(16, "site count")?;
+    let num_sites = r.count(20, "site count")?;
+    skeleton.sites.reserve(num_sites);
     for _ in 0..num_sites {
         let name = r.string("site name")?;
         let joint = r.i32("site joint")?;
         if joint < -1 || joint >= num_joints as i32 {
-            return Err(Error::format(format!("SKEL: site '{name}' names joint {joint}, out of range")));
+            return Err(Error::format(format!("SKEL: site '{}' names joint {joint}, out of range", quote(&name))));
         }
         skeleton.sites.push(Site { name, joint, offset: r.vec3("site offset")? });
     }
+    r.finish()?;
 
     let mut r = section(b"CLIP")?;
-    let n = r.count(26, "clip count")?;
+    let n = r.count(29, "clip count")?;
     if n != num_clips {
         return Err(Error::format(format!("CLIP holds {n} clips but INFO says {num_clips}")));
     }
-    let mut clips = Vec::with_capacity(n);
+    let mut clips: Vec<Clip> = Vec::with_capacity(n);
     let mut next = 0u32;
     for _ in 0..n {
         let clip = Clip {
@@ -239,22 +302,41 @@ pub fn from_bytes(bytes: &[u8]) -> Result<Database> {
             source: r.string("clip source")?,
             start: r.u32("clip start")?,
             end: r.u32("clip end")?,
-            mirrored: r.u8("clip mirrored")? != 0,
+            mirrored: r.flag("clip mirrored")?,
             source_fps: r.f32("clip source fps")?,
             scale: r.f32("clip scale")?,
             root_scale: r.f32("clip root scale")?,
         };
+        let name = quote(&clip.name);
         if clip.start != next || clip.end <= clip.start || clip.end as usize > num_frames {
             return Err(Error::format(format!(
-                "CLIP '{}' covers frames {}..{}; clips must be non-empty, in order and tile 0..{num_frames}",
-                clip.name, clip.start, clip.end
+                "CLIP '{name}' covers frames {}..{}; clips must be non-empty, in order and tile 0..{num_frames}",
+                clip.start, clip.end
             )));
+        }
+        if !(MIN_SOURCE_FPS as f32..=MAX_SOURCE_FPS as f32).contains(&clip.source_fps) {
+            return Err(Error::format(format!("CLIP '{name}': source fps {} is outside {MIN_SOURCE_FPS}..{MAX_SOURCE_FPS}", num(clip.source_fps))));
+        }
+        if !(MIN_SCALE as f32..=MAX_SCALE as f32).contains(&clip.scale) {
+            return Err(Error::format(format!("CLIP '{name}': scale {} is outside {}..{}", num(clip.scale), num(MIN_SCALE), num(MAX_SCALE))));
+        }
+        if !(1.0 / MAX_ROOT_SCALE..=MAX_ROOT_SCALE).contains(&clip.root_scale) {
+            return Err(Error::format(format!("CLIP '{name}': root scale {:e} is outside {:e}..{MAX_ROOT_SCALE:e}", clip.root_scale, 1.0 / MAX_ROOT_SCALE)));
+        }
+        // Names identify clips in the page and the CLI (a linear scan: clips are few and a
+        // hash set would allocate per name).
+        if clips.iter().any(|c| c.name == clip.name) {
+            return Err(Error::format(format!("CLIP: two clips are named '{name}'")));
         }
         next = clip.end;
         clips.push(clip);
     }
+    r.finish()?;
     if next as usize != num_frames {
         return Err(Error::format(format!("clips cover frames 0..{next} but the database has {num_frames} frames")));
+    }
+    if (flags & 1 != 0) != clips.iter().any(|c| c.mirrored) {
+        return Err(Error::format("INFO.flags bit 0 disagrees with the clips' mirrored flags"));
     }
 
     let mut r = section(b"TAGS")?;
@@ -271,20 +353,32 @@ pub fn from_bytes(bytes: &[u8]) -> Result<Database> {
         for _ in 0..k {
             let (s, e) = (r.u32("tag range start")?, r.u32("tag range end")?);
             if s < last || e <= s || e as usize > num_frames {
-                return Err(Error::format(format!("tag '{name}' has range {s}..{e}: ranges must be sorted, disjoint, within 0..{num_frames}")));
+                return Err(Error::format(format!(
+                    "tag '{}' has range {s}..{e}: ranges must be sorted, disjoint, within 0..{num_frames}",
+                    quote(&name)
+                )));
             }
             last = e;
             ranges.push((s, e));
         }
         tags.push(Tag { name, ranges });
     }
+    r.finish()?;
 
     let fj = num_frames.checked_mul(num_joints).ok_or_else(|| Error::format("INFO counts overflow"))?;
     let local_positions = section(b"LPOS")?.vec3s(fj)?;
     let local_rotations: Vec<Quat> = section(b"LROT")?.pods(fj)?;
+    if let Some(i) = local_rotations.iter().position(|q| !(q.length_squared() - 1.0).abs().le(&QUAT_NORM_TOLERANCE)) {
+        return Err(Error::format(format!(
+            "LROT: frame {} joint {} is not a unit quaternion ({})",
+            i / num_joints,
+            i % num_joints,
+            local_rotations[i]
+        )));
+    }
     let local_velocities = section(b"LVEL")?.vec3s(fj)?;
     let local_angular_velocities = section(b"LAVL")?.vec3s(fj)?;
-    let contacts = section(b"CONT")?.bytes(num_frames * 2)?;
+    let contacts = section(b"CONT")?.flags(num_frames.checked_mul(2).ok_or_else(|| Error::format("INFO counts overflow"))?)?;
 
     let mut r = section(b"FDSC")?;
     let n = r.count(40, "feature group count")?;
@@ -295,41 +389,71 @@ pub fn from_bytes(bytes: &[u8]) -> Result<Database> {
     let mut next_dim = 0usize;
     for _ in 0..n {
         let name = r.string("feature name")?;
+        let quoted = quote(&name);
         let kind = match r.u8("feature kind")? {
             0 => FeatureKind::Position,
             1 => FeatureKind::Velocity,
             2 => FeatureKind::Direction,
-            k => return Err(Error::format(format!("FDSC: feature '{name}' has unknown kind {k}"))),
+            k => return Err(Error::format(format!("FDSC: feature '{quoted}' has unknown kind {k}"))),
         };
-        let is_trajectory = r.u8("feature trajectory flag")? != 0;
+        let is_trajectory = r.flag("feature trajectory flag")?;
         let axes = match r.u8("feature axes")? {
             0 => Axes::Xyz,
             1 => Axes::Xz,
-            a => return Err(Error::format(format!("FDSC: feature '{name}' has unknown axes {a}"))),
+            a => return Err(Error::format(format!("FDSC: feature '{quoted}' has unknown axes {a}"))),
         };
         r.u8("reserved")?;
         let joint = r.i32("feature joint")?;
         if joint < 0 || joint as usize >= num_joints {
-            return Err(Error::format(format!("FDSC: feature '{name}' names joint {joint}, out of range")));
+            return Err(Error::format(format!("FDSC: feature '{quoted}' names joint {joint}, out of range")));
         }
         let axis = r.vec3("feature axis")?;
         let k = r.count(4, "feature offset count")?;
         let offsets = (0..k).map(|_| r.i32("feature offset")).collect::<Result<Vec<_>>>()?;
+        if offsets.is_empty() {
+            return Err(Error::format(format!("FDSC: feature '{quoted}' has no frame offsets (no dimensions)")));
+        }
+        if let Some(o) = offsets.iter().find(|o| o.unsigned_abs() > MAX_FEATURE_OFFSET as u32) {
+            return Err(Error::format(format!("FDSC: feature '{quoted}' has frame offset {o}, beyond ±{MAX_FEATURE_OFFSET}")));
+        }
         let weight = r.f32("feature weight")?;
+        if !(1.0 / MAX_STORED_WEIGHT..=MAX_STORED_WEIGHT).contains(&weight) {
+            return Err(Error::format(format!("FDSC: feature '{quoted}' has weight {weight:e}, outside {:e}..{MAX_STORED_WEIGHT:e}", 1.0 / MAX_STORED_WEIGHT)));
+        }
         let first_dim = r.u32("feature first dim")? as usize;
         let num = r.u32("feature dim count")? as usize;
         if first_dim != next_dim || num != offsets.len() * axes.num_dims() {
-            return Err(Error::format(format!("FDSC: feature '{name}' spans dims {first_dim}+{num}; groups must tile 0..{num_dims} in order")));
+            return Err(Error::format(format!("FDSC: feature '{quoted}' spans dims {first_dim}+{num}; groups must tile 0..{num_dims} in order")));
         }
         next_dim += num;
         groups.push(FeatureGroup { name, kind, is_trajectory, axes, joint: joint as usize, axis, offsets, weight, first_dim, num_dims: num });
     }
+    r.finish()?;
     if next_dim != num_dims {
         return Err(Error::format(format!("feature groups cover {next_dim} dims but INFO says {num_dims}")));
     }
-    let norm = section(b"FNRM")?.f32s(2 * num_dims)?;
-    let features = section(b"FEAT")?.f32s(num_frames * num_dims)?;
-    let valid = section(b"VALD")?.bytes(num_frames)?;
+    let mut norm = section(b"FNRM")?.f32s(num_dims.checked_mul(2).ok_or_else(|| Error::format("INFO counts overflow"))?)?;
+    let feature_scale = norm.split_off(num_dims);
+    let feature_mean = norm;
+    if let Some(d) = feature_scale.iter().position(|s| !(MIN_FEATURE_SCALE..=MAX_FEATURE_SCALE).contains(s)) {
+        return Err(Error::format(format!(
+            "FNRM: scale of dim {d} is {}, outside {MIN_FEATURE_SCALE:e}..{MAX_FEATURE_SCALE:e} (queries are divided by it)",
+            num(feature_scale[d])
+        )));
+    }
+    let features = section(b"FEAT")?.f32s(num_frames.checked_mul(num_dims).ok_or_else(|| Error::format("INFO counts overflow"))?)?;
+    let valid = section(b"VALD")?.flags(num_frames)?;
+
+    // Every other float, in one place: finite and within ±MAX_ABS_STORED.
+    let vec3_floats = |v: &[Vec3]| bytemuck::cast_slice::<Vec3, f32>(v).to_vec();
+    check_floats("SKEL joint offset", &vec3_floats(&skeleton.offsets))?;
+    check_floats("SKEL site offset", &skeleton.sites.iter().flat_map(|s| s.offset.to_array()).collect::<Vec<_>>())?;
+    check_floats("FDSC feature axis", &groups.iter().flat_map(|g| g.axis.to_array()).collect::<Vec<_>>())?;
+    check_floats("LPOS", bytemuck::cast_slice(&local_positions))?;
+    check_floats("LVEL", bytemuck::cast_slice(&local_velocities))?;
+    check_floats("LAVL", bytemuck::cast_slice(&local_angular_velocities))?;
+    check_floats("FNRM mean", &feature_mean)?;
+    check_floats("FEAT", &features)?;
 
     Ok(Database {
         skeleton,
@@ -343,11 +467,40 @@ pub fn from_bytes(bytes: &[u8]) -> Result<Database> {
         local_angular_velocities,
         contacts,
         groups,
-        feature_mean: norm[..num_dims].to_vec(),
-        feature_scale: norm[num_dims..].to_vec(),
+        feature_mean,
+        feature_scale,
         features,
         valid,
     })
+}
+
+/// Largest `CLIP.root_scale` (a leg-length ratio between two subjects; people differ by
+/// less than 3×, so 1,000× either way is corruption), and the inverse is the smallest.
+const MAX_ROOT_SCALE: f32 = 1e3;
+/// Largest feature weight a reader accepts, and the inverse the smallest (the configuration
+/// allows [`MIN_WEIGHT`](crate::limits::MIN_WEIGHT)…[`MAX_WEIGHT`](crate::limits::MAX_WEIGHT);
+/// files written before that check may have used more).
+const MAX_STORED_WEIGHT: f32 = 1e6;
+
+/// Errors on the first value that is not finite or exceeds [`MAX_ABS_STORED`] in magnitude.
+/// (A plain loop over the bits: it vectorizes, so the whole database costs ~1 ms.)
+fn check_floats(what: &str, values: &[f32]) -> Result<()> {
+    let bound = MAX_ABS_STORED.to_bits();
+    let bad = values.iter().fold(false, |bad, v| bad | (v.to_bits() & 0x7FFF_FFFF > bound));
+    if bad {
+        let i = values.iter().position(|v| v.to_bits() & 0x7FFF_FFFF > bound).unwrap_or(0);
+        return Err(Error::format(format!("{what}: value {i} is {}, not finite or beyond ±{MAX_ABS_STORED:e}", num(values[i]))));
+    }
+    Ok(())
+}
+
+fn le_u32(b: &[u8]) -> u32 {
+    u32::from_le_bytes(b.try_into().unwrap())
+}
+
+/// A section tag for a message (tags of corrupt files may hold any byte).
+fn tag_name(tag: &[u8; 4]) -> String {
+    quote(&String::from_utf8_lossy(tag))
 }
 
 fn align(n: usize) -> usize {
@@ -383,7 +536,7 @@ impl<'a> Reader<'a> {
         if self.data.len() - self.pos < n {
             return Err(Error::format(format!(
                 "section {} ends at byte {} while reading {field} ({n} bytes needed)",
-                String::from_utf8_lossy(&self.tag),
+                tag_name(&self.tag),
                 self.data.len()
             )));
         }
@@ -393,6 +546,32 @@ impl<'a> Reader<'a> {
     }
     fn u8(&mut self, field: &str) -> Result<u8> {
         Ok(self.take(1, field)?[0])
+    }
+    /// A byte that must be 0 or 1.
+    fn flag(&mut self, field: &str) -> Result<bool> {
+        match self.u8(field)? {
+            0 => Ok(false),
+            1 => Ok(true),
+            b => Err(Error::format(format!("{} {field} is {b}, not 0 or 1", tag_name(&self.tag)))),
+        }
+    }
+    /// Errors unless every byte of the section was read (records end exactly at its end).
+    fn finish(&self) -> Result<()> {
+        if self.pos != self.data.len() {
+            return Err(Error::format(format!(
+                "section {} has {} bytes after its last record",
+                tag_name(&self.tag),
+                self.data.len() - self.pos
+            )));
+        }
+        Ok(())
+    }
+    /// Errors unless `n` records of at least `min_size` bytes fit in the rest of the section.
+    fn fits(&self, n: usize, min_size: usize, field: &str) -> Result<()> {
+        if n.saturating_mul(min_size) > self.data.len() - self.pos {
+            return Err(Error::format(format!("{} {field} {n} does not fit in the section", tag_name(&self.tag))));
+        }
+        Ok(())
     }
     fn u32(&mut self, field: &str) -> Result<u32> {
         Ok(u32::from_le_bytes(self.take(4, field)?.try_into().unwrap()))
@@ -410,25 +589,27 @@ impl<'a> Reader<'a> {
     /// cannot hold that many (so a corrupt count never drives a huge allocation).
     fn count(&mut self, min_size: usize, field: &str) -> Result<usize> {
         let n = self.u32(field)? as usize;
-        if n.saturating_mul(min_size) > self.data.len() - self.pos {
-            return Err(Error::format(format!("{} {field} {n} does not fit in the section", String::from_utf8_lossy(&self.tag))));
-        }
+        self.fits(n, min_size, field)?;
         Ok(n)
     }
     fn string(&mut self, field: &str) -> Result<String> {
         let n = self.u32(field)? as usize;
         let bytes = self.take(n, field)?;
-        String::from_utf8(bytes.to_vec()).map_err(|_| Error::format(format!("{} {field} is not UTF-8", String::from_utf8_lossy(&self.tag))))
+        String::from_utf8(bytes.to_vec()).map_err(|_| Error::format(format!("{} {field} is not UTF-8", tag_name(&self.tag))))
     }
-    /// The whole section as exactly `n` bytes (fixed-size arrays must match INFO exactly).
-    fn bytes(&mut self, n: usize) -> Result<Vec<u8>> {
-        Ok(self.exact(n)?.to_vec())
+    /// The whole section as exactly `n` bytes, each 0 or 1 (`CONT`, `VALD`).
+    fn flags(&mut self, n: usize) -> Result<Vec<u8>> {
+        let data = self.exact(n)?;
+        if let Some(i) = data.iter().position(|&b| b > 1) {
+            return Err(Error::format(format!("section {}: byte {i} is {}, not 0 or 1", tag_name(&self.tag), data[i])));
+        }
+        Ok(data.to_vec())
     }
     fn exact(&self, n: usize) -> Result<&'a [u8]> {
         if self.data.len() != n {
             return Err(Error::format(format!(
                 "section {} is {} bytes but INFO implies {n}",
-                String::from_utf8_lossy(&self.tag),
+                tag_name(&self.tag),
                 self.data.len()
             )));
         }
@@ -436,7 +617,9 @@ impl<'a> Reader<'a> {
     }
     /// `n` plain-old-data values filling the whole section (copied, so alignment is free).
     fn pods<T: bytemuck::Pod>(&mut self, n: usize) -> Result<Vec<T>> {
-        Ok(bytemuck::pod_collect_to_vec(self.exact(n * std::mem::size_of::<T>())?))
+        // Checked: on wasm32 `n · size` could wrap and match a short section.
+        let len = n.checked_mul(std::mem::size_of::<T>()).ok_or_else(|| Error::format(format!("{} size overflows", tag_name(&self.tag))))?;
+        Ok(bytemuck::pod_collect_to_vec(self.exact(len)?))
     }
     fn f32s(&mut self, n: usize) -> Result<Vec<f32>> {
         self.pods(n)
@@ -549,5 +732,85 @@ mod tests {
         let mut db = tiny();
         db.contacts.pop();
         assert!(message(&to_bytes(&db)).contains("section CONT is 5 bytes but INFO implies 6"));
+    }
+
+    /// Values, not only structure: each of these loaded before (with a valid checksum) and
+    /// then froze, trapped or poisoned the runtime.
+    #[test]
+    fn rejects_insane_values() {
+        type Edit = Box<dyn Fn(&mut Database)>;
+        let cases: Vec<(&str, Edit, &str)> = vec![
+            ("huge fps", Box::new(|db| db.fps = 1e30), "INFO.fps must be between 1 and 1000"),
+            ("zero fps", Box::new(|db| db.fps = 0.0), "INFO.fps"),
+            ("nan fps", Box::new(|db| db.fps = f32::NAN), "INFO.fps"),
+            ("nan position", Box::new(|db| db.local_positions[3].y = f32::NAN), "LPOS: value 10 is NaN"),
+            ("inf feature", Box::new(|db| db.features[5] = f32::INFINITY), "FEAT: value 5 is inf"),
+            ("huge velocity", Box::new(|db| db.local_velocities[0].x = 1e39_f64 as f32), "LVEL"),
+            ("zero scale", Box::new(|db| db.feature_scale[1] = 0.0), "FNRM: scale of dim 1 is 0"),
+            ("nan clip scale", Box::new(|db| db.clips[0].scale = f32::NAN), "CLIP 'a': scale NaN"),
+            ("not a unit quaternion", Box::new(|db| db.local_rotations[4] = Quat::from_xyzw(0.0, 0.0, 0.0, 2.0)), "LROT: frame 2 joint 0"),
+            ("contact byte 2", Box::new(|db| db.contacts[1] = 2), "section CONT: byte 1 is 2"),
+            ("huge offset", Box::new(|db| db.groups[0].offsets[0] = i32::MIN), "frame offset -2147483648"),
+            ("nan weight", Box::new(|db| db.groups[0].weight = f32::NAN), "weight NaN"),
+            ("denormal weight", Box::new(|db| db.groups[0].weight = 1e-40), "weight 1e-40"),
+            ("zero root scale", Box::new(|db| db.clips[0].root_scale = 0.0), "root scale 0e0"),
+            ("nan site", Box::new(|db| db.skeleton.sites[0].offset.x = f32::NAN), "SKEL site offset"),
+            ("duplicate clip name", Box::new(|db| {
+                db.clips[0].end = 1;
+                let mut c = db.clips[0].clone();
+                (c.start, c.end) = (1, 3);
+                db.clips.push(c);
+            }), "two clips are named 'a'"),
+        ];
+        for (what, edit, expected) in cases {
+            let mut db = tiny();
+            edit(&mut db);
+            let m = message(&to_bytes(&db));
+            assert!(m.contains(expected), "{what}: {m}");
+        }
+    }
+
+    /// At least one frame and one feature group of at least one dimension (inspect and the
+    /// runtime index rows by the dimension count).
+    #[test]
+    fn rejects_empty_databases() {
+        let mut db = tiny();
+        db.num_frames = 0;
+        db.clips.clear();
+        db.tags.clear();
+        for v in [&mut db.local_positions, &mut db.local_velocities, &mut db.local_angular_velocities] {
+            v.clear();
+        }
+        db.local_rotations.clear();
+        db.contacts.clear();
+        db.features.clear();
+        db.valid.clear();
+        assert!(message(&to_bytes(&db)).contains("INFO.num_frames is 0"));
+        let mut db = tiny();
+        db.groups.clear();
+        db.feature_mean.clear();
+        db.feature_scale.clear();
+        db.features.clear();
+        assert!(message(&to_bytes(&db)).contains("0 feature groups and 0 feature dims"));
+        let mut db = tiny();
+        db.groups[0].offsets.clear();
+        assert!(message(&to_bytes(&db)).contains("has no frame offsets"));
+    }
+
+    /// Sections that share bytes, or are misaligned, are refused even with a valid checksum.
+    #[test]
+    fn rejects_overlapping_and_misaligned_sections() {
+        let bytes = to_bytes(&tiny());
+        let entry = |i: usize| HEADER_LEN + i * ENTRY_LEN;
+        // Point LVEL (6) at LPOS (4): same length, so only the overlap check can catch it.
+        let mut b = bytes.clone();
+        let lpos: [u8; 8] = b[entry(4) + 8..entry(4) + 16].try_into().unwrap();
+        b[entry(6) + 8..entry(6) + 16].copy_from_slice(&lpos);
+        refix(&mut b);
+        assert!(message(&b).contains("sections LPOS and LVEL overlap"), "{}", message(&b));
+        let mut b = bytes.clone();
+        b[entry(0) + 8] += 4;
+        refix(&mut b);
+        assert!(message(&b).contains("not a multiple of 16"), "{}", message(&b));
     }
 }

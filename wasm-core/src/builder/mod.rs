@@ -61,6 +61,7 @@ pub fn build(config: &BuildConfig, sources: &[Source]) -> Result<BuildOutput> {
     if sources.is_empty() {
         return Err(Error::config("no BVH files to build from"));
     }
+    config.validate()?;
     let mut warnings = Vec::new();
     let reference_index = match &config.reference {
         Some(r) => sources
@@ -93,21 +94,28 @@ pub fn build(config: &BuildConfig, sources: &[Source]) -> Result<BuildOutput> {
     // once and split into per-clip slices.
     let mut plans = Vec::new();
     let mut num_frames = 0usize;
+    let mut short = Vec::new();
     for (t, take) in takes.iter().enumerate() {
-        let n = take.num_out(fps);
+        let n = take.num_out(fps).ok_or_else(|| {
+            Error::config(format!("{}: {} frames at {} fps resample to more than {} frames at {fps} fps", sources[t].name, take.frames.1 - take.frames.0, take.source_fps, crate::limits::MAX_FRAMES))
+        })?;
         if n < 2 {
-            warnings.push(format!("{}: skipped, fewer than 2 frames at {fps} fps", sources[t].name));
+            warnings.push(format!("{}: skipped, {n} frame(s) at {fps} fps (2 needed)", sources[t].name));
+            short.push(format!("{} ({n})", sources[t].name));
             continue;
         }
         for mirrored in [false, true].into_iter().take(if take.mirror { 2 } else { 1 }) {
             plans.push((t, mirrored, num_frames, n));
-            num_frames += n;
+            num_frames = num_frames.saturating_add(n);
         }
     }
     if num_frames == 0 {
-        return Err(Error::config("no frames to build from (every take is shorter than 2 frames)"));
+        return Err(Error::config(format!("no frames to build from: every take is shorter than 2 frames at {fps} fps: {}", short.join(", "))));
     }
     let nd = reference.num_joints() + 1;
+    // Refuse before allocating: the output is num_frames × (joints, dims) and must fit (on
+    // wasm32 too, where usize is 32 bits).
+    crate::limits::check_database_size(num_frames, nd, num_dims).map_err(Error::config)?;
     let mut out = Accumulator::new(num_frames, nd, num_dims);
     let clip_builder = ClipBuilder {
         config,
@@ -119,8 +127,21 @@ pub fn build(config: &BuildConfig, sources: &[Source]) -> Result<BuildOutput> {
         groups: &groups,
         num_dims,
     };
-    let root_scales: Vec<f64> =
-        takes.iter().enumerate().map(|(t, take)| if t == reference_index { 1.0 } else { ref_leg / reference.leg_length(&take.offsets) }).collect();
+    // Root motion of a take with other leg lengths is scaled by the leg ratio; a take whose legs
+    // have no length (a degenerate rest pose) cannot be compared: its root motion stays as is.
+    let mut root_scales = Vec::with_capacity(takes.len());
+    for (t, take) in takes.iter().enumerate() {
+        let leg = reference.leg_length(&take.offsets);
+        let scale = ref_leg / leg;
+        root_scales.push(if t == reference_index {
+            1.0
+        } else if scale.is_finite() && scale > 0.0 && leg > 1e-6 {
+            scale
+        } else {
+            warnings.push(format!("{}: legs of length {leg:.3} m in the rest pose; root motion not rescaled to the reference", sources[t].name));
+            1.0
+        });
+    }
     // A take and its mirror are one job (the mirror reuses the resampled take).
     let mut jobs: Vec<(usize, Vec<Rows>)> = Vec::new();
     let mut rest_rows = out.rows();

@@ -38,11 +38,15 @@ impl Reference {
         let roles = roles::find_roles(&names, &parents, &config.roles).map_err(|e| Error::config(format!("roles: {e}")))?;
         for role in REQUIRED {
             if !roles.contains(role) {
+                // The hint first: the message is capped, the name list may be long.
+                let mut list = names.iter().take(24).cloned().collect::<Vec<_>>().join(", ");
+                if names.len() > 24 {
+                    list.push_str(&format!(", … {} more", names.len() - 24));
+                }
                 return Err(Error::config(format!(
-                    "{}: could not find the {} joint by name among [{}]; name it in the config, e.g. \"roles\": {{\"{}\": \"<joint name>\"}}",
+                    "{}: could not find the {} joint; name it in the config, e.g. \"roles\": {{\"{}\": \"<joint name>\"}}; joints: [{list}]",
                     source.name,
                     role.name().replace('_', " "),
-                    names.join(", "),
                     role.name()
                 )));
             }

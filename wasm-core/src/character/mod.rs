@@ -164,7 +164,12 @@ impl Character {
     /// A component that is not finite (or a position beyond ±1e5 m) keeps its last good value;
     /// a ground speed beyond 50 m/s is clamped (both counted).
     pub fn set_tracked(&mut self, tracked: Tracked) {
-        let mut t = tracked;
+        // Only the ground components matter (docs/method.md §9); a garbage height is ignored.
+        let mut t = Tracked {
+            position: Vec3::new(tracked.position.x, 0.0, tracked.position.z),
+            velocity: Vec3::new(tracked.velocity.x, 0.0, tracked.velocity.z),
+            yaw: tracked.yaw,
+        };
         let last = self.tracked;
         if !(t.position.x.abs() <= MAX_PATH_COORDINATE && t.position.z.abs() <= MAX_PATH_COORDINATE) {
             t.position = last.position;

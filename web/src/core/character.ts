@@ -176,6 +176,15 @@ export class CharacterRuntime {
   get bestCost(): number {
     return this.raw.best_cost();
   }
+  /**
+   * What the runtime refused or repaired since creation: inputs that were not numbers or out of
+   * range (the last good value was used), `dt` gaps searched afresh instead of simulated, and
+   * recoveries from a non-finite state. Not for every frame (allocates).
+   */
+  faults(): { rejectedInputs: number; gaps: number; recoveries: number } {
+    const [rejectedInputs, gaps, recoveries] = this.raw.faults();
+    return { rejectedInputs, gaps, recoveries };
+  }
   /** Planted-toe sliding since the last teleport, database units (the runtime's measure). */
   get skating(): number {
     return this.raw.skating();
