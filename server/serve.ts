@@ -27,7 +27,7 @@ export interface SiteServerOptions {
   /** Extra headers on every file (tests: a Content-Security-Policy). */
   headers?: Record<string, string>;
   /** Called when each response has been sent (load benchmarks count the bytes). */
-  onResponse?: (r: { t: number; method: string; path: string; status: number; bytes: number; encoding: string }) => void;
+  onResponse?: (r: { t: number; method: string; path: string; status: number; bytes: number }) => void;
 }
 
 export interface SiteServer {
@@ -43,9 +43,9 @@ export async function startSiteServer(options: SiteServerOptions): Promise<SiteS
   const handle = (req: http.IncomingMessage, res: http.ServerResponse) => {
     if (options.onResponse) {
       const report = options.onResponse;
-      res.once('finish', () =>
-        report({ t: Date.now(), method: req.method ?? '', path: req.url ?? '', status: res.statusCode, bytes: Number(res.getHeader('content-length') ?? 0), encoding: String(res.getHeader('content-encoding') ?? '') }),
-      );
+      // Bytes on the wire, headers included (one request at a time per connection in HTTP/1.1).
+      const before = req.socket.bytesWritten;
+      res.once('finish', () => report({ t: Date.now(), method: req.method ?? '', path: req.url ?? '', status: res.statusCode, bytes: req.socket.bytesWritten - before }));
     }
     try {
       if (roomsHttp(req, res)) return;

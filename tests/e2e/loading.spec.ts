@@ -62,6 +62,28 @@ test('missing avatar: the skeleton walks and a note names the URL (demo and VR p
   await shot(page, 'missing-avatar-vr');
 });
 
+test('VR page: the heuristic drives from the first frame until the network has loaded; iwer only with ?emulate=1', async ({ page }) => {
+  test.setTimeout(120_000);
+  const requested: string[] = [];
+  page.on('request', (r) => requested.push(r.url()));
+  let release: () => void = () => {};
+  const held = new Promise<void>((r) => (release = r));
+  await page.route('**/models/orientation.onnx*', async (route) => (await held, route.continue()));
+  await page.setViewportSize({ width: 640, height: 400 });
+  await page.goto('/vr.html?mirror=0&dt=fixed');
+  await page.waitForFunction(() => window.__vr?.ready || window.__vr?.error, null, { timeout: 90_000 });
+  const f0 = await page.evaluate(() => window.__vr.frames);
+  await page.waitForFunction((f) => window.__vr.frames > f + 5, f0, { timeout: 60_000 });
+  expect(await page.evaluate(() => [window.__vr.predictor, window.__vr.networkLoaded])).toEqual(['heuristic', false]);
+  await expect(page.locator('#predictor-status')).toHaveText('body yaw: heuristic (loading the network…)');
+  await shot(page, 'vr-heuristic-first');
+  release();
+  await expect(page.locator('#predictor-status')).toHaveText('body yaw: network', { timeout: 60_000 });
+  const runs = await page.evaluate(() => window.__vr.predictorRuns);
+  await page.waitForFunction((r) => window.__vr.predictorRuns > r + 5, runs, { timeout: 60_000 });
+  expect(requested.filter((u) => /iwer|devui/.test(u))).toEqual([]);
+});
+
 test('a mistyped ?db= (the dev server answers with its HTML page) names the URL; Retry is offered', async ({ page }) => {
   await page.goto('/?db=databases/locomotoin.mmdb');
   await expect(status(page)).toContainText(/could not load the database http:\/\/127\.0\.0\.1:\d+\/databases\/locomotoin\.mmdb: not found \(the server answered with an HTML page\)/, { timeout: 30_000 });

@@ -113,11 +113,17 @@ export async function fetchBytes(url: string | URL, options: FetchOptions = {}):
     if (looksLikeHtml(bytes)) throw new Error(`could not load the ${stage} ${href}: not found (the server answered with an HTML page)`);
     report({ loaded: bytes.length, total: bytes.length, done: true });
     mark(`mm:fetched:${stage}`);
-    if (useCache) void storeBytes(href, bytes, type || undefined);
+    // Into the cache once the page is idle (at most 3 s later): not in the way of the first frame.
+    if (useCache) whenIdle(() => void storeBytes(href, bytes, type || undefined));
     return bytes;
   } finally {
     clearInterval(watch);
   }
+}
+
+function whenIdle(fn: () => void): void {
+  if (typeof requestIdleCallback === 'function') requestIdleCallback(fn, { timeout: 3000 });
+  else setTimeout(fn, 500);
 }
 
 /** A performance mark where the timeline exists (load benchmarks read them: scripts/bench-load.mjs). */

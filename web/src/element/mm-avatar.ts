@@ -218,8 +218,22 @@ export class MMAvatarElement extends ElementBase {
     let database: Database;
     let avatar: Avatar | null = null;
     let avatarNote = '';
+    // The stage first: its WebGL context, and the avatar's shaders as soon as the avatar is here,
+    // get ready while the database still downloads (the first frame then only draws).
+    let stage: Stage;
     try {
-      const avatarLoad = avatarUrl ? Avatar.load(avatarUrl, { onProgress: progress, signal }).catch((e: unknown) => e as Error) : Promise.resolve(null);
+      stage = this.stage = new Stage(this.view, { antialias: true });
+      stage.scene.fog = null;
+    } catch (e) {
+      this.fail(errorMessage(e), databaseUrl);
+      return;
+    }
+    const precompile = (a: Avatar) => {
+      if (generation === this.generation) stage.renderer.compileAsync(a.object, stage.camera, stage.scene).catch(() => undefined);
+      return a;
+    };
+    try {
+      const avatarLoad = avatarUrl ? Avatar.load(avatarUrl, { onProgress: progress, signal }).then(precompile, (e: unknown) => e as Error) : Promise.resolve(null);
       database = await loadDatabase(databaseUrl, { onProgress: progress, signal });
       const a = await avatarLoad;
       if (a instanceof Avatar) avatar = a;
@@ -239,14 +253,12 @@ export class MMAvatarElement extends ElementBase {
       return;
     }
     try {
-      this.stage = new Stage(this.view, { antialias: true });
-      this.stage.scene.fog = null;
       const character = new Character(database, avatar, { debug: this.hasAttribute('debug') });
       database.release(); // the character holds its own reference
       this.character = character;
-      this.stage.scene.add(character.object3d);
-      this.stage.camera.position.set(2.2, 1.8, 4.2);
-      this.orbit = new FollowCamera(this.stage.camera, this.stage.renderer.domElement);
+      stage.scene.add(character.object3d);
+      stage.camera.position.set(2.2, 1.8, 4.2);
+      this.orbit = new FollowCamera(stage.camera, stage.renderer.domElement);
       this.orbit.controls.enableZoom = false; // the page scrolls, not the camera
       this.orbit.follow(0, 0, 0);
     } catch (e) {
@@ -255,7 +267,7 @@ export class MMAvatarElement extends ElementBase {
     }
     this.loading.finish(avatarNote || null);
     this.last = performance.now();
-    this.stage.renderer.setAnimationLoop((now: number) => this.frame(now, generation));
+    stage.renderer.setAnimationLoop((now: number) => this.frame(now, generation));
   }
 
   private async swapAvatar(): Promise<void> {

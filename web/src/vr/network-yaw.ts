@@ -14,7 +14,7 @@
  * hand trackers.ts shows; the network was trained with controllers that stop moving, which a
  * hand hanging at the side resembles more than a pose left floating in the room).
  */
-import { type OrientationModel } from '../orientation/orientation-model.ts';
+import type { OrientationModel } from '../orientation/orientation-model.ts'; // type only: onnxruntime loads on demand
 import { type BodyYawPredictor, type TrackerPose } from './body-yaw.ts';
 import { headingYaw } from '../yaw.ts';
 
