@@ -472,7 +472,7 @@ async function runSuites() {
   const only = new Set((process.env.TEST_SUITES ?? '').split(',').map((s) => s.trim()).filter(Boolean));
   const bin = (name) => path.join(ROOT, 'node_modules', '.bin', name);
   const suites = [
-    { id: 'cargo', title: 'cargo test (wasm-core)', cmd: 'cargo', args: ['test', '--release', '--no-fail-fast'], cwd: CORE },
+    { id: 'cargo', title: 'cargo test (wasm-core)', cmd: 'cargo', args: ['test', '--profile', 'test-opt', '--no-fail-fast'], cwd: CORE },
     { id: 'vitest', title: 'vitest', cmd: bin('vitest'), args: ['run'] },
     { id: 'pytest', title: 'pytest (training)', cmd: path.join(VENV, 'bin', 'pytest'), args: ['-q'], cwd: path.join(ROOT, 'training') },
     { id: 'playwright', title: 'playwright', cmd: bin('playwright'), args: ['test'] },

@@ -1,12 +1,14 @@
 #!/usr/bin/env bash
-# Fuzzing the importers (BVH parser, .mmdb loader, builder); see docs/robustness.md.
+# Fuzzing the importers (BVH parser, .mmdb loader, builder) and the character update; see
+# docs/robustness.md.
 #
 #   fuzz/run.sh ci                  the CI form (< 2 min, nothing to install): replays the
 #                                   committed corpus, the malformed BVH cases and ~9,800
-#                                   deterministic .mmdb mutations (cargo test --test hostile_*)
+#                                   deterministic .mmdb mutations, 4,000 random call sequences
+#                                   on a character (cargo test --test hostile_*)
 #   fuzz/run.sh long [SECONDS] [TARGET...]
 #                                   coverage-guided AFL++ runs (cargo-afl, stable Rust), SECONDS
-#                                   per target (default 600), targets bvh mmdb builder (default
+#                                   per target (default 600), targets bvh mmdb builder character (default
 #                                   all); PARALLEL=1 runs them at once (one core each).
 #                                   Installs cargo-afl when missing (~2 min). Findings land in
 #                                   fuzz/out/TARGET/default/crashes|hangs; a summary is printed.
@@ -19,16 +21,16 @@ mode="${1:-ci}"
 
 if [[ "$mode" == ci ]]; then
   cd "$here/.."
-  exec cargo test --release --test hostile_bvh --test hostile_mmdb
+  exec cargo test --profile test-opt --test hostile_bvh --test hostile_mmdb --test hostile_character
 fi
 if [[ "$mode" != long ]]; then
-  echo "usage: fuzz/run.sh ci | long [SECONDS] [bvh|mmdb|builder ...]" >&2
+  echo "usage: fuzz/run.sh ci | long [SECONDS] [bvh|mmdb|builder|character ...]" >&2
   exit 2
 fi
 seconds="${2:-600}"
 shift $(( $# >= 2 ? 2 : $# ))
 targets=("$@")
-(( ${#targets[@]} )) || targets=(bvh mmdb builder)
+(( ${#targets[@]} )) || targets=(bvh mmdb builder character)
 
 if ! cargo afl --version >/dev/null 2>&1; then
   echo "installing cargo-afl (cargo install cargo-afl)…"
