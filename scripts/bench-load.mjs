@@ -78,7 +78,8 @@ async function visit(context, server, pageDef, network, log) {
   await page.waitForFunction(() => performance.getEntriesByName('mm:first-frame').length > 0, null, { timeout: 180_000, polling: 50 });
   const marks = await page.evaluate(() => ({
     origin: performance.timeOrigin,
-    entries: Object.fromEntries(performance.getEntriesByType('mark').filter((m) => m.name.startsWith('mm:')).map((m) => [m.name, m.startTime])),
+    // The first of each (the embed page has two elements: its first one counts).
+    entries: Object.fromEntries(performance.getEntriesByType('mark').filter((m) => m.name.startsWith('mm:')).reverse().map((m) => [m.name, m.startTime])),
     resources: performance.getEntriesByType('resource').map((r) => ({ name: r.name, start: r.startTime, end: r.responseEnd, transfer: r.transferSize, body: r.encodedBodySize })),
     nav: (() => {
       const n = performance.getEntriesByType('navigation')[0];
