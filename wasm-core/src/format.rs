@@ -1,5 +1,8 @@
-//! The `.mmdb` binary format, version 1 (specified in `docs/mmdb-format.md`): writing a
-//! [`Database`] to bytes and reading it back with every length and offset checked.
+//! The `.mmdb` binary format, version 2 (specified in `docs/mmdb-format.md`): writing a
+//! [`Database`] to bytes and reading it back (version 1 too) with every length, offset and
+//! value checked. The version-2 encodings of the pose and feature arrays are in `codec.rs`.
+
+mod codec;
 
 use crate::database::{Axes, Clip, Database, FeatureGroup, FeatureKind, Site, Skeleton, Tag};
 use crate::error::{Error, Result};
@@ -13,14 +16,15 @@ use glam::{Quat, Vec3};
 compile_error!("the .mmdb writer and reader assume a little-endian target");
 
 pub const MAGIC: [u8; 8] = *b"\x89MMDB\r\n\x1a";
-pub const VERSION: u32 = 1;
+/// The version this crate writes. It reads version 1 too (its pose arrays were plain f32,
+/// velocities included).
+pub const VERSION: u32 = 2;
 const HEADER_LEN: usize = 32;
 const ENTRY_LEN: usize = 24;
 const ALIGN: usize = 16;
 
 /// Section tags in the order they are written.
-const TAGS: [&[u8; 4]; 13] =
-    [b"INFO", b"SKEL", b"CLIP", b"TAGS", b"LPOS", b"LROT", b"LVEL", b"LAVL", b"CONT", b"FDSC", b"FNRM", b"FEAT", b"VALD"];
+const TAGS: [&[u8; 4]; 11] = [b"INFO", b"SKEL", b"CLIP", b"TAGS", b"PANM", b"QROT", b"CONT", b"FDSC", b"FNRM", b"FSHF", b"VALD"];
 
 /// Serializes a database.
 ///
@@ -34,12 +38,10 @@ pub fn to_bytes(db: &Database) -> Vec<u8> {
     let mut sections: Vec<(&[u8; 4], std::borrow::Cow<[u8]>)> = Vec::with_capacity(TAGS.len());
     for tag in TAGS {
         let data: std::borrow::Cow<[u8]> = match tag {
-            b"LPOS" => bytemuck::cast_slice(&db.local_positions).into(),
-            b"LROT" => bytemuck::cast_slice(&db.local_rotations).into(),
-            b"LVEL" => bytemuck::cast_slice(&db.local_velocities).into(),
-            b"LAVL" => bytemuck::cast_slice(&db.local_angular_velocities).into(),
+            b"PANM" => codec::encode_positions(&db.local_positions, &db.skeleton.offsets).into(),
+            b"QROT" => codec::encode_rotations(&db.local_rotations, db.num_joints()).into(),
             b"CONT" => db.contacts.as_slice().into(),
-            b"FEAT" => bytemuck::cast_slice(&db.features).into(),
+            b"FSHF" => codec::shuffle_features(&db.features, db.num_features()).into(),
             b"VALD" => db.valid.as_slice().into(),
             _ => small_section(db, tag).into(),
         };
@@ -173,8 +175,10 @@ pub fn from_bytes(bytes: &[u8]) -> Result<Database> {
         return Err(Error::format("wrong magic bytes: not a .mmdb file"));
     }
     let version = le_u32(&bytes[8..12]);
-    if version != VERSION {
-        return Err(Error::format(format!("unsupported format version {version} (this reader supports version {VERSION})")));
+    if version != 1 && version != VERSION {
+        return Err(Error::format(format!(
+            "unsupported format version {version} (this reader reads versions 1 and {VERSION}); rebuild the database with this version's `mmdb build` or page builder"
+        )));
     }
     let count = le_u32(&bytes[12..16]) as usize;
     let file_size = u64::from_le_bytes(bytes[16..24].try_into().unwrap());
@@ -289,6 +293,9 @@ pub fn from_bytes(bytes: &[u8]) -> Result<Database> {
     }
     r.finish()?;
 
+    // Checked here: version 2 copies the offsets into every frame's pose.
+    check_floats("SKEL joint offset", bytemuck::cast_slice(&skeleton.offsets))?;
+
     let mut r = section(b"CLIP")?;
     let n = r.count(29, "clip count")?;
     if n != num_clips {
@@ -366,18 +373,26 @@ pub fn from_bytes(bytes: &[u8]) -> Result<Database> {
     r.finish()?;
 
     let fj = num_frames.checked_mul(num_joints).ok_or_else(|| Error::format("INFO counts overflow"))?;
-    let local_positions = section(b"LPOS")?.vec3s(fj)?;
-    let local_rotations: Vec<Quat> = section(b"LROT")?.pods(fj)?;
-    if let Some(i) = local_rotations.iter().position(|q| !(q.length_squared() - 1.0).abs().le(&QUAT_NORM_TOLERANCE)) {
-        return Err(Error::format(format!(
-            "LROT: frame {} joint {} is not a unit quaternion ({})",
-            i / num_joints,
-            i % num_joints,
-            local_rotations[i]
-        )));
-    }
-    let local_velocities = section(b"LVEL")?.vec3s(fj)?;
-    let local_angular_velocities = section(b"LAVL")?.vec3s(fj)?;
+    // Version 1 stores the pose arrays as plain f32 with velocities; version 2 encodes them
+    // (codec.rs) and velocities are derived below.
+    let (local_positions, local_rotations, velocities) = if version == 1 {
+        let local_positions = section(b"LPOS")?.vec3s(fj)?;
+        let local_rotations: Vec<Quat> = section(b"LROT")?.pods(fj)?;
+        if let Some(i) = local_rotations.iter().position(|q| !(q.length_squared() - 1.0).abs().le(&QUAT_NORM_TOLERANCE)) {
+            return Err(Error::format(format!(
+                "LROT: frame {} joint {} is not a unit quaternion ({})",
+                i / num_joints,
+                i % num_joints,
+                local_rotations[i]
+            )));
+        }
+        let velocities = (section(b"LVEL")?.vec3s(fj)?, section(b"LAVL")?.vec3s(fj)?);
+        (local_positions, local_rotations, Some(velocities))
+    } else {
+        let local_positions = codec::decode_positions(section(b"PANM")?.data, num_frames, &skeleton.offsets).map_err(Error::format)?;
+        let local_rotations = codec::decode_rotations(section(b"QROT")?.data, num_frames, num_joints, QUAT_NORM_TOLERANCE).map_err(Error::format)?;
+        (local_positions, local_rotations, None)
+    };
     let contacts = section(b"CONT")?.flags(num_frames.checked_mul(2).ok_or_else(|| Error::format("INFO counts overflow"))?)?;
 
     let mut r = section(b"FDSC")?;
@@ -441,21 +456,25 @@ pub fn from_bytes(bytes: &[u8]) -> Result<Database> {
             num(feature_scale[d])
         )));
     }
-    let features = section(b"FEAT")?.f32s(num_frames.checked_mul(num_dims).ok_or_else(|| Error::format("INFO counts overflow"))?)?;
+    let num_values = num_frames.checked_mul(num_dims).ok_or_else(|| Error::format("INFO counts overflow"))?;
+    let features = if version == 1 { section(b"FEAT")?.f32s(num_values)? } else { codec::unshuffle_features(section(b"FSHF")?.data, num_frames, num_dims).map_err(Error::format)? };
     let valid = section(b"VALD")?.flags(num_frames)?;
 
     // Every other float, in one place: finite and within ±MAX_ABS_STORED.
-    let vec3_floats = |v: &[Vec3]| bytemuck::cast_slice::<Vec3, f32>(v).to_vec();
-    check_floats("SKEL joint offset", &vec3_floats(&skeleton.offsets))?;
     check_floats("SKEL site offset", &skeleton.sites.iter().flat_map(|s| s.offset.to_array()).collect::<Vec<_>>())?;
     check_floats("FDSC feature axis", &groups.iter().flat_map(|g| g.axis.to_array()).collect::<Vec<_>>())?;
-    check_floats("LPOS", bytemuck::cast_slice(&local_positions))?;
-    check_floats("LVEL", bytemuck::cast_slice(&local_velocities))?;
-    check_floats("LAVL", bytemuck::cast_slice(&local_angular_velocities))?;
+    let (positions_tag, features_tag) = if version == 1 { ("LPOS", "FEAT") } else { ("PANM", "FSHF") };
+    check_floats(positions_tag, bytemuck::cast_slice(&local_positions))?;
+    if let Some((v, w)) = &velocities {
+        check_floats("LVEL", bytemuck::cast_slice(v))?;
+        check_floats("LAVL", bytemuck::cast_slice(w))?;
+    }
     check_floats("FNRM mean", &feature_mean)?;
-    check_floats("FEAT", &features)?;
+    check_floats(features_tag, &features)?;
 
-    Ok(Database {
+    let derive = velocities.is_none();
+    let (local_velocities, local_angular_velocities) = velocities.unwrap_or_default();
+    let mut db = Database {
         skeleton,
         fps,
         num_frames,
@@ -471,7 +490,51 @@ pub fn from_bytes(bytes: &[u8]) -> Result<Database> {
         feature_scale,
         features,
         valid,
-    })
+    };
+    if derive {
+        db.compute_velocities();
+    }
+    Ok(db)
+}
+
+/// Checks that `loaded` is what writing `original` and reading it back may give: everything
+/// equal except the rotations, each within [`codec::MAX_ROTATION_ERROR`] of the original
+/// (version 2 quantizes them), and the velocities, which must be the ones the original's poses
+/// give ([`crate::database::pose_velocities`]): linear ones within 1e-4 m/s, angular ones
+/// within `2 · MAX_ROTATION_ERROR · fps` (the rotations they are derived from moved).
+///
+/// # Errors
+/// The first difference beyond those bounds.
+pub fn check_round_trip(original: &Database, loaded: &Database) -> std::result::Result<(), String> {
+    let exact = (&original.skeleton, original.fps, original.num_frames, &original.clips, &original.tags, &original.local_positions, &original.contacts)
+        == (&loaded.skeleton, loaded.fps, loaded.num_frames, &loaded.clips, &loaded.tags, &loaded.local_positions, &loaded.contacts)
+        && (&original.groups, &original.feature_mean, &original.feature_scale, &original.valid) == (&loaded.groups, &loaded.feature_mean, &loaded.feature_scale, &loaded.valid)
+        && original.features.iter().map(|f| f.to_bits()).eq(loaded.features.iter().map(|f| f.to_bits()));
+    if !exact {
+        return Err("the skeleton, clips, tags, positions, contacts, features or validity changed".into());
+    }
+    if original.local_rotations.len() != loaded.local_rotations.len() {
+        return Err("the rotation count changed".into());
+    }
+    for (i, (a, b)) in original.local_rotations.iter().zip(&loaded.local_rotations).enumerate() {
+        if codec::angle(*a, *b) > codec::MAX_ROTATION_ERROR {
+            return Err(format!("rotation {i} moved {:e} rad", codec::angle(*a, *b)));
+        }
+    }
+    // Against the velocities the original's own poses give: a version-1 file may store any.
+    let (velocities, angular_velocities) =
+        crate::database::pose_velocities(original.num_joints(), original.fps, &original.clips, &original.local_positions, &original.local_rotations);
+    let angular = (2.0 * codec::MAX_ROTATION_ERROR * original.fps as f64) as f32 * 1.01;
+    let pairs = [(&velocities, &loaded.local_velocities, 1e-4, "velocity"), (&angular_velocities, &loaded.local_angular_velocities, angular, "angular velocity")];
+    for (a, b, bound, what) in pairs {
+        if a.len() != b.len() {
+            return Err(format!("the {what} count changed"));
+        }
+        if let Some(i) = a.iter().zip(b.iter()).position(|(x, y)| !((*x - *y).length() <= bound)) {
+            return Err(format!("{what} {i} changed from {} to {}", a[i], b[i]));
+        }
+    }
+    Ok(())
 }
 
 /// Largest `CLIP.root_scale` (a leg-length ratio between two subjects; people differ by
@@ -635,7 +698,7 @@ mod tests {
 
     /// A tiny but complete database: 2 joints, 3 frames, one clip, one tag, one feature group.
     pub(crate) fn tiny() -> Database {
-        Database {
+        let mut db = Database {
             skeleton: Skeleton {
                 names: vec!["VirtualRoot".into(), "Hips".into()],
                 parents: vec![-1, 0],
@@ -667,7 +730,9 @@ mod tests {
             feature_scale: vec![2.0, 2.0],
             features: vec![0.0, 1.0, 2.0, 3.0, 4.0, 5.0],
             valid: vec![1, 1, 0],
-        }
+        };
+        db.compute_velocities();
+        db
     }
 
     fn message(bytes: &[u8]) -> String {
@@ -685,6 +750,7 @@ mod tests {
         let db = tiny();
         let bytes = to_bytes(&db);
         assert_eq!(bytes.len() % 16, 0);
+        // The tiny database's rotations are identities, which quantize exactly.
         assert_eq!(from_bytes(&bytes).unwrap(), db);
     }
 
@@ -697,8 +763,8 @@ mod tests {
         b[0] = b'X';
         assert!(message(&b).contains("magic"));
         let mut b = bytes.clone();
-        b[8] = 2;
-        assert!(message(&b).contains("version 2"));
+        b[8] = 3;
+        assert!(message(&b).contains("version 3 (this reader reads versions 1 and 2); rebuild"));
         let mut b = bytes.clone();
         let last = b.len() - 20;
         b[last] ^= 0x40;
@@ -743,12 +809,11 @@ mod tests {
             ("huge fps", Box::new(|db| db.fps = 1e30), "INFO.fps must be between 1 and 1000"),
             ("zero fps", Box::new(|db| db.fps = 0.0), "INFO.fps"),
             ("nan fps", Box::new(|db| db.fps = f32::NAN), "INFO.fps"),
-            ("nan position", Box::new(|db| db.local_positions[3].y = f32::NAN), "LPOS: value 10 is NaN"),
-            ("inf feature", Box::new(|db| db.features[5] = f32::INFINITY), "FEAT: value 5 is inf"),
-            ("huge velocity", Box::new(|db| db.local_velocities[0].x = 1e39_f64 as f32), "LVEL"),
+            ("nan position", Box::new(|db| db.local_positions[3].y = f32::NAN), "PANM: value 10 is NaN"),
+            ("inf feature", Box::new(|db| db.features[5] = f32::INFINITY), "FSHF: value 5 is inf"),
             ("zero scale", Box::new(|db| db.feature_scale[1] = 0.0), "FNRM: scale of dim 1 is 0"),
             ("nan clip scale", Box::new(|db| db.clips[0].scale = f32::NAN), "CLIP 'a': scale NaN"),
-            ("not a unit quaternion", Box::new(|db| db.local_rotations[4] = Quat::from_xyzw(0.0, 0.0, 0.0, 2.0)), "LROT: frame 2 joint 0"),
+            ("not a unit quaternion", Box::new(|db| db.local_rotations[4] = Quat::from_xyzw(0.0, 0.0, 0.0, 0.5)), "QROT: frame 2 joint 0 is not a unit quaternion"),
             ("contact byte 2", Box::new(|db| db.contacts[1] = 2), "section CONT: byte 1 is 2"),
             ("huge offset", Box::new(|db| db.groups[0].offsets[0] = i32::MIN), "frame offset -2147483648"),
             ("nan weight", Box::new(|db| db.groups[0].weight = f32::NAN), "weight NaN"),
@@ -801,16 +866,43 @@ mod tests {
     #[test]
     fn rejects_overlapping_and_misaligned_sections() {
         let bytes = to_bytes(&tiny());
-        let entry = |i: usize| HEADER_LEN + i * ENTRY_LEN;
-        // Point LVEL (6) at LPOS (4): same length, so only the overlap check can catch it.
+        let entry = |tag: &[u8; 4]| HEADER_LEN + TAGS.iter().position(|t| *t == tag).unwrap() * ENTRY_LEN;
+        // Point CONT at the start of QROT: only the overlap check can catch it.
         let mut b = bytes.clone();
-        let lpos: [u8; 8] = b[entry(4) + 8..entry(4) + 16].try_into().unwrap();
-        b[entry(6) + 8..entry(6) + 16].copy_from_slice(&lpos);
+        let qrot: [u8; 8] = b[entry(b"QROT") + 8..entry(b"QROT") + 16].try_into().unwrap();
+        b[entry(b"CONT") + 8..entry(b"CONT") + 16].copy_from_slice(&qrot);
         refix(&mut b);
-        assert!(message(&b).contains("sections LPOS and LVEL overlap"), "{}", message(&b));
+        assert!(message(&b).contains("sections QROT and CONT overlap") || message(&b).contains("sections CONT and QROT overlap"), "{}", message(&b));
         let mut b = bytes.clone();
-        b[entry(0) + 8] += 4;
+        b[entry(b"INFO") + 8] += 4;
         refix(&mut b);
         assert!(message(&b).contains("not a multiple of 16"), "{}", message(&b));
+    }
+
+    /// Version 1 (plain f32 poses with stored velocities) still loads; written again it is
+    /// version 2 and decodes to the same database within the quantization bound, with
+    /// velocities derived by the same formula the builder used.
+    #[test]
+    fn version_1_still_loads_and_converts() {
+        let v1 = std::fs::read(concat!(env!("CARGO_MANIFEST_DIR"), "/tests/corpus/mmdb/humanoid.mmdb")).unwrap();
+        assert_eq!(le_u32(&v1[8..12]), 1);
+        let old = from_bytes(&v1).unwrap();
+        let v2 = to_bytes(&old);
+        assert_eq!(le_u32(&v2[8..12]), 2);
+        assert!(v2.len() * 2 < v1.len(), "{} vs {} bytes", v2.len(), v1.len());
+        let new = from_bytes(&v2).unwrap();
+        assert_eq!(new.local_positions, old.local_positions);
+        assert_eq!(new.features, old.features);
+        assert_eq!((&new.contacts, &new.valid, &new.clips, &new.skeleton), (&old.contacts, &old.valid, &old.clips, &old.skeleton));
+        for (a, b) in old.local_rotations.iter().zip(&new.local_rotations) {
+            assert!(codec::angle(*a, *b) <= codec::MAX_ROTATION_ERROR);
+        }
+        // Stored (f64 builder) and derived (from the stored f32 poses) velocities agree.
+        for (a, b) in old.local_velocities.iter().zip(&new.local_velocities) {
+            assert!((*a - *b).length() < 1e-4, "{a} vs {b}");
+        }
+        for (a, b) in old.local_angular_velocities.iter().zip(&new.local_angular_velocities) {
+            assert!((*a - *b).length() < 0.01, "{a} vs {b}");
+        }
     }
 }

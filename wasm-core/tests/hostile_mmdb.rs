@@ -27,7 +27,7 @@ fn seeds() -> Vec<(String, Vec<u8>)> {
 }
 
 /// What a loaded database must allow: the summary, an index and a search, a character
-/// playing it for half a second, a byte-exact round trip. Returns what went wrong.
+/// playing it for half a second, a round trip within the quantization bound. Returns what went wrong.
 fn exercise(db: &Database) -> Option<String> {
     if !((MIN_FPS as f32..=MAX_FPS as f32).contains(&db.fps) && db.num_frames >= 1 && !db.groups.is_empty() && db.num_features() >= 1) {
         return Some("loaded a database outside the documented limits".into());
@@ -45,9 +45,7 @@ fn exercise(db: &Database) -> Option<String> {
             crowd.update(db, &index, 1.0 / 60.0);
         }
         let again = format::from_bytes(&format::to_bytes(db)).map_err(|e| format!("round trip: {e}"))?;
-        if &again != db {
-            return Err("round trip changed the database".to_string());
-        }
+        format::check_round_trip(db, &again).map_err(|e| format!("round trip changed the database: {e}"))?;
         Ok(summary["num_frames"].as_u64())
     }));
     match run {

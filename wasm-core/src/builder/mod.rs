@@ -225,26 +225,25 @@ pub fn build(config: &BuildConfig, sources: &[Source]) -> Result<BuildOutput> {
             100.0 * contact_share(1)
         ));
     }
-    Ok(BuildOutput {
-        database: Database {
-            skeleton,
-            fps: fps as f32,
-            num_frames: out.num_frames,
-            clips,
-            tags,
-            local_positions: out.positions,
-            local_rotations: out.rotations,
-            local_velocities: out.velocities,
-            local_angular_velocities: out.angular_velocities,
-            contacts: out.contacts,
-            groups,
-            feature_mean,
-            feature_scale,
-            features: out.features,
-            valid,
-        },
-        warnings,
-    })
+    let mut database = Database {
+        skeleton,
+        fps: fps as f32,
+        num_frames: out.num_frames,
+        clips,
+        tags,
+        local_positions: out.positions,
+        local_rotations: out.rotations,
+        local_velocities: Vec::new(),
+        local_angular_velocities: Vec::new(),
+        contacts: out.contacts,
+        groups,
+        feature_mean,
+        feature_scale,
+        features: out.features,
+        valid,
+    };
+    database.compute_velocities();
+    Ok(BuildOutput { database, warnings })
 }
 
 /// Sorted, merged `[start, end)` ranges.

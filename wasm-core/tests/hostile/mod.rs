@@ -383,15 +383,15 @@ pub fn mmdb_named_cases() -> Vec<Case> {
         case("zero_frames", patched(&|b| b[info..info + 4].copy_from_slice(&0u32.to_le_bytes())), err("INFO.num_frames is 0")),
         case("nan_feature_scale", edit(&|db| db.feature_scale[0] = f32::NAN), err("FNRM: scale of dim 0 is NaN")),
         case("zero_clip_scale", edit(&|db| db.clips[0].scale = 0.0), err("CLIP 'a': scale 0 is outside")),
-        case("nan_position", edit(&|db| db.local_positions[1].x = f32::NAN), err("LPOS: value 3 is NaN")),
-        case("infinite_feature", edit(&|db| db.features[7] = f32::INFINITY), err("FEAT: value 7 is inf")),
+        case("nan_position", edit(&|db| db.local_positions[1].x = f32::NAN), err("PANM: value 3 is NaN")),
+        case("infinite_feature", edit(&|db| db.features[7] = f32::INFINITY), err("FSHF: value 7 is inf")),
         case("section_count_huge", patched(&|b| b[12..16].copy_from_slice(&u32::MAX.to_le_bytes())), err("section table of 4294967295 entries runs past the end")),
-        case("section_length_huge", patched(&|b| { let e = at(b"FEAT").1; b[e + 16..e + 24].copy_from_slice(&u64::MAX.to_le_bytes()) }), err("section FEAT (offset")),
+        case("section_length_huge", patched(&|b| { let e = at(b"FSHF").1; b[e + 16..e + 24].copy_from_slice(&u64::MAX.to_le_bytes()) }), err("section FSHF (offset")),
         case("sections_overlap", patched(&|b| {
-            let (lpos, lvel) = (at(b"LPOS").1, at(b"LVEL").1);
+            let (lpos, lvel) = (at(b"PANM").1, at(b"QROT").1);
             let off: [u8; 8] = b[lpos + 8..lpos + 16].try_into().unwrap();
             b[lvel + 8..lvel + 16].copy_from_slice(&off);
-        }), err("sections LPOS and LVEL overlap")),
+        }), err("sections QROT and PANM overlap")),
         case("clip_count_huge", patched(&|b| { let c = at(b"CLIP").2; b[c..c + 4].copy_from_slice(&u32::MAX.to_le_bytes()) }), err("CLIP clip count 4294967295 does not fit in the section")),
         case("valid_tiny", bytes.clone(), Expect::Ok),
     ]
@@ -467,6 +467,8 @@ fn float_fields(bytes: &[u8]) -> Vec<(String, usize)> {
             out.push((format!("FNRM.scale[{k}]"), fnrm + 4 * (d + k)));
         }
     }
+    // Version 1 only: version 2's arrays are not plain f32 (a NaN pattern written there is
+    // not a NaN value; codec.rs validates what they decode to).
     for tag in [b"LPOS", b"LROT", b"FEAT"] {
         if let Some((off, _)) = find(tag) {
             out.push((format!("{}[0]", String::from_utf8_lossy(tag)), off));
