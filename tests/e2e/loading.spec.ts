@@ -126,20 +126,32 @@ test.describe('production server (dist/)', () => {
     page.on('pageerror', (e) => errors.push(e.message));
     await page.goto(`${server.url}/`);
     await page.waitForFunction(() => window.__mm?.ready, null, { timeout: 120_000 });
-    // The first visit leaves: an active service worker with the shell, the library's assets.
-    await page.waitForFunction(
-      async () => {
+    // The first visit leaves: an active service worker with the shell (the page and every
+    // script and style it loaded), the library's assets.
+    const missing = () =>
+      page.evaluate(async () => {
         const reg = await navigator.serviceWorker.getRegistration();
-        const keys = await caches.keys();
-        const assets = keys.includes('mm-avatar-assets') ? (await (await caches.open('mm-avatar-assets')).keys()).map((r) => r.url) : [];
-        return !!reg?.active && keys.some((k) => k.startsWith('mm-shell-')) && ['mmcore_bg.wasm', 'locomotion.mmdb', 'ubc_male.glb'].every((f) => assets.some((u) => u.includes(f)));
-      },
-      null,
-      { timeout: 60_000, polling: 500 },
-    );
+        const cached = new Set<string>();
+        for (const k of await caches.keys()) for (const r of await (await caches.open(k)).keys()) cached.add(r.url.split('?')[0]);
+        const loaded = performance.getEntriesByType('resource').map((e) => e.name.split('?')[0]).filter((u) => u.startsWith(location.origin) && /\.(js|css)$/.test(u));
+        const need = [location.origin + '/', ...loaded, ...['mmcore_bg.wasm', 'databases/locomotion.mmdb', 'avatars/ubc_male.glb'].map((f) => `${location.origin}/${f}`)];
+        return [...(reg?.active ? [] : ['an active service worker']), ...need.filter((u) => !cached.has(u))];
+      });
+    await expect.poll(missing, { timeout: 60_000, intervals: [500] }).toEqual([]);
     await context.setOffline(true);
+    // What the offline visit asked for and did not get: printed when the page does not come up.
+    const failed: string[] = [];
+    const consoleLines: string[] = [];
+    page.on('requestfailed', (r) => failed.push(`${r.url()} (${r.failure()?.errorText}, sw: ${r.serviceWorker() ? 'yes' : 'no'})`));
+    page.on('response', (r) => !r.ok() && failed.push(`${r.url()}: HTTP ${r.status()}`));
+    page.on('console', (m) => consoleLines.push(`${m.type()}: ${m.text()}`));
     await page.reload();
-    await page.waitForFunction(() => window.__mm?.ready, null, { timeout: 120_000 });
+    try {
+      await page.waitForFunction(() => window.__mm?.ready, null, { timeout: 60_000 });
+    } catch (e) {
+      console.log(`offline reload did not become ready.\nfailed requests:\n  ${failed.join('\n  ')}\nconsole:\n  ${consoleLines.join('\n  ')}\nstatus: ${await status(page).textContent().catch(() => '?')}`);
+      throw e;
+    }
     const u0 = await page.evaluate(() => window.__mm.updates);
     await page.waitForFunction((u) => window.__mm.updates > u + 10, u0, { timeout: 60_000 });
     expect(await page.evaluate(() => navigator.onLine)).toBe(false);

@@ -54,7 +54,13 @@ pub struct Clip {
     /// End frame (exclusive).
     pub end: u32,
     pub mirrored: bool,
-    pub source_fps: f32,
+    /// The source's frame rate (frames per second, `1 / Frame Time`, snapped to the whole
+    /// number when within 0.01 of it): database frame `start + k` was sampled at source frame
+    /// `source_start + k · source_fps / fps` (linear / slerp between source frames).
+    pub source_fps: f64,
+    /// The source frame the clip's first frame was sampled at (a configured frame range starts
+    /// past 0). Version-1 files do not store it and read as 0.
+    pub source_start: u32,
     /// Metres per source unit.
     pub scale: f32,
     /// Root-motion scale from bone-length normalization (1 for the reference skeleton).

@@ -112,9 +112,10 @@ fn small_section(db: &Database, tag: &[u8; 4]) -> Vec<u8> {
                 put_u32(&mut w, c.start);
                 put_u32(&mut w, c.end);
                 w.push(c.mirrored as u8);
-                put_f32(&mut w, c.source_fps);
+                w.extend_from_slice(&c.source_fps.to_le_bytes());
                 put_f32(&mut w, c.scale);
                 put_f32(&mut w, c.root_scale);
+                put_u32(&mut w, c.source_start);
             }
         }
         b"TAGS" => {
@@ -297,7 +298,7 @@ pub fn from_bytes(bytes: &[u8]) -> Result<Database> {
     check_floats("SKEL joint offset", bytemuck::cast_slice(&skeleton.offsets))?;
 
     let mut r = section(b"CLIP")?;
-    let n = r.count(29, "clip count")?;
+    let n = r.count(if version == 1 { 29 } else { 37 }, "clip count")?;
     if n != num_clips {
         return Err(Error::format(format!("CLIP holds {n} clips but INFO says {num_clips}")));
     }
@@ -310,9 +311,10 @@ pub fn from_bytes(bytes: &[u8]) -> Result<Database> {
             start: r.u32("clip start")?,
             end: r.u32("clip end")?,
             mirrored: r.flag("clip mirrored")?,
-            source_fps: r.f32("clip source fps")?,
+            source_fps: if version == 1 { r.f32("clip source fps")? as f64 } else { r.f64("clip source fps")? },
             scale: r.f32("clip scale")?,
             root_scale: r.f32("clip root scale")?,
+            source_start: if version == 1 { 0 } else { r.u32("clip source start")? },
         };
         let name = quote(&clip.name);
         if clip.start != next || clip.end <= clip.start || clip.end as usize > num_frames {
@@ -321,7 +323,7 @@ pub fn from_bytes(bytes: &[u8]) -> Result<Database> {
                 clip.start, clip.end
             )));
         }
-        if !(MIN_SOURCE_FPS as f32..=MAX_SOURCE_FPS as f32).contains(&clip.source_fps) {
+        if !(MIN_SOURCE_FPS..=MAX_SOURCE_FPS).contains(&clip.source_fps) {
             return Err(Error::format(format!("CLIP '{name}': source fps {} is outside {MIN_SOURCE_FPS}..{MAX_SOURCE_FPS}", num(clip.source_fps))));
         }
         if !(MIN_SCALE as f32..=MAX_SCALE as f32).contains(&clip.scale) {
@@ -642,6 +644,9 @@ impl<'a> Reader<'a> {
     fn i32(&mut self, field: &str) -> Result<i32> {
         Ok(i32::from_le_bytes(self.take(4, field)?.try_into().unwrap()))
     }
+    fn f64(&mut self, field: &str) -> Result<f64> {
+        Ok(f64::from_le_bytes(self.take(8, field)?.try_into().unwrap()))
+    }
     fn f32(&mut self, field: &str) -> Result<f32> {
         Ok(f32::from_le_bytes(self.take(4, field)?.try_into().unwrap()))
     }
@@ -707,7 +712,7 @@ mod tests {
             },
             fps: 60.0,
             num_frames: 3,
-            clips: vec![Clip { name: "a".into(), source: "a.bvh".into(), start: 0, end: 3, mirrored: false, source_fps: 120.0, scale: 1.0, root_scale: 1.0 }],
+            clips: vec![Clip { name: "a".into(), source: "a.bvh".into(), start: 0, end: 3, mirrored: false, source_fps: 120.0, scale: 1.0, root_scale: 1.0, source_start: 0 }],
             tags: vec![Tag { name: "walk".into(), ranges: vec![(0, 2)] }],
             local_positions: (0..6).map(|i| Vec3::splat(i as f32)).collect(),
             local_rotations: vec![Quat::IDENTITY; 6],

@@ -18,14 +18,29 @@ const VERSION = self.__MM_VERSION__;
 const SHELL = self.__MM_SHELL__;
 const SHELL_CACHE = `mm-shell-${VERSION}`;
 const RUNTIME_CACHE = `mm-runtime-${VERSION}`;
+// Matches ignore `Vary: Accept-Encoding` (the server's precompressed files): a cache holds
+// decoded bodies, so the encoding a response was sent with does not matter to a match.
+const MATCH = { ignoreVary: true };
 const HASHED = /\/assets\/[^/]+-[A-Za-z0-9_-]{8}\.[a-z0-9]+$/;
 
 self.addEventListener('install', (event) => {
   event.waitUntil(
     (async () => {
       const cache = await caches.open(SHELL_CACHE);
-      // One by one: a file that fails (a 404 in a hand-edited dist/) does not block the rest.
-      await Promise.all(SHELL.map((url) => cache.add(new Request(url, { cache: 'no-cache' })).catch(() => undefined)));
+      // One by one, each tried three times: a file that still fails (a 404 in a hand-edited
+      // dist/) does not block the rest, and a busy server's dropped request is tried again
+      // (a shell file missing here is a page that cannot start offline).
+      await Promise.all(
+        SHELL.map(async (url) => {
+          for (let attempt = 1; attempt <= 3; attempt++) {
+            try {
+              return await cache.add(new Request(url, { cache: 'no-cache' }));
+            } catch {
+              await new Promise((resolve) => setTimeout(resolve, 250 * attempt));
+            }
+          }
+        }),
+      );
       await self.skipWaiting();
     })(),
   );
@@ -51,10 +66,10 @@ async function networkFirst(request, store) {
     }
     return response;
   } catch (e) {
-    const hit = (await caches.match(request)) ?? (await caches.match(request, { ignoreSearch: true }));
+    const hit = (await caches.match(request, MATCH)) ?? (await caches.match(request, { ...MATCH, ignoreSearch: true }));
     if (hit) return hit;
     if (request.mode === 'navigate') {
-      const shell = await caches.match(new URL('./', self.registration.scope).href);
+      const shell = await caches.match(new URL('./', self.registration.scope).href, MATCH);
       if (shell) return shell;
     }
     throw e;
@@ -62,7 +77,7 @@ async function networkFirst(request, store) {
 }
 
 async function cacheFirst(request) {
-  const hit = await caches.match(request);
+  const hit = await caches.match(request, MATCH);
   if (hit) return hit;
   const response = await fetch(request);
   if (response.ok && response.status === 200) {
@@ -79,6 +94,6 @@ self.addEventListener('fetch', (event) => {
   if (url.origin !== self.location.origin || url.pathname.startsWith('/rooms')) return;
   if (request.mode === 'navigate') event.respondWith(networkFirst(request, SHELL_CACHE));
   else if (HASHED.test(url.pathname)) event.respondWith(cacheFirst(request));
-  else if (url.searchParams.has('v')) event.respondWith(caches.match(request).then((hit) => hit ?? fetch(request)));
+  else if (url.searchParams.has('v')) event.respondWith(caches.match(request, MATCH).then((hit) => hit ?? fetch(request)));
   else event.respondWith(networkFirst(request, SHELL.includes(url.pathname.replace(/^\//, '')) ? SHELL_CACHE : null));
 });

@@ -194,9 +194,10 @@ pub fn build(config: &BuildConfig, sources: &[Source]) -> Result<BuildOutput> {
             start,
             end: start + num_out as u32,
             mirrored,
-            source_fps: take.source_fps as f32,
+            source_fps: take.source_fps,
             scale: take.scale as f32,
             root_scale: root_scales[t] as f32,
+            source_start: take.frames.0 as u32,
         });
         // Tags: whole clip, then source-frame ranges mapped to database frames.
         let to_db = |s: usize| start + ((s.saturating_sub(take.frames.0)) as f64 * fps / take.source_fps).round().min(num_out as f64) as u32;

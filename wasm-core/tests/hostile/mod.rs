@@ -324,8 +324,8 @@ pub fn tiny_database() -> Database {
         fps: 60.0,
         num_frames: 4,
         clips: vec![
-            Clip { name: "a".into(), source: "a.bvh".into(), start: 0, end: 2, mirrored: false, source_fps: 120.0, scale: 0.01, root_scale: 1.0 },
-            Clip { name: "a (mirror)".into(), source: "a.bvh".into(), start: 2, end: 4, mirrored: true, source_fps: 120.0, scale: 0.01, root_scale: 1.0 },
+            Clip { name: "a".into(), source: "a.bvh".into(), start: 0, end: 2, mirrored: false, source_fps: 120.0, scale: 0.01, root_scale: 1.0, source_start: 0 },
+            Clip { name: "a (mirror)".into(), source: "a.bvh".into(), start: 2, end: 4, mirrored: true, source_fps: 120.0, scale: 0.01, root_scale: 1.0, source_start: 0 },
         ],
         tags: vec![Tag { name: "walk".into(), ranges: vec![(0, 1), (2, 4)] }],
         local_positions: (0..8).map(|i| glam::Vec3::splat(i as f32 * 0.1)).collect(),
@@ -429,13 +429,14 @@ fn put(bytes: &mut [u8], at: usize, v: &[u8]) {
 
 /// Byte offsets of every f32 field of the small sections worth poisoning: INFO.fps, each
 /// clip's source fps / scale / root scale, each group's weight, and the FNRM scales.
-fn float_fields(bytes: &[u8]) -> Vec<(String, usize)> {
+fn float_fields(bytes: &[u8]) -> Vec<(String, usize, usize)> {
     let t = table(bytes);
+    let version = u32::from_le_bytes(bytes[8..12].try_into().unwrap());
     let find = |tag: &[u8; 4]| t.iter().find(|e| &e.0 == tag).map(|e| (e.2, e.3));
     let u32_at = |at: usize| u32::from_le_bytes(bytes[at..at + 4].try_into().unwrap()) as usize;
     let mut out = Vec::new();
     if let Some((info, _)) = find(b"INFO") {
-        out.push(("INFO.fps".to_string(), info + 8));
+        out.push(("INFO.fps".to_string(), info + 8, 4));
     }
     if let Some((clip, _)) = find(b"CLIP") {
         let mut p = clip + 4;
@@ -443,35 +444,38 @@ fn float_fields(bytes: &[u8]) -> Vec<(String, usize)> {
             p += 4 + u32_at(p);
             p += 4 + u32_at(p);
             p += 9;
-            for (k, f) in ["source_fps", "scale", "root_scale"].iter().enumerate() {
-                out.push((format!("CLIP[{i}].{f}"), p + 4 * k));
+            // Version 2 stores the source rate as f64 and appends the u32 source start.
+            let fps_len = if version == 1 { 4 } else { 8 };
+            out.push((format!("CLIP[{i}].source_fps"), p, fps_len));
+            for (k, f) in ["scale", "root_scale"].iter().enumerate() {
+                out.push((format!("CLIP[{i}].{f}"), p + fps_len + 4 * k, 4));
             }
-            p += 12;
+            p += fps_len + 8 + if version == 1 { 0 } else { 4 };
         }
     }
     if let Some((fdsc, _)) = find(b"FDSC") {
         let mut p = fdsc + 4;
         for i in 0..u32_at(fdsc).min(4) {
             p += 4 + u32_at(p) + 8;
-            out.push((format!("FDSC[{i}].axis.x"), p));
+            out.push((format!("FDSC[{i}].axis.x"), p, 4));
             p += 12;
             p += 4 + 4 * u32_at(p);
-            out.push((format!("FDSC[{i}].weight"), p));
+            out.push((format!("FDSC[{i}].weight"), p, 4));
             p += 12;
         }
     }
     if let Some((fnrm, len)) = find(b"FNRM") {
         let d = len / 8;
-        out.push(("FNRM.mean[0]".into(), fnrm));
+        out.push(("FNRM.mean[0]".into(), fnrm, 4));
         for k in 0..d.min(3) {
-            out.push((format!("FNRM.scale[{k}]"), fnrm + 4 * (d + k)));
+            out.push((format!("FNRM.scale[{k}]"), fnrm + 4 * (d + k), 4));
         }
     }
     // Version 1 only: version 2's arrays are not plain f32 (a NaN pattern written there is
     // not a NaN value; codec.rs validates what they decode to).
     for tag in [b"LPOS", b"LROT", b"FEAT"] {
         if let Some((off, _)) = find(tag) {
-            out.push((format!("{}[0]", String::from_utf8_lossy(tag)), off));
+            out.push((format!("{}[0]", String::from_utf8_lossy(tag)), off, 4));
         }
     }
     out
@@ -582,10 +586,10 @@ pub fn mmdb_mutations(seed_name: &str, seed: &[u8]) -> Vec<Case> {
     }
     // Float fields poisoned.
     let poisons: [(&str, f32); 7] = [("nan", f32::NAN), ("inf", f32::INFINITY), ("-inf", f32::NEG_INFINITY), ("zero", 0.0), ("-zero", -0.0), ("1e30", 1e30), ("denormal", 1e-40)];
-    for (field, at) in float_fields(seed) {
+    for (field, at, len) in float_fields(seed) {
         for (pname, v) in poisons {
             let mut b = seed.to_vec();
-            put(&mut b, at, &v.to_le_bytes());
+            put(&mut b, at, &if len == 8 { (v as f64).to_le_bytes().to_vec() } else { v.to_le_bytes().to_vec() });
             refix(&mut b);
             let expect = match (field.as_str(), pname) {
                 (_, "nan" | "inf" | "-inf") => Expect::Error(String::new()),
