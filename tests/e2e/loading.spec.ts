@@ -106,6 +106,34 @@ test('the database list offers exactly the databases the generated index lists, 
   await expect.poll(async () => (await select.locator('option').allTextContents()).sort()).toEqual(index.databases.map((d) => d.name).sort());
 });
 
+test('attribute typos in a page: a non-URL database is named in the element, unknown values warned about, the character still walks', async ({ page }) => {
+  test.setTimeout(120_000);
+  await page.goto('/');
+  await page.waitForFunction(() => window.__mm?.ready, null, { timeout: 90_000 });
+  const result = await page.evaluate(async () => {
+    const bad = document.createElement('mm-avatar') as HTMLElement & { warnings: string[] };
+    bad.setAttribute('database', 'http://[oops');
+    bad.style.cssText = 'width:200px;height:150px;position:fixed;left:0;top:0';
+    document.body.append(bad);
+    const odd = document.createElement('mm-avatar') as HTMLElement & { warnings: string[]; timeStep: number | null };
+    odd.setAttribute('avatar', 'none');
+    odd.setAttribute('controls', 'keybaord path');
+    odd.setAttribute('camera', 'orbit');
+    odd.style.cssText = 'width:200px;height:150px;position:fixed;right:0;top:0';
+    document.body.append(odd);
+    odd.timeStep = NaN;
+    await new Promise((r) => setTimeout(r, 500));
+    return { status: bad.shadowRoot?.querySelector('.status')?.textContent ?? '', warnings: odd.warnings, timeStep: odd.timeStep };
+  });
+  expect(result.status).toContain('database="http://[oops" is not a URL');
+  expect(result.warnings.join('\n')).toContain('unknown control "keybaord" ignored');
+  expect(result.warnings.join('\n')).toContain('camera="orbit" is not one of follow, fixed; using follow');
+  expect(result.warnings.join('\n')).toContain('timeStep NaN refused');
+  expect(result.timeStep).toBeNull();
+  const u0 = await page.evaluate(() => window.__mm.updates);
+  await page.waitForFunction((u) => window.__mm.updates > u + 5, u0, { timeout: 30_000 });
+});
+
 test.describe('production server (dist/)', () => {
   let server: SiteServer;
   test.beforeAll(async () => {

@@ -15,6 +15,9 @@
  *   (first animated frame), `error` (`detail: {message, url}`), and a visible status inside the
  *   element: each stage with its URL and bytes, a stalled download after 5 s, a failed database
  *   with a Retry button (`retry()`), a failed avatar's note over the skeleton;
+ * - a value it does not understand (a typo in `controls`, `camera` or `loading`, a refused
+ *   `timeStep`) is a console warning kept in `warnings`, and the default is used; a
+ *   `database`/`avatar` that is not a fetchable URL is an error shown in the element;
  * - removing the element frees its WASM memory and GPU objects; adding it again rebuilds it.
  */
 import * as THREE from 'three';
@@ -22,6 +25,7 @@ import { DEFAULT_AVATAR, DEFAULT_DATABASE, assetUrl } from '../assets.ts';
 import { Avatar } from '../avatar/avatar.ts';
 import { Character, type MoveOptions, type PathOptions, type Root } from '../character/character.ts';
 import { type Database, loadDatabase } from '../core/database.ts';
+import { checkTimeStep, parseChoice, parseControls, parseUrl } from './attributes.ts';
 import { type FetchProgress, errorMessage } from '../fetch.ts';
 import { MoveControls } from '../input/move-controls.ts';
 import { LoadingStatus } from '../ui/loading-status.ts';
@@ -48,7 +52,6 @@ export interface ErrorDetail {
   url: string;
 }
 
-type ControlName = 'keyboard' | 'gamepad' | 'path';
 
 const _look = new THREE.Vector3();
 const _ndc = new THREE.Vector2();
@@ -66,8 +69,10 @@ export class MMAvatarElement extends ElementBase {
   character: Character | null = null;
   /** The element's stage (scene, camera, renderer), once loaded. */
   stage: Stage | null = null;
-  /** Seconds per frame; null: the real time between frames (clamped to 0.1 s). */
-  timeStep: number | null = null;
+  /** What the element could not use (an unknown attribute value, a refused property), newest
+   * last, at most 20; each is also a console warning. */
+  readonly warnings: string[] = [];
+  private timeStep_: number | null = null;
   /** Resolves at the first animated frame of the current load. */
   ready: Promise<void>;
   /** Called after every update, before rendering (pages read state here; nothing allocated). */
@@ -88,6 +93,8 @@ export class MMAvatarElement extends ElementBase {
   private loadedOnce = false;
   private generation = 0;
   private downAt = { x: 0, y: 0 };
+  private pathControl = false;
+  private cameraMode: 'follow' | 'fixed' = 'follow';
 
   constructor() {
     super();
@@ -118,7 +125,9 @@ export class MMAvatarElement extends ElementBase {
     this.updateAlt();
     this.controls.attach(this);
     this.applyControls();
-    if (this.getAttribute('loading') === 'lazy' && typeof IntersectionObserver !== 'undefined') {
+    this.applyCamera();
+    const loading = parseChoice('loading', this.getAttribute('loading'), ['eager', 'lazy'] as const, 'eager', (m) => this.warn(m));
+    if (loading === 'lazy' && typeof IntersectionObserver !== 'undefined') {
       this.loading.say('Waiting to come into view…');
       this.observer = new IntersectionObserver(
         (entries) => {
@@ -144,6 +153,7 @@ export class MMAvatarElement extends ElementBase {
   attributeChangedCallback(name: string, before: string | null, after: string | null): void {
     if (before === after || !this.isConnected) return;
     if (name === 'controls') this.applyControls();
+    else if (name === 'camera') this.applyCamera();
     else if (name === 'alt') this.updateAlt();
     else if (name === 'debug' && this.character) this.character.debug = this.hasAttribute('debug');
     else if (name === 'avatar' && this.character) void this.swapAvatar();
@@ -154,6 +164,15 @@ export class MMAvatarElement extends ElementBase {
   }
 
   // ---- the API
+
+  /** Seconds per frame, in (0, 1]; null: the real time between frames (clamped to 0.1 s).
+   * Anything else is refused with a warning and the previous value stays. */
+  get timeStep(): number | null {
+    return this.timeStep_;
+  }
+  set timeStep(value: number | null) {
+    this.timeStep_ = checkTimeStep(value, this.timeStep_, (m) => this.warn(m));
+  }
 
   /** Where the character stands ({x, y, z} m and yaw rad in the element's floor frame). */
   get root(): Root {
@@ -196,9 +215,16 @@ export class MMAvatarElement extends ElementBase {
 
   // ---- loading
 
+  /** The attribute's URL, or the default asset's. Throws on a value that is not a URL. */
   private url(attribute: string, fallback: string): string {
-    const v = this.getAttribute(attribute)?.trim();
-    return v ? new URL(v, document.baseURI).href : assetUrl(fallback).href;
+    return parseUrl(attribute, this.getAttribute(attribute), document.baseURI) ?? assetUrl(fallback).href;
+  }
+
+  private warn(message: string): void {
+    const m = `<mm-avatar> ${message}`;
+    if (this.warnings.length >= 20) this.warnings.shift();
+    this.warnings.push(m);
+    console.warn(m);
   }
 
   private async load(): Promise<void> {
@@ -210,9 +236,15 @@ export class MMAvatarElement extends ElementBase {
       this.loading.update(p);
       this.dispatchEvent(new CustomEvent<ProgressDetail>('progress', { detail: { ...p } }));
     };
-    const databaseUrl = this.url('database', DEFAULT_DATABASE);
-    const avatarAttr = this.getAttribute('avatar')?.trim();
-    const avatarUrl = avatarAttr === 'none' ? null : this.url('avatar', DEFAULT_AVATAR);
+    let databaseUrl: string;
+    let avatarUrl: string | null;
+    try {
+      databaseUrl = this.url('database', DEFAULT_DATABASE);
+      avatarUrl = this.getAttribute('avatar')?.trim() === 'none' ? null : this.url('avatar', DEFAULT_AVATAR);
+    } catch (e) {
+      this.fail(errorMessage(e), this.getAttribute('database') ?? '');
+      return;
+    }
     this.loading.reset();
     this.loading.say(`Loading · database ${databaseUrl.split('?')[0].split('/').pop()}…`);
     let database: Database;
@@ -278,8 +310,9 @@ export class MMAvatarElement extends ElementBase {
       character.setAvatar(null);
       return;
     }
-    const url = this.url('avatar', DEFAULT_AVATAR);
+    let url = '';
     try {
+      url = this.url('avatar', DEFAULT_AVATAR);
       const avatar = await Avatar.load(url, { onProgress: (p) => this.dispatchEvent(new CustomEvent('progress', { detail: { ...p } })) });
       if (this.character === character) character.setAvatar(avatar);
       else avatar.dispose();
@@ -294,7 +327,7 @@ export class MMAvatarElement extends ElementBase {
     const character = this.character;
     const stage = this.stage;
     if (!character || !stage || generation !== this.generation) return;
-    const dt = this.timeStep ?? Math.min(0.1, Math.max(0, (now - this.last) / 1000));
+    const dt = this.timeStep_ ?? Math.min(0.1, Math.max(0, (now - this.last) / 1000));
     this.last = now;
     stage.camera.getWorldDirection(_look);
     const input = this.controls.read(_look.x, _look.z, character.root.yaw, dt);
@@ -304,7 +337,7 @@ export class MMAvatarElement extends ElementBase {
     this.lastUpdateMs = performance.now() - t0;
     this.afterUpdate?.(dt);
     const r = character.root;
-    if (this.getAttribute('camera') !== 'fixed') this.orbit?.follow(r.x, r.z, dt);
+    if (this.cameraMode === 'follow') this.orbit?.follow(r.x, r.z, dt);
     else if (this.orbit) {
       // A camera on a tripod: it stays where it is and turns to keep the character in view.
       this.orbit.controls.target.set(r.x, this.orbit.targetHeight, r.z);
@@ -342,15 +375,19 @@ export class MMAvatarElement extends ElementBase {
   // ---- controls and messages
 
   private applyControls(): void {
-    const list = (this.getAttribute('controls') ?? 'keyboard gamepad').split(/\s+/).filter(Boolean) as (ControlName | 'none')[];
-    this.controls.keyboardEnabled = list.includes('keyboard');
-    this.controls.gamepadEnabled = list.includes('gamepad');
+    const controls = parseControls(this.getAttribute('controls'), (m) => this.warn(m));
+    this.controls.keyboardEnabled = controls.has('keyboard');
+    this.controls.gamepadEnabled = controls.has('gamepad');
+    this.pathControl = controls.has('path');
+  }
+
+  private applyCamera(): void {
+    this.cameraMode = parseChoice('camera', this.getAttribute('camera'), ['follow', 'fixed'] as const, 'follow', (m) => this.warn(m));
   }
 
   /** `controls="path"`: a click on the floor walks there (Shift-click runs). */
   private onClick(e: PointerEvent): void {
-    const controls = (this.getAttribute('controls') ?? '').split(/\s+/);
-    if (!controls.includes('path') || !this.character || !this.stage || e.button !== 0) return;
+    if (!this.pathControl || !this.character || !this.stage || e.button !== 0) return;
     if (Math.hypot(e.clientX - this.downAt.x, e.clientY - this.downAt.y) > 4) return; // an orbit drag
     const rect = this.view.getBoundingClientRect();
     _ndc.set(((e.clientX - rect.left) / rect.width) * 2 - 1, -((e.clientY - rect.top) / rect.height) * 2 + 1);
