@@ -2,7 +2,7 @@
 //! [`Database`] to bytes and reading it back (version 1 too) with every length, offset and
 //! value checked. The version-2 encodings of the pose and feature arrays are in `codec.rs`.
 
-mod codec;
+pub mod codec;
 
 use crate::database::{Axes, Clip, Database, FeatureGroup, FeatureKind, Site, Skeleton, Tag};
 use crate::error::{Error, Result};
