@@ -3,7 +3,9 @@ import { defineConfig, devices } from '@playwright/test';
 // Playwright drives Debian's Chromium (/usr/bin/chromium, installed by scripts/setup.mjs);
 // it never downloads a browser of its own. WebGL2 runs on SwiftShader (software), so the tests
 // need no GPU.
-const PORT = 5199;
+// PW_PORT: another port when several checkouts run their tests on one machine (an existing
+// server on the port is reused outside CI, whichever checkout it serves).
+const PORT = Number(process.env.PW_PORT) || 5199;
 
 export default defineConfig({
   testDir: 'tests/e2e',

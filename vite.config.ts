@@ -1,30 +1,96 @@
+import { createHash } from 'node:crypto';
+import fs from 'node:fs';
+import path from 'node:path';
 import { fileURLToPath } from 'node:url';
 import basicSsl from '@vitejs/plugin-basic-ssl';
 import { defineConfig } from 'vitest/config';
+import { roomsPlugin } from './server/vite-plugin.ts';
 
 const root = fileURLToPath(new URL('.', import.meta.url));
 
-export default defineConfig({
-  root,
-  publicDir: 'public',
-  // `npm start -- --https` (scripts/setup.mjs sets VITE_HTTPS=1): a self-signed certificate made
-  // locally, because Quest Browser allows WebXR only on secure origins.
-  plugins: process.env.VITE_HTTPS === '1' ? [basicSsl({ name: 'mm-avatar-dev' })] : [],
-  server: {
-    port: 5173,
-    fs: { allow: [root] },
-  },
-  build: {
-    outDir: 'dist',
-    target: 'es2022',
-  },
-  // onnxruntime-web ships its own wasm loader that pre-bundling breaks.
-  // iwer and its devui are imported lazily (vr.html?emulate=1); pre-bundling them up front keeps
-  // vite from re-optimizing mid-session and reloading the page.
-  optimizeDeps: { exclude: ['onnxruntime-web'], include: ['iwer', '@iwer/devui'] },
-  test: {
-    include: ['tests/unit/**/*.test.ts', 'web/**/*.test.ts', 'server/**/*.test.ts'],
-    environment: 'node',
-    testTimeout: 30_000,
-  },
+/**
+ * One config, three builds (`npm run build` runs them all, scripts/setup.mjs):
+ * - `vite build` (mode `production`): the site — every page — into `dist/`, assets beside it;
+ * - `vite build --mode element`: `dist/mm-avatar.js`, the standalone element with three.js
+ *   bundled, finding its assets (WASM, default database and avatar) beside itself;
+ * - `vite build --mode lib`: `dist/lib/`, the module for bundlers, `three` left to the app.
+ * `__MM_ASSET_BASE__` is where the library's default assets are, relative to the built module
+ * (web/src/assets.ts); in development they are at the site root.
+ */
+/**
+ * `__MM_ASSET_VERSIONS__` (builds only): content hash and size of each default asset in
+ * `public/` (the WASM module, databases, avatars, models), so the library asks for
+ * `…/locomotion.mmdb?v=<hash>`, which caches keep for good (web/src/assets.ts, cache.ts).
+ */
+function assetVersions(): Record<string, { v: string; bytes: number }> {
+  const out: Record<string, { v: string; bytes: number }> = {};
+  const add = (rel: string) => {
+    const bytes = fs.readFileSync(path.join(root, 'public', rel));
+    out[rel] = { v: createHash('sha256').update(bytes).digest('hex').slice(0, 16), bytes: bytes.length };
+  };
+  if (fs.existsSync(path.join(root, 'public', 'mmcore_bg.wasm'))) add('mmcore_bg.wasm');
+  for (const [dir, ext] of [['databases', /\.mmdb$/], ['avatars', /\.(glb|vrm)$/], ['models', /\.onnx$/]] as const) {
+    const d = path.join(root, 'public', dir);
+    if (fs.existsSync(d)) for (const f of fs.readdirSync(d).filter((f) => ext.test(f)).sort()) add(`${dir}/${f}`);
+  }
+  return out;
+}
+
+export default defineConfig(({ command, mode }) => {
+  const build = command === 'build';
+  const base = { root, publicDir: 'public' };
+  const versions = build ? { __MM_ASSET_VERSIONS__: JSON.stringify(assetVersions()) } : {};
+  if (build && mode === 'element') {
+    return {
+      ...base,
+      publicDir: false,
+      define: { __MM_ASSET_BASE__: JSON.stringify('./'), ...versions },
+      build: {
+        outDir: 'dist',
+        emptyOutDir: false,
+        target: 'es2022',
+        lib: { entry: 'web/src/element/register.ts', formats: ['es'], fileName: () => 'mm-avatar.js' },
+        rollupOptions: { output: { inlineDynamicImports: true } },
+      },
+    };
+  }
+  if (build && mode === 'lib') {
+    return {
+      ...base,
+      publicDir: false,
+      define: { __MM_ASSET_BASE__: JSON.stringify('../'), ...versions },
+      build: {
+        outDir: 'dist/lib',
+        emptyOutDir: true,
+        target: 'es2022',
+        lib: { entry: { index: 'web/src/index.ts', element: 'web/src/element/register.ts' }, formats: ['es'] },
+        rollupOptions: { external: [/^three($|\/)/, /^@pixiv\/three-vrm/, /^onnxruntime-web/] },
+      },
+    };
+  }
+  return {
+    ...base,
+    // Site modules land in dist/assets/: the shared assets are one folder up.
+    define: build ? { __MM_ASSET_BASE__: JSON.stringify('../'), ...versions } : {},
+    // `npm start -- --https` / `npm run dev -- --https` (VITE_HTTPS=1): a self-signed certificate
+    // made locally, because Quest Browser allows WebXR only on secure origins. The room server
+    // shares the dev server's origin (/rooms/<id>).
+    plugins: [...(process.env.VITE_HTTPS === '1' ? [basicSsl({ name: 'mm-avatar-dev' })] : []), roomsPlugin()],
+    server: { port: 5173, fs: { allow: [root] } },
+    build: {
+      outDir: 'dist',
+      emptyOutDir: false,
+      target: 'es2022',
+      rollupOptions: { input: { index: 'index.html', viewer: 'viewer.html', vr: 'vr.html', bench: 'bench.html' } },
+    },
+    // onnxruntime-web ships its own wasm loader that pre-bundling breaks.
+    // iwer and its devui are imported lazily (vr.html?emulate=1); pre-bundling them up front keeps
+    // vite from re-optimizing mid-session and reloading the page.
+    optimizeDeps: { exclude: ['onnxruntime-web'], include: ['iwer', '@iwer/devui'] },
+    test: {
+      include: ['tests/unit/**/*.test.ts', 'web/**/*.test.ts', 'server/**/*.test.ts'],
+      environment: 'node',
+      testTimeout: 30_000,
+    },
+  };
 });

@@ -1,6 +1,7 @@
 #!/usr/bin/env node
-// `npm run bench [-- --json] [-- --seconds S] [-- --queries N] [-- --search-only] [-- --vr]`
-// (--vr: only the VR replay benchmark, see vrBenchmark):
+// `npm run bench [-- --json] [-- --seconds S] [-- --queries N] [-- --search-only] [-- --vr] [-- --compare REV] [-- --load]`
+// (--vr: only the VR replay benchmark, see vrBenchmark; --load: bytes and time to the first
+// animated frame of the pages, cold and warm, localhost and throttled: scripts/bench-load.mjs):
 // 1. BVH parse speed (MB/s) and database build speed (frames/s), native (the mmdb CLI) and WASM
 //    in Node, on the same files in one run so the two are comparable under the same machine
 //    noise. Medians of repeated runs.
@@ -8,7 +9,7 @@
 //    searches (WASM) in Node and in headless Chromium, on locomotion.mmdb and on a ~53k-frame
 //    database (public/databases/bench53k.mmdb, built here from all of ../shared/mocap/cmu-asf
 //    when missing). Queries: a database frame with its trajectory turned (web/src/bench/).
-//    Chromium gets the page web/bench.html from a vite server started here on a free port.
+//    Chromium gets the page bench.html from a vite server started here on a free port.
 import fs from 'node:fs';
 import os from 'node:os';
 import path from 'node:path';
@@ -23,6 +24,13 @@ const json = args.includes('--json');
 const seconds = Number(args[args.indexOf('--seconds') + 1]) || 2;
 const searchOnly = args.includes('--search-only');
 const numQueries = args.includes('--queries') ? Number(args[args.indexOf('--queries') + 1]) : 400;
+
+if (args.includes('--load')) {
+  // What a visitor downloads and waits for (scripts/bench-load.mjs); needs only dist/ and Chromium.
+  const { loadBenchmark } = await import('./bench-load.mjs');
+  await loadBenchmark({ json, args, log: (m) => console.error(`[bench] ${m}`) });
+  process.exit(0);
+}
 
 const mmdb = path.join(ROOT, 'wasm-core', 'target', 'release', 'mmdb');
 const pkg = path.join(ROOT, 'web', 'src', 'core', 'pkg');
@@ -54,7 +62,7 @@ function time(fn) {
 }
 
 const wasm = await import(path.join(pkg, 'mmcore.js'));
-const wasmExports = wasm.initSync({ module: fs.readFileSync(path.join(pkg, 'mmcore_bg.wasm')) });
+wasm.initSync({ module: fs.readFileSync(path.join(pkg, 'mmcore_bg.wasm')) });
 
 /** Parse and build speeds, native and WASM (the first table). */
 function buildBenchmark() {
@@ -156,7 +164,7 @@ function ensureBigDatabase(log) {
 /** Starts vite on 127.0.0.1 (from port 5197 up), cross-origin isolated for the 5 µs timer. */
 const startVite = () => startBenchServer(BENCH_PORT);
 
-/** Runs web/bench.html in headless Chromium; returns the page's `window.__searchBench`. */
+/** Runs bench.html in headless Chromium; returns the page's `window.__searchBench`. */
 async function chromiumSearchBench(baseUrl, names) {
   const { chromium } = await import('playwright-core');
   // The flags of playwright.config.ts, minus the WebGL ones (no rendering here).
@@ -168,7 +176,7 @@ async function chromiumSearchBench(baseUrl, names) {
     const page = await browser.newPage();
     const pageErrors = [];
     page.on('pageerror', (e) => pageErrors.push(e.message));
-    await page.goto(`${baseUrl}web/bench.html?db=${names.join(',')}&queries=${numQueries}&runtime=locomotion.mmdb`);
+    await page.goto(`${baseUrl}bench.html?db=${names.join(',')}&queries=${numQueries}&runtime=locomotion.mmdb`);
     await page.waitForFunction(() => window.__searchBench?.done, null, { timeout: 600_000, polling: 250 });
     const hook = await page.evaluate(() => window.__searchBench);
     if (hook.error || pageErrors.length) throw new Error(`bench page: ${[hook.error, ...pageErrors].filter(Boolean).join('\n')}`);
@@ -184,16 +192,17 @@ async function searchBenchmark(log) {
   if (names.length < SEARCH_DATABASES.length) log(`warning: missing ${SEARCH_DATABASES.filter((n) => !names.includes(n)).join(', ')} (run \`npm run build\`)`);
   const server = await startVite();
   try {
-    // The same TypeScript as the page, loaded through vite (Node 20 cannot strip types).
-    const { benchSearch } = await server.ssrLoadModule('/web/src/bench/search-bench.ts');
-    const api = { RawDatabase: wasm.RawDatabase, RawSearchIndex: wasm.RawSearchIndex, memory: wasmExports.memory };
-    const node = names.map((name) => benchSearch(api, name, new Uint8Array(fs.readFileSync(path.join(DATABASES, name))), { queries: numQueries }));
-    const { benchRuntime } = await server.ssrLoadModule('/web/src/bench/runtime-bench.ts');
+    // The same TypeScript as the page (the library's public entry), loaded through vite (Node 20
+    // cannot strip types), with its own instance of the WASM module.
+    const lib = await server.ssrLoadModule('/web/src/index.ts');
+    lib.initWasmSync(fs.readFileSync(path.join(pkg, 'mmcore_bg.wasm')));
+    const { benchSearch, benchRuntime } = lib;
+    const node = names.map((name) => benchSearch(name, new Uint8Array(fs.readFileSync(path.join(DATABASES, name))), { queries: numQueries }));
     const locomotion = path.join(DATABASES, 'locomotion.mmdb');
     const nativeRuntime = JSON.parse(execFileSync(mmdb, ['bench-runtime', locomotion, '--json'], { encoding: 'utf8' }));
     const runtime = [
       { runtime: 'native', ...nativeRuntime, database: 'locomotion.mmdb' },
-      { runtime: 'wasm (node)', ...benchRuntime(wasm.RawCrowd, 'locomotion.mmdb', new Uint8Array(fs.readFileSync(locomotion))) },
+      { runtime: 'wasm (node)', ...benchRuntime('locomotion.mmdb', new Uint8Array(fs.readFileSync(locomotion))) },
     ];
     let chromiumRun = null;
     if (fs.existsSync(CHROMIUM)) chromiumRun = await chromiumSearchBench(server.resolvedUrls.local[0], names);
@@ -329,7 +338,86 @@ function printVrBenchmark(vr) {
   }
 }
 
+// ---------------------------------------------------------------- before / after (--compare REV)
+
+/**
+ * `npm run bench -- --compare REV`: the character update and the crowd of 256 of this checkout
+ * against git revision REV, in one Node process, interleaved (A B A B …, 5 rounds each) so the
+ * machine's load hits both alike; medians of the rounds. REV's WASM is built once into
+ * wasm-core/target/compare-REV (a git worktree; nothing is committed).
+ */
+async function compareRevision(rev, log) {
+  const sha = execFileSync('git', ['rev-parse', '--short', rev], { cwd: ROOT, encoding: 'utf8' }).trim();
+  const dir = path.join(ROOT, 'wasm-core', 'target', `compare-${sha}`);
+  const oldPkg = path.join(dir, 'pkg');
+  if (!fs.existsSync(path.join(oldPkg, 'mmcore.js'))) {
+    log(`building the WASM of ${sha} (a worktree in ${path.relative(ROOT, dir)})`);
+    fs.rmSync(dir, { recursive: true, force: true });
+    execFileSync('git', ['worktree', 'add', '--detach', path.join(dir, 'src'), sha], { cwd: ROOT, stdio: 'inherit' });
+    const env = { ...process.env, CARGO_TARGET_DIR: path.join(dir, 'target'), CARGO_TARGET_WASM32_UNKNOWN_UNKNOWN_RUSTFLAGS: '-C target-feature=+simd128' };
+    execFileSync('cargo', ['build', '--release', '--target', 'wasm32-unknown-unknown', '--lib'], { cwd: path.join(dir, 'src', 'wasm-core'), stdio: 'inherit', env });
+    execFileSync('wasm-bindgen', ['--target', 'web', '--out-dir', oldPkg, '--out-name', 'mmcore', path.join(dir, 'target', 'wasm32-unknown-unknown', 'release', 'mmcore.wasm')], { stdio: 'inherit' });
+    execFileSync('git', ['worktree', 'remove', '--force', path.join(dir, 'src')], { cwd: ROOT, stdio: 'inherit' });
+  }
+  const old = await import(path.join(oldPkg, 'mmcore.js'));
+  old.initSync({ module: fs.readFileSync(path.join(oldPkg, 'mmcore_bg.wasm')) });
+  const bytes = new Uint8Array(fs.readFileSync(path.join(DATABASES, 'locomotion.mmdb')));
+  // The same input script as runtime-bench.ts: zig-zag, back-run, stop, 2 s each at 60 Hz.
+  const input = (step) => {
+    const phase = Math.floor(step / 120) % 4;
+    const dir = [[0.7, 0.7], [-0.7, 0.7], [0, -1], [0, 0]][phase];
+    return [dir[0], dir[1], phase === 2];
+  };
+  const median = (v) => [...v].sort((a, b) => a - b)[v.length >> 1];
+  // Either API: before the redesign a crowd took the .mmdb bytes, now a shared database.
+  const crowdOf = (mod, n) => (mod.RawCharacter ? new mod.RawCrowd(new mod.RawDatabase(bytes), n) : new mod.RawCrowd(bytes, n));
+  const measure = (mod) => {
+    const one = crowdOf(mod, 1);
+    const times = [];
+    for (let step = 0; step < 3600; step++) {
+      const [x, z, run] = input(step);
+      one.set_input(0, x, z, 0, 1, run, false);
+      const t = performance.now();
+      one.update(1 / 60);
+      times.push(performance.now() - t);
+    }
+    one.free();
+    const crowd = crowdOf(mod, 256);
+    const crowdTimes = [];
+    for (let step = 0; step < 240; step++) {
+      for (let i = 0; i < 256; i++) {
+        const [x, z, run] = input(step + 37 * i);
+        crowd.set_input(i, x, z, 0, 1, run, false);
+      }
+      const t = performance.now();
+      crowd.update(1 / 60);
+      crowdTimes.push(performance.now() - t);
+    }
+    crowd.free();
+    return { update_ms: median(times), characters_in_4ms: Math.floor(4 / (median(crowdTimes) / 256)) };
+  };
+  const rounds = { before: [], after: [] };
+  for (let round = 0; round < 5; round++) {
+    rounds.before.push(measure(old));
+    rounds.after.push(measure(wasm));
+  }
+  const summary = (list) => ({ update_ms: median(list.map((r) => r.update_ms)), characters_in_4ms: median(list.map((r) => r.characters_in_4ms)) });
+  return { revision: sha, rounds, before: summary(rounds.before), after: summary(rounds.after) };
+}
+
 const log = (m) => console.error(`[bench] ${m}`);
+if (args.includes('--compare')) {
+  const c = await compareRevision(args[args.indexOf('--compare') + 1] ?? 'HEAD~1', log);
+  if (json) console.log(JSON.stringify(c, null, 2));
+  else {
+    const pct = (a, b) => `${((b / a - 1) * 100).toFixed(1)}%`;
+    console.log(`character update on locomotion.mmdb, Node, ${c.rounds.before.length} interleaved rounds (medians):`);
+    console.log(`  update ms median: ${c.revision} ${c.before.update_ms.toFixed(4)} → now ${c.after.update_ms.toFixed(4)} (${pct(c.before.update_ms, c.after.update_ms)})`);
+    console.log(`  characters in 4 ms: ${c.revision} ${c.before.characters_in_4ms} → now ${c.after.characters_in_4ms} (${pct(c.before.characters_in_4ms, c.after.characters_in_4ms)})`);
+    console.log(`  rounds: ${c.rounds.before.map((r, i) => `${r.characters_in_4ms}/${c.rounds.after[i].characters_in_4ms}`).join(' ')} (before/after characters in 4 ms)`);
+  }
+  process.exit(0);
+}
 if (args.includes('--vr')) {
   const vr = await vrBenchmark(log);
   if (json) console.log(JSON.stringify(vr, null, 2));

@@ -3,16 +3,20 @@
 // `npm run build` all come here. Each step checks whether its output is already up to date and
 // skips itself, so a second run with nothing changed takes a few seconds.
 //
-//   node scripts/setup.mjs build   set up everything, then stop
-//   node scripts/setup.mjs start   set up, then run the vite dev server (port 5173) in the foreground;
-//                                  `start --https` serves HTTPS with a self-signed certificate (WebXR)
+//   node scripts/setup.mjs build   set up everything and build dist/ (the site, dist/mm-avatar.js,
+//                                  the module build dist/lib/ with types), then stop
+//   node scripts/setup.mjs start   set up (dist/ included), then serve the built site on port 5173 in the
+//                                  foreground (server/serve.ts: precompressed, cached, the rooms on the
+//                                  same origin); `start --https` serves HTTPS with a self-signed
+//                                  certificate (WebXR)
+//   node scripts/setup.mjs dev     set up, then run the vite dev server (port 5173; `dev --https` too)
 //   node scripts/setup.mjs test    set up (plus Chromium and the Python venv), then run every test
 //                                  suite, continuing after a failure; prints a summary table and
 //                                  a last line `N passed, M failed`; exits non-zero on any failure
 //
 // Environment:
 //   SETUP_SKIP=step,step   skip named steps: npm, rust-target, wasm-bindgen, wasm, cli, databases,
-//                          avatars, chromium, venv, recordings (for working on one part while another is broken)
+//                          avatars, dist, server, chromium, venv, recordings (for working on one part while another is broken)
 //   TEST_SUITES=a,b        run only these suites: cargo, vitest, pytest, playwright
 //
 // Node builtins only: this runs before node_modules exists.
@@ -35,8 +39,8 @@ const MMDB_BIN = path.join(CORE, 'target', 'release', process.platform === 'win3
 const VENV = path.join(ROOT, 'training', '.venv');
 
 const mode = process.argv[2] ?? 'build';
-if (!['build', 'start', 'test'].includes(mode)) {
-  console.error(`usage: node scripts/setup.mjs build|start|test   (got "${mode}")`);
+if (!['build', 'start', 'dev', 'test'].includes(mode)) {
+  console.error(`usage: node scripts/setup.mjs build|start|dev|test   (got "${mode}")`);
   process.exit(2);
 }
 const skipped = new Set((process.env.SETUP_SKIP ?? '').split(',').map((s) => s.trim()).filter(Boolean));
@@ -297,30 +301,91 @@ async function stepDatabases() {
       log(`  built ${path.relative(ROOT, out)} (${secs(t0)})`);
       built++;
     }
+    writeDatabaseIndex(configs.map((c) => c.replace(/\.json$/, '')), outDir);
     if (built === 0) return `${configs.length} database(s) newer than their inputs`;
   });
 }
 
+/**
+ * public/databases/index.json: the databases this site serves (one per databases/*.json config
+ * whose .mmdb is built), with size and content hash; the demo offers exactly these. Rewritten
+ * only when its content changes (its mtime feeds the dist step).
+ */
+function writeDatabaseIndex(names, outDir) {
+  const databases = [];
+  for (const name of names) {
+    const file = `${name}.mmdb`;
+    const p = path.join(outDir, file);
+    if (!fs.existsSync(p)) continue;
+    const bytes = fs.readFileSync(p);
+    databases.push({ name, file, bytes: bytes.length, sha256: createHash('sha256').update(bytes).digest('hex').slice(0, 16) });
+  }
+  const text = `${JSON.stringify({ databases }, null, 2)}\n`;
+  const index = path.join(outDir, 'index.json');
+  if (fs.existsSync(index) && fs.readFileSync(index, 'utf8') === text) return;
+  fs.writeFileSync(index, text);
+  log(`  wrote ${path.relative(ROOT, index)} (${databases.map((d) => d.file).join(', ')})`);
+}
+
 async function stepAvatars() {
-  await step('avatars', 'avatars (public/avatars)', async () => {
+  await step('avatars', 'avatars (public/avatars, compressed for the web)', async () => {
     if (!fs.existsSync(SHARED_AVATARS)) return `no ${SHARED_AVATARS} folder`;
     const glbs = fs.readdirSync(SHARED_AVATARS).filter((f) => f.toLowerCase().endsWith('.glb')).sort();
     if (glbs.length === 0) return 'no ../shared/avatars/*.glb';
     const outDir = path.join(ROOT, 'public', 'avatars');
     fs.mkdirSync(outDir, { recursive: true });
-    let copied = 0;
+    // The shipped avatar goes out compressed (scripts/compress-avatar.mjs, @gltf-transform:
+    // meshopt geometry, WebP textures ≤ 1024 px); redone when the source or the script is newer.
+    const script = path.join(ROOT, 'scripts', 'compress-avatar.mjs');
+    let written = 0;
     for (const f of glbs) {
       const src = path.join(SHARED_AVATARS, f);
       const out = path.join(outDir, f);
-      if (mtime(out) >= mtime(src)) continue;
-      // copyFile keeps the mode (the source may be read-only), so remove an old copy first; it
-      // does not keep the mtime, so the copy is newer than its source afterwards.
-      fs.rmSync(out, { force: true });
-      fs.copyFileSync(src, out);
-      log(`  copied ${path.relative(ROOT, out)}`);
-      copied++;
+      if (mtime(out) > Math.max(mtime(src), mtime(script))) continue;
+      fs.rmSync(out, { force: true }); // an older copy may be read-only (copied with its mode)
+      await run(process.execPath, [script, src, out]);
+      written++;
     }
-    if (copied === 0) return `${glbs.length} avatar(s) newer than ../shared/avatars`;
+    if (written === 0) return `${glbs.length} avatar(s) newer than ../shared/avatars and the compressor`;
+  });
+}
+
+async function stepDist() {
+  await step('dist', 'dist/ (site, mm-avatar.js, the module build and its types)', async () => {
+    const dist = path.join(ROOT, 'dist');
+    const stamp = path.join(dist, '.build-stamp');
+    const inputs = [
+      newestUnder(path.join(ROOT, 'web', 'src')),
+      newestUnder(path.join(ROOT, 'examples')),
+      newestUnder(path.join(ROOT, 'public')),
+      newestUnder(path.join(ROOT, 'web', 'sw')),
+      ...['index.html', 'viewer.html', 'vr.html', 'bench.html', 'vite.config.ts', 'tsconfig.json', 'tsconfig.lib.json', 'package.json', 'scripts/precompress.mjs'].map((f) => mtime(path.join(ROOT, f))),
+    ];
+    if (mtime(stamp) > Math.max(...inputs)) return 'dist/ is newer than its sources';
+    const vite = path.join(ROOT, 'node_modules', '.bin', 'vite');
+    fs.rmSync(dist, { recursive: true, force: true });
+    // The site (every page, public/ copied beside it), then the standalone element and the
+    // module for bundlers next to it (vite.config.ts has the three modes), then types.
+    await run(vite, ['build', '--logLevel', 'warn']);
+    await run(vite, ['build', '--mode', 'element', '--logLevel', 'warn']);
+    await run(vite, ['build', '--mode', 'lib', '--logLevel', 'warn']);
+    await run(path.join(ROOT, 'node_modules', '.bin', 'tsc'), ['-p', 'tsconfig.lib.json']);
+    fs.cpSync(path.join(ROOT, 'examples'), path.join(dist, 'examples'), { recursive: true });
+    // .br/.gz beside every compressible file (cached by content hash) and the service worker.
+    await run(process.execPath, [path.join(ROOT, 'scripts', 'precompress.mjs'), dist]);
+    fs.writeFileSync(stamp, `${new Date().toISOString()}\n`);
+  });
+}
+
+/** The production server (server/serve.ts and what it imports) bundled for Node: dist-server/serve.mjs. */
+const SERVER_BUNDLE = path.join(ROOT, 'dist-server', 'serve.mjs');
+async function stepServer() {
+  await step('server', 'site server (dist-server/serve.mjs)', async () => {
+    const inputs = Math.max(newestUnder(path.join(ROOT, 'server')), newestUnder(path.join(ROOT, 'web', 'src', 'rooms')), mtime(path.join(ROOT, 'package-lock.json')));
+    if (mtime(SERVER_BUNDLE) > inputs) return 'dist-server/serve.mjs is newer than server/';
+    const esbuild = path.join(ROOT, 'node_modules', '.bin', 'esbuild');
+    // Packages stay external: the bundle runs inside this checkout, beside node_modules.
+    await run(esbuild, ['server/serve.ts', '--bundle', '--platform=node', '--format=esm', '--target=node20', '--packages=external', `--outfile=${path.relative(ROOT, SERVER_BUNDLE)}`, '--log-level=warning']);
   });
 }
 
@@ -407,7 +472,7 @@ async function runSuites() {
   const only = new Set((process.env.TEST_SUITES ?? '').split(',').map((s) => s.trim()).filter(Boolean));
   const bin = (name) => path.join(ROOT, 'node_modules', '.bin', name);
   const suites = [
-    { id: 'cargo', title: 'cargo test (wasm-core)', cmd: 'cargo', args: ['test', '--release', '--no-fail-fast'], cwd: CORE },
+    { id: 'cargo', title: 'cargo test (wasm-core)', cmd: 'cargo', args: ['test', '--profile', 'test-opt', '--no-fail-fast'], cwd: CORE },
     { id: 'vitest', title: 'vitest', cmd: bin('vitest'), args: ['run'] },
     { id: 'pytest', title: 'pytest (training)', cmd: path.join(VENV, 'bin', 'pytest'), args: ['-q'], cwd: path.join(ROOT, 'training') },
     { id: 'playwright', title: 'playwright', cmd: bin('playwright'), args: ['test'] },
@@ -481,17 +546,25 @@ async function main() {
     await stepVenv();
   }
   if (mode !== 'build') await stepRecordings();
+  if (mode !== 'dev') await stepDist();
+  if (mode !== 'dev') await stepServer();
   log(`setup finished in ${secs(t0All)}`);
 
   if (mode === 'build') return 0;
-  if (mode === 'start') {
-    // `npm start -- --https`: vite.config.ts adds a locally made self-signed certificate
-    // (@vitejs/plugin-basic-ssl); Quest Browser allows WebXR only on secure origins. Listening
-    // on 0.0.0.0 makes the page reachable from a headset on the same LAN.
+  if (mode === 'start' || mode === 'dev') {
+    // `--https`: a self-signed certificate made locally (@vitejs/plugin-basic-ssl; the built
+    // site's server reuses its getCertificate and cache); Quest Browser allows WebXR only on
+    // secure origins. Listening on 0.0.0.0 makes the page reachable from a headset on the LAN.
     const https = process.argv.slice(3).includes('--https');
     if (https) log('HTTPS on: open https://<this machine\'s LAN address>:5173/vr.html on the headset and accept the certificate warning');
-    const env = https ? { ...process.env, VITE_HTTPS: '1' } : process.env;
-    const child = spawn(path.join(ROOT, 'node_modules', '.bin', 'vite'), ['--host', '0.0.0.0', '--port', '5173'], { cwd: ROOT, stdio: 'inherit', env });
+    let child;
+    if (mode === 'start') {
+      log('serving the built site (dist/) on port 5173; `npm run dev` runs the vite dev server instead');
+      child = spawn(process.execPath, [SERVER_BUNDLE, '--port', '5173', '--host', '0.0.0.0', '--root', 'dist', ...(https ? ['--https'] : [])], { cwd: ROOT, stdio: 'inherit' });
+    } else {
+      const env = https ? { ...process.env, VITE_HTTPS: '1' } : process.env;
+      child = spawn(path.join(ROOT, 'node_modules', '.bin', 'vite'), ['--host', '0.0.0.0', '--port', '5173'], { cwd: ROOT, stdio: 'inherit', env });
+    }
     for (const sig of ['SIGINT', 'SIGTERM']) process.on(sig, () => child.kill(sig));
     return new Promise((resolve) => child.on('close', (code) => resolve(code ?? 0)));
   }

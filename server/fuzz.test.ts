@@ -18,7 +18,7 @@ import {
   quantizeTrackedStep,
 } from '../web/src/rooms/protocol.ts';
 import { seededRandom } from '../web/src/rooms/testing.ts';
-import { createRoomId, moveBytes, sleep, startServer, TestClient, testJoin, type TestServer } from './test-helpers.ts';
+import { createRoomId, moveBytes, settle, startServer, TestClient, testJoin, type TestServer } from './test-helpers.ts';
 
 let server: TestServer | null = null;
 afterEach(async () => {
@@ -137,7 +137,13 @@ it('survives 10,000+ hostile messages; good members unaffected; nothing crosses 
     clearInterval(good);
   }
   const seconds = (performance.now() - t0) / 1000;
-  await sleep(300);
+  const pairs = [
+    [listener, g1],
+    [listener, g2],
+    [g1, g2],
+    [g2, g1],
+  ] as const;
+  await settle(() => pairs.every(([receiver, sender]) => receiver.relays(sender.memberId).length >= seq));
   const stats = server.rooms.stats();
   console.log(
     `fuzz: ${hostileSent} hostile messages from ${connections} connections in ${seconds.toFixed(1)} s; ` +
@@ -150,12 +156,7 @@ it('survives 10,000+ hostile messages; good members unaffected; nothing crosses 
 
   // The good members of room A got each other's every message, unchanged and in order.
   const expectSeqs = Array.from({ length: seq }, (_, i) => i + 1);
-  for (const [receiver, sender] of [
-    [listener, g1],
-    [listener, g2],
-    [g1, g2],
-    [g2, g1],
-  ] as const) {
+  for (const [receiver, sender] of pairs) {
     const got = receiver.relays(sender.memberId);
     expect(got.map((r) => r.message.seq)).toEqual(expectSeqs);
     for (const r of got) if (r.message.type === 'move') expect(r.message.rootX).toBe(100 + sender.memberId);

@@ -160,4 +160,13 @@ export class TestClient {
 }
 
 export const sleep = (ms: number) => new Promise((r) => setTimeout(r, ms));
+
+/**
+ * Waits until `done()` holds, polling every 20 ms, at most `ms` (then returns; the test's own
+ * assertions say what is missing). A fixed sleep is a race on a loaded machine.
+ */
+export async function settle(done: () => boolean, ms = 10_000): Promise<void> {
+  const end = performance.now() + ms;
+  while (!done() && performance.now() < end) await sleep(20);
+}
 export { createRoomId };

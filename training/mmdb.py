@@ -1,4 +1,4 @@
-"""Reader for the `.mmdb` motion database format, version 1 (numpy only).
+"""Reader for the `.mmdb` motion database format, versions 2 and 1 (numpy only).
 
 Written from `docs/mmdb-format.md` alone, without looking at the Rust writer, so that the
 tests comparing it with files the Rust CLI writes check the *document* as much as the code:
@@ -22,22 +22,26 @@ from dataclasses import dataclass, field
 import numpy as np
 
 MAGIC = b"\x89MMDB\r\n\x1a"
-VERSION = 1
+VERSIONS = (1, 2)
 HEADER_SIZE = 32
 ENTRY_SIZE = 24
 ALIGNMENT = 16
 
-REQUIRED_SECTIONS = (
-    "INFO", "SKEL", "CLIP", "TAGS", "LPOS", "LROT", "LVEL", "LAVL", "CONT", "FDSC", "FNRM",
-    "FEAT", "VALD",
-)
+REQUIRED_SECTIONS = {
+    1: ("INFO", "SKEL", "CLIP", "TAGS", "LPOS", "LROT", "LVEL", "LAVL", "CONT", "FDSC", "FNRM",
+        "FEAT", "VALD"),
+    2: ("INFO", "SKEL", "CLIP", "TAGS", "PANM", "QROT", "CONT", "FDSC", "FNRM", "FSHF", "VALD"),
+}
+ROTATION_SCALE = 32767.0
+# A decoded QROT value whose squared length is off by more than this (relative) is corruption.
+QROT_NORM_TOLERANCE = 1e-3
 
 KIND_POSITION, KIND_VELOCITY, KIND_DIRECTION = 0, 1, 2
 AXES_XYZ, AXES_XZ = 0, 1
 
 
 class MmdbError(ValueError):
-    """The bytes are not a valid version-1 `.mmdb` file; the message says why."""
+    """The bytes are not a valid `.mmdb` file this reader reads; the message says why."""
 
 
 @dataclass
@@ -50,6 +54,7 @@ class Clip:
     source_fps: float
     scale: float
     root_scale: float
+    source_start: int = 0  # first source frame; version 1 does not store it
 
 
 @dataclass
@@ -68,6 +73,7 @@ class FeatureGroup:
 
 @dataclass
 class Database:
+    version: int
     fps: float
     num_frames: int
     flags: int
@@ -126,6 +132,9 @@ class _Cursor:
     def f32(self, what: str) -> float:
         return struct.unpack("<f", self._take(4, what))[0]
 
+    def f64(self, what: str) -> float:
+        return struct.unpack("<d", self._take(8, what))[0]
+
     def vec3(self, what: str) -> np.ndarray:
         return np.frombuffer(self._take(12, what), dtype="<f4").astype(np.float32)
 
@@ -153,8 +162,8 @@ def _read_bytes(path_or_bytes) -> bytes:
         return f.read()
 
 
-def _check_header(data: bytes) -> int:
-    """Check magic, version, file_size and checksum; return the section count."""
+def _check_header(data: bytes) -> tuple[int, int]:
+    """Check magic, version, file_size and checksum; return the version and section count."""
     if len(data) < HEADER_SIZE:
         raise MmdbError(
             f"truncated: file is {len(data)} bytes, shorter than the {HEADER_SIZE}-byte header"
@@ -162,8 +171,11 @@ def _check_header(data: bytes) -> int:
     if data[:8] != MAGIC:
         raise MmdbError(f"header: bad magic {data[:8]!r}, expected {MAGIC!r} (not an .mmdb file)")
     version, section_count, file_size, checksum, _reserved = struct.unpack_from("<IIQII", data, 8)
-    if version != VERSION:
-        raise MmdbError(f"header: unsupported version {version} (this reader reads version {VERSION})")
+    if version not in VERSIONS:
+        raise MmdbError(
+            f"header: unsupported version {version} (this reader reads versions "
+            f"{', '.join(map(str, VERSIONS))}); rebuild the database with `mmdb build`"
+        )
     if file_size != len(data):
         state = "truncated" if len(data) < file_size else "has trailing bytes"
         raise MmdbError(
@@ -176,10 +188,10 @@ def _check_header(data: bytes) -> int:
             f"header: checksum mismatch: stored CRC-32 {checksum:#010x}, computed {actual:#010x} "
             f"(file corrupted)"
         )
-    return section_count
+    return version, section_count
 
 
-def _read_section_table(data: bytes, section_count: int) -> dict[str, bytes]:
+def _read_section_table(data: bytes, section_count: int, version: int) -> dict[str, bytes]:
     table_end = HEADER_SIZE + ENTRY_SIZE * section_count
     if table_end > len(data):
         raise MmdbError(
@@ -201,7 +213,7 @@ def _read_section_table(data: bytes, section_count: int) -> dict[str, bytes]:
         if tag in sections:
             raise MmdbError(f"{where}: duplicate section {tag}")
         sections[tag] = data[offset:offset + length]
-    missing = [t for t in REQUIRED_SECTIONS if t not in sections]
+    missing = [t for t in REQUIRED_SECTIONS[version] if t not in sections]
     if missing:
         raise MmdbError(f"section table: missing required section(s) {', '.join(missing)}")
     return sections
@@ -240,7 +252,8 @@ def _check_ranges(what: str, ranges: list[tuple[int, int]], num_frames: int) -> 
 def load(path_or_bytes) -> Database:
     """Read and validate a `.mmdb` file given as a path or as its bytes."""
     data = _read_bytes(path_or_bytes)
-    sections = _read_section_table(data, _check_header(data))
+    version, section_count = _check_header(data)
+    sections = _read_section_table(data, section_count, version)
 
     info = sections["INFO"]
     if len(info) != 32:
@@ -286,9 +299,10 @@ def load(path_or_bytes) -> Database:
             start=cur.u32(f"clip {c} start"),
             end=cur.u32(f"clip {c} end"),
             mirrored=bool(cur.u8(f"clip {c} mirrored")),
-            source_fps=cur.f32(f"clip {c} source_fps"),
+            source_fps=cur.f32(f"clip {c} source_fps") if version == 1 else cur.f64(f"clip {c} source_fps"),
             scale=cur.f32(f"clip {c} scale"),
             root_scale=cur.f32(f"clip {c} root_scale"),
+            source_start=0 if version == 1 else cur.u32(f"clip {c} source_start"),
         ))
     cur.finish()
     _check_ranges("section CLIP", [(c.start, c.end) for c in clips], F)
@@ -349,23 +363,112 @@ def load(path_or_bytes) -> Database:
         raise MmdbError(f"section FDSC: groups cover [0, {next_dim}), expected to tile [0, {D})")
 
     fnrm = _array(sections, "FNRM", "<f4", (2, D))
+    rest_offsets = np.array(offsets, dtype=np.float32).reshape(J, 3)
+    if version == 1:
+        local_positions = _array(sections, "LPOS", "<f4", (F, J, 3))
+        local_rotations = _array(sections, "LROT", "<f4", (F, J, 4))
+        local_velocities = _array(sections, "LVEL", "<f4", (F, J, 3))
+        local_angular_velocities = _array(sections, "LAVL", "<f4", (F, J, 3))
+        features = _array(sections, "FEAT", "<f4", (F, D))
+    else:
+        local_positions = _decode_panm(sections["PANM"], F, rest_offsets)
+        local_rotations = _decode_qrot(sections["QROT"], F, J)
+        local_velocities, local_angular_velocities = pose_velocities(
+            fps, [(c.start, c.end) for c in clips], local_positions, local_rotations)
+        features = _decode_fshf(sections["FSHF"], F, D)
     db = Database(
-        fps=fps, num_frames=F, flags=flags, joint_names=names,
+        version=version, fps=fps, num_frames=F, flags=flags, joint_names=names,
         parents=np.array(parents, dtype=np.int32),
-        rest_offsets=np.array(offsets, dtype=np.float32).reshape(J, 3),
+        rest_offsets=rest_offsets,
         sites=sites, clips=clips, tags=tags,
-        local_positions=_array(sections, "LPOS", "<f4", (F, J, 3)),
-        local_rotations=_array(sections, "LROT", "<f4", (F, J, 4)),
-        local_velocities=_array(sections, "LVEL", "<f4", (F, J, 3)),
-        local_angular_velocities=_array(sections, "LAVL", "<f4", (F, J, 3)),
+        local_positions=local_positions,
+        local_rotations=local_rotations,
+        local_velocities=local_velocities,
+        local_angular_velocities=local_angular_velocities,
         contacts=_check_flags("CONT", _array(sections, "CONT", "u1", (F, 2))),
         feature_groups=groups,
         feature_mean=fnrm[0].copy(), feature_scale=fnrm[1].copy(),
-        features=_array(sections, "FEAT", "<f4", (F, D)),
+        features=features,
         valid=_check_flags("VALD", _array(sections, "VALD", "u1", (F,))),
-        extra_sections={t: d for t, d in sections.items() if t not in REQUIRED_SECTIONS},
+        extra_sections={t: d for t, d in sections.items() if t not in REQUIRED_SECTIONS[version]},
     )
     return db
+
+
+# --- version 2 encodings -----------------------------------------------------------------------
+
+def _decode_panm(data: bytes, F: int, rest_offsets: np.ndarray) -> np.ndarray:
+    """PANM: u32 A, A increasing joint indices, f32 F×A×3; other joints at their rest offsets."""
+    J = len(rest_offsets)
+    if len(data) < 4:
+        raise MmdbError("section PANM: shorter than its joint count")
+    (A,) = struct.unpack_from("<I", data, 0)
+    if A > J:
+        raise MmdbError(f"section PANM: {A} animated joints but the skeleton has {J}")
+    expected = 4 + 4 * A + 12 * F * A
+    if len(data) != expected:
+        raise MmdbError(f"section PANM: length {len(data)} bytes, {A} animated joints over {F} frames need {expected}")
+    joints = np.frombuffer(data, dtype="<u4", count=A, offset=4).astype(np.int64)
+    if A and (joints[-1] >= J or np.any(np.diff(joints) <= 0)):
+        raise MmdbError(f"section PANM: joint indices {joints.tolist()[:8]} must increase and be below {J}")
+    out = np.broadcast_to(rest_offsets, (F, J, 3)).copy()
+    out[:, joints] = np.frombuffer(data, dtype="<f4", offset=4 + 4 * A).reshape(F, A, 3)
+    return out
+
+
+def _decode_qrot(data: bytes, F: int, J: int) -> np.ndarray:
+    """QROT: i16, joint-major then component then frame, delta-coded along frames (wrapping)."""
+    if len(data) != F * J * 8:
+        raise MmdbError(f"section QROT: length {len(data)} bytes, {F} frames x {J} joints need {F * J * 8}")
+    deltas = np.frombuffer(data, dtype="<i2").reshape(J, 4, F)
+    # Wrapping i16 prefix sums: accumulate in int64, then reduce mod 2^16 into [-32768, 32767].
+    c = np.cumsum(deltas.astype(np.int64), axis=2)
+    c = ((c + 32768) % 65536 - 32768).astype(np.float32)
+    q = np.ascontiguousarray(c.transpose(2, 0, 1))  # (F, J, 4)
+    norm2 = np.einsum("fjc,fjc->fj", q.astype(np.float64), q.astype(np.float64)) / ROTATION_SCALE ** 2
+    bad = np.argwhere(np.abs(norm2 - 1.0) > QROT_NORM_TOLERANCE)
+    if len(bad):
+        f, j = bad[0]
+        raise MmdbError(f"section QROT: frame {f} joint {j} is not a unit quaternion ({q[f, j].tolist()} / 32767)")
+    return (q / np.sqrt(np.einsum("fjc,fjc->fj", q, q))[..., None]).astype(np.float32)
+
+
+def _decode_fshf(data: bytes, F: int, D: int) -> np.ndarray:
+    """FSHF: 4 byte planes of the dimension-major values."""
+    n = F * D
+    if len(data) != 4 * n:
+        raise MmdbError(f"section FSHF: length {len(data)} bytes, {F} frames x {D} dims need {4 * n}")
+    planes = np.frombuffer(data, dtype=np.uint8).reshape(4, n)
+    values = np.ascontiguousarray(planes.T).view("<f4").reshape(D, F)
+    return np.ascontiguousarray(values.T).astype(np.float32)
+
+
+def scaled_axis(q: np.ndarray) -> np.ndarray:
+    """Rotation vectors (axis x angle, the short way: q negated when w < 0) of unit quaternions."""
+    q = np.where(q[..., 3:] < 0, -q, q)
+    v, w = q[..., :3], q[..., 3]
+    s = np.linalg.norm(v, axis=-1)
+    angle_over_s = np.where(s > 1e-12, 2.0 * np.arctan2(s, w) / np.maximum(s, 1e-300), 2.0)
+    return v * angle_over_s[..., None]
+
+
+def pose_velocities(fps: float, clips: list[tuple[int, int]], positions: np.ndarray, rotations: np.ndarray):
+    """Version 2's derived velocities: per clip, central differences (one-sided at the ends,
+    zero in a one-frame clip), `(p[b] - p[a]) / h` and `scaled_axis(q[b]·q[a]⁻¹) / h`, with
+    `a = max(f-1, start)`, `b = min(f+1, end-1)`, `h = (b - a) / fps`; f64, stored as f32."""
+    lin = np.zeros(positions.shape, dtype=np.float64)
+    ang = np.zeros(positions.shape, dtype=np.float64)
+    p, q = positions.astype(np.float64), rotations.astype(np.float64)
+    for start, end in clips:
+        if end - start < 2:
+            continue
+        f = np.arange(start, end)
+        a, b = np.maximum(f - 1, start), np.minimum(f + 1, end - 1)
+        inv_h = (fps / (b - a))[:, None, None]
+        lin[f] = (p[b] - p[a]) * inv_h
+        qa_inv = q[a] * np.array([-1.0, -1.0, -1.0, 1.0])
+        ang[f] = scaled_axis(quat_mul(q[b], qa_inv)) * inv_h
+    return lin.astype(np.float32), ang.astype(np.float32)
 
 
 # --- quaternions (x, y, z, w), vectorized over leading axes ------------------------------------

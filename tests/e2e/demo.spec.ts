@@ -226,6 +226,39 @@ function vrmFromGlb(glb: Buffer): Buffer {
   return Buffer.concat([header, text, rest]);
 }
 
+test('one position space: after running 50 m the avatar’s hips are over the character root and the foot-lock rings under its feet', async ({ page }) => {
+  test.setTimeout(300_000);
+  await page.setViewportSize({ width: 480, height: 320 }); // software rendering: a small page is fast
+  const errors = await open(page);
+  await page.locator('#viewport canvas').click({ position: { x: 30, y: 150 } }); // left of the panel
+  // Run forward (Shift+W) until 50 m from the start; the avatar is drawn where the runtime is.
+  const a = await hook(page);
+  await page.keyboard.down('ShiftLeft');
+  await page.keyboard.down('KeyW');
+  let worstHips = 0;
+  for (;;) {
+    const h = await hook(page);
+    const gone = Math.hypot(h.root[0] - a.root[0], h.root[2] - a.root[2]);
+    if (gone > 45) worstHips = Math.max(worstHips, Math.hypot(h.hips[0] - h.root[0], h.hips[1] - h.root[2]));
+    if (gone > 50) break;
+    await page.waitForTimeout(100);
+  }
+  await page.keyboard.up('KeyW');
+  await page.keyboard.up('ShiftLeft');
+  // Standing again: both feet planted and locked; the rings are where the avatar's toes are.
+  const stop = (await hook(page)).updates;
+  await page.waitForFunction((n) => window.__mm.updates > n + 120 && window.__mm.lockRings.every(Number.isFinite), stop, { timeout: 120_000, polling: 100 });
+  const h = await hook(page);
+  const hips = Math.hypot(h.hips[0] - h.root[0], h.hips[1] - h.root[2]);
+  const rings = [0, 1].map((k) => Math.hypot(h.lockRings[2 * k] - h.toes[2 * k], h.lockRings[2 * k + 1] - h.toes[2 * k + 1]));
+  console.log(`after ${Math.hypot(h.root[0] - a.root[0], h.root[2] - a.root[2]).toFixed(1)} m: hips ↔ root ${(hips * 100).toFixed(1)} cm standing, worst ${(worstHips * 100).toFixed(1)} cm running past 45 m; lock rings ↔ avatar toes ${rings.map((d) => (d * 100).toFixed(1)).join(' / ')} cm`);
+  expect(hips).toBeLessThan(0.05);
+  expect(worstHips).toBeLessThan(0.1);
+  for (const d of rings) expect(d).toBeLessThan(0.08);
+  await page.screenshot({ path: path.join(ROOT, 'test-results/demo-50m.png') });
+  expect(errors).toEqual([]);
+});
+
 test('a manual joint-map override reaches the avatar; a wrong one is reported, the skeleton stays', async ({ page }) => {
   test.setTimeout(120_000);
   // `Head` is what the table finds anyway: the override path binds as usual.

@@ -81,6 +81,8 @@ test('a corrupt database shows the checksum error in the page', async ({ page })
   const box = page.locator('#error-box');
   await expect(box).toBeVisible();
   await expect(box).toContainText(/checksum/i);
-  await expect(page.locator('#hud')).toHaveText('no database loaded');
+  // The toolbar says what failed, with a Retry (the page loads again).
+  await expect(page.locator('#hud')).toContainText(/corrupt\.mmdb: invalid \.mmdb: checksum mismatch/);
+  await expect(page.locator('#hud button.retry')).toHaveText('Retry');
   expect((await viewer(page)).ready).toBe(false);
 });

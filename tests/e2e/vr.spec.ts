@@ -75,7 +75,9 @@ test('VR under iwer: enter VR; scripted walk, side-step, 360° turn and crouch; 
   test.setTimeout(200_000);
   const errors = await openVr(page, '&mirror=128');
 
-  // The network loaded and is the predictor; the page says so.
+  // The network loads after the first frame (the heuristic drives meanwhile), then is the
+  // predictor; the page says so.
+  await page.waitForFunction(() => window.__vr.networkLoaded || window.__vr.predictorFallback, null, { timeout: 60_000 });
   expect(await page.evaluate(() => [window.__vr.networkLoaded, window.__vr.predictor])).toEqual([true, 'network']);
   await expect(page.locator('#predictor-status')).toHaveText('body yaw: network');
 
@@ -186,6 +188,7 @@ test('VR under iwer: enter VR; scripted walk, side-step, 360° turn and crouch; 
 test('with the model file missing the heuristic is used and the page says so; the switch compares them', async ({ page }) => {
   test.setTimeout(90_000);
   const errors = await openVr(page, '&model=missing.onnx&mirror=0');
+  await page.waitForFunction(() => window.__vr.predictorFallback !== null, null, { timeout: 60_000 });
   const h = await page.evaluate(() => ({ loaded: window.__vr.networkLoaded, predictor: window.__vr.predictor, why: window.__vr.predictorFallback }));
   expect(h.loaded).toBe(false);
   expect(h.predictor).toBe('heuristic');

@@ -3,10 +3,9 @@ import fs from 'node:fs';
 import os from 'node:os';
 import path from 'node:path';
 import { beforeAll, describe, expect, it } from 'vitest';
-import { DatabaseBuilder } from '../../web/src/core/builder.ts';
-import { Database } from '../../web/src/core/database.ts';
-import { RawDatabase } from '../../web/src/core/pkg/mmcore.js';
-import { initWasmSync, wasmMemory } from '../../web/src/core/wasm.ts';
+import { RawDatabase } from '../../web/src/core/raw.ts';
+import { wasmMemory } from '../../web/src/core/wasm.ts';
+import { Database, DatabaseBuilder, ROLE_NAMES, initWasmSync } from '../../web/src/index.ts';
 
 const ROOT = path.resolve(import.meta.dirname, '../..');
 const MMDB = path.join(ROOT, 'wasm-core/target/release/mmdb');
@@ -29,16 +28,19 @@ describe('Database (WASM in Node)', () => {
       expect(db.numFrames).toBe(cli['num_frames']);
       expect(db.numFrames).toBeGreaterThan(0);
       expect(db.fps).toBeCloseTo(cli['fps'] as number, 5);
-      const inspected = db.inspect();
-      expect(inspected['num_frames']).toBe(cli['num_frames']);
       expect(db.jointParents[0]).toBe(-1);
       for (let j = 1; j < db.numJoints; j++) expect(db.jointParents[j]).toBeLessThan(j);
       // Clips tile [0, F).
+      expect(db.clips.length).toBe((cli['clips'] as unknown[]).length);
       expect(db.clips[0].start).toBe(0);
-      expect(db.clips[db.numClips - 1].end).toBe(db.numFrames);
-      expect(db.clipAt(db.numFrames - 1)).toBe(db.numClips - 1);
+      expect(db.clips[db.clips.length - 1].end).toBe(db.numFrames);
+      expect(db.clipAt(db.numFrames - 1)).toBe(db.clips.length - 1);
+      // The roles are the runtime's one vocabulary, read from the file's site table.
+      for (const role of ['hips', 'left_foot', 'right_toe', 'head', 'left_hand', 'chest'] as const) expect(db.roles.has(role), role).toBe(true);
+      for (const role of db.roles.keys()) expect(ROLE_NAMES).toContain(role);
+      expect(db.toeHeight).toBeGreaterThan(0);
     } finally {
-      db.free();
+      db.release();
     }
   });
 
@@ -50,7 +52,7 @@ describe('Database (WASM in Node)', () => {
       expect(db.localPositions.length).toBe(F * J * 3);
       expect(db.localRotations.length).toBe(F * J * 4);
       expect(db.contacts.length).toBe(F * 2);
-      expect(db.features.length).toBe(F * db.numFeatures);
+      expect(db.featureMatrix.length).toBe(F * db.numFeatures);
       expect(db.localPositions.buffer).toBe(wasmMemory().buffer);
       // Contacts are 0/1 and some frame has a foot down.
       expect(db.contacts.every((c) => c === 0 || c === 1)).toBe(true);
@@ -61,7 +63,7 @@ describe('Database (WASM in Node)', () => {
         expect(Math.hypot(q[i], q[i + 1], q[i + 2], q[i + 3])).toBeCloseTo(1, 3);
       }
     } finally {
-      db.free();
+      db.release();
     }
   });
 
@@ -71,8 +73,8 @@ describe('Database (WASM in Node)', () => {
       const pos = db.worldPositions(0);
       expect(pos.length).toBe(db.numJoints * 3);
       expect(pos[1]).toBeCloseTo(0, 5); // joint 0, y
-      const head = db.jointNames.findIndex((n) => /head/i.test(n) && !/end|site|top/i.test(n));
-      expect(head, `no head joint in ${db.jointNames.join(', ')}`).toBeGreaterThan(0);
+      const head = db.roles.get('head')!;
+      expect(head).toBeGreaterThan(0);
       expect(pos[head * 3 + 1]).toBeGreaterThan(1.3);
       // Feet near the floor.
       const minY = Math.min(...Array.from({ length: db.numJoints - 1 }, (_, j) => pos[(j + 1) * 3 + 1]));
@@ -83,7 +85,7 @@ describe('Database (WASM in Node)', () => {
       expect(again).toBe(pos);
       expect(db.worldRotations().length).toBe(db.numJoints * 4);
     } finally {
-      db.free();
+      db.release();
     }
   });
 
@@ -100,7 +102,7 @@ describe('Database (WASM in Node)', () => {
       expect(Array.from(after.subarray(0, 12))).toEqual(first);
       expect(db.worldPositions(0).length).toBe(db.numJoints * 3);
     } finally {
-      db.free();
+      db.release();
     }
   });
 
@@ -145,7 +147,7 @@ describe('DatabaseBuilder (WASM in Node)', () => {
         fs.rmSync(dir, { recursive: true, force: true });
       }
     } finally {
-      db.free();
+      db.release();
     }
   });
 

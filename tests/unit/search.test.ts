@@ -1,8 +1,9 @@
 import fs from 'node:fs';
 import path from 'node:path';
 import { afterAll, beforeAll, describe, expect, it } from 'vitest';
-import { featureGroups, seededRandom } from '../../web/src/bench/queries.ts';
-import { RawDatabase, RawSearchIndex } from '../../web/src/core/pkg/mmcore.js';
+import { seededRandom } from '../../web/src/bench/queries.ts';
+import { type FeatureGroupInfo } from '../../web/src/core/database.ts';
+import { RawDatabase, RawSearchIndex } from '../../web/src/core/raw.ts';
 import { initWasmSync, wasmMemory } from '../../web/src/core/wasm.ts';
 
 const ROOT = path.resolve(import.meta.dirname, '../..');
@@ -30,7 +31,7 @@ beforeAll(() => {
   features = new Float32Array(wasmMemory().buffer, db.features_ptr(), numFrames * numDims).slice();
   const inspect = JSON.parse(db.inspect_json()) as Record<string, unknown>;
   trajectoryDims = new Array<boolean>(numDims).fill(false);
-  for (const g of featureGroups(inspect)) trajectoryDims.fill(g.trajectory, g.dims[0], g.dims[1]);
+  for (const g of inspect['features'] as FeatureGroupInfo[]) trajectoryDims.fill(g.trajectory, g.dims[0], g.dims[1]);
   tagRanges = new Map((inspect['tags'] as { name: string; ranges: [number, number][] }[]).map((t) => [t.name, t.ranges]));
 });
 

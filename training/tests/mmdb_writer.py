@@ -104,3 +104,44 @@ def sample_sections(parents=(-1, 0), clips=((0, 4),), tag_ranges=((0, 4),),
 
 def sample_file(**kwargs) -> bytes:
     return assemble(list(sample_sections(**kwargs).items()))
+
+
+def encode_panm(lpos: np.ndarray, rest: np.ndarray) -> bytes:
+    """PANM from docs/mmdb-format.md: the joints whose position ever differs from the rest offset."""
+    animated = [j for j in range(lpos.shape[1]) if np.any(lpos[:, j].astype("<f4") != rest[j].astype("<f4"))]
+    return (struct.pack("<I", len(animated)) + struct.pack(f"<{len(animated)}I", *animated)
+            + lpos[:, animated].astype("<f4").tobytes())
+
+
+def encode_qrot(lrot: np.ndarray) -> bytes:
+    """QROT: round(x * 32767), joint-major / component / frame, wrapping deltas along frames."""
+    c = np.clip(np.round(lrot.astype(np.float32) * np.float32(32767)), -32767, 32767).astype(np.int64)
+    planar = c.transpose(1, 2, 0)  # (J, 4, F)
+    deltas = np.diff(planar, axis=2, prepend=0)
+    return (((deltas + 32768) % 65536) - 32768).astype("<i2").tobytes()
+
+
+def encode_fshf(features: np.ndarray) -> bytes:
+    """FSHF: 4 byte planes of the dimension-major f32 values."""
+    raw = np.ascontiguousarray(features.astype("<f4").T).view(np.uint8).reshape(-1, 4)
+    return np.ascontiguousarray(raw.T).tobytes()
+
+
+def sample_sections_v2(clips=((0, 4),)) -> dict[str, bytes]:
+    """The version-2 twin of `sample_sections()`: same poses and features, v2 encodings."""
+    v1 = sample_sections(clips=clips)
+    lpos = np.frombuffer(v1["LPOS"], "<f4").reshape(F, J, 3)
+    lrot = np.frombuffer(v1["LROT"], "<f4").reshape(F, J, 4)
+    rest = np.array([[0, 0, 0], [0, 0.9, 0]], dtype=np.float32)
+    clip = struct.pack("<I", len(clips)) + b"".join(
+        string(f"walk{i}") + string("walk.bvh") + struct.pack("<IIB", s, e, 0) + struct.pack("<d", 120.0)
+        + f32s(1, 1) + struct.pack("<I", 7 * i) for i, (s, e) in enumerate(clips))
+    out = {k: v for k, v in v1.items() if k not in ("LPOS", "LROT", "LVEL", "LAVL", "FEAT")}
+    out.update(CLIP=clip, PANM=encode_panm(lpos, rest), QROT=encode_qrot(lrot),
+               FSHF=encode_fshf(np.frombuffer(v1["FEAT"], "<f4").reshape(F, D)))
+    order = ("INFO", "SKEL", "CLIP", "TAGS", "PANM", "QROT", "CONT", "FDSC", "FNRM", "FSHF", "VALD")
+    return {k: out[k] for k in order}
+
+
+def sample_file_v2(**kwargs) -> bytes:
+    return assemble(list(sample_sections_v2(**kwargs).items()), version=2)

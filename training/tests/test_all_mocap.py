@@ -12,11 +12,13 @@ import mmdb
 
 def bvh_files(mocap):
     """Every file the shared manifest lists (it grows: never a fixed count), all present."""
-    entries = json.loads((mocap / "manifest.json").read_text())
-    files = sorted(mocap / e["folder"] / e["file"] for e in entries)
-    assert files, "manifest.json lists no file"
-    missing = [str(f) for f in files if not f.is_file()]
-    assert not missing, f"listed in the manifest but missing: {missing}"
+    manifest = json.loads((mocap / "manifest.json").read_text())
+    files = sorted(mocap / e["folder"] / e["file"] for e in manifest)
+    assert files, f"{mocap}/manifest.json lists no files"
+    missing = [f for f in files if not f.is_file()]
+    assert not missing, f"listed in manifest.json but missing: {missing[:5]}"
+    on_disk = sorted(mocap.glob("*/*.bvh"))
+    assert set(on_disk) <= set(files), f"BVH files not in manifest.json: {sorted(set(on_disk) - set(files))[:5]}"
     return files
 
 

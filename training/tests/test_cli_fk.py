@@ -13,7 +13,22 @@ import bvh_reference
 import mmdb
 from synthetic_bvh import ORDERS, default_channels, make_bvh
 
-TOLERANCE = 1e-5  # metres
+TOLERANCE = 1e-5  # metres, besides the rotations' quantization below
+# docs/mmdb-format.md, QROT: each stored rotation is within 2/32767 rad of the original.
+ROTATION_ERROR = 2 / 32767
+
+
+def quantization_bound(db: mmdb.Database, world: np.ndarray) -> np.ndarray:
+    """Per frame and joint, how far version 2's rotation quantization may move a world position:
+    each ancestor's rotation error (≤ ROTATION_ERROR) turns the joint about that ancestor, by at
+    most ROTATION_ERROR × their distance (first order; the terms add)."""
+    bound = np.zeros(world.shape[:2])
+    for j in range(1, db.num_joints):
+        a = db.parents[j]
+        while a >= 0:
+            bound[:, j] += np.linalg.norm(world[:, j] - world[:, a], axis=-1)
+            a = db.parents[a]
+    return bound * ROTATION_ERROR * 1.01
 
 MOCAP_CLIPS = ("cmu-asf/cmu_16_49.bvh", "cmu-asf/cmu_16_54.bvh", "cmu-asf/cmu_127_08.bvh",
                "cmu-asf/cmu_03_03.bvh", "cmu-daz/cmu_09_03.bvh", "cmu-daz/cmu_02_01.bvh")
@@ -28,11 +43,14 @@ def compare_fk(db: mmdb.Database, bvh_path, step: int, scale: float) -> None:
     expected_frames = (len(ref) - 1) // step + 1
     assert abs(db.num_frames - expected_frames) <= 1, (db.num_frames, expected_frames)
     frames = min(db.num_frames, expected_frames)
-    ours = mmdb.world_positions(db)[:frames][:, index]
+    world = mmdb.world_positions(db)[:frames]
+    ours = world[:, index]
     theirs = ref[::step][:frames]
     err = np.abs(ours - theirs).max(axis=2)
-    f, j = np.unravel_index(np.argmax(err), err.shape)
-    assert err[f, j] < TOLERANCE, (
+    allowed = TOLERANCE + quantization_bound(db, world)[:, index]
+    f, j = np.unravel_index(np.argmax(err - allowed), err.shape)
+    print(f"{bvh_path.name}: worst {err.max() * 1e3:.3f} mm (bound there {allowed.flat[np.argmax(err)] * 1e3:.3f} mm)")
+    assert err[f, j] < allowed[f, j], (
         f"{bvh_path}: max |db FK - BVH FK| = {err[f, j]:.3g} m at db frame {f} (source frame "
         f"{f * step}), joint {names[j]!r}: db {ours[f, j]} vs bvh {theirs[f, j]}")
 

@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 
 import mmdb
-from mmdb_writer import (F, YAW, assemble, patch, sample_file, sample_sections,
-                         section_entries)
+from mmdb_writer import (F, YAW, assemble, patch, sample_file, sample_file_v2, sample_sections,
+                         sample_sections_v2, section_entries)
 
 
 def test_reads_every_field():
@@ -63,6 +63,56 @@ def test_accepts_a_path(tmp_path):
     assert mmdb.load(path).num_frames == 4 and mmdb.load(str(path)).num_frames == 4
 
 
+def rotation_error(a, b):
+    """Angles (rad) between unit quaternions, as 2·asin|(a⁻¹b).xyz| in f64 (an arccos of the dot
+    product cannot resolve angles below ~1e-4 rad from f32 inputs)."""
+    a, b = (q.astype(np.float64) / np.linalg.norm(q.astype(np.float64), axis=-1, keepdims=True) for q in (a, b))
+    d = mmdb.quat_mul(a * np.array([-1.0, -1.0, -1.0, 1.0]), b)
+    return 2 * np.arcsin(np.minimum(np.linalg.norm(d[..., :3], axis=-1), 1.0))
+
+
+def test_version_2_reads_the_same_database():
+    """The v2 twin of the sample: positions and features bit-exact, rotations within the
+    documented 2/32767 rad, velocities derived by the documented differences."""
+    v1, v2 = mmdb.load(sample_file()), mmdb.load(sample_file_v2())
+    assert (v1.version, v2.version) == (1, 2)
+    assert np.array_equal(v1.local_positions, v2.local_positions)
+    assert np.array_equal(v1.features.view(np.uint32), v2.features.view(np.uint32))
+    assert rotation_error(v1.local_rotations, v2.local_rotations).max() <= 2 / 32767
+    assert [(c.source_fps, c.source_start) for c in v2.clips] == [(120.0, 0)]
+    # The root moves 0.1 m and turns 30° per frame at 30 fps: 3 m/s along x, 5π rad/s about y,
+    # at every frame (central inside the clip, one-sided at its ends); the hips do not move.
+    np.testing.assert_allclose(v2.local_velocities[:, 0], [[3.0, 0, 0]] * F, atol=1e-5)
+    np.testing.assert_allclose(v2.local_angular_velocities[:, 0], [[0, 5 * np.pi, 0]] * F, atol=2 * 30 * 2 / 32767)
+    assert not v2.local_velocities[:, 1].any()
+    # A clip boundary stops the differences: two clips of two frames each.
+    two = mmdb.load(sample_file_v2(clips=((0, 2), (2, 4))))
+    assert [c.source_start for c in two.clips] == [0, 7]
+    np.testing.assert_allclose(two.local_velocities[:, 0, 0], [3.0] * F, atol=1e-5)
+
+
+def _v2_corruptions():
+    secs = sample_sections_v2()
+    panm = secs["PANM"]
+    swapped = panm[:4] + panm[8:12] + panm[4:8] + panm[12:]
+    q = np.frombuffer(secs["QROT"], "<i2").copy()
+    q[0] = 20000  # joint 0's x at frame 0: no longer a unit quaternion
+    return [
+        ("PANM order", assemble(list({**secs, "PANM": swapped}.items()), version=2), "must increase"),
+        ("PANM length", assemble(list({**secs, "PANM": panm[:-4]}.items()), version=2), "section PANM: length"),
+        ("QROT not unit", assemble(list({**secs, "QROT": q.tobytes()}.items()), version=2), "frame 0 joint 0 is not a unit quaternion"),
+        ("QROT length", assemble(list({**secs, "QROT": secs["QROT"][:-2]}.items()), version=2), "section QROT: length"),
+        ("FSHF length", assemble(list({**secs, "FSHF": secs["FSHF"] + b"\0" * 4}.items()), version=2), "section FSHF: length"),
+    ]
+
+
+@pytest.mark.parametrize("name,data,message", _v2_corruptions(), ids=[c[0] for c in _v2_corruptions()])
+def test_rejects_invalid_version_2_files(name, data, message):
+    with pytest.raises(mmdb.MmdbError) as err:
+        mmdb.load(data)
+    assert message.lower() in str(err.value).lower()
+
+
 def _entry(data, tag):
     return section_entries(data)[tag]
 
@@ -80,7 +130,8 @@ def _corruptions():
         ("shorter than header", good[:20], "truncated"),
         ("empty", b"", "truncated"),
         ("magic", b"\x89MMDX" + good[5:], "magic"),
-        ("version", patch(good, 8, struct.pack("<I", 2)), "version"),
+        ("version", patch(good, 8, struct.pack("<I", 3)), "unsupported version 3"),
+        ("version 2 with version 1 sections", patch(good, 8, struct.pack("<I", 2)), "missing required section(s) PANM, QROT, FSHF"),
         ("truncated", good[:-1], "truncated"),
         ("file size field", patch(good, 16, struct.pack("<Q", size + 16), refix=False), "file size"),
         ("trailing bytes", good + b"\0" * 16, "file size"),

@@ -3,10 +3,14 @@
 //! Accepts what real exporters write: any of the 6 Euler orders per joint, position channels
 //! on any joint (each present component *replaces* that component of the joint's OFFSET, as
 //! Blender and MotionBuilder read them), `End Site` blocks, CRLF line ends, tabs, names with
-//! spaces. Anything else is an [`Error::Bvh`] naming the line and what was expected.
+//! spaces, a UTF-8 byte-order mark, CR-only line ends. Anything else is an [`Error::Bvh`]
+//! naming the line and what was expected. Untrusted input is bounded by [`crate::limits`]:
+//! joint count, nesting depth, name length, frame count, frame time and value magnitude.
 
 use crate::error::{Error, Result};
+use crate::limits::{quote, MAX_ABS_BVH_VALUE, MAX_DEPTH, MAX_FRAMES, MAX_FRAME_TIME, MAX_JOINTS, MAX_NAME_BYTES, MIN_FRAME_TIME};
 use glam::{DQuat, DVec3};
+use std::borrow::Cow;
 
 /// One animated degree of freedom of a joint, in file order.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -62,13 +66,39 @@ pub struct Bvh {
 
 impl Bvh {
     /// Parses BVH text. `file` only names the input in error messages.
+    ///
+    /// Accepts a UTF-8 byte-order mark and CR-only (classic Mac) line ends as well as LF and
+    /// CRLF. Buffers are sized from the bytes present, never from `Frames:`, and the hierarchy
+    /// is read without recursion, so any input parses in time and memory linear in its size
+    /// (at most [`BVH_ALLOCATION_FACTOR`](crate::limits::BVH_ALLOCATION_FACTOR) × its length
+    /// + 1 MiB).
+    ///
+    /// # Errors
+    /// [`Error::Bvh`] naming the file and line when the text is not a BVH file this importer
+    /// reads, including when it exceeds a limit of [`crate::limits`]: more than
+    /// [`MAX_JOINTS`] joints, nesting deeper than [`MAX_DEPTH`], a name longer than
+    /// [`MAX_NAME_BYTES`], `Frames:` not a whole number in `0..=`[`MAX_FRAMES`], `Frame Time:`
+    /// outside [`MIN_FRAME_TIME`]…[`MAX_FRAME_TIME`] s, or any number that is not finite or
+    /// exceeds [`MAX_ABS_BVH_VALUE`] in magnitude. UTF-16/32 text is refused with a message
+    /// saying so.
     pub fn parse(file: &str, bytes: &[u8]) -> Result<Bvh> {
+        // A UTF-8 byte-order mark is invisible in editors; accept it rather than report
+        // "expected 'HIERARCHY', found 'HIERARCHY'".
+        let bytes = bytes.strip_prefix(b"\xEF\xBB\xBF").unwrap_or(bytes);
+        if let Some(encoding) = wide_encoding(bytes) {
+            return Err(Error::bvh(file, 1, format!("the file is {encoding} text; save it as UTF-8 or ASCII")));
+        }
         // Valid UTF-8 is borrowed as is (fast validation); otherwise exotic (Latin-1) joint
         // names are kept readable with replacement characters.
-        let text = match std::str::from_utf8(bytes) {
-            Ok(t) => std::borrow::Cow::Borrowed(t),
+        let mut text = match std::str::from_utf8(bytes) {
+            Ok(t) => Cow::Borrowed(t),
             Err(_) => String::from_utf8_lossy(bytes),
         };
+        // CR-only line ends (classic Mac): without this the whole file is "line 1" and the
+        // frame count reads as end of file. memchr-fast, and only such files pay for a copy.
+        if !text.as_bytes().contains(&b'\n') && text.as_bytes().contains(&b'\r') {
+            text = Cow::Owned(text.replace('\r', "\n"));
+        }
         Parser { file, text: &text, pos: 0, line: 1 }.parse()
     }
 
@@ -78,6 +108,9 @@ impl Bvh {
     }
 
     /// Channel values of one frame.
+    ///
+    /// # Panics
+    /// If `frame >= num_frames`.
     pub fn frame(&self, frame: usize) -> &[f64] {
         &self.values[frame * self.num_channels..(frame + 1) * self.num_channels]
     }
@@ -85,6 +118,9 @@ impl Bvh {
     /// Local translation and rotation of `joint` at `frame`: the Euler channels composed in
     /// file order (first listed = outermost, `R = R₁·R₂·R₃`), position channels replacing the
     /// offset's components.
+    ///
+    /// # Panics
+    /// If `frame >= num_frames` or `joint >= joints.len()`.
     pub fn local_transform(&self, frame: usize, joint: usize) -> (DVec3, DQuat) {
         let j = &self.joints[joint];
         let values = &self.frame(frame)[j.first_channel..j.first_channel + j.channels.len()];
@@ -105,6 +141,20 @@ impl Bvh {
             }
         }
         (translation, rotation)
+    }
+}
+
+/// The name of a UTF-16/32 encoding recognized by its byte-order mark or by the NUL bytes
+/// interleaved with ASCII at the start, `None` for anything else.
+fn wide_encoding(bytes: &[u8]) -> Option<&'static str> {
+    match bytes {
+        [0xFF, 0xFE, 0, 0, ..] | [0, 0, 0xFE, 0xFF, ..] => Some("UTF-32"),
+        [0xFF, 0xFE, ..] => Some("UTF-16 (little-endian)"),
+        [0xFE, 0xFF, ..] => Some("UTF-16 (big-endian)"),
+        [a, 0, 0, 0, ..] if a.is_ascii_graphic() => Some("UTF-32 (little-endian)"),
+        [a, 0, b, 0, ..] if a.is_ascii_graphic() && b.is_ascii() => Some("UTF-16 (little-endian)"),
+        [0, a, 0, b, ..] if a.is_ascii_graphic() && b.is_ascii() => Some("UTF-16 (big-endian)"),
+        _ => None,
     }
 }
 
@@ -144,20 +194,22 @@ impl<'a> Parser<'a> {
         Some((&self.text[start..self.pos], self.line))
     }
 
+    /// The error for input ending where `what` was expected.
+    fn eof(&self, what: &str) -> Error {
+        // Name the last line: editors jump to it, and "file:line" is what every error here gives.
+        Error::bvh(self.file, self.line.max(1), format!("unexpected end of file: expected {what}"))
+    }
+
     fn expect_token(&mut self, what: &str) -> Result<(&'a str, usize)> {
-        match self.token() {
-            Some(t) => Ok(t),
-            // Name the last line: editors jump to it, and "file:line" is what every error here gives.
-            None => Err(Error::bvh(self.file, self.line.max(1), format!("unexpected end of file: expected {what}"))),
-        }
+        self.token().ok_or_else(|| self.eof(what))
     }
 
     fn expect_keyword(&mut self, keyword: &str) -> Result<usize> {
-        let (token, line) = self.expect_token(&format!("'{keyword}'"))?;
+        let (token, line) = self.token().ok_or_else(|| self.eof(&format!("'{keyword}'")))?;
         if token.eq_ignore_ascii_case(keyword) {
             Ok(line)
         } else {
-            Err(self.error_at(line, format!("expected '{keyword}', found '{token}'")))
+            Err(self.error_at(line, format!("expected '{keyword}', found '{}'", quote(token))))
         }
     }
 
@@ -171,49 +223,135 @@ impl<'a> Parser<'a> {
         self.text[start..self.pos].trim()
     }
 
+    /// A finite number within ±[`MAX_ABS_BVH_VALUE`].
     fn number(&mut self, what: &str) -> Result<f64> {
         let (token, line) = self.expect_token(what)?;
-        parse_finite(token).ok_or_else(|| self.error_at(line, format!("expected {what}, found '{token}'")))
+        let value = parse_finite(token).ok_or_else(|| self.error_at(line, format!("expected {what}, found '{}'", quote(token))))?;
+        if value.abs() > MAX_ABS_BVH_VALUE {
+            return Err(self.error_at(line, format!("{what} is {value:e}, out of range (magnitude ≤ {MAX_ABS_BVH_VALUE:e})")));
+        }
+        Ok(value)
     }
 
     fn parse(mut self) -> Result<Bvh> {
         self.expect_keyword("HIERARCHY")?;
-        let mut joints = Vec::new();
         let (root, line) = self.expect_token("'ROOT'")?;
         if !root.eq_ignore_ascii_case("ROOT") {
-            return Err(self.error_at(line, format!("expected 'ROOT', found '{root}'")));
+            return Err(self.error_at(line, format!("expected 'ROOT', found '{}'", quote(root))));
         }
-        let mut num_channels = 0;
-        self.joint(None, line, &mut joints, &mut num_channels)?;
+        let (joints, num_channels) = self.hierarchy(line)?;
 
         let (token, line) = self.expect_token("'MOTION'")?;
         if token.eq_ignore_ascii_case("ROOT") {
             return Err(self.error_at(line, "a second ROOT hierarchy is not supported (one skeleton per file)"));
         }
         if !token.eq_ignore_ascii_case("MOTION") {
-            return Err(self.error_at(line, format!("expected 'MOTION' after the hierarchy, found '{token}'")));
+            return Err(self.error_at(line, format!("expected 'MOTION' after the hierarchy, found '{}'", quote(token))));
         }
         let frames_line = self.expect_keyword("Frames:")?;
-        let frames = self.number("the frame count after 'Frames:'")?;
-        if frames < 0.0 || frames.fract() != 0.0 {
-            return Err(self.error_at(frames_line, format!("'Frames:' must be a whole number ≥ 0, found {frames}")));
+        let (token, _) = self.expect_token("the frame count after 'Frames:'")?;
+        let frames = parse_finite(token).unwrap_or(f64::NAN);
+        if !(frames >= 0.0 && frames.fract() == 0.0 && frames <= MAX_FRAMES as f64) {
+            return Err(self.error_at(frames_line, format!("'Frames:' must be a whole number from 0 to {MAX_FRAMES}, found '{}'", quote(token))));
         }
         let num_frames = frames as usize;
         let time_line = self.expect_keyword("Frame")?;
         let (time, _) = self.expect_token("'Time:'")?;
         if !time.eq_ignore_ascii_case("Time:") {
-            return Err(self.error_at(time_line, format!("expected 'Frame Time:', found 'Frame {time}'")));
+            return Err(self.error_at(time_line, format!("expected 'Frame Time:', found 'Frame {}'", quote(time))));
         }
-        let frame_time = self.number("the frame time in seconds after 'Frame Time:'")?;
-        if frame_time <= 0.0 {
-            return Err(self.error_at(time_line, format!("'Frame Time:' must be > 0 seconds, found {frame_time}")));
+        let (token, _) = self.expect_token("the frame time in seconds after 'Frame Time:'")?;
+        let frame_time = parse_finite(token).unwrap_or(f64::NAN);
+        if !(MIN_FRAME_TIME..=MAX_FRAME_TIME).contains(&frame_time) {
+            return Err(self.error_at(
+                time_line,
+                format!("'Frame Time:' must be {MIN_FRAME_TIME} to {MAX_FRAME_TIME} seconds (10000 to 1 fps), found '{}'", quote(token)),
+            ));
         }
         let values = self.motion(num_frames, num_channels, frames_line)?;
         Ok(Bvh { joints, num_channels, num_frames, frame_time, values })
     }
 
-    /// Parses a `ROOT`/`JOINT` block whose keyword was just read at `line`.
-    fn joint(&mut self, parent: Option<usize>, line: usize, joints: &mut Vec<BvhJoint>, num_channels: &mut usize) -> Result<()> {
+    /// Parses the hierarchy whose `ROOT` keyword was just read at `root_line`: the joints and
+    /// the total channel count. Iterative (an explicit stack of open joints), so nesting depth
+    /// costs heap, not call stack, and is bounded by [`MAX_DEPTH`].
+    fn hierarchy(&mut self, root_line: usize) -> Result<(Vec<BvhJoint>, usize)> {
+        let mut joints = Vec::new();
+        let mut num_channels = 0;
+        // Open joints, innermost last: (index, whether its OFFSET was read).
+        let mut open: Vec<(usize, bool)> = Vec::new();
+        self.open_joint(None, root_line, &mut joints, num_channels)?;
+        open.push((0, false));
+        while let Some(&(index, seen_offset)) = open.last() {
+            let Some((token, line)) = self.token() else {
+                return Err(self.eof(&format!("'}}' closing joint '{}'", quote(&joints[index].name))));
+            };
+            if token.eq_ignore_ascii_case("OFFSET") {
+                joints[index].offset = self.vec3("OFFSET")?;
+                open.last_mut().unwrap().1 = true;
+            } else if token.eq_ignore_ascii_case("CHANNELS") {
+                if !joints[index].channels.is_empty() {
+                    return Err(self.error_at(line, format!("joint '{}' has a second CHANNELS line", quote(&joints[index].name))));
+                }
+                let count = self.number("the channel count after 'CHANNELS'")?;
+                if !(0.0..=6.0).contains(&count) || count.fract() != 0.0 {
+                    return Err(self.error_at(line, format!("CHANNELS count must be 0 to 6, found {count}")));
+                }
+                let mut channels = Vec::with_capacity(count as usize);
+                for _ in 0..count as usize {
+                    let (channel, cline) = self.expect_token("a channel name")?;
+                    let channel = Channel::from_name(channel).ok_or_else(|| {
+                        self.error_at(cline, format!("expected a channel name (Xposition … Zrotation), found '{}'", quote(channel)))
+                    })?;
+                    if channels.contains(&channel) {
+                        return Err(self.error_at(cline, format!("channel {channel:?} listed twice for joint '{}'", quote(&joints[index].name))));
+                    }
+                    channels.push(channel);
+                }
+                num_channels += channels.len();
+                joints[index].channels = channels;
+            } else if token.eq_ignore_ascii_case("JOINT") {
+                if !seen_offset {
+                    return Err(self.error_at(line, format!("joint '{}' needs an OFFSET before its children", quote(&joints[index].name))));
+                }
+                if open.len() >= MAX_DEPTH {
+                    return Err(self.error_at(line, format!("the hierarchy is nested deeper than {MAX_DEPTH} joints")));
+                }
+                if joints.len() >= MAX_JOINTS {
+                    return Err(self.error_at(line, format!("more than {MAX_JOINTS} joints")));
+                }
+                self.open_joint(Some(index), line, &mut joints, num_channels)?;
+                open.push((joints.len() - 1, false));
+            } else if token.eq_ignore_ascii_case("END") {
+                let (site, sline) = self.expect_token("'Site'")?;
+                if !site.eq_ignore_ascii_case("Site") && !site.eq_ignore_ascii_case("Site{") {
+                    return Err(self.error_at(sline, format!("expected 'End Site', found 'End {}'", quote(site))));
+                }
+                if !site.ends_with('{') {
+                    self.expect_keyword("{")?;
+                }
+                self.expect_keyword("OFFSET")?;
+                let offset = self.vec3("End Site OFFSET")?;
+                self.expect_keyword("}")?;
+                joints[index].end_site = Some(offset);
+            } else if token == "}" {
+                if !seen_offset {
+                    return Err(self.error_at(line, format!("joint '{}' has no OFFSET", quote(&joints[index].name))));
+                }
+                open.pop();
+            } else {
+                return Err(self.error_at(
+                    line,
+                    format!("expected OFFSET, CHANNELS, JOINT, End Site or '}}' in joint '{}', found '{}'", quote(&joints[index].name), quote(token)),
+                ));
+            }
+        }
+        Ok((joints, num_channels))
+    }
+
+    /// Reads the name and opening brace of a `ROOT`/`JOINT` whose keyword was just read at
+    /// `line`, and appends the joint.
+    fn open_joint(&mut self, parent: Option<usize>, line: usize, joints: &mut Vec<BvhJoint>, first_channel: usize) -> Result<()> {
         let mut name = self.rest_of_line();
         let mut brace_on_line = false;
         if let Some(stripped) = name.strip_suffix('{') {
@@ -223,84 +361,17 @@ impl<'a> Parser<'a> {
         if name.is_empty() {
             return Err(self.error_at(line, "joint has no name"));
         }
-        if joints.iter().any(|j: &BvhJoint| j.name == name) {
-            return Err(self.error_at(line, format!("duplicate joint name '{name}'")));
+        if name.len() > MAX_NAME_BYTES {
+            return Err(self.error_at(line, format!("joint name '{}' is longer than {MAX_NAME_BYTES} bytes", quote(name))));
+        }
+        if joints.iter().any(|j| j.name == name) {
+            return Err(self.error_at(line, format!("duplicate joint name '{}'", quote(name))));
         }
         if !brace_on_line {
             self.expect_keyword("{")?;
         }
-        let index = joints.len();
-        joints.push(BvhJoint {
-            name: name.to_string(),
-            parent,
-            offset: DVec3::ZERO,
-            channels: Vec::new(),
-            first_channel: *num_channels,
-            end_site: None,
-        });
-        let mut seen_offset = false;
-        loop {
-            let (token, line) = self.expect_token(&format!("'}}' closing joint '{name}'"))?;
-            match token.to_ascii_uppercase().as_str() {
-                "OFFSET" => {
-                    joints[index].offset = self.vec3("OFFSET")?;
-                    seen_offset = true;
-                }
-                "CHANNELS" => {
-                    if !joints[index].channels.is_empty() {
-                        return Err(self.error_at(line, format!("joint '{name}' has a second CHANNELS line")));
-                    }
-                    let count = self.number("the channel count after 'CHANNELS'")?;
-                    if !(0.0..=6.0).contains(&count) || count.fract() != 0.0 {
-                        return Err(self.error_at(line, format!("CHANNELS count must be 0 to 6, found {count}")));
-                    }
-                    let mut channels = Vec::with_capacity(count as usize);
-                    for _ in 0..count as usize {
-                        let (channel, cline) = self.expect_token("a channel name")?;
-                        let channel = Channel::from_name(channel).ok_or_else(|| {
-                            self.error_at(cline, format!("expected a channel name (Xposition … Zrotation), found '{channel}'"))
-                        })?;
-                        if channels.contains(&channel) {
-                            return Err(self.error_at(cline, format!("channel {channel:?} listed twice for joint '{name}'")));
-                        }
-                        channels.push(channel);
-                    }
-                    *num_channels += channels.len();
-                    joints[index].channels = channels;
-                }
-                "JOINT" => {
-                    if !seen_offset {
-                        return Err(self.error_at(line, format!("joint '{name}' needs an OFFSET before its children")));
-                    }
-                    self.joint(Some(index), line, joints, num_channels)?;
-                }
-                "END" => {
-                    let (site, sline) = self.expect_token("'Site'")?;
-                    if !site.eq_ignore_ascii_case("Site") && !site.eq_ignore_ascii_case("Site{") {
-                        return Err(self.error_at(sline, format!("expected 'End Site', found 'End {site}'")));
-                    }
-                    if !site.ends_with('{') {
-                        self.expect_keyword("{")?;
-                    }
-                    self.expect_keyword("OFFSET")?;
-                    let offset = self.vec3("End Site OFFSET")?;
-                    self.expect_keyword("}")?;
-                    joints[index].end_site = Some(offset);
-                }
-                "}" => {
-                    if !seen_offset {
-                        return Err(self.error_at(line, format!("joint '{name}' has no OFFSET")));
-                    }
-                    return Ok(());
-                }
-                _ => {
-                    return Err(self.error_at(
-                        line,
-                        format!("expected OFFSET, CHANNELS, JOINT, End Site or '}}' in joint '{name}', found '{token}'"),
-                    ))
-                }
-            }
-        }
+        joints.push(BvhJoint { name: name.to_string(), parent, offset: DVec3::ZERO, channels: Vec::new(), first_channel, end_site: None });
+        Ok(())
     }
 
     fn vec3(&mut self, what: &str) -> Result<DVec3> {
@@ -314,11 +385,14 @@ impl<'a> Parser<'a> {
     /// one stream) lets a short or long line be reported where it is. This is the hot loop of
     /// the importer, so it works on bytes.
     fn motion(&mut self, num_frames: usize, num_channels: usize, frames_line: usize) -> Result<Vec<f64>> {
-        let mut values = Vec::with_capacity(num_frames * num_channels);
         let bytes = self.text.as_bytes();
         let n = bytes.len();
         // Finish the 'Frame Time' line.
         self.rest_of_line();
+        // Reserve what the header declares, but never more than the remaining bytes can hold
+        // (a number and its separator take at least 2 bytes): `Frames:` may claim anything.
+        let declared = num_frames.saturating_mul(num_channels);
+        let mut values = Vec::with_capacity(declared.min((n - self.pos).div_ceil(2)));
         let mut pos = self.pos;
         let mut frame = 0;
         while pos < n {
@@ -346,11 +420,18 @@ impl<'a> Parser<'a> {
                         let end = pos + bytes[pos..].iter().position(|b| b.is_ascii_whitespace()).unwrap_or(n - pos);
                         let token = &self.text[pos..end];
                         let v = parse_finite(token).ok_or_else(|| {
-                            self.error(format!("frame {frame}: expected a number, found '{token}' (column {})", pos - line_start + 1))
+                            self.error(format!("frame {frame}: expected a number, found '{}' (column {})", quote(token), pos - line_start + 1))
                         })?;
                         (v, end)
                     }
                 };
+                // Both paths return finite values; one compare keeps 1e300 (or 1e39, ∞ in f32) out.
+                if value.abs() > MAX_ABS_BVH_VALUE {
+                    return Err(self.error(format!(
+                        "frame {frame}: value {value:e} at column {} is out of range (magnitude ≤ {MAX_ABS_BVH_VALUE:e})",
+                        pos - line_start + 1
+                    )));
+                }
                 values.push(value);
                 pos = end;
             }
@@ -560,9 +641,9 @@ mod tests {
             ("unclosed", "HIERARCHY\nROOT x\n{\nOFFSET 0 0 0\n", "end of file: expected '}' closing joint 'x'"),
             ("no motion", "HIERARCHY\nROOT x\n{\nOFFSET 0 0 0\n}\nFRAMES\n", ":6: expected 'MOTION'"),
             ("two roots", "HIERARCHY\nROOT x\n{\nOFFSET 0 0 0\n}\nROOT y\n", ":6: a second ROOT"),
-            ("bad frames", "HIERARCHY\nROOT x\n{\nOFFSET 0 0 0\n}\nMOTION\nFrames: 2.5\n", ":7: 'Frames:' must be a whole number"),
+            ("bad frames", "HIERARCHY\nROOT x\n{\nOFFSET 0 0 0\n}\nMOTION\nFrames: 2.5\n", ":7: 'Frames:' must be a whole number from 0 to 16777216, found '2.5'"),
             ("no frame time", "HIERARCHY\nROOT x\n{\nOFFSET 0 0 0\n}\nMOTION\nFrames: 1\nTime: 1\n", ":8: expected 'Frame'"),
-            ("zero frame time", "HIERARCHY\nROOT x\n{\nOFFSET 0 0 0\n}\nMOTION\nFrames: 1\nFrame Time: 0\n", ":8: 'Frame Time:' must be > 0"),
+            ("zero frame time", "HIERARCHY\nROOT x\n{\nOFFSET 0 0 0\n}\nMOTION\nFrames: 1\nFrame Time: 0\n", ":8: 'Frame Time:' must be 0.0001 to 1 seconds"),
             (
                 "short frame",
                 "HIERARCHY\nROOT x\n{\nOFFSET 0 0 0\nCHANNELS 3 Xrotation Yrotation Zrotation\n}\nMOTION\nFrames: 2\nFrame Time: 0.01\n1 2 3\n1 2\n",
@@ -595,5 +676,42 @@ mod tests {
             assert!(message.contains(expected), "{what}: got '{message}', expected it to contain '{expected}'");
             assert!(message.starts_with("bad.bvh"), "{what}: message must name the file: {message}");
         }
+    }
+
+    /// What real exporters also write: a UTF-8 byte-order mark, CR-only line ends.
+    #[test]
+    fn bom_and_cr_only_line_ends_are_read() {
+        let with_bom = [b"\xEF\xBB\xBF".as_slice(), TWO_JOINTS.as_bytes()].concat();
+        assert_eq!(Bvh::parse("t.bvh", &with_bom).unwrap().num_frames, 2);
+        let cr = TWO_JOINTS.replace('\n', "\r");
+        assert_eq!(Bvh::parse("t.bvh", cr.as_bytes()).unwrap().num_frames, 2);
+        // Lines are still counted on a CR-only file.
+        let bad = cr.replace("Frame Time: 0.0333333", "Frame Time: 0");
+        assert!(err(&bad).contains("bad.bvh:18: 'Frame Time:'"), "{}", err(&bad));
+    }
+
+    /// The limits of `crate::limits`, each a short error naming the line.
+    #[test]
+    fn limits_give_short_errors() {
+        let utf16: Vec<u8> = TWO_JOINTS.encode_utf16().flat_map(|u| u.to_le_bytes()).collect();
+        let e = Bvh::parse("w.bvh", &utf16).unwrap_err().to_string();
+        assert!(e.contains("w.bvh:1: the file is UTF-16 (little-endian) text"), "{e}");
+        let deep: String = (0..300).map(|i| format!("JOINT j{i}\n{{\nOFFSET 0 0 0\n")).collect();
+        let e = err(&format!("HIERARCHY\nROOT r\n{{\nOFFSET 0 0 0\n{deep}"));
+        assert!(e.contains(":770: the hierarchy is nested deeper than 256"), "{e}");
+        let huge = TWO_JOINTS.replace("Frames: 2", "Frames: 2147483648");
+        assert!(err(&huge).contains(":17: 'Frames:' must be a whole number from 0 to 16777216"));
+        for t in ["1e300", "1e-300", "nan", "-0.01", "2"] {
+            let e = err(&TWO_JOINTS.replace("0.0333333", t));
+            assert!(e.contains(":18: 'Frame Time:' must be 0.0001 to 1 seconds"), "{t}: {e}");
+        }
+        for v in ["1e308", "1e39", "-2e7"] {
+            let e = err(&TWO_JOINTS.replace("1 1 0 90", &format!("1 1 0 {v}")));
+            assert!(e.contains(":20: frame 1: value") && e.contains("out of range"), "{v}: {e}");
+        }
+        let e = err(&TWO_JOINTS.replace("OFFSET 0 0.5 0", "OFFSET 0 1e300 0"));
+        assert!(e.contains(":8: OFFSET y is 1e300, out of range"), "{e}");
+        let e = err(&TWO_JOINTS.replace("1 1 0 90", &format!("1 1 0 {}", "x".repeat(1 << 20))));
+        assert!(e.len() < 200 && e.contains("xxx…'"), "{e}");
     }
 }

@@ -3,6 +3,7 @@
 
 use crate::database::{Axes, FeatureKind};
 use crate::error::{Error, Result};
+use crate::limits::{check_fps, check_scale, num, quote, MAX_FEATURE_OFFSET, MAX_SPEED, MAX_WEIGHT, MAX_WINDOW_SECONDS, MIN_WEIGHT};
 use serde::Deserialize;
 use std::collections::HashMap;
 
@@ -168,29 +169,50 @@ impl BuildConfig {
         Ok(config)
     }
 
-    fn validate(&self) -> Result<()> {
-        if !(self.fps > 0.0 && self.fps <= 1000.0) {
-            return Err(Error::config(format!("fps must be in (0, 1000], found {}", self.fps)));
-        }
+    /// Checks every value against [`crate::limits`]: call it again after changing fields
+    /// (the CLI's `--fps` and `--scale` do) before building.
+    ///
+    /// # Errors
+    /// [`Error::Config`] naming the key: `fps` outside 1…1000, a fixed `scale` outside
+    /// 10⁻⁶…10³, a negative, non-finite or too long window or speed, a feature weight outside
+    /// 10⁻³…10³, empty or out-of-range feature offsets, an empty clip frame range.
+    pub fn validate(&self) -> Result<()> {
+        check_fps(self.fps).map_err(Error::config)?;
         if let Scale::Fixed(s) = self.scale {
-            if !(s > 0.0 && s.is_finite()) {
-                return Err(Error::config(format!("scale must be > 0 or \"auto\", found {s}")));
+            check_scale(s).map_err(|m| Error::config(format!("{m} (or \"auto\")")))?;
+        }
+        for (key, v, max) in [
+            ("contact_speed", self.contact_speed, MAX_SPEED),
+            ("contact_filter", self.contact_filter, MAX_WINDOW_SECONDS),
+            ("root_position_window", self.root_position_window, MAX_WINDOW_SECONDS),
+            ("root_facing_window", self.root_facing_window, MAX_WINDOW_SECONDS),
+        ] {
+            if !(0.0..=max).contains(&v) {
+                return Err(Error::config(format!("{key} must be 0 to {max}, found {}", num(v))));
             }
         }
-        for (key, v) in [
-            ("contact_speed", self.contact_speed),
-            ("contact_filter", self.contact_filter),
-            ("root_position_window", self.root_position_window),
-            ("root_facing_window", self.root_facing_window),
-        ] {
-            if !(v >= 0.0 && v.is_finite()) {
-                return Err(Error::config(format!("{key} must be ≥ 0, found {v}")));
+        for f in self.features.iter().flatten() {
+            let name = quote(&f.name);
+            if !(MIN_WEIGHT..=MAX_WEIGHT).contains(&f.weight) {
+                return Err(Error::config(format!("feature '{name}': weight must be {MIN_WEIGHT} to {MAX_WEIGHT}, found {}", num(f.weight))));
+            }
+            if f.offsets.is_empty() {
+                return Err(Error::config(format!("feature '{name}': offsets must not be empty")));
+            }
+            if let Some(o) = f.offsets.iter().find(|o| o.unsigned_abs() > MAX_FEATURE_OFFSET as u32) {
+                return Err(Error::config(format!("feature '{name}': offset {o} is beyond ±{MAX_FEATURE_OFFSET} frames")));
+            }
+            if !f.axis.iter().all(|a| a.is_finite() && a.abs() <= 1e3) {
+                return Err(Error::config(format!("feature '{name}': axis must be finite, found {:?}", f.axis)));
             }
         }
         for c in &self.clips {
+            if let Some(Scale::Fixed(s)) = c.scale {
+                check_scale(s).map_err(|m| Error::config(format!("clip '{}': {m}", quote(&c.file))))?;
+            }
             if let Some([s, e]) = c.frames {
                 if e <= s {
-                    return Err(Error::config(format!("clip '{}': frames [{s}, {e}] is empty", c.file)));
+                    return Err(Error::config(format!("clip '{}': frames [{s}, {e}] is empty", quote(&c.file))));
                 }
             }
         }
@@ -248,7 +270,7 @@ mod tests {
         let e = BuildConfig::from_json("{\n \"mirorr\": true}").unwrap_err().to_string();
         assert!(e.contains("unknown field `mirorr`") && e.contains("line 2"), "{e}");
         let e = BuildConfig::from_json(r#"{"scale": -1}"#).unwrap_err().to_string();
-        assert!(e.contains("scale must be > 0"), "{e}");
+        assert!(e.contains("scale must be between"), "{e}");
         assert_eq!(BuildConfig::from_json(r#"{"scale": 0.01}"#).unwrap().scale, Scale::Fixed(0.01));
     }
 
@@ -258,5 +280,25 @@ mod tests {
         assert!(wildcard_match("cmu_1?_15.bvh", "cmu_16_15.bvh"));
         assert!(!wildcard_match("cmu_16_*.bvh", "cmu_127_15.bvh"));
         assert!(wildcard_match("*", "anything"));
+    }
+
+    /// Values that built a database full of NaN (or none at all) are refused by key.
+    #[test]
+    fn out_of_range_values_name_the_key() {
+        for (json, expected) in [
+            (r#"{"fps": 0}"#, "fps must be between 1 and 1000, found 0"),
+            (r#"{"fps": 1e300}"#, "fps must be between"),
+            (r#"{"scale": 1e300}"#, "scale must be between"),
+            (r#"{"scale": 1e-300}"#, "scale must be between"),
+            (r#"{"root_facing_window": 1e300}"#, "root_facing_window must be 0 to 60"),
+            (r#"{"contact_speed": -1}"#, "contact_speed must be 0 to"),
+            (r#"{"features": [{"name": "a", "kind": "position", "joint": "root", "weight": 1e30}]}"#, "feature 'a': weight must be"),
+            (r#"{"features": [{"name": "a", "kind": "position", "joint": "root", "offsets": []}]}"#, "offsets must not be empty"),
+            (r#"{"features": [{"name": "a", "kind": "position", "joint": "root", "offsets": [2147483647]}]}"#, "beyond ±10000"),
+            (r#"{"clips": [{"file": "a.bvh", "scale": 0}]}"#, "clip 'a.bvh': scale must be between"),
+        ] {
+            let e = BuildConfig::from_json(json).unwrap_err().to_string();
+            assert!(e.contains(expected), "{json}: {e}");
+        }
     }
 }

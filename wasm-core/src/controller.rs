@@ -144,6 +144,12 @@ impl ChangeDetector {
     }
 }
 
+/// Most keypoints a [`Path`] takes.
+pub const MAX_PATH_POINTS: usize = 100_000;
+/// Farthest a path keypoint may be from the origin on each axis (m): far enough for any scene,
+/// near enough that f32 positions keep millimetres.
+pub const MAX_PATH_COORDINATE: f32 = 1.0e5;
+
 /// A polyline on the floor walked at a speed per segment, optionally looping.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Path {
@@ -157,16 +163,27 @@ pub struct Path {
 impl Path {
     /// `points` (≥ 2, y ignored) joined by segments walked at `speeds[i]` m/s (one per segment:
     /// `points.len() − 1`, or `points.len()` when `looped`, the last closing the loop).
+    ///
+    /// # Errors
+    /// Fewer than 2 points, a wrong number of speeds, a speed that is not a positive number, a
+    /// point that is not finite or farther than [`MAX_PATH_COORDINATE`] m from the origin, or a
+    /// path longer than [`MAX_PATH_POINTS`] points.
     pub fn new(points: &[Vec3], speeds: &[f32], looped: bool) -> Result<Path, String> {
         if points.len() < 2 {
             return Err(format!("a path needs at least 2 points, got {}", points.len()));
+        }
+        if points.len() > MAX_PATH_POINTS {
+            return Err(format!("a path has at most {MAX_PATH_POINTS} points, got {}", points.len()));
+        }
+        if let Some((i, p)) = points.iter().enumerate().find(|(_, p)| !(p.x.abs() <= MAX_PATH_COORDINATE && p.z.abs() <= MAX_PATH_COORDINATE)) {
+            return Err(format!("path point {i} is ({}, {}): coordinates must be finite and within ±{MAX_PATH_COORDINATE} m", p.x, p.z));
         }
         let segments = if looped { points.len() } else { points.len() - 1 };
         if speeds.len() != segments {
             return Err(format!("a path with {} points needs {segments} segment speeds, got {}", points.len(), speeds.len()));
         }
-        if let Some(s) = speeds.iter().find(|s| !(**s > 0.0 && s.is_finite())) {
-            return Err(format!("segment speeds must be > 0, got {s}"));
+        if let Some(s) = speeds.iter().find(|s| !(**s > 0.0 && **s <= 100.0)) {
+            return Err(format!("segment speeds must be in (0, 100] m/s, got {s}"));
         }
         let points: Vec<Vec3> = points.iter().map(|p| Vec3::new(p.x, 0.0, p.z)).collect();
         let mut times = vec![0.0];

@@ -3,7 +3,7 @@
 //! [`crate::format`], searched by [`crate::search`].
 
 use crate::kinematics::local_to_model;
-use glam::{Quat, Vec3};
+use glam::{DQuat, DVec3, Quat, Vec3};
 
 /// The joint hierarchy. Joint 0 is the virtual root; parents precede children.
 #[derive(Clone, Debug, PartialEq)]
@@ -54,7 +54,15 @@ pub struct Clip {
     /// End frame (exclusive).
     pub end: u32,
     pub mirrored: bool,
-    pub source_fps: f32,
+    /// The source's frame rate (frames per second, `1 / Frame Time`, snapped to the whole
+    /// number when within 0.01 of it): database frame `start + k` was sampled at source frame
+    /// `source_start + k · source_fps / fps` (linear / slerp between source frames).
+    pub source_fps: f64,
+    /// The source frame the clip's first frame was sampled at (a configured frame range starts
+    /// past 0). Version-1 files do not store it and read as 0. A time-reversed copy (named
+    /// `… (reversed)`) keeps its forward clip's value and runs the mapping backward: its frame
+    /// `start + k` is the forward clip's `start + (n − 1 − k)`.
+    pub source_start: u32,
     /// Metres per source unit.
     pub scale: f32,
     /// Root-motion scale from bone-length normalization (1 for the reference skeleton).
@@ -127,6 +135,8 @@ pub struct Database {
     pub local_positions: Vec<Vec3>,
     /// `F×J` local rotations (joint 0: world yaw of the virtual root).
     pub local_rotations: Vec<Quat>,
+    /// `F×J` local linear and angular velocities, derived from the poses by
+    /// [`Database::compute_velocities`] (not stored in `.mmdb` version 2).
     pub local_velocities: Vec<Vec3>,
     pub local_angular_velocities: Vec<Vec3>,
     /// `F×2` foot contacts (left, right), 0 or 1.
@@ -154,13 +164,10 @@ impl Database {
         self.num_frames as f32 / self.fps
     }
 
-    /// Index of the clip containing `frame`.
-    ///
-    /// # Panics
-    /// If `frame >= num_frames`.
+    /// Index of the clip containing `frame` (the last clip for a frame past the end; 0 without
+    /// clips, which the loader never lets through).
     pub fn clip_at(&self, frame: usize) -> usize {
-        assert!(frame < self.num_frames, "frame {frame} out of range 0..{}", self.num_frames);
-        self.clips.partition_point(|c| c.end as usize <= frame)
+        self.clips.partition_point(|c| c.end as usize <= frame).min(self.clips.len().saturating_sub(1))
     }
 
     /// Normalized feature vector of `frame`.
@@ -177,6 +184,16 @@ impl Database {
             mask[s as usize..e as usize].fill(true);
         }
         Some(mask)
+    }
+
+    /// Fills the local velocities from the local poses: central differences within each clip,
+    /// one-sided at its first and last frame (docs/method.md §3), in f64 from the stored f32
+    /// values: `v[f] = (p[b] − p[a]) · fps / (b − a)`, `ω[f] = axis·angle(q[b] · q[a]⁻¹) · fps /
+    /// (b − a)` with `a = max(f − 1, start)`, `b = min(f + 1, end − 1)`. One function for the
+    /// builder and the `.mmdb` reader, so a stored and a derived velocity cannot disagree.
+    /// A one-frame clip has zero velocities.
+    pub fn compute_velocities(&mut self) {
+        (self.local_velocities, self.local_angular_velocities) = pose_velocities(self.num_joints(), self.fps, &self.clips, &self.local_positions, &self.local_rotations);
     }
 
     /// World positions and rotations of every joint at `frame` (the one FK,
@@ -228,5 +245,71 @@ impl Database {
         }
         let mid = heights.len() / 2;
         Some(*heights.select_nth_unstable_by(mid, f32::total_cmp).1)
+    }
+}
+
+/// The velocities [`Database::compute_velocities`] describes, of `F×J` poses cut into `clips`.
+pub fn pose_velocities(joints: usize, fps: f32, clips: &[Clip], positions: &[Vec3], rotations: &[Quat]) -> (Vec<Vec3>, Vec<Vec3>) {
+    let n = positions.len().min(rotations.len());
+    let (mut velocities, mut angular) = (vec![Vec3::ZERO; n], vec![Vec3::ZERO; n]);
+    let fps = fps as f64;
+    for clip in clips {
+        let (start, end) = (clip.start as usize, (clip.end as usize).min(n / joints.max(1)));
+        for f in start..end {
+            let (a, b) = (f.saturating_sub(1).max(start), (f + 1).min(end - 1));
+            if a >= b {
+                continue;
+            }
+            let inv_h = fps / (b - a) as f64;
+            for k in 0..joints {
+                let (pa, pb) = (positions[a * joints + k].as_dvec3(), positions[b * joints + k].as_dvec3());
+                let (qa, qb) = (rotations[a * joints + k].as_dquat(), rotations[b * joints + k].as_dquat());
+                velocities[f * joints + k] = ((pb - pa) * inv_h).as_vec3();
+                angular[f * joints + k] = (scaled_axis(qb * qa.conjugate()) * inv_h).as_vec3();
+            }
+        }
+    }
+    (velocities, angular)
+}
+
+/// Rotation vector (axis × angle) of a unit quaternion, taking the short way. Same value as
+/// `to_scaled_axis` but without `atan2` for the small rotations between nearby frames:
+/// angle = 2·atan(x), x = |v|/w, by its Taylor series when x < 0.1 (truncation error
+/// < x¹²/13 < 1e-13 relative, far below f32 storage precision).
+pub fn scaled_axis(q: DQuat) -> DVec3 {
+    let q = if q.w < 0.0 { -q } else { q };
+    let v = DVec3::new(q.x, q.y, q.z);
+    let s = v.length();
+    if s < 1e-12 {
+        return 2.0 * v;
+    }
+    let inv_w = 1.0 / q.w;
+    let x = s * inv_w;
+    if x < 0.1 {
+        let x2 = x * x;
+        // 2·atan(x)/s = (2/w)·atan(x)/x
+        let series = 1.0 - x2 * (1.0 / 3.0 - x2 * (1.0 / 5.0 - x2 * (1.0 / 7.0 - x2 * (1.0 / 9.0 - x2 * (1.0 / 11.0)))));
+        v * (2.0 * inv_w * series)
+    } else {
+        v * (2.0 * s.atan2(q.w) / s)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn scaled_axis_is_exact_for_small_and_large_rotations() {
+        for angle in [0.0, 1e-9, 1e-4, 0.05, 0.19, 0.21, 1.0, 3.0, 6.0] {
+            for axis in [DVec3::X, DVec3::new(1.0, -2.0, 0.5).normalize()] {
+                let q = DQuat::from_axis_angle(axis, angle);
+                // The short way round: angles past π come back as 2π − angle about −axis.
+                let short = if angle > std::f64::consts::PI { angle - std::f64::consts::TAU } else { angle };
+                let expected = axis * short;
+                assert!((scaled_axis(q) - expected).length() < 1e-12, "angle {angle}");
+                assert!((scaled_axis(-q) - expected).length() < 1e-12, "angle {angle}, negated");
+            }
+        }
     }
 }

@@ -1,5 +1,11 @@
 //! The one error type of the crate: every failure says what went wrong and where.
+//!
+//! Messages stay short: the constructors cut the message to
+//! [`MAX_MESSAGE_CHARS`](crate::limits::MAX_MESSAGE_CHARS) characters and a BVH file name to
+//! [`MAX_FILE_NAME_CHARS`] (keeping its end, the part that tells files apart), so no input can
+//! turn an error into a megabyte of text. Quote user input with [`crate::limits::quote`].
 
+use crate::limits::cap_message;
 use std::fmt;
 
 /// An error with enough context to act on: the file and line for BVH input, the section and
@@ -16,15 +22,25 @@ pub enum Error {
     Io(String),
 }
 
+/// Characters of a file name kept in a BVH error (the last ones).
+pub const MAX_FILE_NAME_CHARS: usize = 120;
+
 impl Error {
+    /// A BVH error at `line` (1-based, `0` = end of file) of `file`.
     pub fn bvh(file: &str, line: usize, message: impl Into<String>) -> Self {
-        Error::Bvh { file: file.to_string(), line, message: message.into() }
+        let chars = file.chars().count();
+        let file = if chars > MAX_FILE_NAME_CHARS {
+            format!("…{}", file.chars().skip(chars - MAX_FILE_NAME_CHARS).collect::<String>())
+        } else {
+            file.to_string()
+        };
+        Error::Bvh { file, line, message: cap_message(message.into()) }
     }
     pub fn format(message: impl Into<String>) -> Self {
-        Error::Format(message.into())
+        Error::Format(cap_message(message.into()))
     }
     pub fn config(message: impl Into<String>) -> Self {
-        Error::Config(message.into())
+        Error::Config(cap_message(message.into()))
     }
 }
 
@@ -43,3 +59,16 @@ impl fmt::Display for Error {
 impl std::error::Error for Error {}
 
 pub type Result<T> = std::result::Result<T, Error>;
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn constructors_cap_long_messages_and_file_names() {
+        let e = Error::config("x".repeat(1 << 20)).to_string();
+        assert!(e.len() < 400, "{}", e.len());
+        let e = Error::bvh(&format!("{}/take.bvh", "d".repeat(10_000)), 3, "bad").to_string();
+        assert!(e.len() < 200 && e.ends_with("take.bvh:3: bad"), "{e}");
+    }
+}

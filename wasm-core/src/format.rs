@@ -1,36 +1,47 @@
-//! The `.mmdb` binary format, version 1 (specified in `docs/mmdb-format.md`): writing a
-//! [`Database`] to bytes and reading it back with every length and offset checked.
+//! The `.mmdb` binary format, version 2 (specified in `docs/mmdb-format.md`): writing a
+//! [`Database`] to bytes and reading it back (version 1 too) with every length, offset and
+//! value checked. The version-2 encodings of the pose and feature arrays are in `codec.rs`.
+
+pub mod codec;
 
 use crate::database::{Axes, Clip, Database, FeatureGroup, FeatureKind, Site, Skeleton, Tag};
 use crate::error::{Error, Result};
+use crate::limits::{
+    num, quote, MAX_ABS_STORED, MAX_FEATURE_OFFSET, MAX_FEATURE_SCALE, MAX_FPS, MAX_SCALE, MAX_SOURCE_FPS, MIN_FEATURE_SCALE, MIN_FPS, MIN_SCALE,
+    MIN_SOURCE_FPS, QUAT_NORM_TOLERANCE,
+};
 use glam::{Quat, Vec3};
 
 #[cfg(target_endian = "big")]
 compile_error!("the .mmdb writer and reader assume a little-endian target");
 
 pub const MAGIC: [u8; 8] = *b"\x89MMDB\r\n\x1a";
-pub const VERSION: u32 = 1;
+/// The version this crate writes. It reads version 1 too (its pose arrays were plain f32,
+/// velocities included).
+pub const VERSION: u32 = 2;
 const HEADER_LEN: usize = 32;
 const ENTRY_LEN: usize = 24;
 const ALIGN: usize = 16;
 
 /// Section tags in the order they are written.
-const TAGS: [&[u8; 4]; 13] =
-    [b"INFO", b"SKEL", b"CLIP", b"TAGS", b"LPOS", b"LROT", b"LVEL", b"LAVL", b"CONT", b"FDSC", b"FNRM", b"FEAT", b"VALD"];
+const TAGS: [&[u8; 4]; 11] = [b"INFO", b"SKEL", b"CLIP", b"TAGS", b"PANM", b"QROT", b"CONT", b"FDSC", b"FNRM", b"FSHF", b"VALD"];
 
 /// Serializes a database.
+///
+/// Never panics. The writer trusts its input: a `Database` whose arrays disagree with its
+/// counts, or whose counts exceed `u32`, is written as is (truncated counts) and then refused
+/// by [`from_bytes`] — which is why the builder keeps databases within
+/// [`check_database_size`](crate::limits::check_database_size).
 pub fn to_bytes(db: &Database) -> Vec<u8> {
     // The big arrays are borrowed as bytes (the format is little-endian like every target we
     // build for, checked above) and copied once, into the output.
     let mut sections: Vec<(&[u8; 4], std::borrow::Cow<[u8]>)> = Vec::with_capacity(TAGS.len());
     for tag in TAGS {
         let data: std::borrow::Cow<[u8]> = match tag {
-            b"LPOS" => bytemuck::cast_slice(&db.local_positions).into(),
-            b"LROT" => bytemuck::cast_slice(&db.local_rotations).into(),
-            b"LVEL" => bytemuck::cast_slice(&db.local_velocities).into(),
-            b"LAVL" => bytemuck::cast_slice(&db.local_angular_velocities).into(),
+            b"PANM" => codec::encode_positions(&db.local_positions, &db.skeleton.offsets).into(),
+            b"QROT" => codec::encode_rotations(&db.local_rotations, db.num_joints()).into(),
             b"CONT" => db.contacts.as_slice().into(),
-            b"FEAT" => bytemuck::cast_slice(&db.features).into(),
+            b"FSHF" => codec::shuffle_features(&db.features, db.num_features()).into(),
             b"VALD" => db.valid.as_slice().into(),
             _ => small_section(db, tag).into(),
         };
@@ -101,9 +112,10 @@ fn small_section(db: &Database, tag: &[u8; 4]) -> Vec<u8> {
                 put_u32(&mut w, c.start);
                 put_u32(&mut w, c.end);
                 w.push(c.mirrored as u8);
-                put_f32(&mut w, c.source_fps);
+                w.extend_from_slice(&c.source_fps.to_le_bytes());
                 put_f32(&mut w, c.scale);
                 put_f32(&mut w, c.root_scale);
+                put_u32(&mut w, c.source_start);
             }
         }
         b"TAGS" => {
@@ -141,6 +153,21 @@ fn small_section(db: &Database, tag: &[u8; 4]) -> Vec<u8> {
 }
 
 /// Parses and validates `.mmdb` bytes.
+///
+/// Checks structure (header, checksum, a section table whose sections lie inside the file,
+/// 16-byte aligned, without overlap or duplicates; every count against the bytes that must
+/// hold it; records ending exactly at their section's end) and values (every float finite and
+/// within ±[`MAX_ABS_STORED`](crate::limits::MAX_ABS_STORED), unit quaternions, fps in
+/// [`MIN_FPS`](crate::limits::MIN_FPS)…[`MAX_FPS`](crate::limits::MAX_FPS), sane scales,
+/// at least one frame and one feature group, each group at least one dimension, contacts and
+/// validity 0 or 1). So a database that loads can be played: nothing in it makes the runtime
+/// divide by zero, loop on a huge fps or index out of range. Heap use is at most
+/// [`MMDB_ALLOCATION_FACTOR`](crate::limits::MMDB_ALLOCATION_FACTOR) × `bytes.len()` + 64 KiB
+/// whatever the counts claim, and no input panics.
+///
+/// # Errors
+/// [`Error::Format`] naming the section and field when any check fails (see "Validation a
+/// reader must do" in `docs/mmdb-format.md`).
 pub fn from_bytes(bytes: &[u8]) -> Result<Database> {
     if bytes.len() < HEADER_LEN {
         return Err(Error::format(format!("truncated: {} bytes, shorter than the 32-byte header", bytes.len())));
@@ -148,11 +175,13 @@ pub fn from_bytes(bytes: &[u8]) -> Result<Database> {
     if bytes[..8] != MAGIC {
         return Err(Error::format("wrong magic bytes: not a .mmdb file"));
     }
-    let version = u32::from_le_bytes(bytes[8..12].try_into().unwrap());
-    if version != VERSION {
-        return Err(Error::format(format!("unsupported format version {version} (this reader supports version {VERSION})")));
+    let version = le_u32(&bytes[8..12]);
+    if version != 1 && version != VERSION {
+        return Err(Error::format(format!(
+            "unsupported format version {version} (this reader reads versions 1 and {VERSION}); rebuild the database with this version's `mmdb build` or page builder"
+        )));
     }
-    let count = u32::from_le_bytes(bytes[12..16].try_into().unwrap()) as usize;
+    let count = le_u32(&bytes[12..16]) as usize;
     let file_size = u64::from_le_bytes(bytes[16..24].try_into().unwrap());
     if file_size != bytes.len() as u64 {
         return Err(Error::format(format!(
@@ -160,7 +189,7 @@ pub fn from_bytes(bytes: &[u8]) -> Result<Database> {
             bytes.len()
         )));
     }
-    let stored_crc = u32::from_le_bytes(bytes[24..28].try_into().unwrap());
+    let stored_crc = le_u32(&bytes[24..28]);
     let crc = crc32fast::hash(&bytes[HEADER_LEN..]);
     if crc != stored_crc {
         return Err(Error::format(format!("checksum mismatch (stored {stored_crc:08x}, computed {crc:08x}): the file is corrupt")));
@@ -169,24 +198,39 @@ pub fn from_bytes(bytes: &[u8]) -> Result<Database> {
     let Some(table_end) = table_end else {
         return Err(Error::format(format!("section table of {count} entries runs past the end of the file")));
     };
-    let mut sections: Vec<([u8; 4], &[u8])> = Vec::with_capacity(count);
+    // (tag, offset, data); the table is bounded by the file size above.
+    let mut sections: Vec<([u8; 4], usize, &[u8])> = Vec::with_capacity(count);
     for i in 0..count {
         let e = &bytes[HEADER_LEN + i * ENTRY_LEN..HEADER_LEN + (i + 1) * ENTRY_LEN];
         let tag: [u8; 4] = e[..4].try_into().unwrap();
-        let name = String::from_utf8_lossy(&tag).into_owned();
+        let name = tag_name(&tag);
         let offset = u64::from_le_bytes(e[8..16].try_into().unwrap());
         let length = u64::from_le_bytes(e[16..24].try_into().unwrap());
         if offset < table_end as u64 || offset.checked_add(length).is_none_or(|end| end > file_size) {
             return Err(Error::format(format!("section {name} (offset {offset}, length {length}) lies outside the file")));
         }
-        if sections.iter().any(|(t, _)| *t == tag) {
+        if offset % ALIGN as u64 != 0 {
+            return Err(Error::format(format!("section {name} starts at offset {offset}, not a multiple of {ALIGN}")));
+        }
+        if sections.iter().any(|(t, _, _)| *t == tag) {
             return Err(Error::format(format!("section {name} appears twice")));
         }
-        sections.push((tag, &bytes[offset as usize..(offset + length) as usize]));
+        // Both fit in usize: they are at most the length of a slice.
+        let (offset, length) = (offset as usize, length as usize);
+        sections.push((tag, offset, &bytes[offset..offset + length]));
+    }
+    // Sections may be stored in any order, but never share bytes: one byte must not be read
+    // as two things (a crafted file could otherwise alias, say, FEAT and LROT).
+    let mut by_offset: Vec<(usize, usize, [u8; 4])> = sections.iter().map(|&(t, o, d)| (o, o + d.len(), t)).collect();
+    by_offset.sort_unstable();
+    for w in by_offset.windows(2) {
+        if w[0].1 > w[1].0 {
+            return Err(Error::format(format!("sections {} and {} overlap", tag_name(&w[0].2), tag_name(&w[1].2))));
+        }
     }
     let section = |tag: &[u8; 4]| -> Result<Reader> {
-        sections.iter().find(|(t, _)| t == tag).map(|&(t, data)| Reader { data, pos: 0, tag: t }).ok_or_else(|| {
-            Error::format(format!("required section {} is missing", String::from_utf8_lossy(tag)))
+        sections.iter().find(|(t, _, _)| t == tag).map(|&(t, _, data)| Reader { data, pos: 0, tag: t }).ok_or_else(|| {
+            Error::format(format!("required section {} is missing", tag_name(tag)))
         })
     };
 
@@ -198,15 +242,37 @@ pub fn from_bytes(bytes: &[u8]) -> Result<Database> {
     let num_clips = info.u32("num_clips")? as usize;
     let num_tags = info.u32("num_tags")? as usize;
     let num_groups = info.u32("num_feature_groups")? as usize;
-    if !(fps > 0.0 && fps.is_finite()) {
-        return Err(Error::format(format!("INFO.fps must be a positive number, found {fps}")));
+    let flags = info.u32("flags")?;
+    info.finish()?;
+    // The runtime advances fps·dt frames per update: a flipped exponent bit here (1e30 fps)
+    // would spin it for ever.
+    if !(MIN_FPS as f32..=MAX_FPS as f32).contains(&fps) {
+        return Err(Error::format(format!("INFO.fps must be between {MIN_FPS} and {MAX_FPS}, found {}", num(fps))));
+    }
+    if num_frames == 0 {
+        return Err(Error::format("INFO.num_frames is 0: a database needs at least one frame"));
     }
     if num_joints == 0 {
         return Err(Error::format("INFO.num_joints is 0"));
     }
+    if num_groups == 0 || num_dims == 0 {
+        return Err(Error::format(format!(
+            "INFO has {num_groups} feature groups and {num_dims} feature dims: a database needs at least one of each"
+        )));
+    }
+    if flags & !1 != 0 {
+        return Err(Error::format(format!("INFO.flags is {flags:#x}: only bit 0 (mirrored clips) is defined")));
+    }
 
     let mut r = section(b"SKEL")?;
-    let mut skeleton = Skeleton { names: Vec::new(), parents: Vec::new(), offsets: Vec::new(), sites: Vec::new() };
+    // Each joint record is at least 20 bytes: check before reserving.
+    r.fits(num_joints, 20, "joint count")?;
+    let mut skeleton = Skeleton {
+        names: Vec::with_capacity(num_joints),
+        parents: Vec::with_capacity(num_joints),
+        offsets: Vec::with_capacity(num_joints),
+        sites: Vec::new(),
+    };
     for j in 0..num_joints {
         skeleton.names.push(r.string("joint name")?);
         let parent = r.i32("joint parent")?;
@@ -216,22 +282,27 @@ pub fn from_bytes(bytes: &[u8]) -> Result<Database> {
         skeleton.parents.push(parent);
         skeleton.offsets.push(r.vec3("joint offset")?);
     }
-    let num_sites = r.count(16, "site count")?;
+    let num_sites = r.count(20, "site count")?;
+    skeleton.sites.reserve(num_sites);
     for _ in 0..num_sites {
         let name = r.string("site name")?;
         let joint = r.i32("site joint")?;
         if joint < -1 || joint >= num_joints as i32 {
-            return Err(Error::format(format!("SKEL: site '{name}' names joint {joint}, out of range")));
+            return Err(Error::format(format!("SKEL: site '{}' names joint {joint}, out of range", quote(&name))));
         }
         skeleton.sites.push(Site { name, joint, offset: r.vec3("site offset")? });
     }
+    r.finish()?;
+
+    // Checked here: version 2 copies the offsets into every frame's pose.
+    check_floats("SKEL joint offset", bytemuck::cast_slice(&skeleton.offsets))?;
 
     let mut r = section(b"CLIP")?;
-    let n = r.count(26, "clip count")?;
+    let n = r.count(if version == 1 { 29 } else { 37 }, "clip count")?;
     if n != num_clips {
         return Err(Error::format(format!("CLIP holds {n} clips but INFO says {num_clips}")));
     }
-    let mut clips = Vec::with_capacity(n);
+    let mut clips: Vec<Clip> = Vec::with_capacity(n);
     let mut next = 0u32;
     for _ in 0..n {
         let clip = Clip {
@@ -239,22 +310,42 @@ pub fn from_bytes(bytes: &[u8]) -> Result<Database> {
             source: r.string("clip source")?,
             start: r.u32("clip start")?,
             end: r.u32("clip end")?,
-            mirrored: r.u8("clip mirrored")? != 0,
-            source_fps: r.f32("clip source fps")?,
+            mirrored: r.flag("clip mirrored")?,
+            source_fps: if version == 1 { r.f32("clip source fps")? as f64 } else { r.f64("clip source fps")? },
             scale: r.f32("clip scale")?,
             root_scale: r.f32("clip root scale")?,
+            source_start: if version == 1 { 0 } else { r.u32("clip source start")? },
         };
+        let name = quote(&clip.name);
         if clip.start != next || clip.end <= clip.start || clip.end as usize > num_frames {
             return Err(Error::format(format!(
-                "CLIP '{}' covers frames {}..{}; clips must be non-empty, in order and tile 0..{num_frames}",
-                clip.name, clip.start, clip.end
+                "CLIP '{name}' covers frames {}..{}; clips must be non-empty, in order and tile 0..{num_frames}",
+                clip.start, clip.end
             )));
+        }
+        if !(MIN_SOURCE_FPS..=MAX_SOURCE_FPS).contains(&clip.source_fps) {
+            return Err(Error::format(format!("CLIP '{name}': source fps {} is outside {MIN_SOURCE_FPS}..{MAX_SOURCE_FPS}", num(clip.source_fps))));
+        }
+        if !(MIN_SCALE as f32..=MAX_SCALE as f32).contains(&clip.scale) {
+            return Err(Error::format(format!("CLIP '{name}': scale {} is outside {}..{}", num(clip.scale), num(MIN_SCALE), num(MAX_SCALE))));
+        }
+        if !(1.0 / MAX_ROOT_SCALE..=MAX_ROOT_SCALE).contains(&clip.root_scale) {
+            return Err(Error::format(format!("CLIP '{name}': root scale {:e} is outside {:e}..{MAX_ROOT_SCALE:e}", clip.root_scale, 1.0 / MAX_ROOT_SCALE)));
+        }
+        // Names identify clips in the page and the CLI (a linear scan: clips are few and a
+        // hash set would allocate per name).
+        if clips.iter().any(|c| c.name == clip.name) {
+            return Err(Error::format(format!("CLIP: two clips are named '{name}'")));
         }
         next = clip.end;
         clips.push(clip);
     }
+    r.finish()?;
     if next as usize != num_frames {
         return Err(Error::format(format!("clips cover frames 0..{next} but the database has {num_frames} frames")));
+    }
+    if (flags & 1 != 0) != clips.iter().any(|c| c.mirrored) {
+        return Err(Error::format("INFO.flags bit 0 disagrees with the clips' mirrored flags"));
     }
 
     let mut r = section(b"TAGS")?;
@@ -271,20 +362,40 @@ pub fn from_bytes(bytes: &[u8]) -> Result<Database> {
         for _ in 0..k {
             let (s, e) = (r.u32("tag range start")?, r.u32("tag range end")?);
             if s < last || e <= s || e as usize > num_frames {
-                return Err(Error::format(format!("tag '{name}' has range {s}..{e}: ranges must be sorted, disjoint, within 0..{num_frames}")));
+                return Err(Error::format(format!(
+                    "tag '{}' has range {s}..{e}: ranges must be sorted, disjoint, within 0..{num_frames}",
+                    quote(&name)
+                )));
             }
             last = e;
             ranges.push((s, e));
         }
         tags.push(Tag { name, ranges });
     }
+    r.finish()?;
 
     let fj = num_frames.checked_mul(num_joints).ok_or_else(|| Error::format("INFO counts overflow"))?;
-    let local_positions = section(b"LPOS")?.vec3s(fj)?;
-    let local_rotations: Vec<Quat> = section(b"LROT")?.pods(fj)?;
-    let local_velocities = section(b"LVEL")?.vec3s(fj)?;
-    let local_angular_velocities = section(b"LAVL")?.vec3s(fj)?;
-    let contacts = section(b"CONT")?.bytes(num_frames * 2)?;
+    // Version 1 stores the pose arrays as plain f32 with velocities; version 2 encodes them
+    // (codec.rs) and velocities are derived below.
+    let (local_positions, local_rotations, velocities) = if version == 1 {
+        let local_positions = section(b"LPOS")?.vec3s(fj)?;
+        let local_rotations: Vec<Quat> = section(b"LROT")?.pods(fj)?;
+        if let Some(i) = local_rotations.iter().position(|q| !(q.length_squared() - 1.0).abs().le(&QUAT_NORM_TOLERANCE)) {
+            return Err(Error::format(format!(
+                "LROT: frame {} joint {} is not a unit quaternion ({})",
+                i / num_joints,
+                i % num_joints,
+                local_rotations[i]
+            )));
+        }
+        let velocities = (section(b"LVEL")?.vec3s(fj)?, section(b"LAVL")?.vec3s(fj)?);
+        (local_positions, local_rotations, Some(velocities))
+    } else {
+        let local_positions = codec::decode_positions(section(b"PANM")?.data, num_frames, &skeleton.offsets).map_err(Error::format)?;
+        let local_rotations = codec::decode_rotations(section(b"QROT")?.data, num_frames, num_joints, QUAT_NORM_TOLERANCE).map_err(Error::format)?;
+        (local_positions, local_rotations, None)
+    };
+    let contacts = section(b"CONT")?.flags(num_frames.checked_mul(2).ok_or_else(|| Error::format("INFO counts overflow"))?)?;
 
     let mut r = section(b"FDSC")?;
     let n = r.count(40, "feature group count")?;
@@ -295,43 +406,77 @@ pub fn from_bytes(bytes: &[u8]) -> Result<Database> {
     let mut next_dim = 0usize;
     for _ in 0..n {
         let name = r.string("feature name")?;
+        let quoted = quote(&name);
         let kind = match r.u8("feature kind")? {
             0 => FeatureKind::Position,
             1 => FeatureKind::Velocity,
             2 => FeatureKind::Direction,
-            k => return Err(Error::format(format!("FDSC: feature '{name}' has unknown kind {k}"))),
+            k => return Err(Error::format(format!("FDSC: feature '{quoted}' has unknown kind {k}"))),
         };
-        let is_trajectory = r.u8("feature trajectory flag")? != 0;
+        let is_trajectory = r.flag("feature trajectory flag")?;
         let axes = match r.u8("feature axes")? {
             0 => Axes::Xyz,
             1 => Axes::Xz,
-            a => return Err(Error::format(format!("FDSC: feature '{name}' has unknown axes {a}"))),
+            a => return Err(Error::format(format!("FDSC: feature '{quoted}' has unknown axes {a}"))),
         };
         r.u8("reserved")?;
         let joint = r.i32("feature joint")?;
         if joint < 0 || joint as usize >= num_joints {
-            return Err(Error::format(format!("FDSC: feature '{name}' names joint {joint}, out of range")));
+            return Err(Error::format(format!("FDSC: feature '{quoted}' names joint {joint}, out of range")));
         }
         let axis = r.vec3("feature axis")?;
         let k = r.count(4, "feature offset count")?;
         let offsets = (0..k).map(|_| r.i32("feature offset")).collect::<Result<Vec<_>>>()?;
+        if offsets.is_empty() {
+            return Err(Error::format(format!("FDSC: feature '{quoted}' has no frame offsets (no dimensions)")));
+        }
+        if let Some(o) = offsets.iter().find(|o| o.unsigned_abs() > MAX_FEATURE_OFFSET as u32) {
+            return Err(Error::format(format!("FDSC: feature '{quoted}' has frame offset {o}, beyond ±{MAX_FEATURE_OFFSET}")));
+        }
         let weight = r.f32("feature weight")?;
+        if !(1.0 / MAX_STORED_WEIGHT..=MAX_STORED_WEIGHT).contains(&weight) {
+            return Err(Error::format(format!("FDSC: feature '{quoted}' has weight {weight:e}, outside {:e}..{MAX_STORED_WEIGHT:e}", 1.0 / MAX_STORED_WEIGHT)));
+        }
         let first_dim = r.u32("feature first dim")? as usize;
         let num = r.u32("feature dim count")? as usize;
         if first_dim != next_dim || num != offsets.len() * axes.num_dims() {
-            return Err(Error::format(format!("FDSC: feature '{name}' spans dims {first_dim}+{num}; groups must tile 0..{num_dims} in order")));
+            return Err(Error::format(format!("FDSC: feature '{quoted}' spans dims {first_dim}+{num}; groups must tile 0..{num_dims} in order")));
         }
         next_dim += num;
         groups.push(FeatureGroup { name, kind, is_trajectory, axes, joint: joint as usize, axis, offsets, weight, first_dim, num_dims: num });
     }
+    r.finish()?;
     if next_dim != num_dims {
         return Err(Error::format(format!("feature groups cover {next_dim} dims but INFO says {num_dims}")));
     }
-    let norm = section(b"FNRM")?.f32s(2 * num_dims)?;
-    let features = section(b"FEAT")?.f32s(num_frames * num_dims)?;
-    let valid = section(b"VALD")?.bytes(num_frames)?;
+    let mut norm = section(b"FNRM")?.f32s(num_dims.checked_mul(2).ok_or_else(|| Error::format("INFO counts overflow"))?)?;
+    let feature_scale = norm.split_off(num_dims);
+    let feature_mean = norm;
+    if let Some(d) = feature_scale.iter().position(|s| !(MIN_FEATURE_SCALE..=MAX_FEATURE_SCALE).contains(s)) {
+        return Err(Error::format(format!(
+            "FNRM: scale of dim {d} is {}, outside {MIN_FEATURE_SCALE:e}..{MAX_FEATURE_SCALE:e} (queries are divided by it)",
+            num(feature_scale[d])
+        )));
+    }
+    let num_values = num_frames.checked_mul(num_dims).ok_or_else(|| Error::format("INFO counts overflow"))?;
+    let features = if version == 1 { section(b"FEAT")?.f32s(num_values)? } else { codec::unshuffle_features(section(b"FSHF")?.data, num_frames, num_dims).map_err(Error::format)? };
+    let valid = section(b"VALD")?.flags(num_frames)?;
 
-    Ok(Database {
+    // Every other float, in one place: finite and within ±MAX_ABS_STORED.
+    check_floats("SKEL site offset", &skeleton.sites.iter().flat_map(|s| s.offset.to_array()).collect::<Vec<_>>())?;
+    check_floats("FDSC feature axis", &groups.iter().flat_map(|g| g.axis.to_array()).collect::<Vec<_>>())?;
+    let (positions_tag, features_tag) = if version == 1 { ("LPOS", "FEAT") } else { ("PANM", "FSHF") };
+    check_floats(positions_tag, bytemuck::cast_slice(&local_positions))?;
+    if let Some((v, w)) = &velocities {
+        check_floats("LVEL", bytemuck::cast_slice(v))?;
+        check_floats("LAVL", bytemuck::cast_slice(w))?;
+    }
+    check_floats("FNRM mean", &feature_mean)?;
+    check_floats(features_tag, &features)?;
+
+    let derive = velocities.is_none();
+    let (local_velocities, local_angular_velocities) = velocities.unwrap_or_default();
+    let mut db = Database {
         skeleton,
         fps,
         num_frames,
@@ -343,11 +488,84 @@ pub fn from_bytes(bytes: &[u8]) -> Result<Database> {
         local_angular_velocities,
         contacts,
         groups,
-        feature_mean: norm[..num_dims].to_vec(),
-        feature_scale: norm[num_dims..].to_vec(),
+        feature_mean,
+        feature_scale,
         features,
         valid,
-    })
+    };
+    if derive {
+        db.compute_velocities();
+    }
+    Ok(db)
+}
+
+/// Checks that `loaded` is what writing `original` and reading it back may give: everything
+/// equal except the rotations, each within [`codec::MAX_ROTATION_ERROR`] of the original
+/// (version 2 quantizes them), and the velocities, which must be the ones the original's poses
+/// give ([`crate::database::pose_velocities`]): linear ones within 1e-4 m/s, angular ones
+/// within `2 · MAX_ROTATION_ERROR · fps` (the rotations they are derived from moved).
+///
+/// # Errors
+/// The first difference beyond those bounds.
+pub fn check_round_trip(original: &Database, loaded: &Database) -> std::result::Result<(), String> {
+    let exact = (&original.skeleton, original.fps, original.num_frames, &original.clips, &original.tags, &original.local_positions, &original.contacts)
+        == (&loaded.skeleton, loaded.fps, loaded.num_frames, &loaded.clips, &loaded.tags, &loaded.local_positions, &loaded.contacts)
+        && (&original.groups, &original.feature_mean, &original.feature_scale, &original.valid) == (&loaded.groups, &loaded.feature_mean, &loaded.feature_scale, &loaded.valid)
+        && original.features.iter().map(|f| f.to_bits()).eq(loaded.features.iter().map(|f| f.to_bits()));
+    if !exact {
+        return Err("the skeleton, clips, tags, positions, contacts, features or validity changed".into());
+    }
+    if original.local_rotations.len() != loaded.local_rotations.len() {
+        return Err("the rotation count changed".into());
+    }
+    for (i, (a, b)) in original.local_rotations.iter().zip(&loaded.local_rotations).enumerate() {
+        if codec::angle(*a, *b) > codec::MAX_ROTATION_ERROR {
+            return Err(format!("rotation {i} moved {:e} rad", codec::angle(*a, *b)));
+        }
+    }
+    // Against the velocities the original's own poses give: a version-1 file may store any.
+    let (velocities, angular_velocities) =
+        crate::database::pose_velocities(original.num_joints(), original.fps, &original.clips, &original.local_positions, &original.local_rotations);
+    let angular = (2.0 * codec::MAX_ROTATION_ERROR * original.fps as f64) as f32 * 1.01;
+    let pairs = [(&velocities, &loaded.local_velocities, 1e-4, "velocity"), (&angular_velocities, &loaded.local_angular_velocities, angular, "angular velocity")];
+    for (a, b, bound, what) in pairs {
+        if a.len() != b.len() {
+            return Err(format!("the {what} count changed"));
+        }
+        if let Some(i) = a.iter().zip(b.iter()).position(|(x, y)| !((*x - *y).length() <= bound)) {
+            return Err(format!("{what} {i} changed from {} to {}", a[i], b[i]));
+        }
+    }
+    Ok(())
+}
+
+/// Largest `CLIP.root_scale` (a leg-length ratio between two subjects; people differ by
+/// less than 3×, so 1,000× either way is corruption), and the inverse is the smallest.
+const MAX_ROOT_SCALE: f32 = 1e3;
+/// Largest feature weight a reader accepts, and the inverse the smallest (the configuration
+/// allows [`MIN_WEIGHT`](crate::limits::MIN_WEIGHT)…[`MAX_WEIGHT`](crate::limits::MAX_WEIGHT);
+/// files written before that check may have used more).
+const MAX_STORED_WEIGHT: f32 = 1e6;
+
+/// Errors on the first value that is not finite or exceeds [`MAX_ABS_STORED`] in magnitude.
+/// (A plain loop over the bits: it vectorizes, so the whole database costs ~1 ms.)
+fn check_floats(what: &str, values: &[f32]) -> Result<()> {
+    let bound = MAX_ABS_STORED.to_bits();
+    let bad = values.iter().fold(false, |bad, v| bad | (v.to_bits() & 0x7FFF_FFFF > bound));
+    if bad {
+        let i = values.iter().position(|v| v.to_bits() & 0x7FFF_FFFF > bound).unwrap_or(0);
+        return Err(Error::format(format!("{what}: value {i} is {}, not finite or beyond ±{MAX_ABS_STORED:e}", num(values[i]))));
+    }
+    Ok(())
+}
+
+fn le_u32(b: &[u8]) -> u32 {
+    u32::from_le_bytes(b.try_into().unwrap())
+}
+
+/// A section tag for a message (tags of corrupt files may hold any byte).
+fn tag_name(tag: &[u8; 4]) -> String {
+    quote(&String::from_utf8_lossy(tag))
 }
 
 fn align(n: usize) -> usize {
@@ -383,7 +601,7 @@ impl<'a> Reader<'a> {
         if self.data.len() - self.pos < n {
             return Err(Error::format(format!(
                 "section {} ends at byte {} while reading {field} ({n} bytes needed)",
-                String::from_utf8_lossy(&self.tag),
+                tag_name(&self.tag),
                 self.data.len()
             )));
         }
@@ -394,11 +612,40 @@ impl<'a> Reader<'a> {
     fn u8(&mut self, field: &str) -> Result<u8> {
         Ok(self.take(1, field)?[0])
     }
+    /// A byte that must be 0 or 1.
+    fn flag(&mut self, field: &str) -> Result<bool> {
+        match self.u8(field)? {
+            0 => Ok(false),
+            1 => Ok(true),
+            b => Err(Error::format(format!("{} {field} is {b}, not 0 or 1", tag_name(&self.tag)))),
+        }
+    }
+    /// Errors unless every byte of the section was read (records end exactly at its end).
+    fn finish(&self) -> Result<()> {
+        if self.pos != self.data.len() {
+            return Err(Error::format(format!(
+                "section {} has {} bytes after its last record",
+                tag_name(&self.tag),
+                self.data.len() - self.pos
+            )));
+        }
+        Ok(())
+    }
+    /// Errors unless `n` records of at least `min_size` bytes fit in the rest of the section.
+    fn fits(&self, n: usize, min_size: usize, field: &str) -> Result<()> {
+        if n.saturating_mul(min_size) > self.data.len() - self.pos {
+            return Err(Error::format(format!("{} {field} {n} does not fit in the section", tag_name(&self.tag))));
+        }
+        Ok(())
+    }
     fn u32(&mut self, field: &str) -> Result<u32> {
         Ok(u32::from_le_bytes(self.take(4, field)?.try_into().unwrap()))
     }
     fn i32(&mut self, field: &str) -> Result<i32> {
         Ok(i32::from_le_bytes(self.take(4, field)?.try_into().unwrap()))
+    }
+    fn f64(&mut self, field: &str) -> Result<f64> {
+        Ok(f64::from_le_bytes(self.take(8, field)?.try_into().unwrap()))
     }
     fn f32(&mut self, field: &str) -> Result<f32> {
         Ok(f32::from_le_bytes(self.take(4, field)?.try_into().unwrap()))
@@ -410,25 +657,27 @@ impl<'a> Reader<'a> {
     /// cannot hold that many (so a corrupt count never drives a huge allocation).
     fn count(&mut self, min_size: usize, field: &str) -> Result<usize> {
         let n = self.u32(field)? as usize;
-        if n.saturating_mul(min_size) > self.data.len() - self.pos {
-            return Err(Error::format(format!("{} {field} {n} does not fit in the section", String::from_utf8_lossy(&self.tag))));
-        }
+        self.fits(n, min_size, field)?;
         Ok(n)
     }
     fn string(&mut self, field: &str) -> Result<String> {
         let n = self.u32(field)? as usize;
         let bytes = self.take(n, field)?;
-        String::from_utf8(bytes.to_vec()).map_err(|_| Error::format(format!("{} {field} is not UTF-8", String::from_utf8_lossy(&self.tag))))
+        String::from_utf8(bytes.to_vec()).map_err(|_| Error::format(format!("{} {field} is not UTF-8", tag_name(&self.tag))))
     }
-    /// The whole section as exactly `n` bytes (fixed-size arrays must match INFO exactly).
-    fn bytes(&mut self, n: usize) -> Result<Vec<u8>> {
-        Ok(self.exact(n)?.to_vec())
+    /// The whole section as exactly `n` bytes, each 0 or 1 (`CONT`, `VALD`).
+    fn flags(&mut self, n: usize) -> Result<Vec<u8>> {
+        let data = self.exact(n)?;
+        if let Some(i) = data.iter().position(|&b| b > 1) {
+            return Err(Error::format(format!("section {}: byte {i} is {}, not 0 or 1", tag_name(&self.tag), data[i])));
+        }
+        Ok(data.to_vec())
     }
     fn exact(&self, n: usize) -> Result<&'a [u8]> {
         if self.data.len() != n {
             return Err(Error::format(format!(
                 "section {} is {} bytes but INFO implies {n}",
-                String::from_utf8_lossy(&self.tag),
+                tag_name(&self.tag),
                 self.data.len()
             )));
         }
@@ -436,7 +685,9 @@ impl<'a> Reader<'a> {
     }
     /// `n` plain-old-data values filling the whole section (copied, so alignment is free).
     fn pods<T: bytemuck::Pod>(&mut self, n: usize) -> Result<Vec<T>> {
-        Ok(bytemuck::pod_collect_to_vec(self.exact(n * std::mem::size_of::<T>())?))
+        // Checked: on wasm32 `n · size` could wrap and match a short section.
+        let len = n.checked_mul(std::mem::size_of::<T>()).ok_or_else(|| Error::format(format!("{} size overflows", tag_name(&self.tag))))?;
+        Ok(bytemuck::pod_collect_to_vec(self.exact(len)?))
     }
     fn f32s(&mut self, n: usize) -> Result<Vec<f32>> {
         self.pods(n)
@@ -452,7 +703,7 @@ mod tests {
 
     /// A tiny but complete database: 2 joints, 3 frames, one clip, one tag, one feature group.
     pub(crate) fn tiny() -> Database {
-        Database {
+        let mut db = Database {
             skeleton: Skeleton {
                 names: vec!["VirtualRoot".into(), "Hips".into()],
                 parents: vec![-1, 0],
@@ -461,7 +712,7 @@ mod tests {
             },
             fps: 60.0,
             num_frames: 3,
-            clips: vec![Clip { name: "a".into(), source: "a.bvh".into(), start: 0, end: 3, mirrored: false, source_fps: 120.0, scale: 1.0, root_scale: 1.0 }],
+            clips: vec![Clip { name: "a".into(), source: "a.bvh".into(), start: 0, end: 3, mirrored: false, source_fps: 120.0, scale: 1.0, root_scale: 1.0, source_start: 0 }],
             tags: vec![Tag { name: "walk".into(), ranges: vec![(0, 2)] }],
             local_positions: (0..6).map(|i| Vec3::splat(i as f32)).collect(),
             local_rotations: vec![Quat::IDENTITY; 6],
@@ -484,7 +735,9 @@ mod tests {
             feature_scale: vec![2.0, 2.0],
             features: vec![0.0, 1.0, 2.0, 3.0, 4.0, 5.0],
             valid: vec![1, 1, 0],
-        }
+        };
+        db.compute_velocities();
+        db
     }
 
     fn message(bytes: &[u8]) -> String {
@@ -502,6 +755,7 @@ mod tests {
         let db = tiny();
         let bytes = to_bytes(&db);
         assert_eq!(bytes.len() % 16, 0);
+        // The tiny database's rotations are identities, which quantize exactly.
         assert_eq!(from_bytes(&bytes).unwrap(), db);
     }
 
@@ -514,8 +768,8 @@ mod tests {
         b[0] = b'X';
         assert!(message(&b).contains("magic"));
         let mut b = bytes.clone();
-        b[8] = 2;
-        assert!(message(&b).contains("version 2"));
+        b[8] = 3;
+        assert!(message(&b).contains("version 3 (this reader reads versions 1 and 2); rebuild"));
         let mut b = bytes.clone();
         let last = b.len() - 20;
         b[last] ^= 0x40;
@@ -549,5 +803,111 @@ mod tests {
         let mut db = tiny();
         db.contacts.pop();
         assert!(message(&to_bytes(&db)).contains("section CONT is 5 bytes but INFO implies 6"));
+    }
+
+    /// Values, not only structure: each of these loaded before (with a valid checksum) and
+    /// then froze, trapped or poisoned the runtime.
+    #[test]
+    fn rejects_insane_values() {
+        type Edit = Box<dyn Fn(&mut Database)>;
+        let cases: Vec<(&str, Edit, &str)> = vec![
+            ("huge fps", Box::new(|db| db.fps = 1e30), "INFO.fps must be between 1 and 1000"),
+            ("zero fps", Box::new(|db| db.fps = 0.0), "INFO.fps"),
+            ("nan fps", Box::new(|db| db.fps = f32::NAN), "INFO.fps"),
+            ("nan position", Box::new(|db| db.local_positions[3].y = f32::NAN), "PANM: value 10 is NaN"),
+            ("inf feature", Box::new(|db| db.features[5] = f32::INFINITY), "FSHF: value 5 is inf"),
+            ("zero scale", Box::new(|db| db.feature_scale[1] = 0.0), "FNRM: scale of dim 1 is 0"),
+            ("nan clip scale", Box::new(|db| db.clips[0].scale = f32::NAN), "CLIP 'a': scale NaN"),
+            ("not a unit quaternion", Box::new(|db| db.local_rotations[4] = Quat::from_xyzw(0.0, 0.0, 0.0, 0.5)), "QROT: frame 2 joint 0 is not a unit quaternion"),
+            ("contact byte 2", Box::new(|db| db.contacts[1] = 2), "section CONT: byte 1 is 2"),
+            ("huge offset", Box::new(|db| db.groups[0].offsets[0] = i32::MIN), "frame offset -2147483648"),
+            ("nan weight", Box::new(|db| db.groups[0].weight = f32::NAN), "weight NaN"),
+            ("denormal weight", Box::new(|db| db.groups[0].weight = 1e-40), "weight 1e-40"),
+            ("zero root scale", Box::new(|db| db.clips[0].root_scale = 0.0), "root scale 0e0"),
+            ("nan site", Box::new(|db| db.skeleton.sites[0].offset.x = f32::NAN), "SKEL site offset"),
+            ("duplicate clip name", Box::new(|db| {
+                db.clips[0].end = 1;
+                let mut c = db.clips[0].clone();
+                (c.start, c.end) = (1, 3);
+                db.clips.push(c);
+            }), "two clips are named 'a'"),
+        ];
+        for (what, edit, expected) in cases {
+            let mut db = tiny();
+            edit(&mut db);
+            let m = message(&to_bytes(&db));
+            assert!(m.contains(expected), "{what}: {m}");
+        }
+    }
+
+    /// At least one frame and one feature group of at least one dimension (inspect and the
+    /// runtime index rows by the dimension count).
+    #[test]
+    fn rejects_empty_databases() {
+        let mut db = tiny();
+        db.num_frames = 0;
+        db.clips.clear();
+        db.tags.clear();
+        for v in [&mut db.local_positions, &mut db.local_velocities, &mut db.local_angular_velocities] {
+            v.clear();
+        }
+        db.local_rotations.clear();
+        db.contacts.clear();
+        db.features.clear();
+        db.valid.clear();
+        assert!(message(&to_bytes(&db)).contains("INFO.num_frames is 0"));
+        let mut db = tiny();
+        db.groups.clear();
+        db.feature_mean.clear();
+        db.feature_scale.clear();
+        db.features.clear();
+        assert!(message(&to_bytes(&db)).contains("0 feature groups and 0 feature dims"));
+        let mut db = tiny();
+        db.groups[0].offsets.clear();
+        assert!(message(&to_bytes(&db)).contains("has no frame offsets"));
+    }
+
+    /// Sections that share bytes, or are misaligned, are refused even with a valid checksum.
+    #[test]
+    fn rejects_overlapping_and_misaligned_sections() {
+        let bytes = to_bytes(&tiny());
+        let entry = |tag: &[u8; 4]| HEADER_LEN + TAGS.iter().position(|t| *t == tag).unwrap() * ENTRY_LEN;
+        // Point CONT at the start of QROT: only the overlap check can catch it.
+        let mut b = bytes.clone();
+        let qrot: [u8; 8] = b[entry(b"QROT") + 8..entry(b"QROT") + 16].try_into().unwrap();
+        b[entry(b"CONT") + 8..entry(b"CONT") + 16].copy_from_slice(&qrot);
+        refix(&mut b);
+        assert!(message(&b).contains("sections QROT and CONT overlap") || message(&b).contains("sections CONT and QROT overlap"), "{}", message(&b));
+        let mut b = bytes.clone();
+        b[entry(b"INFO") + 8] += 4;
+        refix(&mut b);
+        assert!(message(&b).contains("not a multiple of 16"), "{}", message(&b));
+    }
+
+    /// Version 1 (plain f32 poses with stored velocities) still loads; written again it is
+    /// version 2 and decodes to the same database within the quantization bound, with
+    /// velocities derived by the same formula the builder used.
+    #[test]
+    fn version_1_still_loads_and_converts() {
+        let v1 = std::fs::read(concat!(env!("CARGO_MANIFEST_DIR"), "/tests/corpus/mmdb/humanoid.mmdb")).unwrap();
+        assert_eq!(le_u32(&v1[8..12]), 1);
+        let old = from_bytes(&v1).unwrap();
+        let v2 = to_bytes(&old);
+        assert_eq!(le_u32(&v2[8..12]), 2);
+        assert!(v2.len() * 2 < v1.len(), "{} vs {} bytes", v2.len(), v1.len());
+        let new = from_bytes(&v2).unwrap();
+        assert_eq!(new.local_positions, old.local_positions);
+        assert_eq!(new.features, old.features);
+        assert_eq!((&new.contacts, &new.valid, &new.clips, &new.skeleton), (&old.contacts, &old.valid, &old.clips, &old.skeleton));
+        for (a, b) in old.local_rotations.iter().zip(&new.local_rotations) {
+            assert!(codec::angle(*a, *b) <= codec::MAX_ROTATION_ERROR);
+        }
+        // Stored (f64 builder) and derived (from the stored f32 poses) velocities agree.
+        for (a, b) in old.local_velocities.iter().zip(&new.local_velocities) {
+            assert!((*a - *b).length() < 1e-4, "{a} vs {b}");
+        }
+        for (a, b) in old.local_angular_velocities.iter().zip(&new.local_angular_velocities) {
+            assert!((*a - *b).length() < 0.01, "{a} vs {b}");
+        }
     }
 }

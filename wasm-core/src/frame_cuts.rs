@@ -4,6 +4,7 @@
 //! where the style lacks the take; the file of style `Angry`, type `BW` is `Angry_BW.bvh`.
 
 use crate::error::{Error, Result};
+use crate::limits::quote;
 use std::collections::HashMap;
 
 /// `file name → [start, stop)` source frames for every take the CSV lists.
@@ -22,7 +23,7 @@ pub fn parse(text: &str) -> Result<HashMap<String, [usize; 2]>> {
     for pair in columns[1..].chunks(2) {
         match pair {
             [a, b] if a.strip_suffix("_START").is_some() && a.strip_suffix("_START") == b.strip_suffix("_STOP") => types.push(a.strip_suffix("_START").unwrap()),
-            _ => return Err(Error::config(format!("Frame_Cuts.csv: expected <TYPE>_START,<TYPE>_STOP column pairs, found {pair:?}"))),
+            _ => return Err(Error::config(format!("Frame_Cuts.csv: expected <TYPE>_START,<TYPE>_STOP column pairs, found '{}'", quote(&pair.join(","))))),
         }
     }
     let mut cuts = HashMap::new();
@@ -31,7 +32,7 @@ pub fn parse(text: &str) -> Result<HashMap<String, [usize; 2]>> {
         let number = |k: usize| -> Result<Option<usize>> {
             match cells.get(k).copied().unwrap_or("N/A") {
                 "N/A" | "" => Ok(None),
-                v => v.parse().map(Some).map_err(|_| Error::config(format!("Frame_Cuts.csv:{}: '{v}' is not a frame number", i + 1))),
+                v => v.parse().map(Some).map_err(|_| Error::config(format!("Frame_Cuts.csv:{}: '{}' is not a frame number", i + 1, quote(v)))),
             }
         };
         for (t, kind) in types.iter().enumerate() {

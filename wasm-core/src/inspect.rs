@@ -38,7 +38,7 @@ pub fn summary(db: &Database, size_bytes: Option<usize>) -> Value {
         "feature_range": lo.iter().zip(&hi).map(|(l, h)| [l, h]).collect::<Vec<_>>(),
         "clips": db.clips.iter().map(|c| json!({
             "name": c.name, "source": c.source, "start": c.start, "end": c.end, "mirrored": c.mirrored,
-            "source_fps": c.source_fps, "scale": c.scale, "root_scale": c.root_scale,
+            "source_fps": c.source_fps, "source_start": c.source_start, "scale": c.scale, "root_scale": c.root_scale,
         })).collect::<Vec<_>>(),
         "tags": db.tags.iter().map(|t| json!({
             "name": t.name, "ranges": t.ranges, "frames": t.ranges.iter().map(|(s, e)| e - s).sum::<u32>(),

@@ -18,6 +18,7 @@ pub mod ik;
 pub mod inertialize;
 pub mod inspect;
 pub mod kinematics;
+pub mod limits;
 pub mod lanes;
 pub mod parallel;
 pub mod quality;

@@ -167,6 +167,17 @@ impl Retargeter {
                 target.rest_local_positions.len()
             ));
         }
+        // A rest pose read from a broken file must not poison every later frame.
+        let bad_rotation = |q: &Quat| !q.is_finite() || q.length() < 1e-6;
+        if let Some(j) = target.rest_local_rotations.iter().position(bad_rotation) {
+            return Err(format!("retarget: avatar joint {j}'s rest rotation is not a rotation ({:?})", target.rest_local_rotations[j]));
+        }
+        if let Some(j) = target.rest_local_positions.iter().position(|p| !p.is_finite()) {
+            return Err(format!("retarget: avatar joint {j}'s rest position is not finite ({:?})", target.rest_local_positions[j]));
+        }
+        if bad_rotation(&target.root_parent_rotation) {
+            return Err(format!("retarget: the avatar's root parent rotation is not a rotation ({:?})", target.root_parent_rotation));
+        }
         let mut source_roles = Roles::default();
         for site in &db.skeleton.sites {
             // A toe site on a foot's end point (no toe joint) is not a joint of the role.

@@ -393,6 +393,10 @@ pub struct Humanoid {
 const UPPER_ARM: f64 = 0.35;
 const FOREARM: f64 = 0.27;
 
+/// Most sibling-limb pairs [`find_humanoid`] compares (the largest): a humanoid has a few dozen
+/// at most (legs, arms, fingers, toes).
+const MAX_LIMB_PAIRS: usize = 256;
+
 /// Finds a humanoid in a skeleton without its names (docs/database.md, "Roles"):
 /// 1. **limbs** are pairs of sibling branches of the same shape (joint tree) and length; the
 ///    two longest pairs where one hangs below the other's parent are the legs (the lower pair)
@@ -475,6 +479,15 @@ pub fn find_humanoid(parents: &[i32], shape: &Shape) -> Result<Humanoid, String>
         return Err("no pair of matching limbs (legs) found".into());
     }
     let size = |&(_, a, b): &(usize, usize, usize)| limb(a).max(limb(b));
+    // Legs and arms are among the largest pairs; a hostile file with hundreds of identical
+    // siblings would otherwise make the pair-of-pairs search below quadratic in ~n² pairs.
+    // (A stable sort: among equal sizes the file order decides, as before.)
+    if pairs.len() > MAX_LIMB_PAIRS {
+        pairs.sort_by(|a, b| size(b).total_cmp(&size(a)));
+        pairs.truncate(MAX_LIMB_PAIRS);
+    }
+    // The two longest consecutive bones below each paired limb (for limbs hanging off one joint).
+    let leg_sum: HashMap<usize, Option<f64>> = pairs.iter().flat_map(|&(_, a, b)| [a, b]).map(|j| (j, leg_bones(j).map(|l| l.0))).collect();
     let inside = |branch: usize, j: usize| j == branch || is_ancestor(parents, branch, j);
     let mut best: Option<(f64, usize, usize)> = None;
     for (x, legs) in pairs.iter().enumerate() {
@@ -484,7 +497,7 @@ pub fn find_humanoid(parents: &[i32], shape: &Shape) -> Result<Humanoid, String>
             let apart = !inside(legs.1, ap) && !inside(legs.2, ap) && !inside(arms.1, lp) && !inside(arms.2, lp);
             let comparable = size(arms) >= 0.3 * size(legs) && size(legs) >= 0.3 * size(arms);
             // Limbs hanging off one joint: the legs are the pair with the longer two bones.
-            let longer = ap != lp || leg_bones(legs.1).map(|l| l.0) >= leg_bones(arms.1).map(|l| l.0);
+            let longer = ap != lp || leg_sum[&legs.1] >= leg_sum[&arms.1];
             if x != y && below && apart && comparable && longer {
                 let score = size(legs) + size(arms);
                 if best.is_none_or(|b| score > b.0) {
@@ -814,5 +827,19 @@ mod tests {
         assert!(find_roles(&names, &parents, &bad).unwrap_err().to_string().contains("unknown role 'heed'"));
         let missing = HashMap::from([("head".to_string(), "Kopf".to_string())]);
         assert!(find_roles(&names, &parents, &missing).unwrap_err().to_string().contains("'Kopf'"));
+    }
+
+    /// A hostile skeleton of ~1,000 identical siblings (half a million sibling pairs) is judged
+    /// in bounded time, not by comparing every pair with every other.
+    #[test]
+    fn many_identical_siblings_are_judged_quickly() {
+        let n = 1001;
+        let parents: Vec<i32> = (0..n).map(|j| if j == 0 { -1 } else { 0 }).collect();
+        let offsets: Vec<DVec3> = (0..n).map(|j| if j == 0 { DVec3::ZERO } else { DVec3::new(0.0, -0.4, 0.01 * j as f64) }).collect();
+        let end_sites = vec![Some(DVec3::new(0.0, -0.4, 0.0)); n];
+        let started = std::time::Instant::now();
+        let found = find_humanoid(&parents, &Shape { offsets: &offsets, end_sites: &end_sites, poses: &[] });
+        assert!(found.is_err(), "{found:?}");
+        assert!(started.elapsed().as_secs_f64() < 1.0, "{:?}", started.elapsed());
     }
 }

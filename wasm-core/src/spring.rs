@@ -5,7 +5,7 @@
 //! A critically damped spring released at rest from offset x₀ follows
 //! `x(t) = x₀·e^(−y·t)·(1 + y·t)`: it never overshoots. We choose `y` so that the offset is
 //! exactly halved after one half-life: `e^(−s)(1 + s) = ½` at `s = 1.678347`, so
-//! `y = 1.678347 / halflife`. (Holden and docs/method.md use `y = 2·ln2 / halflife`, which
+//! `y = 1.678347 / halflife`. (Holden uses `y = 2·ln2 / halflife`, which
 //! halves the offset only after ~1.21 half-lives; the shapes are identical, only the name of
 //! the time constant differs. Defaults below are in our exact half-lives.)
 

@@ -57,7 +57,11 @@ impl Recording {
         if v["format"] != "mm-vr-recording" || v["version"] != 1 {
             return Err("recording: not an mm-vr-recording of version 1".into());
         }
-        let n = v["frames"].as_u64().ok_or("recording: no frame count")? as usize;
+        let n = v["frames"].as_u64().ok_or("recording: no frame count")?;
+        if n > crate::limits::MAX_FRAMES as u64 {
+            return Err(format!("recording: {n} frames, more than {}", crate::limits::MAX_FRAMES));
+        }
+        let n = n as usize;
         let numbers = |key: &serde_json::Value, len: usize, what: &str| -> Result<Vec<f64>, String> {
             let a: Vec<f64> = key.as_array().ok_or(format!("recording: no {what}"))?.iter().map(|x| x.as_f64().unwrap_or(f64::NAN)).collect();
             if a.len() != len || a.iter().any(|x| !x.is_finite()) {

@@ -7,7 +7,7 @@ use mmcore::character::{Character, CharacterSettings, Tracked};
 use mmcore::config::BuildConfig;
 use mmcore::controller::Input;
 use mmcore::search::SearchIndex;
-use mmcore::{build, quality, vr_replay, Bvh, Database, Source};
+use mmcore::{build, format, quality, vr_replay, Bvh, Database, Source};
 use std::path::Path;
 use std::sync::OnceLock;
 
@@ -65,6 +65,10 @@ fn the_default_databases_hold_every_way_of_moving() {
             assert!(s >= 2.0, "{name}: only {s:.1} s tagged {tag}");
         }
         assert!(!notes.is_empty(), "{name}: 100STYLE takes are retargeted");
+        // Retargeted clips and motion tags survive the .mmdb (version 2) as the shipped files.
+        let bytes = format::to_bytes(db);
+        println!("  .mmdb: {:.1} MB", bytes.len() as f64 / 1e6);
+        format::check_round_trip(db, &format::from_bytes(&bytes).unwrap()).unwrap_or_else(|e| panic!("{name}: {e}"));
     }
 }
 

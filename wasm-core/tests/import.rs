@@ -7,7 +7,7 @@ use glam::{DQuat, DVec3, EulerRot, Quat, Vec3};
 use mmcore::bvh::{BvhJoint, Channel};
 use mmcore::config::BuildConfig;
 use mmcore::roles::Role;
-use mmcore::{build, Bvh, Database, Source};
+use mmcore::{build, format, Bvh, Database, Source};
 use std::path::{Path, PathBuf};
 
 fn mocap() -> PathBuf {
@@ -240,6 +240,8 @@ fn a_mixed_skeleton_database_builds_with_bounded_error() {
         assert!((0.3..0.75).contains(&share), "100STYLE contact share {share}");
     }
     assert!(db.tags.iter().any(|t| t.name == "backward" && t.ranges.iter().any(|&(a, b)| a <= s as u32 && b >= e as u32)));
+    // What the .mmdb keeps of a retargeted database: everything `check_round_trip` requires.
+    format::check_round_trip(db, &format::from_bytes(&format::to_bytes(db)).unwrap()).unwrap();
 }
 
 /// Walking played backward: the reversed copy's frames are the original's in reverse order,
@@ -261,4 +263,16 @@ fn reversed_copies_play_the_take_backward() {
     let tag = |name: &str| db.tags.iter().find(|t| t.name == name).unwrap().ranges.clone();
     assert_eq!(tag("walk"), vec![(0, n as u32)]);
     assert_eq!(tag("backward"), vec![(n as u32, 2 * n as u32)]);
+    // Through the .mmdb (version 2 stores no velocities: the reader derives them per clip): the
+    // reversed clip, its name (the only mark of a reversal) and tag survive, and its derived
+    // velocities are still the original's negated.
+    let loaded = format::from_bytes(&format::to_bytes(&db)).unwrap();
+    format::check_round_trip(&db, &loaded).unwrap();
+    assert_eq!(loaded.clips[1].name, "cmu_16_15 (reversed)");
+    assert_eq!((loaded.clips[1].source_start, loaded.clips[1].source_fps), (db.clips[0].source_start, db.clips[0].source_fps));
+    for f in 0..n {
+        let g = n + (n - 1 - f);
+        let (v, w) = (loaded.local_velocities[f * j + 1], loaded.local_velocities[g * j + 1]);
+        assert!((v + w).length() < 1e-3, "loaded frame {f}: hips velocity {v} vs reversed {w}");
+    }
 }

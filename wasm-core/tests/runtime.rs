@@ -187,7 +187,7 @@ fn switching_databases_is_inertialized() {
     }
 }
 
-/// THESIS_NOTES §7 through the whole character: while a foot stays locked, its toe (in the
+/// docs/method.md §7 through the whole character: while a foot stays locked, its toe (in the
 /// shown pose, world space) moves less than 1 mm per frame.
 #[test]
 fn a_locked_foot_stays_put() {
@@ -215,7 +215,7 @@ fn a_locked_foot_stays_put() {
     assert!(worst < 1e-3, "a locked toe moved {worst} m in one frame");
 }
 
-/// VR (THESIS_NOTES §9): a tracked user walking forward, side-stepping and turning in place.
+/// VR (docs/method.md §9): a tracked user walking forward, side-stepping and turning in place.
 /// The root stays within α of the head's floor position, moves with it, and turns to the
 /// predicted body yaw.
 #[test]

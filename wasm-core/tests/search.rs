@@ -138,3 +138,33 @@ fn index_build_time() {
     // Generous: the point is "a few ms, rebuild at load" (see aabb.rs).
     assert!(times[3] < 100.0, "index build took {} ms", times[3]);
 }
+
+/// What loading costs (docs/mmdb-format.md, "What is not stored"): decoding the file and, in
+/// it, deriving the velocities that version 2 does not store. Printed, not asserted.
+#[test]
+fn load_time() {
+    let (db, what) = database();
+    let bytes = format::to_bytes(&db);
+    let median = |f: &mut dyn FnMut()| {
+        let mut t: Vec<f64> = (0..7)
+            .map(|_| {
+                let s = Instant::now();
+                f();
+                s.elapsed().as_secs_f64() * 1e3
+            })
+            .collect();
+        t.sort_by(f64::total_cmp);
+        (t[0], t[3])
+    };
+    let load = median(&mut || drop(std::hint::black_box(format::from_bytes(&bytes).unwrap())));
+    let mut copy = db.clone();
+    let velocities = median(&mut || copy.compute_velocities());
+    println!(
+        "format::from_bytes on {what} ({:.2} MB): min {:.1} / median {:.1} ms, of which deriving velocities {:.1} / {:.1} ms",
+        bytes.len() as f64 / 1e6,
+        load.0,
+        load.1,
+        velocities.0,
+        velocities.1
+    );
+}

@@ -6,6 +6,12 @@
  * server, the site root. `setAssetBase` overrides it (e.g. a CDN folder).
  */
 declare const __MM_ASSET_BASE__: string | undefined;
+/**
+ * Content hashes and sizes of the default assets of a build (vite.config.ts), e.g.
+ * `{"databases/locomotion.mmdb": {"v": "1f2e…", "bytes": 34577008}}`: their URLs get `?v=<hash>`,
+ * so caches may keep them for good (cache.ts, the server's `immutable`); none in development.
+ */
+declare const __MM_ASSET_VERSIONS__: Record<string, { v: string; bytes: number }> | undefined;
 
 /** The built-in base, relative to this module's URL ('/' in development). */
 const BUILT_IN = typeof __MM_ASSET_BASE__ === 'string' ? __MM_ASSET_BASE__ : '/';
@@ -25,10 +31,30 @@ export function setAssetBase(url: string | URL): void {
   if (!base.pathname.endsWith('/')) base.pathname += '/';
 }
 
-/** URL of a default asset, e.g. `assetUrl('databases/locomotion.mmdb')`. */
+const VERSIONS = typeof __MM_ASSET_VERSIONS__ === 'object' && __MM_ASSET_VERSIONS__ ? __MM_ASSET_VERSIONS__ : {};
+
+/**
+ * URL of a default asset, e.g. `assetUrl('databases/locomotion.mmdb')`; in a build, versioned by
+ * its content hash (`…/locomotion.mmdb?v=1f2e3d4c5b6a7980`).
+ */
 export function assetUrl(path: string): URL {
   base ??= defaultBase();
-  return new URL(path, base);
+  const url = new URL(path, base);
+  const version = VERSIONS[path];
+  if (version && !url.search) url.searchParams.set('v', version.v);
+  return url;
+}
+
+/** Whether this is a build with versioned assets (not the dev server). */
+export function hasAssetVersions(): boolean {
+  return Object.keys(VERSIONS).length > 0;
+}
+
+/** The size in bytes of a default asset as built (for progress when it is sent compressed), or 0. */
+export function assetBytes(url: string | URL): number {
+  const u = new URL(String(url), base ?? defaultBase());
+  const v = u.searchParams.get('v');
+  return v ? (Object.values(VERSIONS).find((e) => e.v === v)?.bytes ?? 0) : 0;
 }
 
 /** The shipped defaults. */

@@ -25,13 +25,15 @@ export { MMAvatarElement, defineMMAvatar } from './element/mm-avatar.ts';
 export type { ErrorDetail, ProgressDetail } from './element/mm-avatar.ts';
 
 // Databases, loading, the WASM module.
-export { Database, loadDatabase } from './core/database.ts';
-export type { ClipInfo, FeatureGroupInfo, TagInfo } from './core/database.ts';
+export { Database, listDatabases, loadDatabase } from './core/database.ts';
+export type { ClipInfo, DatabaseEntry, FeatureGroupInfo, TagInfo } from './core/database.ts';
 export { DatabaseBuilder } from './core/builder.ts';
 export { initWasm, initWasmSync, liveObjects } from './core/wasm.ts';
-export type { LiveObjects } from './core/wasm.ts';
-export { DEFAULT_AVATAR, DEFAULT_DATABASE, DEFAULT_ORIENTATION_MODEL, assetUrl, setAssetBase } from './assets.ts';
+export type { LiveObjects, WasmExports } from './core/wasm.ts';
+export { DEFAULT_AVATAR, DEFAULT_DATABASE, DEFAULT_ORIENTATION_MODEL, assetBytes, assetUrl, hasAssetVersions, setAssetBase } from './assets.ts';
 export { errorMessage, fetchBytes } from './fetch.ts';
+export { ASSET_CACHE, isVersioned } from './cache.ts';
+export { registerOfflineCache } from './offline.ts';
 export type { FetchOptions, FetchProgress } from './fetch.ts';
 
 // The runtime underneath (advanced: crowds, benchmarks, tools).
@@ -48,13 +50,15 @@ export type { SettingInfo } from './character/settings.ts';
 export { MoveControls } from './input/move-controls.ts';
 export { KeyboardInput } from './input/keyboard.ts';
 export { readGamepad } from './input/gamepad.ts';
+export type { GamepadLike } from './input/gamepad.ts';
 export { CameraBasis } from './input/input.ts';
 
 // Scene helpers.
 export { Stage } from './views/stage.ts';
+export { FloorGrid } from './views/floor-grid.ts';
 export { FollowCamera } from './views/follow-camera.ts';
 export { SkeletonView } from './views/skeleton-view.ts';
-export { DebugViews } from './views/debug-views.ts';
+export { DebugViews, TrajectoryView } from './views/debug-views.ts';
 export { PathEditor } from './views/path-editor.ts';
 export { RootMarker } from './views/root-marker.ts';
 export { Playback } from './views/playback.ts';
@@ -63,30 +67,41 @@ export { UpdateTimer } from './views/update-timer.ts';
 // VR: tracked devices drive the character.
 export { CROUCH_DEADBAND, DEFAULT_ALPHA, HMD_TO_HEAD_CENTRE, TrackedDrive, VR_SETTINGS } from './vr/tracked-drive.ts';
 export { HEAD, LEFT, NUM_TRACKERS, RIGHT, TrackerSample, sampleXRFrame } from './vr/tracker-sample.ts';
-export { TrackerState } from './vr/trackers.ts';
+export { TrackerState, TrackerView } from './vr/trackers.ts';
+export type { TrackerOptions } from './vr/trackers.ts';
 export type { BodyYawPredictor, TrackerPose } from './vr/body-yaw.ts';
 export { HeadingYawPredictor } from './vr/fallback-yaw.ts';
+export type { HeadingYawOptions } from './vr/fallback-yaw.ts';
 export { NetworkYawPredictor, loadNetworkPredictor } from './vr/network-yaw.ts';
+export type { OrientationModel } from './orientation/orientation-model.ts';
+export type { OrientationFeatures } from './orientation/features.ts';
 export { RecordingPlayer, TrackerRecorder, decodeRecording, encodeRecordingJson } from './vr/recording.ts';
-export type { Recording } from './vr/recording.ts';
+export type { Recording, RecordingMeta, RecordingTruth } from './vr/recording.ts';
 export { SCRIPT_DURATION, scriptedSample } from './vr/scripted-motion.ts';
+export { loadRecording } from './vr/load-recording.ts';
 export { EnterVrButton } from './vr/enter-vr-button.ts';
 export { SpectatorView } from './vr/spectator-view.ts';
 export { UpperBody } from './vr/upper-body.ts';
+export type { UpperBodyOptions, UpperBodyRig } from './vr/upper-body.ts';
 
 // Page helpers.
 export { installDropTarget, sortDroppedFiles } from './ui/drop.ts';
 export type { DroppedFiles } from './ui/drop.ts';
 export { showError } from './ui/error-box.ts';
+export { LoadingStatus, describeProgress, shortUrl } from './ui/loading-status.ts';
+export { loadPageCharacter } from './ui/page-loader.ts';
+export { saveTextFile } from './ui/save-file.ts';
+export type { PageCharacter, PageCharacterOptions } from './ui/page-loader.ts';
 
 // Angles (project convention: yaw 0 faces +Z, positive turns +Z toward +X).
 export { bodyYaw, headingYaw, wrapAngle, yawOf } from './yaw.ts';
 
 // Benchmarks (the bench page, `npm run bench`).
 export { benchSearch } from './bench/search-bench.ts';
-export type { SearchBenchResult } from './bench/search-bench.ts';
+export type { MethodTiming, SearchBenchOptions, SearchBenchResult } from './bench/search-bench.ts';
 export { benchRuntime } from './bench/runtime-bench.ts';
 export type { RuntimeBenchResult } from './bench/runtime-bench.ts';
 export { realisticQueries, seededRandom } from './bench/queries.ts';
+export type { BenchQuery } from './bench/queries.ts';
 export { benchReplay, stats } from './vr/replay-bench.ts';
 export type { ReplayBenchResult, Stats } from './vr/replay-bench.ts';

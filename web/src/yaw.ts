@@ -1,5 +1,5 @@
 /**
- * Yaw helpers shared by the VR modules. Project convention (DESIGN.md): Y up, forward +Z, and a
+ * Yaw helpers shared by the VR modules. Project convention (docs/method.md): Y up, forward +Z, and a
  * yaw of 0 faces +Z; a positive yaw turns +Z toward +X. three.js cameras (and so the WebXR viewer
  * pose) look along −Z, which is why the HMD's heading is taken from its −Z axis.
  */

@@ -2,7 +2,7 @@
 
 use mmcore::config::{AutoScale, BuildConfig, Scale};
 use mmcore::search::{self, SearchOptions};
-use mmcore::{format, inspect, Bvh, Error, Source};
+use mmcore::{format, inspect, limits, Bvh, Error, Source};
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 use std::time::Instant;
@@ -174,14 +174,18 @@ fn build(args: &[String]) -> CliResult {
     if files.is_empty() {
         return Err(Usage("build needs BVH files or --config".into()).into());
     }
+    // Range-checked here, by flag name: the config was validated before these override it.
     if let Some(fps) = a.number::<f64>("--fps")? {
+        limits::check_fps(fps).map_err(|m| Usage(format!("--fps: {m}")))?;
         config.fps = fps;
     }
     if let Some(s) = a.get("--scale") {
         config.scale = if s == "auto" {
             Scale::Auto(AutoScale::Auto)
         } else {
-            Scale::Fixed(s.parse().ok().filter(|v: &f64| *v > 0.0).ok_or_else(|| Usage(format!("--scale: '{s}' is not a positive number or 'auto'")))?)
+            let v: f64 = s.parse().map_err(|_| Usage(format!("--scale: '{}' is not a number or 'auto'", limits::quote(s))))?;
+            limits::check_scale(v).map_err(|m| Usage(format!("--scale: {m}")))?;
+            Scale::Fixed(v)
         };
     }
     if a.has("--no-repair") {
@@ -263,7 +267,9 @@ fn search_cmd(args: &[String]) -> CliResult {
     )?;
     let [path] = a.positional.as_slice() else { return Err(Usage("search needs one .mmdb file".into()).into()) };
     let (db, _) = load(path)?;
-    let radius = a.number::<usize>("--exclude-radius")?.unwrap_or(20);
+    // Clamped to the database: a huge radius or k would overflow `f + radius + 1` or reserve
+    // k result slots.
+    let radius = a.number::<usize>("--exclude-radius")?.unwrap_or(20).min(db.num_frames);
     let (query, exclude) = match (a.number::<usize>("--frame")?, a.get("--query")) {
         (Some(f), None) => {
             if f >= db.num_frames {
@@ -284,13 +290,20 @@ fn search_cmd(args: &[String]) -> CliResult {
         Some(t) => Some(db.tag_mask(t).ok_or_else(|| Error::config(format!("no tag '{t}' (tags: {})", db.tags.iter().map(|t| t.name.as_str()).collect::<Vec<_>>().join(", "))))?),
         None => None,
     };
+    let beta = |flag: &str| -> Result<f32, Usage> {
+        let b = a.number::<f32>(flag)?.unwrap_or(1.0);
+        if !(0.0..=1e6).contains(&b) {
+            return Err(Usage(format!("{flag}: must be 0 to 1e6, found {b}")));
+        }
+        Ok(b)
+    };
     let options = SearchOptions {
-        beta_pose: a.number("--beta-pose")?.unwrap_or(1.0),
-        beta_trajectory: a.number("--beta-trajectory")?.unwrap_or(1.0),
+        beta_pose: beta("--beta-pose")?,
+        beta_trajectory: beta("--beta-trajectory")?,
         exclude,
         mask: mask.as_deref(),
     };
-    let k = a.number::<usize>("-k")?.unwrap_or(1).max(1);
+    let k = a.number::<usize>("-k")?.unwrap_or(1).clamp(1, db.num_frames);
     let method = match a.get("--method").unwrap_or("aabb") {
         "aabb" => search::SearchMethod::Aabb,
         "simd" => search::SearchMethod::Simd,
@@ -344,22 +357,27 @@ fn bench(args: &[String]) -> CliResult {
         return Err(Usage("bench needs BVH files".into()).into());
     }
     let seconds = a.number::<f64>("--seconds")?.unwrap_or(2.0);
+    if !(0.0..=3600.0).contains(&seconds) {
+        return Err(Usage(format!("--seconds: must be 0 to 3600, found {seconds}")).into());
+    }
     let files: Vec<(String, Vec<u8>)> =
         a.positional.iter().map(|p| read(Path::new(p)).map(|b| (p.clone(), b))).collect::<Result<_, _>>()?;
     let megabytes = files.iter().map(|(_, b)| b.len()).sum::<usize>() as f64 / 1e6;
+    // Parse and build once outside the clock: a bad file is an error, not a panic mid-timing.
+    let sources: Vec<Source> = files.iter().map(|(n, b)| Bvh::parse(n, b).map(|bvh| Source { name: n.clone(), bvh })).collect::<Result<_, _>>()?;
+    let config = BuildConfig::default();
+    let mut output_frames = mmcore::build(&config, &sources)?.database.num_frames;
     let (parse, parse_runs) = median_seconds(seconds, || {
         for (name, bytes) in &files {
-            std::hint::black_box(Bvh::parse(name, bytes).unwrap());
+            let _ = std::hint::black_box(Bvh::parse(name, bytes));
         }
     });
-    let sources: Vec<Source> = files.iter().map(|(n, b)| Source { name: n.clone(), bvh: Bvh::parse(n, b).unwrap() }).collect();
     let source_frames: usize = sources.iter().map(|s| s.bvh.num_frames).sum();
-    let config = BuildConfig::default();
-    let mut output_frames = 0;
     let (build, build_runs) = median_seconds(seconds, || {
-        let out = mmcore::build(&config, &sources).unwrap();
-        output_frames = out.database.num_frames;
-        std::hint::black_box(format::to_bytes(&out.database));
+        if let Ok(out) = mmcore::build(&config, &sources) {
+            output_frames = out.database.num_frames;
+            std::hint::black_box(format::to_bytes(&out.database));
+        }
     });
     let result = serde_json::json!({
         "runtime": "native",
@@ -456,6 +474,9 @@ fn quality(args: &[String]) -> CliResult {
     let [path] = a.positional.as_slice() else { return Err(Usage("quality needs one .mmdb file".into()).into()) };
     let (db, _) = load(path)?;
     let seconds = a.number::<f32>("--seconds")?.unwrap_or(60.0);
+    if !(seconds > 0.0 && seconds <= 3600.0) {
+        return Err(Usage(format!("--seconds: must be more than 0 and at most 3600, found {seconds}")).into());
+    }
     let settings = match a.get("--settings") {
         Some(json) => mmcore::character::CharacterSettings::default().patched(json).map_err(|e| Usage(e))?,
         None => mmcore::character::CharacterSettings::default(),
@@ -497,6 +518,9 @@ fn replay(args: &[String]) -> CliResult {
     let text = String::from_utf8_lossy(&read(Path::new(rec_path))?).into_owned();
     let rec = Recording::from_json(&text).map_err(|e| Error::config(format!("{rec_path}: {e}")))?;
     let alpha = a.number::<f32>("--alpha")?.unwrap_or(0.3);
+    if !(alpha > 0.0 && alpha <= 10.0) {
+        return Err(Usage(format!("--alpha: must be more than 0 and at most 10 m, found {alpha}")).into());
+    }
     let n = rec.num_frames();
     let yaw: Vec<f32> = match a.get("--yaw").unwrap_or("truth") {
         "truth" => rec.truth_yaw.clone().ok_or_else(|| Usage(format!("{rec_path} has no truth.bodyYaw: use --yaw hmd or a file")))?,

@@ -208,6 +208,13 @@ impl RawCharacter {
     pub fn best_cost(&self) -> f32 {
         self.character.stats.best_cost
     }
+    /// Refused inputs (not numbers, out of range; the last good value was used), updates whose
+    /// `dt` was a gap searched afresh, and recoveries from a non-finite state, as
+    /// `[rejected, gaps, recoveries]`.
+    pub fn faults(&self) -> Vec<f64> {
+        let s = &self.character.stats;
+        vec![s.rejected_inputs as f64, s.gaps as f64, s.recoveries as f64]
+    }
     /// Planted-toe sliding of the shown pose since the last teleport (m, `SkatingMeter`).
     pub fn skating(&self) -> f32 {
         self.character.skating().distance

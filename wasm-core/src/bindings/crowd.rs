@@ -9,6 +9,10 @@ use glam::Vec2;
 use std::rc::Rc;
 use wasm_bindgen::prelude::*;
 
+/// Characters one crowd may hold: far past what a frame can update (a few thousand in 4 ms),
+/// and low enough that a typo cannot ask wasm32's 4 GiB for gigabytes of characters.
+pub const MAX_CROWD: usize = 100_000;
+
 #[wasm_bindgen]
 pub struct RawCrowd {
     shared: Rc<Shared>,
@@ -19,11 +23,17 @@ pub struct RawCrowd {
 #[wasm_bindgen]
 impl RawCrowd {
     /// `count` characters on a 2 m grid on `database` (shared, not copied).
+    ///
+    /// # Errors
+    /// More than [`MAX_CROWD`] characters.
     #[wasm_bindgen(constructor)]
-    pub fn new(database: &RawDatabase, count: usize) -> RawCrowd {
+    pub fn new(database: &RawDatabase, count: usize) -> Result<RawCrowd, JsError> {
+        if count > MAX_CROWD {
+            return Err(JsError::new(&format!("crowd: {count} characters asked for; at most {MAX_CROWD}")));
+        }
         let shared = Rc::clone(&database.shared);
         let crowd = Crowd::new(&shared.db, count, &CharacterSettings::default());
-        RawCrowd { shared, crowd, _live: LiveToken::new(Kind::Crowd) }
+        Ok(RawCrowd { shared, crowd, _live: LiveToken::new(Kind::Crowd) })
     }
 
     pub fn num_characters(&self) -> usize {

@@ -12,6 +12,9 @@ use wasm_bindgen::prelude::*;
 #[wasm_bindgen]
 pub struct RawRetargeter {
     retargeter: Retargeter,
+    /// Joints of the database the retargeter was made for: a character on another database
+    /// (another skeleton) cannot be mapped through it.
+    source_joints: usize,
     local_rotations: Vec<Quat>,
     hips_position: [f32; 3],
     _live: LiveToken,
@@ -50,16 +53,30 @@ impl RawRetargeter {
             root_parent_rotation: Quat::from_slice(root_parent_rotation),
         };
         let retargeter = Retargeter::new(&database.shared.db, &target, align_bones).map_err(|e| JsError::new(&e))?;
-        Ok(RawRetargeter { retargeter, local_rotations: vec![Quat::IDENTITY; t], hips_position: [0.0; 3], _live: LiveToken::new(Kind::Retargeter) })
+        let source_joints = database.shared.db.num_joints();
+        Ok(RawRetargeter { retargeter, source_joints, local_rotations: vec![Quat::IDENTITY; t], hips_position: [0.0; 3], _live: LiveToken::new(Kind::Retargeter) })
     }
 
     /// Retargets `character`'s current world pose, lifting the hips `lift` (avatar units; the
-    /// avatar's grounding). Then read [`Self::local_rotations_ptr`] and [`Self::hips_position_ptr`].
-    pub fn apply(&mut self, character: &RawCharacter, lift: f32) {
+    /// avatar's grounding; not a number counts as 0). Then read [`Self::local_rotations_ptr`]
+    /// and [`Self::hips_position_ptr`].
+    ///
+    /// # Errors
+    /// A character on a database with another skeleton than this retargeter's (nothing changes).
+    pub fn apply(&mut self, character: &RawCharacter, lift: f32) -> Result<(), JsError> {
         let c = &character.character;
+        if c.world_rotations().len() != self.source_joints {
+            return Err(JsError::new(&format!(
+                "retarget: the character's skeleton has {} joints, this retargeter was made for {}; bind the avatar to the character's database",
+                c.world_rotations().len(),
+                self.source_joints
+            )));
+        }
         let hips = c.world_positions()[self.retargeter.source_hips];
+        let lift = if lift.is_finite() { lift } else { 0.0 };
         let p = self.retargeter.apply(c.world_rotations(), hips, lift, &mut self.local_rotations);
         self.hips_position = p.to_array();
+        Ok(())
     }
 
     /// `T×4` f32: the avatar's local rotations after [`Self::apply`].

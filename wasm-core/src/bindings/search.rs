@@ -73,7 +73,10 @@ impl RawSearchIndex {
         self.mask_active = false;
         let Some(tag) = self.tags.iter().find(|t| t.name == tag) else { return false };
         for &(start, end) in &tag.ranges {
-            self.mask[start as usize..end as usize].fill(true);
+            // The loader checks ranges; `get_mut` keeps this total all the same.
+            if let Some(frames) = self.mask.get_mut(start as usize..end as usize) {
+                frames.fill(true);
+            }
         }
         self.mask_active = true;
         true

@@ -1,5 +1,5 @@
 //! One take's resampled local transforms → database rows: world transforms by the one FK, the
-//! virtual root, local pose rows with velocities, foot contacts and raw features.
+//! virtual root, local pose rows, foot contacts and raw features.
 
 use super::contacts::contacts;
 use super::features::{raw_features, ClipGeometry};
@@ -132,66 +132,17 @@ impl ClipBuilder<'_> {
                 }
             }
         }
-        // Velocities by central differences within the clip (one-sided at its ends).
+        // (Velocities are derived from these rows once the database is whole:
+        // `Database::compute_velocities`, the same function the `.mmdb` reader uses.)
         let geometry = Geometry { world, root, dt: 1.0 / self.fps };
-        for f in 0..n {
-            let (a, b) = geometry.span(f);
-            let inv_h = self.fps / (b - a) as f64;
-            for j in 0..nd {
-                let i = f * nd + j;
-                out.positions[i] = lp[i].as_vec3();
-                out.rotations[i] = lr[i].as_quat();
-                out.velocities[i] = ((lp[b * nd + j] - lp[a * nd + j]) * inv_h).as_vec3();
-                let dq = lr[b * nd + j] * lr[a * nd + j].conjugate();
-                out.angular_velocities[i] = (scaled_axis(dq) * inv_h).as_vec3();
-            }
+        for (i, (p, q)) in lp.iter().zip(lr.iter()).enumerate() {
+            out.positions[i] = p.as_vec3();
+            out.rotations[i] = q.as_quat();
         }
 
         let toe_speed = |side: usize, f: usize| self.toe_sites[side].as_ref().map(|s| geometry.velocity(f, s.joint as usize, s.offset.as_dvec3()).length());
         let radius = (c.contact_filter * self.fps).round() as usize;
         contacts(n, toe_speed, c.contact_speed, radius, &mut scratch.contacts, out.contacts);
         raw_features(&geometry, self.groups, self.num_dims, out.features);
-    }
-}
-
-/// Rotation vector (axis × angle) of a unit quaternion, taking the short way. Same value as
-/// `to_scaled_axis` but without `atan2` for the small rotations between nearby frames:
-/// angle = 2·atan(x), x = |v|/w, by its Taylor series when x < 0.1 (truncation error
-/// < x¹²/13 < 1e-13 relative, far below f32 storage precision).
-fn scaled_axis(q: DQuat) -> DVec3 {
-    let q = if q.w < 0.0 { -q } else { q };
-    let v = DVec3::new(q.x, q.y, q.z);
-    let s = v.length();
-    if s < 1e-12 {
-        return 2.0 * v;
-    }
-    let inv_w = 1.0 / q.w;
-    let x = s * inv_w;
-    if x < 0.1 {
-        let x2 = x * x;
-        // 2·atan(x)/s = (2/w)·atan(x)/x
-        let series = 1.0 - x2 * (1.0 / 3.0 - x2 * (1.0 / 5.0 - x2 * (1.0 / 7.0 - x2 * (1.0 / 9.0 - x2 * (1.0 / 11.0)))));
-        v * (2.0 * inv_w * series)
-    } else {
-        v * (2.0 * s.atan2(q.w) / s)
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn scaled_axis_is_exact_for_small_and_large_rotations() {
-        for angle in [0.0, 1e-9, 1e-4, 0.05, 0.19, 0.21, 1.0, 3.0, 6.0] {
-            for axis in [DVec3::X, DVec3::new(1.0, -2.0, 0.5).normalize()] {
-                let q = DQuat::from_axis_angle(axis, angle);
-                // The short way round: angles past π come back as 2π − angle about −axis.
-                let short = if angle > std::f64::consts::PI { angle - std::f64::consts::TAU } else { angle };
-                let expected = axis * short;
-                assert!((scaled_axis(q) - expected).length() < 1e-12, "angle {angle}");
-                assert!((scaled_axis(-q) - expected).length() < 1e-12, "angle {angle}, negated");
-            }
-        }
     }
 }

@@ -6,7 +6,8 @@
 //!    skeleton, or, for another skeleton topology, [`retarget`]ed onto it;
 //! 3. [`repair`]: 1–3-frame rotation glitches of the capture bridged;
 //! 4. [`mirror`] and [`reverse`]: optional mirrored and time-reversed copies of each take;
-//! 5. [`clip`]: world transforms, the virtual root ([`root`]), local rows and velocities,
+//! 5. [`clip`]: world transforms, the virtual root ([`root`]), local rows (velocities derived
+//!    once the database is whole: `Database::compute_velocities`),
 //!    [`contacts`], raw features;
 //! 6. [`features`]: normalization and validity; clips and tags assembled here.
 //!
@@ -106,6 +107,7 @@ pub fn build(config: &BuildConfig, sources: &[Source]) -> Result<BuildOutput> {
     if sources.is_empty() {
         return Err(Error::config("no BVH files to build from"));
     }
+    config.validate()?;
     let mut warnings = Vec::new();
     let reference_index = match &config.reference {
         Some(r) => sources
@@ -141,23 +143,30 @@ pub fn build(config: &BuildConfig, sources: &[Source]) -> Result<BuildOutput> {
     // once and split into per-clip slices.
     let mut plans = Vec::new();
     let mut num_frames = 0usize;
+    let mut short = Vec::new();
     for (t, take) in takes.iter().enumerate() {
-        let n = take.num_out(fps);
+        let n = take.num_out(fps).ok_or_else(|| {
+            Error::config(format!("{}: {} frames at {} fps resample to more than {} frames at {fps} fps", sources[t].name, take.frames.1 - take.frames.0, take.source_fps, crate::limits::MAX_FRAMES))
+        })?;
         if n < 2 {
-            warnings.push(format!("{}: skipped, fewer than 2 frames at {fps} fps", sources[t].name));
+            warnings.push(format!("{}: skipped, {n} frame(s) at {fps} fps (2 needed)", sources[t].name));
+            short.push(format!("{} ({n})", sources[t].name));
             continue;
         }
         for reversed in [false, true].into_iter().take(if take.reverse { 2 } else { 1 }) {
             for mirrored in [false, true].into_iter().take(if take.mirror { 2 } else { 1 }) {
                 plans.push(Plan { take: t, mirrored, reversed, start: num_frames, frames: n });
-                num_frames += n;
+                num_frames = num_frames.saturating_add(n);
             }
         }
     }
     if num_frames == 0 {
-        return Err(Error::config("no frames to build from (every take is shorter than 2 frames)"));
+        return Err(Error::config(format!("no frames to build from: every take is shorter than 2 frames at {fps} fps: {}", short.join(", "))));
     }
     let nd = reference.num_joints() + 1;
+    // Refuse before allocating: the output is num_frames × (joints, dims) and must fit (on
+    // wasm32 too, where usize is 32 bits).
+    crate::limits::check_database_size(num_frames, nd, num_dims).map_err(Error::config)?;
     let mut out = Accumulator::new(num_frames, nd, num_dims);
     let clip_builder = ClipBuilder {
         config,
@@ -169,8 +178,22 @@ pub fn build(config: &BuildConfig, sources: &[Source]) -> Result<BuildOutput> {
         groups: &groups,
         num_dims,
     };
-    let root_scales: Vec<f64> =
-        takes.iter().enumerate().map(|(t, take)| if t == reference_index { 1.0 } else { ref_leg / rig_of(t).leg_length(&take.offsets) }).collect();
+    // Root motion of a take with other leg lengths is scaled by the leg ratio (a take of another
+    // skeleton: its own legs); a take whose legs have no length (a degenerate rest pose) cannot
+    // be compared: its root motion stays as is.
+    let mut root_scales = Vec::with_capacity(takes.len());
+    for (t, take) in takes.iter().enumerate() {
+        let leg = rig_of(t).leg_length(&take.offsets);
+        let scale = ref_leg / leg;
+        root_scales.push(if t == reference_index {
+            1.0
+        } else if scale.is_finite() && scale > 0.0 && leg > 1e-6 {
+            scale
+        } else {
+            warnings.push(format!("{}: legs of length {leg:.3} m in the rest pose; root motion not rescaled to the reference", sources[t].name));
+            1.0
+        });
+    }
     let target_rig = Rig { parents: &reference.parents, roles: &reference.roles, offsets: &ref_offsets, end_sites: &ref_take.end_sites };
     // Retargeted takes stand their planted toes at the reference take's planted toe height.
     let toe_floor = if foreign.iter().any(Option::is_some) {
@@ -257,9 +280,12 @@ pub fn build(config: &BuildConfig, sources: &[Source]) -> Result<BuildOutput> {
             start,
             end: start + num_out as u32,
             mirrored: plan.mirrored,
-            source_fps: take.source_fps as f32,
+            source_fps: take.source_fps,
             scale: take.scale as f32,
             root_scale: root_scales[plan.take] as f32,
+            // A reversed copy (named "… (reversed)") was sampled over the same source window,
+            // backward: its frame `k` is the forward clip's frame `n − 1 − k`.
+            source_start: take.frames.0 as u32,
         });
         // Tags: whole clip, then source-frame ranges mapped to database frames (mirrored in
         // time for a reversed copy).
@@ -303,27 +329,27 @@ pub fn build(config: &BuildConfig, sources: &[Source]) -> Result<BuildOutput> {
             100.0 * contact_share(1)
         ));
     }
-    Ok(BuildOutput {
-        database: Database {
-            skeleton,
-            fps: fps as f32,
-            num_frames: out.num_frames,
-            clips,
-            tags,
-            local_positions: out.positions,
-            local_rotations: out.rotations,
-            local_velocities: out.velocities,
-            local_angular_velocities: out.angular_velocities,
-            contacts: out.contacts,
-            groups,
-            feature_mean,
-            feature_scale,
-            features: out.features,
-            valid,
-        },
-        warnings,
-        retargeted,
-    })
+    let mut database = Database {
+        skeleton,
+        fps: fps as f32,
+        num_frames: out.num_frames,
+        clips,
+        tags,
+        local_positions: out.positions,
+        local_rotations: out.rotations,
+        local_velocities: Vec::new(),
+        local_angular_velocities: Vec::new(),
+        contacts: out.contacts,
+        groups,
+        feature_mean,
+        feature_scale,
+        features: out.features,
+        valid,
+    };
+    // Velocities are derived per clip from positions and rotations (as on load), reversed and
+    // mirrored copies included.
+    database.compute_velocities();
+    Ok(BuildOutput { database, warnings, retargeted })
 }
 
 /// Sorted, merged `[start, end)` ranges.

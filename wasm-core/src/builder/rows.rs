@@ -10,8 +10,6 @@ pub struct Accumulator {
     pub num_frames: usize,
     pub positions: Vec<Vec3>,
     pub rotations: Vec<Quat>,
-    pub velocities: Vec<Vec3>,
-    pub angular_velocities: Vec<Vec3>,
     pub contacts: Vec<u8>,
     pub features: Vec<f32>,
 }
@@ -22,8 +20,6 @@ impl Accumulator {
             num_frames,
             positions: vec![Vec3::ZERO; num_frames * num_joints],
             rotations: vec![Quat::IDENTITY; num_frames * num_joints],
-            velocities: vec![Vec3::ZERO; num_frames * num_joints],
-            angular_velocities: vec![Vec3::ZERO; num_frames * num_joints],
             contacts: vec![0; num_frames * 2],
             features: vec![0.0; num_frames * num_dims],
         }
@@ -33,8 +29,6 @@ impl Accumulator {
         Rows {
             positions: &mut self.positions,
             rotations: &mut self.rotations,
-            velocities: &mut self.velocities,
-            angular_velocities: &mut self.angular_velocities,
             contacts: &mut self.contacts,
             features: &mut self.features,
         }
@@ -45,8 +39,6 @@ impl Accumulator {
 pub struct Rows<'a> {
     pub positions: &'a mut [Vec3],
     pub rotations: &'a mut [Quat],
-    pub velocities: &'a mut [Vec3],
-    pub angular_velocities: &'a mut [Vec3],
     pub contacts: &'a mut [u8],
     pub features: &'a mut [f32],
 }
@@ -56,13 +48,11 @@ impl<'a> Rows<'a> {
     pub fn split_at(self, frames: usize, joints: usize, dims: usize) -> (Rows<'a>, Rows<'a>) {
         let (p, p2) = self.positions.split_at_mut(frames * joints);
         let (r, r2) = self.rotations.split_at_mut(frames * joints);
-        let (v, v2) = self.velocities.split_at_mut(frames * joints);
-        let (a, a2) = self.angular_velocities.split_at_mut(frames * joints);
         let (c, c2) = self.contacts.split_at_mut(frames * 2);
         let (f, f2) = self.features.split_at_mut(frames * dims);
         (
-            Rows { positions: p, rotations: r, velocities: v, angular_velocities: a, contacts: c, features: f },
-            Rows { positions: p2, rotations: r2, velocities: v2, angular_velocities: a2, contacts: c2, features: f2 },
+            Rows { positions: p, rotations: r, contacts: c, features: f },
+            Rows { positions: p2, rotations: r2, contacts: c2, features: f2 },
         )
     }
 }

@@ -59,10 +59,14 @@ impl Reference {
                     Err(e) => format!("not a humanoid skeleton: {e}"),
                     Ok(_) => format!("could not find the {} joint", role.name().replace('_', " ")),
                 };
+                // The hint first: the message is capped, the name list may be long.
+                let mut list = names.iter().take(24).cloned().collect::<Vec<_>>().join(", ");
+                if names.len() > 24 {
+                    list.push_str(&format!(", … {} more", names.len() - 24));
+                }
                 return Err(Error::config(format!(
-                    "{}: {why} (joints: {}); name the joints in the config, e.g. \"roles\": {{\"{}\": \"<joint name>\"}}",
+                    "{}: {why}; name the joints in the config, e.g. \"roles\": {{\"{}\": \"<joint name>\"}}; joints: [{list}]",
                     source.name,
-                    names.join(", "),
                     role.name()
                 )));
             }

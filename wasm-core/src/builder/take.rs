@@ -151,14 +151,10 @@ impl Take {
         })
     }
 
-    /// Number of frames after resampling to `fps`.
-    pub fn num_out(&self, fps: f64) -> usize {
-        let count = self.frames.1 - self.frames.0;
-        if count == 0 {
-            0
-        } else {
-            ((count - 1) as f64 * fps / self.source_fps + 1e-9).floor() as usize + 1
-        }
+    /// Number of frames after resampling to `fps`, or `None` past [`crate::limits::MAX_FRAMES`]
+    /// (a 1 fps take resampled to 1,000 fps grows 1,000-fold).
+    pub fn num_out(&self, fps: f64) -> Option<usize> {
+        crate::limits::resampled_frames(self.frames.1 - self.frames.0, self.source_fps, fps)
     }
 
     /// Local transforms (BVH joints, metres, Y up) resampled to `fps` (linear / slerp between
@@ -169,7 +165,8 @@ impl Take {
     pub fn resample(&self, bvh: &Bvh, fps: f64, ref_offsets: &[DVec3], animated: &[bool], root_scale: f64, is_reference: bool, out: &mut Poses) {
         let num_joints = bvh.joints.len();
         let count = self.frames.1 - self.frames.0;
-        let num_out = self.num_out(fps);
+        // build() refused takes past the frame limit before calling this.
+        let num_out = self.num_out(fps).unwrap_or(0);
         out.clear(num_joints);
         out.positions.reserve(num_out * num_joints);
         out.rotations.reserve(num_out * num_joints);

@@ -102,6 +102,20 @@ impl Drive {
         sharp_velocity || sharp_rotation
     }
 
+    /// After a recovery: what is asked for is where the simulated character now is and faces,
+    /// and the change detectors start afresh.
+    pub fn settle(&mut self, simulation: &Simulation) {
+        self.desired_velocity = Vec3::ZERO;
+        self.desired_rotation = simulation.rotation;
+        self.velocity_change = ChangeDetector::default();
+        self.rotation_change = ChangeDetector::default();
+        if let Mode::Path { time, .. } = &mut self.mode {
+            if !time.is_finite() {
+                *time = 0.0;
+            }
+        }
+    }
+
     /// Where the simulated character will be, and facing, after each of `times` seconds (world).
     pub fn predict(&self, simulation: &Simulation, settings: &ControllerSettings, times: &[f32], positions: &mut [Vec3], rotations: &mut [Quat]) {
         let s = simulation;

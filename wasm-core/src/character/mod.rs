@@ -21,7 +21,7 @@ pub use drive::Tracked;
 pub use schedule::CharacterStats;
 pub use settings::CharacterSettings;
 
-use crate::controller::{Input, Path, Simulation};
+use crate::controller::{Input, Path, Simulation, MAX_PATH_COORDINATE};
 use crate::database::Database;
 use crate::quality::SkatingMeter;
 use crate::search::SearchIndex;
@@ -37,7 +37,32 @@ use schedule::{Outcome, Schedule};
 /// cm with every step, which the user's own head already does.
 pub const HEAD_OFFSET_HALFLIFE: f32 = 0.2;
 
+/// Longest step one update simulates (s). A longer gap (a background tab, a paused debugger, a
+/// garbage `dt`) is not played out frame by frame: the character searches afresh from where it
+/// stands, so an update never runs away.
+pub const MAX_DT: f32 = 0.25;
+
+/// Most database frames one update plays (a safety net under [`MAX_DT`] and the playback speed).
+const MAX_FRAMES_PER_UPDATE: u32 = 64;
+
+/// Fastest ground velocity taken from a tracked user (m/s): beyond it a sample is garbage.
+const MAX_TRACKED_SPEED: f32 = 50.0;
+
+/// Where the character last was in a good (finite) state: where it goes back to.
+#[derive(Clone, Copy, Debug)]
+struct LastGood {
+    position: Vec3,
+    rotation: Quat,
+    simulation: Simulation,
+}
+
 /// A character playing one database.
+///
+/// Every entry point is total: inputs that are not finite (or absurd) are refused and the last
+/// good value is used, counted in [`CharacterStats::rejected_inputs`]; a character that reaches a
+/// non-finite state anyway goes back to its last good state within the same update
+/// ([`CharacterStats::recoveries`]). Preconditions on the database (≥ 1 frame and clip, the
+/// same feature layout across a switch) are what the `.mmdb` loader guarantees.
 pub struct Character {
     pub settings: CharacterSettings,
     pub simulation: Simulation,
@@ -55,6 +80,10 @@ pub struct Character {
     /// Head joint, and its smoothed floor offset from the root in the root's frame.
     head: Option<usize>,
     head_offset: Vec3,
+    /// The last good input and tracked sample: what a refused one is replaced by.
+    input: Input,
+    tracked: Tracked,
+    last_good: LastGood,
 }
 
 impl Character {
@@ -76,6 +105,9 @@ impl Character {
             skating: SkatingMeter::default(),
             head: db.skeleton.site("head").filter(|s| s.joint > 0).map(|s| s.joint as usize),
             head_offset: Vec3::ZERO,
+            input: Input::default(),
+            tracked: Tracked::default(),
+            last_good: LastGood { position: Vec3::ZERO, rotation: Quat::IDENTITY, simulation: Simulation::default() },
         };
         c.pose.play(db, frame, c.settings.inertialize, c.settings.inertialization_halflife, 0.0);
         c.pose.set_root(c.root.position, c.root.rotation);
@@ -90,8 +122,15 @@ impl Character {
         self.skating.reset();
     }
 
-    /// Places the character (and its simulated twin) at a world position and yaw.
+    /// Places the character (and its simulated twin) at a world position and yaw. A position
+    /// that is not finite or beyond ±1e5 m, or a rotation that is not a finite unit quaternion,
+    /// is refused (the character stays; counted).
     pub fn teleport(&mut self, db: &Database, position: Vec3, rotation: Quat) {
+        if !(position.x.abs() <= MAX_PATH_COORDINATE && position.z.abs() <= MAX_PATH_COORDINATE && rotation.is_finite() && (rotation.length() - 1.0).abs() < 1e-3) {
+            self.stats.rejected_inputs += 1;
+            return;
+        }
+        let rotation = rotation.normalize();
         self.root.position = Vec3::new(position.x, 0.0, position.z);
         self.root.rotation = rotation;
         self.root.drag_velocity = Vec3::ZERO;
@@ -131,7 +170,34 @@ impl Character {
     /// Follow a tracked user (VR) from now on: call every frame with the raw head floor
     /// position, ground velocity and body yaw (docs/method.md §9). The velocity and yaw are
     /// spring-smoothed here. Back to input control with [`Self::set_path`]`(None)`.
+    ///
+    /// A component that is not finite (or a position beyond ±1e5 m) keeps its last good value;
+    /// a ground speed beyond 50 m/s is clamped (both counted).
     pub fn set_tracked(&mut self, tracked: Tracked) {
+        // Only the ground components matter (docs/method.md §9); a garbage height is ignored.
+        let mut t = Tracked {
+            position: Vec3::new(tracked.position.x, 0.0, tracked.position.z),
+            velocity: Vec3::new(tracked.velocity.x, 0.0, tracked.velocity.z),
+            yaw: tracked.yaw,
+        };
+        let last = self.tracked;
+        if !(t.position.x.abs() <= MAX_PATH_COORDINATE && t.position.z.abs() <= MAX_PATH_COORDINATE) {
+            t.position = last.position;
+            self.stats.rejected_inputs += 1;
+        }
+        if !(t.velocity.x.is_finite() && t.velocity.z.is_finite()) {
+            t.velocity = last.velocity;
+            self.stats.rejected_inputs += 1;
+        } else if t.velocity.length() > MAX_TRACKED_SPEED {
+            t.velocity = t.velocity.normalize() * MAX_TRACKED_SPEED;
+            self.stats.rejected_inputs += 1;
+        }
+        if !t.yaw.is_finite() {
+            t.yaw = last.yaw;
+            self.stats.rejected_inputs += 1;
+        }
+        self.tracked = t;
+        let tracked = t;
         if !matches!(self.drive.mode, Mode::Tracked(_)) {
             // Start from the user, not from wherever the simulation was.
             self.simulation.velocity = tracked.velocity;
@@ -147,13 +213,18 @@ impl Character {
 
     /// Restrict searches to frames where `mask` is true (e.g. a tag), or lift it with `None`.
     ///
-    /// # Panics
-    /// If the mask's length is not the database's frame count.
-    pub fn set_mask(&mut self, db: &Database, mask: Option<Vec<bool>>) {
-        assert!(mask.as_ref().is_none_or(|m| m.len() == db.num_frames), "mask length must equal the frame count");
+    /// # Errors
+    /// A mask whose length is not the database's frame count (nothing changes).
+    pub fn set_mask(&mut self, db: &Database, mask: Option<Vec<bool>>) -> Result<(), String> {
+        if let Some(m) = &mask {
+            if m.len() != db.num_frames {
+                return Err(format!("a search mask needs {} frames, got {}", db.num_frames, m.len()));
+            }
+        }
         self.schedule.mask = mask;
         self.schedule.mask_changed();
         self.schedule.force = true;
+        Ok(())
     }
 
     /// Forces a search at the next update.
@@ -167,10 +238,12 @@ impl Character {
     /// other transition (VR: crouch ↔ stand by head height). A search mask belongs to a
     /// database, so it is lifted (set a new one with [`Self::set_mask`] after the switch).
     ///
-    /// # Panics
-    /// If `from` is not the database the character was playing.
+    /// `from` must be the database the character was playing; with another one the pose part of
+    /// the next query is left as it was.
     pub fn switch_database(&mut self, from: &Database) {
-        self.query.set_pose(from.feature(self.frame));
+        if self.frame < from.num_frames && from.num_features() == self.query.values.len() {
+            self.query.set_pose(from.feature(self.frame));
+        }
         self.schedule.mask = None;
         self.schedule.mask_changed();
         self.schedule.switching = true;
@@ -243,13 +316,39 @@ impl Character {
     /// with the same skeleton and features (call [`Self::switch_database`] before switching).
     ///
     /// `index` must be built from `db`.
+    ///
+    /// `dt` that is not a number or negative counts as 0; beyond [`MAX_DT`] the gap is not
+    /// simulated (a fresh search); an input that is not finite is replaced by the last good one.
     pub fn update(&mut self, db: &Database, index: &SearchIndex, input: &Input, dt: f32) {
-        let dt = dt.max(0.0);
+        let dt = if dt >= 0.0 {
+            dt
+        } else {
+            self.stats.rejected_inputs += 1; // NaN or negative
+            0.0
+        };
+        let dt = if dt > MAX_DT {
+            self.stats.gaps += 1;
+            self.schedule.force = true;
+            MAX_DT
+        } else {
+            dt
+        };
+        if input.direction.is_finite() && input.facing.is_finite() {
+            self.input = *input;
+        } else {
+            self.stats.rejected_inputs += 1;
+        }
+        if self.frame >= db.num_frames {
+            // Another database than the character's, shorter: start over in it.
+            self.frame = db.valid.iter().position(|&v| v != 0).unwrap_or(0);
+            self.schedule.force = true;
+        }
         self.legs.undo_drop(&mut self.pose);
         self.update_head_offset(dt);
         let s = &self.settings;
         let thresholds = (s.velocity_change_threshold, s.rotation_change_threshold);
-        if self.drive.update(&mut self.simulation, &s.controller, thresholds, input, dt) {
+        let input = self.input;
+        if self.drive.update(&mut self.simulation, &s.controller, thresholds, &input, dt) {
             self.schedule.force = true;
         }
 
@@ -259,7 +358,18 @@ impl Character {
 
         // Play the database at its own rate, whatever the render rate.
         self.frame_fraction += dt * self.settings.playback_speed * db.fps;
+        if !self.frame_fraction.is_finite() {
+            self.frame_fraction = 0.0;
+        }
+        let mut played = 0;
         while self.frame_fraction >= 1.0 {
+            if played == MAX_FRAMES_PER_UPDATE {
+                // More frames than any sane rate makes in one update: search afresh instead.
+                self.frame_fraction = 0.0;
+                self.schedule.force = true;
+                break;
+            }
+            played += 1;
             self.frame_fraction -= 1.0;
             let clip_end = db.clips[db.clip_at(self.frame)].end as usize;
             let next = if self.frame + 1 < clip_end { self.frame + 1 } else { self.frame };
@@ -273,7 +383,51 @@ impl Character {
         self.pose.set_root(self.root.position, self.root.rotation);
         self.pose.reset_output(&db.skeleton.parents);
         self.legs.apply(db, &mut self.pose, &self.settings, self.root.rotation, dt);
-        self.skating.update(self.legs.toes, self.pose.contacts);
+        if self.is_finite() {
+            self.last_good = LastGood { position: self.root.position, rotation: self.root.rotation, simulation: self.simulation };
+            self.skating.update(self.legs.toes, self.pose.contacts);
+        } else {
+            self.recover(db);
+        }
+    }
+
+    /// Whether the root, the simulated character and the whole shown pose are finite.
+    fn is_finite(&self) -> bool {
+        let sim = &self.simulation;
+        self.root.position.is_finite()
+            && self.root.rotation.is_finite()
+            && self.root.velocity.is_finite()
+            && sim.position.is_finite()
+            && sim.velocity.is_finite()
+            && sim.acceleration.is_finite()
+            && sim.rotation.is_finite()
+            && sim.angular_velocity.is_finite()
+            && self.pose.world_positions.iter().all(|p| p.is_finite())
+            && self.pose.world_rotations.iter().all(|q| q.is_finite())
+    }
+
+    /// Back to the last good state, this update: root and simulated character where they last
+    /// were, no inertialization offsets, the frame playing shown as it is, feet unlocked, a
+    /// fresh search next.
+    fn recover(&mut self, db: &Database) {
+        self.stats.recoveries += 1;
+        let good = self.last_good;
+        self.root = RootMotion::default();
+        self.root.position = good.position;
+        self.root.rotation = good.rotation;
+        self.simulation = good.simulation;
+        self.drive.settle(&self.simulation);
+        // The head offset is measured on the shown pose: start it again from the replayed one.
+        self.head_offset = Vec3::ZERO;
+        self.drive.head_offset = Vec3::ZERO;
+        self.frame_fraction = 0.0;
+        self.pose.cut();
+        self.legs.undo_drop(&mut self.pose);
+        self.legs.hips_drop = 0.0;
+        self.pose.play(db, self.frame, false, self.settings.inertialization_halflife, 0.0);
+        self.pose.set_root(self.root.position, self.root.rotation);
+        self.reset_feet(db);
+        self.schedule.force = true;
     }
 
     /// Tracked mode: the shown head's floor offset from the root (last frame's pose), smoothed in
@@ -291,7 +445,12 @@ impl Character {
     }
 
     fn search(&mut self, db: &Database, index: &SearchIndex) {
-        assert_eq!(self.query.values.len(), db.num_features(), "the database's feature layout differs from the character's");
+        if self.query.values.len() != db.num_features() || index.num_dims() != db.num_features() {
+            // Another feature layout than the character was made for: nothing to compare with.
+            self.schedule.force = false;
+            self.stats.rejected_inputs += 1;
+            return;
+        }
         // Pose part: the current frame's own features (captured from the old database when
         // switching); trajectory part: the drive's prediction.
         if !self.schedule.switching {

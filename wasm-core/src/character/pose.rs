@@ -49,6 +49,11 @@ impl Pose {
         }
     }
 
+    /// Drops every inertialization offset (a hard cut at the next `play`).
+    pub fn cut(&mut self) {
+        self.inertializer.reset();
+    }
+
     /// A jump to `frame`: the offsets take what is output now (joint 0, the root, is the root
     /// motion's business); without `inertialize`, a hard cut.
     pub fn transition(&mut self, db: &Database, frame: usize, inertialize: bool) {

@@ -15,6 +15,12 @@ pub struct CharacterStats {
     /// Cost of the current frame at the last search, and of the frame it chose.
     pub current_cost: f32,
     pub best_cost: f32,
+    /// Inputs refused (not a number, out of range): the last good value was used instead.
+    pub rejected_inputs: u64,
+    /// Updates whose `dt` was longer than [`super::MAX_DT`]: a gap searched afresh, not simulated.
+    pub gaps: u64,
+    /// Times the character found itself in a non-finite state and went back to its last good one.
+    pub recoveries: u64,
 }
 
 #[derive(Clone, Debug, Default)]
@@ -126,7 +132,11 @@ impl Schedule {
             }
             // Nothing searchable in the new database: cut to its first frame.
             None if switching => Outcome::Jump(0),
-            None => Outcome::Stay,
+            // The frame playing is the best there is.
+            None => {
+                stats.best_cost = bar;
+                Outcome::Stay
+            }
         }
     }
 }

@@ -114,6 +114,51 @@ impl CharacterSettings {
         for (k, v) in patch {
             obj.insert(k.clone(), v.clone());
         }
-        serde_json::from_value(current).map_err(|e| format!("settings: {e}"))
+        let settings: CharacterSettings = serde_json::from_value(current).map_err(|e| format!("settings: {e}"))?;
+        settings.validate()?;
+        Ok(settings)
+    }
+
+    /// Checks every value is a number in its range (a NaN or a `playback_speed` of 1e30 would
+    /// stall or poison the character).
+    ///
+    /// # Errors
+    /// The first field out of range, with its value and the range.
+    pub fn validate(&self) -> Result<(), String> {
+        let c = &self.controller;
+        let half = (1e-3, 10.0);
+        let checks: [(&str, f32, (f32, f32)); 25] = [
+            ("controller.walk.forward", c.walk.forward, (0.0, 20.0)),
+            ("controller.walk.side", c.walk.side, (0.0, 20.0)),
+            ("controller.walk.backward", c.walk.backward, (0.0, 20.0)),
+            ("controller.run.forward", c.run.forward, (0.0, 20.0)),
+            ("controller.run.side", c.run.side, (0.0, 20.0)),
+            ("controller.run.backward", c.run.backward, (0.0, 20.0)),
+            ("controller.velocity_halflife", c.velocity_halflife, half),
+            ("controller.rotation_halflife", c.rotation_halflife, half),
+            ("search_interval", self.search_interval as f32, (1.0, 600.0)),
+            ("beta_pose", self.beta_pose, (0.0, 1000.0)),
+            ("beta_trajectory", self.beta_trajectory, (0.0, 1000.0)),
+            ("exclude_radius", self.exclude_radius as f32, (0.0, 1.0e6)),
+            ("velocity_change_threshold", self.velocity_change_threshold, (0.0, 1.0e6)),
+            ("rotation_change_threshold", self.rotation_change_threshold, (0.0, 1.0e6)),
+            ("inertialization_halflife", self.inertialization_halflife, half),
+            ("adjustment_position_halflife", self.adjustment_position_halflife, half),
+            ("adjustment_rotation_halflife", self.adjustment_rotation_halflife, half),
+            ("adjustment_max_ratio", self.adjustment_max_ratio, (0.0, 100.0)),
+            ("adjustment_min_speed", self.adjustment_min_speed, (0.0, 100.0)),
+            ("clamp_distance", self.clamp_distance, (0.0, 1000.0)),
+            ("clamp_angle", self.clamp_angle, (0.0, std::f32::consts::PI)),
+            ("playback_speed", self.playback_speed, (1e-3, 10.0)),
+            ("foot_lock_unlock_radius", self.foot_lock_unlock_radius, (0.0, 10.0)),
+            ("foot_lock_halflife", self.foot_lock_halflife, half),
+            ("idle_exclude_speed", self.idle_exclude_speed, (0.0, 100.0)),
+        ];
+        for (name, value, (lo, hi)) in checks {
+            if !(value >= lo && value <= hi) {
+                return Err(format!("settings: {name} is {value}, expected a number in [{lo}, {hi}]"));
+            }
+        }
+        Ok(())
     }
 }

@@ -7,12 +7,14 @@
  */
 import * as THREE from 'three';
 import { type GLTF, GLTFLoader } from 'three/addons/loaders/GLTFLoader.js';
+import { MeshoptDecoder } from 'three/addons/libs/meshopt_decoder.module.js';
 import { type VRM, VRMLoaderPlugin, VRMUtils } from '@pixiv/three-vrm';
 import { type CharacterRuntime } from '../core/character.ts';
 import { type Database } from '../core/database.ts';
 import { Retargeter } from '../core/retarget.ts';
+import { initWasm } from '../core/wasm.ts';
 import { findRoles, ROLE_NAMES, type RoleName, type RoleOverrides, vrmBoneNames } from '../core/roles.ts';
-import { type FetchOptions, fetchBytes } from '../fetch.ts';
+import { type FetchOptions, fetchBytes, mark } from '../fetch.ts';
 import { Grounding } from './grounding.ts';
 
 export interface AvatarOptions {
@@ -130,10 +132,18 @@ export class Avatar {
    * an Error naming the source: not a model, no skinned mesh, no hips.
    */
   static async load(source: string | URL | Uint8Array | THREE.Object3D, options: AvatarOptions & FetchOptions = {}): Promise<Avatar> {
-    if (source instanceof THREE.Object3D) return new Avatar(source, options.name ?? source.name ?? 'avatar', undefined, options.roles);
+    // Finding the roles runs in the core: it must be ready (it loads in parallel with the file).
+    const core = initWasm(undefined, options);
+    core.catch(() => undefined); // awaited below; not an unhandled rejection if the file fails first
+    if (source instanceof THREE.Object3D) return (await core, new Avatar(source, options.name ?? source.name ?? 'avatar', undefined, options.roles));
     const name = options.name ?? (source instanceof Uint8Array ? 'avatar' : String(source));
     const bytes = source instanceof Uint8Array ? source : await fetchBytes(source, { stage: 'avatar', ...options });
+    await core;
     const loader = new GLTFLoader();
+    // The shipped avatar is meshopt-compressed with WebP textures (scripts/compress-avatar.mjs);
+    // the decoder runs on this thread (no worker: CSP-safe, 'wasm-unsafe-eval' only). Any other
+    // GLB/VRM loads as it is.
+    loader.setMeshoptDecoder(MeshoptDecoder);
     loader.register((parser) => new VRMLoaderPlugin(parser));
     let gltf: GLTF;
     try {
@@ -148,7 +158,9 @@ export class Avatar {
       VRMUtils.rotateVRM0(vrm);
       vrm.humanoid.autoUpdateHumanBones = false;
     }
-    return new Avatar(vrm?.scene ?? gltf.scene, name, vrm, options.roles);
+    const avatar = new Avatar(vrm?.scene ?? gltf.scene, name, vrm, options.roles);
+    mark('mm:avatar-ready');
+    return avatar;
   }
 
   /**

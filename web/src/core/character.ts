@@ -63,7 +63,7 @@ export class CharacterRuntime {
     this.views.matched = new ViewCache(Float32Array, this.raw_.num_matched() * 4);
   }
 
-  /** The binding, for other raw-layer classes (the retargeter). */
+  /** The binding, for other raw-layer classes (the retargeter). @internal */
   get raw(): RawCharacter {
     if (!this.raw_) throw new Error('character used after free()');
     return this.raw_;
@@ -175,6 +175,15 @@ export class CharacterRuntime {
   }
   get bestCost(): number {
     return this.raw.best_cost();
+  }
+  /**
+   * What the runtime refused or repaired since creation: inputs that were not numbers or out of
+   * range (the last good value was used), `dt` gaps searched afresh instead of simulated, and
+   * recoveries from a non-finite state. Not for every frame (allocates).
+   */
+  faults(): { rejectedInputs: number; gaps: number; recoveries: number } {
+    const [rejectedInputs, gaps, recoveries] = this.raw.faults();
+    return { rejectedInputs, gaps, recoveries };
   }
   /** Planted-toe sliding since the last teleport, database units (the runtime's measure). */
   get skating(): number {

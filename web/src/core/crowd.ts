@@ -6,7 +6,7 @@ import { type MoveInput } from './character.ts';
 import { type Database } from './database.ts';
 import { RawCrowd } from './raw.ts';
 import { ViewCache } from './view-cache.ts';
-import { wasmMemory } from './wasm.ts';
+import { asError, wasmMemory } from './wasm.ts';
 
 export class Crowd {
   readonly count: number;
@@ -17,7 +17,11 @@ export class Crowd {
     private readonly database: Database,
     count: number,
   ) {
-    this.raw = new RawCrowd(database.raw, count);
+    try {
+      this.raw = new RawCrowd(database.raw, count);
+    } catch (e) {
+      throw asError(e);
+    }
     database.retain();
     this.count = count;
     this.positions = Array.from({ length: count }, () => new ViewCache(Float32Array, database.numJoints * 3));

@@ -3,7 +3,8 @@
  * index). One database is shared by any number of characters: it is reference-counted
  * (`retain`/`release`) and its WASM memory is freed with the last reference.
  */
-import { type FetchOptions, fetchBytes } from '../fetch.ts';
+import { assetUrl } from '../assets.ts';
+import { type FetchOptions, fetchBytes, mark } from '../fetch.ts';
 import { RawDatabase } from './raw.ts';
 import { type RoleName } from './roles.ts';
 import { ViewCache } from './view-cache.ts';
@@ -121,11 +122,11 @@ export class Database {
 
   /** Fetches and loads a `.mmdb` file (initializing the WASM module if needed). */
   static async fetch(url: string | URL, options: FetchOptions = {}): Promise<Database> {
-    const [bytes] = await Promise.all([fetchBytes(url, { stage: 'database', ...options }), initWasm()]);
+    const [bytes] = await Promise.all([fetchBytes(url, { stage: 'database', ...options }), initWasm(undefined, options)]);
     return Database.fromBytes(bytes, String(url));
   }
 
-  /** The binding, for the other raw-layer classes. */
+  /** The binding, for the other raw-layer classes. @internal */
   get raw(): RawDatabase {
     if (!this.raw_) throw new Error(`${this.name}: database used after it was freed`);
     return this.raw_;
@@ -220,8 +221,10 @@ export async function loadDatabase(source: string | URL | Uint8Array, options: F
     if (!db.isFreed) return db.retain();
   }
   pending = (async () => {
-    const [bytes] = await Promise.all([fetchBytes(href, { stage: 'database', ...options }), initWasm()]);
-    return Database.fromBytes(bytes, href, () => shared.delete(href));
+    const [bytes] = await Promise.all([fetchBytes(href, { stage: 'database', ...options }), initWasm(undefined, options)]);
+    const db = Database.fromBytes(bytes, href, () => shared.delete(href));
+    mark('mm:database-ready');
+    return db;
   })();
   shared.set(href, pending);
   try {
@@ -230,4 +233,34 @@ export async function loadDatabase(source: string | URL | Uint8Array, options: F
     shared.delete(href);
     throw e;
   }
+}
+
+/** One database a site serves (`databases/index.json`, written by the set-up). */
+export interface DatabaseEntry {
+  /** Short name (`locomotion`). */
+  readonly name: string;
+  /** Where to load it from (versioned by its content hash). */
+  readonly url: string;
+  readonly bytes: number;
+}
+
+/**
+ * The databases a site serves, from its generated `databases/index.json` (default: the one
+ * beside the library's default assets). Rejects with a message naming the URL when there is no
+ * index; pages then offer only the database they loaded.
+ */
+export async function listDatabases(indexUrl: string | URL = assetUrl('databases/index.json')): Promise<DatabaseEntry[]> {
+  const href = String(indexUrl);
+  const bytes = await fetchBytes(href, { stage: 'database index', cache: false });
+  let index: { databases?: { name: string; file: string; bytes: number; sha256?: string }[] };
+  try {
+    index = JSON.parse(new TextDecoder().decode(bytes)) as typeof index;
+  } catch (e) {
+    throw new Error(`${href}: not a database index (${e instanceof Error ? e.message : String(e)})`);
+  }
+  return (index.databases ?? []).map((d) => {
+    const url = new URL(d.file, href);
+    if (d.sha256) url.searchParams.set('v', d.sha256);
+    return { name: d.name, url: url.href, bytes: d.bytes };
+  });
 }

@@ -61,9 +61,16 @@ export class Retargeter {
     return this.raw;
   }
 
-  /** Retargets `character`'s pose, the hips lifted `lift` avatar units (grounding). */
+  /**
+   * Retargets `character`'s pose, the hips lifted `lift` avatar units (grounding). Throws when
+   * the character plays a database with another skeleton than this retargeter was made for.
+   */
   apply(character: CharacterRuntime, lift: number): void {
-    this.live.apply(character.raw, lift);
+    try {
+      this.live.apply(character.raw, lift);
+    } catch (e) {
+      throw asError(e);
+    }
   }
 
   /** The avatar's local rotations after `apply` (T×4, zero-copy). */

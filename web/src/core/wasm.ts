@@ -8,6 +8,7 @@
  */
 import { initWasmModule, initWasmModuleSync, live_objects } from './raw.ts';
 import { assetUrl } from '../assets.ts';
+import { type FetchOptions, type FetchProgress, fetchBytes } from '../fetch.ts';
 
 /** What the module's initializer returns: its exports, including `memory`. */
 export interface WasmExports {
@@ -16,8 +17,11 @@ export interface WasmExports {
 
 let _exports: WasmExports | null = null;
 let _pending: Promise<WasmExports> | null = null;
+/** Everyone waiting on the pending load who wants its progress. */
+const _listeners = new Set<(p: FetchProgress) => void>();
 
-const isNode = typeof process !== 'undefined' && !!process.versions?.node && typeof window === 'undefined';
+/** Node (tests, tools) rather than a browser: read the module from disk there. */
+const isNode = typeof (globalThis as { process?: { versions?: { node?: string } } }).process?.versions?.node === 'string' && typeof window === 'undefined';
 
 /** Initializes from the module bytes, synchronously. A no-op when already initialized. */
 export function initWasmSync(bytes: BufferSource): WasmExports {
@@ -26,23 +30,34 @@ export function initWasmSync(bytes: BufferSource): WasmExports {
   return _exports;
 }
 
-/** Initializes the module (once; later calls return the same promise). */
-export function initWasm(url?: string | URL): Promise<WasmExports> {
+/**
+ * Initializes the module (once; later calls return the same promise). In a browser the module
+ * is fetched as the `core` stage (progress, stall reports, the library's cache for a versioned
+ * URL: fetch.ts) and compiled from its bytes.
+ */
+export function initWasm(url?: string | URL, options: Pick<FetchOptions, 'onProgress' | 'stallMs'> = {}): Promise<WasmExports> {
   if (_exports) return Promise.resolve(_exports);
+  if (options.onProgress) _listeners.add(options.onProgress);
   _pending ??= (async () => {
     if (isNode && url === undefined) {
       // Kept out of the browser bundle: the specifier is not a literal a bundler can follow.
       const fsModule = 'node:fs/promises';
-      const { readFile } = (await import(/* @vite-ignore */ fsModule)) as typeof import('node:fs/promises');
-      const bytes = await readFile(new URL('./pkg/mmcore_bg.wasm', import.meta.url));
+      const { readFile } = (await import(/* @vite-ignore */ fsModule)) as { readFile(path: URL): Promise<Uint8Array<ArrayBuffer>> };
+      // Not `new URL('literal', import.meta.url)`: bundlers would inline the module into the JS.
+      const file = ['pkg', 'mmcore_bg.wasm'].join('/');
+      const bytes = await readFile(new URL(file, import.meta.url));
       return initWasmSync(bytes);
     }
-    const where = url ?? assetUrl('mmcore_bg.wasm');
+    const where = String(url ?? assetUrl('mmcore_bg.wasm'));
     try {
-      _exports = (await initWasmModule({ module_or_path: where })) as unknown as WasmExports;
+      const bytes = await fetchBytes(where, { stage: 'core', stallMs: options.stallMs, onProgress: (p) => _listeners.forEach((l) => l(p)) });
+      _exports = (await initWasmModule({ module_or_path: bytes })) as unknown as WasmExports;
     } catch (e) {
       _pending = null;
-      throw new Error(`could not load the motion-matching core ${String(where)}: ${e instanceof Error ? e.message : String(e)}`);
+      const message = e instanceof Error ? e.message : String(e);
+      throw new Error(message.includes(where) ? message : `could not load the motion-matching core ${where}: ${message}`);
+    } finally {
+      _listeners.clear();
     }
     return _exports;
   })();

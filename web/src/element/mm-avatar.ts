@@ -5,13 +5,19 @@
  * - attributes, all optional: `avatar` (GLB/VRM URL; default the shipped avatar; `none`: the
  *   skeleton), `database` (.mmdb URL; default the shipped locomotion database), `controls`
  *   (space-separated `keyboard gamepad path none`; default `keyboard gamepad`; the keyboard
- *   acts only while the element has focus), `camera` (`follow` | `fixed`), `loading`
+ *   acts only while the element has focus), `camera` (`follow`: moves with the character;
+ *   `fixed`: stays put and turns to keep it in view), `loading`
  *   (`eager` | `lazy`: wait until near the viewport), `debug`, `alt`;
  * - properties and methods: `character`, `root` ({x, y, z, yaw}, m / rad, the element's floor
  *   frame), `walkTo(x, z, {run})`, `setMove(x, z, {run})`, `stop()`, `ready` (a promise), and
  *   `timeStep` (null: real time; a number: fixed seconds per frame, for tests and recordings);
- * - events: `progress` (`detail: {stage, loaded, total, url}`), `load` (first animated frame),
- *   `error` (`detail: {message, url}`), and a visible message inside the element;
+ * - events: `progress` (`detail: {stage, loaded, total, url, stalled, done, cached}`), `load`
+ *   (first animated frame), `error` (`detail: {message, url}`), and a visible status inside the
+ *   element: each stage with its URL and bytes, a stalled download after 5 s, a failed database
+ *   with a Retry button (`retry()`), a failed avatar's note over the skeleton;
+ * - a value it does not understand (a typo in `controls`, `camera` or `loading`, a refused
+ *   `timeStep`) is a console warning kept in `warnings`, and the default is used; a
+ *   `database`/`avatar` that is not a fetchable URL is an error shown in the element;
  * - removing the element frees its WASM memory and GPU objects; adding it again rebuilds it.
  */
 import * as THREE from 'three';
@@ -19,8 +25,10 @@ import { DEFAULT_AVATAR, DEFAULT_DATABASE, assetUrl } from '../assets.ts';
 import { Avatar } from '../avatar/avatar.ts';
 import { Character, type MoveOptions, type PathOptions, type Root } from '../character/character.ts';
 import { type Database, loadDatabase } from '../core/database.ts';
+import { checkTimeStep, parseChoice, parseControls, parseUrl } from './attributes.ts';
 import { type FetchProgress, errorMessage } from '../fetch.ts';
 import { MoveControls } from '../input/move-controls.ts';
+import { LoadingStatus } from '../ui/loading-status.ts';
 import { FollowCamera } from '../views/follow-camera.ts';
 import { Stage } from '../views/stage.ts';
 
@@ -32,6 +40,8 @@ const STYLE = `
 .status { position: absolute; left: 0; right: 0; bottom: 0; padding: 6px 10px; font: 13px/1.35 system-ui, sans-serif; color: #e6e9ee; background: rgba(20, 23, 28, 0.82); pointer-events: none; }
 .status[hidden] { display: none; }
 .status.error { color: #ffd2cc; background: rgba(90, 20, 20, 0.88); pointer-events: auto; }
+.status.stalled { color: #ffe9b8; background: rgba(70, 52, 10, 0.88); }
+.status button { margin-left: 8px; font: inherit; color: #fff; background: #8a2b2b; border: 1px solid #c46; border-radius: 4px; padding: 2px 10px; cursor: pointer; }
 .hint { position: absolute; right: 8px; top: 6px; font: 11px system-ui, sans-serif; color: #9aa3ad; pointer-events: none; }
 `;
 
@@ -42,7 +52,6 @@ export interface ErrorDetail {
   url: string;
 }
 
-type ControlName = 'keyboard' | 'gamepad' | 'path';
 
 const _look = new THREE.Vector3();
 const _ndc = new THREE.Vector2();
@@ -50,15 +59,20 @@ const _ray = new THREE.Raycaster();
 const _floor = new THREE.Plane(new THREE.Vector3(0, 1, 0), 0);
 const _hit = new THREE.Vector3();
 
-export class MMAvatarElement extends HTMLElement {
+/** `HTMLElement` where there is one: the module also loads in Node (SSR, tests) without a DOM. */
+const ElementBase = (typeof HTMLElement === 'undefined' ? class {} : HTMLElement) as typeof HTMLElement;
+
+export class MMAvatarElement extends ElementBase {
   static readonly observedAttributes = ['avatar', 'database', 'controls', 'camera', 'debug', 'alt'];
 
   /** The character, once loaded (null before `load` and after removal). */
   character: Character | null = null;
   /** The element's stage (scene, camera, renderer), once loaded. */
   stage: Stage | null = null;
-  /** Seconds per frame; null: the real time between frames (clamped to 0.1 s). */
-  timeStep: number | null = null;
+  /** What the element could not use (an unknown attribute value, a refused property), newest
+   * last, at most 20; each is also a console warning. */
+  readonly warnings: string[] = [];
+  private timeStep_: number | null = null;
   /** Resolves at the first animated frame of the current load. */
   ready: Promise<void>;
   /** Called after every update, before rendering (pages read state here; nothing allocated). */
@@ -68,8 +82,10 @@ export class MMAvatarElement extends HTMLElement {
 
   private readonly view: HTMLDivElement;
   private readonly status: HTMLDivElement;
+  private readonly loading = new LoadingStatus((text, state, retry) => this.render(text, state, retry));
   private readonly controls = new MoveControls();
-  private camera: FollowCamera | null = null;
+  /** The camera's orbit controls and following (once loaded): pages may enable zoom here. */
+  orbit: FollowCamera | null = null;
   private abort: AbortController | null = null;
   private observer: IntersectionObserver | null = null;
   private resolveReady: () => void = () => {};
@@ -77,6 +93,8 @@ export class MMAvatarElement extends HTMLElement {
   private loadedOnce = false;
   private generation = 0;
   private downAt = { x: 0, y: 0 };
+  private pathControl = false;
+  private cameraMode: 'follow' | 'fixed' = 'follow';
 
   constructor() {
     super();
@@ -107,8 +125,10 @@ export class MMAvatarElement extends HTMLElement {
     this.updateAlt();
     this.controls.attach(this);
     this.applyControls();
-    if (this.getAttribute('loading') === 'lazy' && typeof IntersectionObserver !== 'undefined') {
-      this.say('Waiting to come into view…');
+    this.applyCamera();
+    const loading = parseChoice('loading', this.getAttribute('loading'), ['eager', 'lazy'] as const, 'eager', (m) => this.warn(m));
+    if (loading === 'lazy' && typeof IntersectionObserver !== 'undefined') {
+      this.loading.say('Waiting to come into view…');
       this.observer = new IntersectionObserver(
         (entries) => {
           if (entries.some((e) => e.isIntersecting)) {
@@ -133,6 +153,7 @@ export class MMAvatarElement extends HTMLElement {
   attributeChangedCallback(name: string, before: string | null, after: string | null): void {
     if (before === after || !this.isConnected) return;
     if (name === 'controls') this.applyControls();
+    else if (name === 'camera') this.applyCamera();
     else if (name === 'alt') this.updateAlt();
     else if (name === 'debug' && this.character) this.character.debug = this.hasAttribute('debug');
     else if (name === 'avatar' && this.character) void this.swapAvatar();
@@ -143,6 +164,15 @@ export class MMAvatarElement extends HTMLElement {
   }
 
   // ---- the API
+
+  /** Seconds per frame, in (0, 1]; null: the real time between frames (clamped to 0.1 s).
+   * Anything else is refused with a warning and the previous value stays. */
+  get timeStep(): number | null {
+    return this.timeStep_;
+  }
+  set timeStep(value: number | null) {
+    this.timeStep_ = checkTimeStep(value, this.timeStep_, (m) => this.warn(m));
+  }
 
   /** Where the character stands ({x, y, z} m and yaw rad in the element's floor frame). */
   get root(): Root {
@@ -185,9 +215,16 @@ export class MMAvatarElement extends HTMLElement {
 
   // ---- loading
 
+  /** The attribute's URL, or the default asset's. Throws on a value that is not a URL. */
   private url(attribute: string, fallback: string): string {
-    const v = this.getAttribute(attribute)?.trim();
-    return v ? new URL(v, document.baseURI).href : assetUrl(fallback).href;
+    return parseUrl(attribute, this.getAttribute(attribute), document.baseURI) ?? assetUrl(fallback).href;
+  }
+
+  private warn(message: string): void {
+    const m = `<mm-avatar> ${message}`;
+    if (this.warnings.length >= 20) this.warnings.shift();
+    this.warnings.push(m);
+    console.warn(m);
   }
 
   private async load(): Promise<void> {
@@ -196,19 +233,39 @@ export class MMAvatarElement extends HTMLElement {
     const signal = this.abort.signal;
     const progress = (p: FetchProgress) => {
       if (generation !== this.generation) return;
-      const mb = (n: number) => (n / 1e6).toFixed(1);
-      this.say(`Loading the ${p.stage}… ${mb(p.loaded)}${p.total ? ` / ${mb(p.total)}` : ''} MB`);
+      this.loading.update(p);
       this.dispatchEvent(new CustomEvent<ProgressDetail>('progress', { detail: { ...p } }));
     };
-    const databaseUrl = this.url('database', DEFAULT_DATABASE);
-    const avatarAttr = this.getAttribute('avatar')?.trim();
-    const avatarUrl = avatarAttr === 'none' ? null : this.url('avatar', DEFAULT_AVATAR);
-    this.say('Loading the motion-matching core…');
+    let databaseUrl: string;
+    let avatarUrl: string | null;
+    try {
+      databaseUrl = this.url('database', DEFAULT_DATABASE);
+      avatarUrl = this.getAttribute('avatar')?.trim() === 'none' ? null : this.url('avatar', DEFAULT_AVATAR);
+    } catch (e) {
+      this.fail(errorMessage(e), this.getAttribute('database') ?? '');
+      return;
+    }
+    this.loading.reset();
+    this.loading.say(`Loading · database ${databaseUrl.split('?')[0].split('/').pop()}…`);
     let database: Database;
     let avatar: Avatar | null = null;
     let avatarNote = '';
+    // The stage first: its WebGL context, and the avatar's shaders as soon as the avatar is here,
+    // get ready while the database still downloads (the first frame then only draws).
+    let stage: Stage;
     try {
-      const avatarLoad = avatarUrl ? Avatar.load(avatarUrl, { onProgress: progress, signal }).catch((e: unknown) => e as Error) : Promise.resolve(null);
+      stage = this.stage = new Stage(this.view, { antialias: true });
+      stage.scene.fog = null;
+    } catch (e) {
+      this.fail(errorMessage(e), databaseUrl);
+      return;
+    }
+    const precompile = (a: Avatar) => {
+      if (generation === this.generation) stage.renderer.compileAsync(a.object, stage.camera, stage.scene).catch(() => undefined);
+      return a;
+    };
+    try {
+      const avatarLoad = avatarUrl ? Avatar.load(avatarUrl, { onProgress: progress, signal }).then(precompile, (e: unknown) => e as Error) : Promise.resolve(null);
       database = await loadDatabase(databaseUrl, { onProgress: progress, signal });
       const a = await avatarLoad;
       if (a instanceof Avatar) avatar = a;
@@ -219,7 +276,7 @@ export class MMAvatarElement extends HTMLElement {
       }
     } catch (e) {
       if (signal.aborted || generation !== this.generation) return;
-      this.fail(errorMessage(e), databaseUrl);
+      this.fail(errorMessage(e), databaseUrl, true);
       return;
     }
     if (signal.aborted || generation !== this.generation) {
@@ -228,23 +285,21 @@ export class MMAvatarElement extends HTMLElement {
       return;
     }
     try {
-      this.stage = new Stage(this.view, { antialias: true });
-      this.stage.scene.fog = null;
       const character = new Character(database, avatar, { debug: this.hasAttribute('debug') });
       database.release(); // the character holds its own reference
       this.character = character;
-      this.stage.scene.add(character.object3d);
-      this.stage.camera.position.set(1.8, 1.5, 3.2);
-      this.camera = new FollowCamera(this.stage.camera, this.stage.renderer.domElement);
-      this.camera.controls.enableZoom = false; // the page scrolls, not the camera
-      this.camera.follow(0, 0, 0);
+      stage.scene.add(character.object3d);
+      stage.camera.position.set(2.2, 1.8, 4.2);
+      this.orbit = new FollowCamera(stage.camera, stage.renderer.domElement);
+      this.orbit.controls.enableZoom = false; // the page scrolls, not the camera
+      this.orbit.follow(0, 0, 0);
     } catch (e) {
       this.fail(errorMessage(e), databaseUrl);
       return;
     }
-    this.say(avatarNote || null);
+    this.loading.finish(avatarNote || null);
     this.last = performance.now();
-    this.stage.renderer.setAnimationLoop((now: number) => this.frame(now, generation));
+    stage.renderer.setAnimationLoop((now: number) => this.frame(now, generation));
   }
 
   private async swapAvatar(): Promise<void> {
@@ -255,14 +310,15 @@ export class MMAvatarElement extends HTMLElement {
       character.setAvatar(null);
       return;
     }
-    const url = this.url('avatar', DEFAULT_AVATAR);
+    let url = '';
     try {
+      url = this.url('avatar', DEFAULT_AVATAR);
       const avatar = await Avatar.load(url, { onProgress: (p) => this.dispatchEvent(new CustomEvent('progress', { detail: { ...p } })) });
       if (this.character === character) character.setAvatar(avatar);
       else avatar.dispose();
     } catch (e) {
       const message = `Avatar unavailable, keeping the current one: ${errorMessage(e)}`;
-      this.say(message);
+      this.loading.finish(message);
       this.dispatchEvent(new CustomEvent<ErrorDetail>('error', { detail: { message, url } }));
     }
   }
@@ -271,7 +327,7 @@ export class MMAvatarElement extends HTMLElement {
     const character = this.character;
     const stage = this.stage;
     if (!character || !stage || generation !== this.generation) return;
-    const dt = this.timeStep ?? Math.min(0.1, Math.max(0, (now - this.last) / 1000));
+    const dt = this.timeStep_ ?? Math.min(0.1, Math.max(0, (now - this.last) / 1000));
     this.last = now;
     stage.camera.getWorldDirection(_look);
     const input = this.controls.read(_look.x, _look.z, character.root.yaw, dt);
@@ -281,12 +337,18 @@ export class MMAvatarElement extends HTMLElement {
     this.lastUpdateMs = performance.now() - t0;
     this.afterUpdate?.(dt);
     const r = character.root;
-    if (this.getAttribute('camera') !== 'fixed') this.camera?.follow(r.x, r.z, dt);
-    else this.camera?.controls.update();
+    if (this.cameraMode === 'follow') this.orbit?.follow(r.x, r.z, dt);
+    else if (this.orbit) {
+      // A camera on a tripod: it stays where it is and turns to keep the character in view.
+      this.orbit.controls.target.set(r.x, this.orbit.targetHeight, r.z);
+      this.orbit.controls.update();
+    }
     stage.grid.follow(r.x, r.z);
     stage.render();
     if (!this.loadedOnce) {
       this.loadedOnce = true;
+      // For load benchmarks: the page's first animated frame (scripts/bench-load.mjs).
+      if (performance.getEntriesByName('mm:first-frame').length === 0) performance.mark('mm:first-frame');
       this.resolveReady();
       this.dispatchEvent(new Event('load'));
     }
@@ -302,8 +364,8 @@ export class MMAvatarElement extends HTMLElement {
     this.character = null;
     this.stage?.dispose();
     this.stage = null;
-    this.camera?.controls.dispose();
-    this.camera = null;
+    this.orbit?.controls.dispose();
+    this.orbit = null;
     if (this.loadedOnce) {
       this.loadedOnce = false;
       this.ready = new Promise((r) => (this.resolveReady = r));
@@ -313,15 +375,19 @@ export class MMAvatarElement extends HTMLElement {
   // ---- controls and messages
 
   private applyControls(): void {
-    const list = (this.getAttribute('controls') ?? 'keyboard gamepad').split(/\s+/).filter(Boolean) as (ControlName | 'none')[];
-    this.controls.keyboardEnabled = list.includes('keyboard');
-    this.controls.gamepadEnabled = list.includes('gamepad');
+    const controls = parseControls(this.getAttribute('controls'), (m) => this.warn(m));
+    this.controls.keyboardEnabled = controls.has('keyboard');
+    this.controls.gamepadEnabled = controls.has('gamepad');
+    this.pathControl = controls.has('path');
+  }
+
+  private applyCamera(): void {
+    this.cameraMode = parseChoice('camera', this.getAttribute('camera'), ['follow', 'fixed'] as const, 'follow', (m) => this.warn(m));
   }
 
   /** `controls="path"`: a click on the floor walks there (Shift-click runs). */
   private onClick(e: PointerEvent): void {
-    const controls = (this.getAttribute('controls') ?? '').split(/\s+/);
-    if (!controls.includes('path') || !this.character || !this.stage || e.button !== 0) return;
+    if (!this.pathControl || !this.character || !this.stage || e.button !== 0) return;
     if (Math.hypot(e.clientX - this.downAt.x, e.clientY - this.downAt.y) > 4) return; // an orbit drag
     const rect = this.view.getBoundingClientRect();
     _ndc.set(((e.clientX - rect.left) / rect.width) * 2 - 1, -((e.clientY - rect.top) / rect.height) * 2 + 1);
@@ -334,15 +400,28 @@ export class MMAvatarElement extends HTMLElement {
     this.setAttribute('aria-label', this.getAttribute('alt') ?? 'An animated character');
   }
 
-  /** Shows `text` over the view (null hides it). */
-  private say(text: string | null, error = false): void {
-    this.status.hidden = text === null;
-    this.status.textContent = text ?? '';
-    this.status.classList.toggle('error', error);
+  /** Loads again after a failure (the Retry button does this). */
+  retry(): void {
+    this.teardown();
+    void this.load();
   }
 
-  private fail(message: string, url: string): void {
-    this.say(message, true);
+  /** Shows the status over the view (null hides it), with a Retry button when offered. */
+  private render(text: string | null, state: string, retry: (() => void) | null): void {
+    this.status.hidden = text === null;
+    this.status.textContent = text ?? '';
+    this.status.className = `status ${state}`;
+    if (retry) {
+      const button = document.createElement('button');
+      button.type = 'button';
+      button.textContent = 'Retry';
+      button.addEventListener('click', (e) => (e.stopPropagation(), retry()));
+      this.status.append(button);
+    }
+  }
+
+  private fail(message: string, url: string, retry = false): void {
+    this.loading.fail(message, retry ? () => this.retry() : null);
     this.dispatchEvent(new CustomEvent<ErrorDetail>('error', { detail: { message, url } }));
   }
 }

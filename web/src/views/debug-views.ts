@@ -13,7 +13,7 @@ const MATCHED = 0x3cc8ff;
 const LOCKED = 0x7dff8a;
 
 /** Points with short facing strokes, on the floor. */
-class TrajectoryView {
+export class TrajectoryView {
   readonly object = new THREE.Group();
   private readonly dots: THREE.Mesh[] = [];
   private readonly strokes: THREE.LineSegments;

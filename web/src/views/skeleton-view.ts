@@ -58,7 +58,8 @@ export class SkeletonView {
 
   /**
    * @param worldPositions `J×3` world positions of one frame
-   * @param leftContact, rightContact foot contact flags of that frame
+   * @param leftContact foot contact flag of the left foot in that frame
+   * @param rightContact and of the right foot
    */
   update(worldPositions: Float32Array, leftContact: boolean, rightContact: boolean): void {
     for (let j = 1; j < this.numJoints; j++) {

@@ -1,5 +1,5 @@
 /**
- * What the VR pipeline asks of a body-orientation predictor (THESIS_NOTES §9): each frame, the
+ * What the VR pipeline asks of a body-orientation predictor (docs/method.md §9): each frame, the
  * user's body (root) yaw from the HMD and controller states. Two implementations: the ONNX
  * orientation network (web/src/orientation, wrapped by an adapter) and the HMD-forward
  * dead-zone heuristic (fallback-yaw.ts), shown when the model is missing or fails to load.

@@ -1,5 +1,5 @@
 /**
- * The Enter-VR button: requests an `immersive-vr` session with `local-floor` (THESIS_NOTES §9:
+ * The Enter-VR button: requests an `immersive-vr` session with `local-floor` (docs/method.md §9:
  * trackers are read in the floor-level space) and hands it to three.js. Unlike three's VRButton
  * it exposes `enter()`/`exit()` for the test hook and says why VR is unavailable (Quest Browser
  * allows WebXR only on secure origins: HTTPS or localhost).

@@ -1,5 +1,5 @@
 /**
- * The HMD-forward dead-zone heuristic for the body yaw (THESIS_NOTES §9's baseline, 14.5° mean
+ * The HMD-forward dead-zone heuristic for the body yaw (docs/method.md §9's baseline, 14.5° mean
  * error against the network's 5.4°): the body keeps its yaw while the head looks around within
  * ±`deadZone`, and turns smoothly (half-life `halflife`) just far enough to bring the head back to
  * the edge of the dead zone when it looks further. While the head moves over the ground faster

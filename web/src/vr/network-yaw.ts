@@ -14,8 +14,9 @@
  * hand trackers.ts shows; the network was trained with controllers that stop moving, which a
  * hand hanging at the side resembles more than a pose left floating in the room).
  */
-import { type OrientationModel } from '../orientation/orientation-model.ts';
+import type { OrientationModel } from '../orientation/orientation-model.ts'; // type only: onnxruntime loads on demand
 import { type BodyYawPredictor, type TrackerPose } from './body-yaw.ts';
+import { type FetchOptions, fetchBytes } from '../fetch.ts';
 import { headingYaw } from '../yaw.ts';
 
 export class NetworkYawPredictor implements BodyYawPredictor {
@@ -107,10 +108,12 @@ export class NetworkYawPredictor implements BodyYawPredictor {
 }
 
 /**
- * Loads the model at `url` (and onnxruntime-web with it, on demand: pages that never use the
- * network never fetch it); rejects with a message the page shows when it cannot.
+ * Loads the model at `url` and onnxruntime-web, in parallel and on demand (pages that never use
+ * the network never fetch either; the VR page asks after its first frame). The model's bytes go
+ * through the library's fetch (progress, a URL in every message, the cache for a versioned URL).
+ * Rejects with a message the page shows when it cannot.
  */
-export async function loadNetworkPredictor(url: string | URL): Promise<NetworkYawPredictor> {
-  const { OrientationModel } = await import('../orientation/orientation-model.ts');
-  return new NetworkYawPredictor(await OrientationModel.create(String(url)));
+export async function loadNetworkPredictor(url: string | URL, options: FetchOptions = {}): Promise<NetworkYawPredictor> {
+  const [{ OrientationModel }, bytes] = await Promise.all([import('../orientation/orientation-model.ts'), fetchBytes(url, { stage: 'model', ...options })]);
+  return new NetworkYawPredictor(await OrientationModel.create(bytes));
 }

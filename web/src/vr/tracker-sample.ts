@@ -1,6 +1,6 @@
 /**
  * One frame of raw tracker data — HMD and both controllers' grip poses in the `local-floor`
- * reference space (THESIS_NOTES §9) — as structure-of-arrays, and the sampling of a WebXR frame
+ * reference space (docs/method.md §9) — as structure-of-arrays, and the sampling of a WebXR frame
  * into it. The same sample is what a recording stores (recording.ts) and what a replay feeds
  * back, so the live and replayed pipelines start from identical data.
  */

@@ -154,4 +154,41 @@ describe('TrackerState', () => {
     expect(state.head.velocity[2]).toBe(0);
     expect(state.head.position[2]).toBe(10);
   });
+
+  it('treats a garbage pose (NaN, ±Inf, far away, a zero quaternion) or a NaN time as a missing frame, never as a pose', () => {
+    const finite = (state: TrackerState) =>
+      [state.position, state.rotation, state.velocity, state.angularVelocity].every((a) => a.every(Number.isFinite));
+    const garbage: Array<(s: TrackerSample) => void> = [
+      (s) => (s.position[3 * HEAD] = NaN),
+      (s) => (s.position[3 * LEFT + 1] = Infinity),
+      (s) => (s.position[3 * RIGHT + 2] = -1e300),
+      (s) => s.rotation.fill(NaN, 4 * HEAD, 4 * HEAD + 4),
+      (s) => s.rotation.fill(0, 4 * LEFT, 4 * LEFT + 4),
+      (s) => (s.time = NaN),
+    ];
+    for (const [k, spoil] of garbage.entries()) {
+      const s = new TrackerSample();
+      const state = new TrackerState();
+      for (let f = 0; f < 90; f++) {
+        walk(s, f / 90, 1.2);
+        if (f === 45) spoil(s);
+        state.update(s);
+        expect(finite(state), `case ${k}, frame ${f}`).toBe(true);
+        if (f === 45) expect(state.rejected, `case ${k}`).toBe(1);
+      }
+      // Walking on: the head speed is the walk's again.
+      expect(state.head.velocity[2], `case ${k}`).toBeCloseTo(1.2, 3);
+      expect(state.status[HEAD]).toBe(TRACKED);
+    }
+  });
+
+  it('normalizes rotations a device reports unnormalized', () => {
+    const s = new TrackerSample();
+    const state = new TrackerState();
+    walk(s, 0, 0);
+    s.set(HEAD, 0, 1.6, 0, 0, 3, 0, 0);
+    state.update(s);
+    expect(Math.hypot(...state.head.rotation)).toBeCloseTo(1, 12);
+    expect(state.head.rotation[1]).toBeCloseTo(1, 12);
+  });
 });

@@ -1,5 +1,5 @@
 /**
- * Tracker state for the VR avatar (THESIS_NOTES §9): the HMD and both controller grips each frame,
+ * Tracker state for the VR avatar (docs/method.md §9): the HMD and both controller grips each frame,
  * with linear and angular velocities differentiated over the *real* frame dt (Quest Browser runs
  * at 72/90/120 Hz; MMVR's fixed 90 fps assumption is wrong elsewhere) and lightly smoothed.
  *
@@ -14,6 +14,9 @@
  *   keep reporting its last pose) blends, over `fallbackHalflife`, to a hanging pose at the side relative
  *   to the HMD's heading, and back when it returns; `status` flags it.
  * - a missing HMD pose holds the last one.
+ * - garbage (WebXR poses can be garbage for a frame): a pose with a non-finite number, a position
+ *   beyond ±1e5 m or a rotation that is not a quaternion counts as missing for that frame, a
+ *   non-finite time as no time passing; each is counted in `rejected`. Rotations are normalized.
  *
  * Everything is preallocated SoA (indices HEAD, LEFT, RIGHT); `update` allocates nothing.
  */
@@ -100,6 +103,8 @@ export class TrackerState {
   rawDt = 0;
   /** Samples consumed since construction or `reset()`. */
   frames = 0;
+  /** Tracker poses and times refused as garbage since construction (see the class comment). */
+  rejected = 0;
 
   // Last device pose per tracker, how long it has not changed, and the fallback blend (0 = device).
   private readonly devicePosition = new Float64Array(NUM_TRACKERS * 3);
@@ -147,8 +152,10 @@ export class TrackerState {
   update(sample: TrackerSample): void {
     const o = this.options;
     const first = this.frames === 0;
-    const rawDt = first ? 0 : sample.time - this.lastTime;
-    this.lastTime = sample.time;
+    const timeOk = Number.isFinite(sample.time);
+    if (!timeOk) this.rejected++;
+    const rawDt = first || !timeOk ? 0 : sample.time - this.lastTime;
+    if (timeOk) this.lastTime = sample.time;
     this.rawDt = rawDt;
     this.dt = Math.min(Math.max(rawDt, 0), o.maxDt);
     const differentiate = !first && rawDt > 0 && rawDt <= o.resetAfter;
@@ -157,9 +164,10 @@ export class TrackerState {
 
     // Device poses and status. A controller only counts as frozen while the head moves: an
     // emulator (or a paused replay) holds every pose bit-for-bit at once, a real HMD never does.
-    const headMoved = sample.tracked[HEAD] === 1 && !(this.hasDevicePose[HEAD] === 1 && samePose(sample, HEAD, this.devicePosition, this.deviceRotation));
+    const headMoved = usable(sample, HEAD) && !(this.hasDevicePose[HEAD] === 1 && samePose(sample, HEAD, this.devicePosition, this.deviceRotation));
     for (let t = 0; t < NUM_TRACKERS; t++) {
-      if (!sample.tracked[t]) {
+      if (sample.tracked[t] && !usable(sample, t)) this.rejected++;
+      if (!usable(sample, t)) {
         this.status[t] = MISSING;
         this.unchangedFor[t] = 0;
         continue;
@@ -273,19 +281,39 @@ export class TrackerState {
   }
 }
 
+/** Farther than this from the reference space's origin (m) a tracker pose is garbage. */
+const MAX_COORDINATE = 1e5;
+
+/** Whether tracker `t` of `sample` is tracked and its pose is numbers that make a pose. */
+function usable(sample: TrackerSample, t: number): boolean {
+  if (!sample.tracked[t]) return false;
+  const p = sample.position, r = sample.rotation;
+  for (let k = 3 * t; k < 3 * t + 3; k++) if (!(Math.abs(p[k]) <= MAX_COORDINATE)) return false;
+  const n = Math.hypot(r[4 * t], r[4 * t + 1], r[4 * t + 2], r[4 * t + 3]);
+  return Number.isFinite(n) && n > 1e-6;
+}
+
+/** Length of tracker `t`'s rotation in `r` (usable samples only: finite and not 0). */
+function rotationLength(r: Float64Array, t: number): number {
+  return Math.hypot(r[4 * t], r[4 * t + 1], r[4 * t + 2], r[4 * t + 3]);
+}
+
 function samePose(sample: TrackerSample, t: number, position: Float64Array, rotation: Float64Array): boolean {
   const eps = 1e-7;
+  const n = rotationLength(sample.rotation, t);
   for (let k = 0; k < 3; k++) if (Math.abs(sample.position[3 * t + k] - position[3 * t + k]) > eps) return false;
-  for (let k = 0; k < 4; k++) if (Math.abs(sample.rotation[4 * t + k] - rotation[4 * t + k]) > eps) return false;
+  for (let k = 0; k < 4; k++) if (Math.abs(sample.rotation[4 * t + k] / n - rotation[4 * t + k]) > eps) return false;
   return true;
 }
 
+/** Copies tracker `t`'s pose, its rotation normalized. */
 function copyPose(fromP: Float64Array, fromR: Float64Array, t: number, toP: Float64Array, toR: Float64Array): void {
+  const n = rotationLength(fromR, t);
   toP[3 * t] = fromP[3 * t];
   toP[3 * t + 1] = fromP[3 * t + 1];
   toP[3 * t + 2] = fromP[3 * t + 2];
-  toR[4 * t] = fromR[4 * t];
-  toR[4 * t + 1] = fromR[4 * t + 1];
-  toR[4 * t + 2] = fromR[4 * t + 2];
-  toR[4 * t + 3] = fromR[4 * t + 3];
+  toR[4 * t] = fromR[4 * t] / n;
+  toR[4 * t + 1] = fromR[4 * t + 1] / n;
+  toR[4 * t + 2] = fromR[4 * t + 2] / n;
+  toR[4 * t + 3] = fromR[4 * t + 3] / n;
 }

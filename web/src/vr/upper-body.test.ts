@@ -1,18 +1,25 @@
+import fs from 'node:fs';
+import path from 'node:path';
 import * as THREE from 'three';
-import { describe, expect, it } from 'vitest';
-import { type HumanoidRole } from '../avatar/joint-maps.ts';
-import { type TrackerPose } from './body-yaw.ts';
-import { solveTwoBoneIK } from './two-bone-ik.ts';
-import { UpperBody } from './upper-body.ts';
-import { headingYaw } from '../yaw.ts';
+import { beforeAll, describe, expect, it } from 'vitest';
 import { seededRandom } from '../bench/queries.ts';
+import { TwoBoneIk } from '../core/ik.ts';
+import { type RoleName } from '../core/roles.ts';
+import { initWasmSync } from '../core/wasm.ts';
+import { headingYaw } from '../yaw.ts';
+import { type TrackerPose } from './body-yaw.ts';
+import { UpperBody } from './upper-body.ts';
+
+beforeAll(() => {
+  initWasmSync(fs.readFileSync(path.resolve(import.meta.dirname, '../core/pkg/mmcore_bg.wasm')));
+});
 
 /** A T-posed humanoid upper body facing +Z (left = +X), bones with arbitrary rest rotations. */
 function makeRig(twistRest = false) {
   const object = new THREE.Group();
   const bones: THREE.Bone[] = [];
-  const roles = new Map<HumanoidRole, number>();
-  const add = (role: HumanoidRole, parent: THREE.Object3D, x: number, y: number, z: number) => {
+  const roles = new Map<RoleName, number>();
+  const add = (role: RoleName, parent: THREE.Object3D, x: number, y: number, z: number) => {
     const b = new THREE.Bone();
     b.name = role;
     b.position.set(x, y, z);
@@ -24,15 +31,15 @@ function makeRig(twistRest = false) {
   const hips = add('hips', object, 0, 1.0, 0);
   const spine = add('spine', hips, 0, 0.1, 0);
   const chest = add('chest', spine, 0, 0.15, 0);
-  const upperChest = add('upperChest', chest, 0, 0.15, 0);
+  const upperChest = add('upper_chest', chest, 0, 0.15, 0);
   const neck = add('neck', upperChest, 0, 0.12, 0);
   add('head', neck, 0, 0.1, 0);
   for (const side of [1, -1]) {
     const p = side > 0 ? 'left' : 'right';
-    const clavicle = add(`${p}Shoulder` as HumanoidRole, upperChest, side * 0.03, 0.08, 0);
-    const upper = add(`${p}UpperArm` as HumanoidRole, clavicle, side * 0.15, 0, 0);
-    const lower = add(`${p}LowerArm` as HumanoidRole, upper, side * 0.28, 0, 0);
-    const hand = add(`${p}Hand` as HumanoidRole, lower, side * 0.25, 0, 0);
+    const clavicle = add(`${p}_shoulder` as RoleName, upperChest, side * 0.03, 0.08, 0);
+    const upper = add(`${p}_upper_arm` as RoleName, clavicle, side * 0.15, 0, 0);
+    const lower = add(`${p}_lower_arm` as RoleName, upper, side * 0.28, 0, 0);
+    const hand = add(`${p}_hand` as RoleName, lower, side * 0.25, 0, 0);
     if (twistRest) {
       // Rest rotations that are not identity must not matter (joint axes differ between rigs).
       for (const b of [clavicle, upper, lower, hand]) {
@@ -43,7 +50,7 @@ function makeRig(twistRest = false) {
     }
   }
   object.updateMatrixWorld(true);
-  return { object, bones, roles, bone: (r: HumanoidRole) => bones[roles.get(r) as number] };
+  return { object, bones, roles, bone: (r: RoleName) => bones[roles.get(r) as number] };
 }
 
 function pose(position: number[], rotation: number[]): TrackerPose {
@@ -56,69 +63,58 @@ function hmdRotation(yaw: number, pitch = 0): number[] {
   return [q.x, q.y, q.z, q.w];
 }
 
-describe('solveTwoBoneIK', () => {
-  const chain = () => {
-    const root = new THREE.Bone();
-    const upper = new THREE.Bone();
-    const lower = new THREE.Bone();
-    const end = new THREE.Bone();
-    root.add(upper);
-    upper.add(lower);
-    lower.add(end);
-    upper.position.set(0.1, 1.4, 0);
-    lower.position.set(0.3, 0, 0);
-    end.position.set(0.25, 0, 0);
-    root.updateMatrixWorld(true);
-    return { root, upper, lower, end };
+describe('TwoBoneIk (the runtime’s two-bone IK, through its binding)', () => {
+  const A = new THREE.Vector3(0.1, 1.4, 0), B = new THREE.Vector3(0.4, 1.4, 0), C = new THREE.Vector3(0.65, 1.4, 0);
+  /** The chain after the deltas: b' = a + r_a·(b − a), c' = b' + r_b·(c − b). */
+  const solve = (ik: TwoBoneIk, a: THREE.Vector3, b: THREE.Vector3, c: THREE.Vector3, target: THREE.Vector3, pole: THREE.Vector3) => {
+    const ra = new THREE.Quaternion(), rb = new THREE.Quaternion();
+    ik.solve(a, b, c, target, pole, 0, ra, rb);
+    const b2 = b.clone().sub(a).applyQuaternion(ra).add(a);
+    return { b: b2, c: c.clone().sub(b).applyQuaternion(rb).add(b2), ra, rb };
   };
 
-  it('reaches targets within its reach to 1e-4 m, bending toward the pole', () => {
+  it('reaches targets within its reach to 1e-4 m, bending toward the pole, bone lengths kept', () => {
+    const ik = new TwoBoneIk();
     const rng = seededRandom(7);
     for (let k = 0; k < 200; k++) {
-      const { upper, lower, end } = chain();
       const dir = new THREE.Vector3(rng() - 0.5, rng() - 0.5, rng() - 0.5).normalize();
-      const target = world(upper).addScaledVector(dir, 0.06 + 0.48 * rng());
+      const target = A.clone().addScaledVector(dir, 0.06 + 0.48 * rng());
       const pole = new THREE.Vector3(0, -1, -0.5);
-      const error = solveTwoBoneIK(upper, lower, end, target, pole);
-      expect(error).toBeLessThan(1e-4);
-      expect(world(end).distanceTo(target)).toBeLessThan(1e-4);
-      // Bone lengths are kept.
-      expect(world(upper).distanceTo(world(lower))).toBeCloseTo(0.3, 6);
-      expect(world(lower).distanceTo(world(end))).toBeCloseTo(0.25, 6);
-      // The elbow is on the pole's side of the shoulder→target axis.
-      const u = target.clone().sub(world(upper)).normalize();
+      const { b, c } = solve(ik, A, B, C, target, pole);
+      expect(c.distanceTo(target)).toBeLessThan(1e-4);
+      expect(A.distanceTo(b)).toBeCloseTo(0.3, 5);
+      expect(b.distanceTo(c)).toBeCloseTo(0.25, 5);
+      const u = target.clone().sub(A).normalize();
       const n = pole.clone().addScaledVector(u, -pole.dot(u));
-      if (n.length() > 0.1) expect(world(lower).sub(world(upper)).dot(n)).toBeGreaterThanOrEqual(-1e-6);
+      if (n.length() > 0.1) expect(b.clone().sub(A).dot(n)).toBeGreaterThanOrEqual(-1e-5);
     }
+    ik.free();
   });
 
-  it('stretches toward unreachable targets', () => {
-    const { upper, lower, end } = chain();
+  it('points at unreachable targets at full extension', () => {
+    const ik = new TwoBoneIk();
     const target = new THREE.Vector3(0.1, 1.4 - 2, 0.5);
-    const error = solveTwoBoneIK(upper, lower, end, target, new THREE.Vector3(0, 0, -1));
-    const dir = target.clone().sub(world(upper)).normalize();
-    expect(world(end).sub(world(upper)).normalize().dot(dir)).toBeCloseTo(1, 6);
-    expect(world(end).distanceTo(world(upper))).toBeCloseTo(0.55, 6);
-    expect(error).toBeCloseTo(target.distanceTo(world(upper)) - 0.55, 6);
+    const { c } = solve(ik, A, B, C, target, new THREE.Vector3(0, 0, -1));
+    const dir = target.clone().sub(A).normalize();
+    expect(c.clone().sub(A).normalize().dot(dir)).toBeCloseTo(1, 5);
+    expect(c.distanceTo(A)).toBeCloseTo(0.55, 5);
+    ik.free();
   });
 
-  it('never produces NaN: full extension, target at the shoulder, pole along the axis, zero-length bones', () => {
+  it('never produces NaN: full extension, target at the shoulder, pole along the axis, zero pole, NaN input', () => {
+    const ik = new TwoBoneIk();
     const cases: [THREE.Vector3, THREE.Vector3][] = [
-      [new THREE.Vector3(0.65, 1.4, 0), new THREE.Vector3(0, -1, 0)], // exactly full extension along the chain
-      [new THREE.Vector3(0.1, 1.4, 0), new THREE.Vector3(0, -1, 0)], // at the shoulder
-      [new THREE.Vector3(0.4, 1.4, 0), new THREE.Vector3(1, 0, 0)], // pole along the axis
-      [new THREE.Vector3(0.4, 1.4, 0), new THREE.Vector3(0, 0, 0)], // zero pole
+      [new THREE.Vector3(0.65, 1.4, 0), new THREE.Vector3(0, -1, 0)],
+      [new THREE.Vector3(0.1, 1.4, 0), new THREE.Vector3(0, -1, 0)],
+      [new THREE.Vector3(0.4, 1.4, 0), new THREE.Vector3(1, 0, 0)],
+      [new THREE.Vector3(0.4, 1.4, 0), new THREE.Vector3(0, 0, 0)],
+      [new THREE.Vector3(NaN, 1.4, 0), new THREE.Vector3(0, -1, 0)],
     ];
     for (const [target, pole] of cases) {
-      const { upper, lower, end } = chain();
-      solveTwoBoneIK(upper, lower, end, target, pole);
-      for (const b of [upper, lower, end]) for (const v of b.matrixWorld.elements) expect(Number.isFinite(v)).toBe(true);
+      const { ra, rb } = solve(ik, A, B, C, target, pole);
+      for (const v of [...ra.toArray(), ...rb.toArray()]) expect(Number.isFinite(v)).toBe(true);
     }
-    const { upper, lower, end } = chain();
-    end.position.set(0, 0, 0);
-    lower.updateMatrixWorld(true);
-    solveTwoBoneIK(upper, lower, end, new THREE.Vector3(0.3, 1.2, 0.2), new THREE.Vector3(0, -1, 0));
-    for (const v of end.matrixWorld.elements) expect(Number.isFinite(v)).toBe(true);
+    ik.free();
   });
 });
 
@@ -138,7 +134,7 @@ describe('UpperBody', () => {
       expect(body.handError[1]).toBeLessThan(0.01);
       expect(body.handError[0]).toBeLessThan(1e-4);
       // The grip point implied by the hand bone is the controller's: wrist + R_hand·(grip − wrist).
-      const hand = rig.bone('leftHand');
+      const hand = rig.bone('left_hand');
       const handQ = new THREE.Quaternion();
       hand.matrixWorld.decompose(new THREE.Vector3(), handQ, new THREE.Vector3());
       // The hand's rotation relative to the controller is a constant (rest-derived).
@@ -160,7 +156,7 @@ describe('UpperBody', () => {
 
   it('in the rest pose, a controller held like the rest fist leaves the arm straight', () => {
     const rig = makeRig();
-    const hand = world(rig.bone('leftHand'));
+    const hand = world(rig.bone('left_hand'));
     const body = new UpperBody(rig);
     // The rest fist: rod forward (grip −Z = +Z), back of the left hand up (grip −X = +Y): grip = R_z(−π/2)·R_y(π)?
     // Derive it instead: move the controller to where UpperBody's rest grip is and compare.
@@ -172,7 +168,7 @@ describe('UpperBody', () => {
     const right = pose([-0.73, 1.33, 0], [0, 0, 0, 1]);
     rig.object.updateMatrixWorld(true);
     body.apply(restHmd, pose([grip.x, grip.y, grip.z], [q.x, q.y, q.z, q.w]), right, 0);
-    expect(world(rig.bone('leftHand')).distanceTo(hand)).toBeLessThan(1e-4);
+    expect(world(rig.bone('left_hand')).distanceTo(hand)).toBeLessThan(1e-4);
     expect(body.handError[0]).toBeLessThan(1e-4);
   });
 
@@ -182,7 +178,7 @@ describe('UpperBody', () => {
     const hands = [pose([0.3, 1.1, 0.2], [0, 0, 0, 1]), pose([-0.3, 1.1, 0.2], [0, 0, 0, 1])] as const;
     body.apply(pose([0, 1.62, 0], hmdRotation(1.0)), hands[0], hands[1], 0);
     const chestQ = new THREE.Quaternion();
-    rig.bone('upperChest').matrixWorld.decompose(new THREE.Vector3(), chestQ, new THREE.Vector3());
+    rig.bone('upper_chest').matrixWorld.decompose(new THREE.Vector3(), chestQ, new THREE.Vector3());
     const chestYaw = 2 * Math.atan2(chestQ.y, chestQ.w);
     // spine + chest + upperChest shares: 0.55 of the 1 rad difference.
     expect(chestYaw).toBeCloseTo(0.55, 4);
@@ -217,15 +213,15 @@ describe('UpperBody stretch', () => {
     const far = pose([0.18 + 0.58 + body.options.gripForward, 1.48 - body.options.gripPalm, 0], [q.x, q.y, q.z, q.w]);
     body.apply(hmd, far, right, 0);
     expect(body.handError[0]).toBeLessThan(0.01);
-    const stretched = rig.bone('leftHand').position.length();
+    const stretched = rig.bone('left_hand').position.length();
     expect(stretched).toBeGreaterThan(0.25);
     expect(stretched).toBeLessThanOrEqual(0.25 * 1.25 + 1e-9);
     body.apply(hmd, pose([0.3, 1.1, 0.25], [0, 0, 0, 1]), right, 0);
-    expect(rig.bone('leftHand').position.length()).toBeCloseTo(0.25, 9);
+    expect(rig.bone('left_hand').position.length()).toBeCloseTo(0.25, 9);
     expect(body.handError[0]).toBeLessThan(1e-4);
     // Far beyond: stretched by at most maxStretch, the hand short of the target.
     body.apply(hmd, pose([2, 1.5, 0], [0, 0, 0, 1]), right, 0);
-    expect(rig.bone('leftHand').position.length()).toBeCloseTo(0.25 * 1.25, 9);
+    expect(rig.bone('left_hand').position.length()).toBeCloseTo(0.25 * 1.25, 9);
     expect(body.handError[0]).toBeGreaterThan(0.5);
   });
 });

@@ -11,7 +11,7 @@ import GUI from 'lil-gui';
 import * as THREE from 'three';
 import {
   Avatar, Database, DatabaseBuilder, type DroppedFiles, PathEditor, RUNTIME_SETTINGS, type RoleOverrides, UpdateTimer,
-  defineMMAvatar, errorMessage, installDropTarget, showError,
+  defineMMAvatar, errorMessage, installDropTarget, listDatabases, registerOfflineCache, showError,
 } from '../../index.ts';
 
 const hook = {
@@ -50,14 +50,8 @@ declare global {
 }
 window.__mm = hook;
 
-const fail = (message: string) => {
-  hook.error = hook.error ? `${hook.error}\n${message}` : message;
-  showError(message);
-};
-const fileError = (message: string) => {
-  hook.fileError = message;
-  showError(message);
-};
+const fail = (message: string) => showError((hook.error = hook.error ? `${hook.error}\n${message}` : message) && message);
+const fileError = (message: string) => showError((hook.fileError = message));
 window.addEventListener('error', (e) => fail(`error: ${e.message}`));
 window.addEventListener('unhandledrejection', (e) => fail(`error: ${errorMessage(e.reason)}`));
 
@@ -85,6 +79,8 @@ el.addEventListener('error', (e) => fileError((e as unknown as CustomEvent<{ mes
 el.addEventListener('load', async () => {
   const character = el.character!;
   const stage = el.stage!;
+  el.orbit!.controls.enableZoom = true; // a full page: the wheel zooms
+  stage.camera.position.set(2.2, 1.7, 3.8);
   const view = { mesh: true, skeleton: params.get('skeleton') === '1', shadows: params.get('shadows') !== '0', simulation: true, trajectory: true, matched: true, locks: true };
   character.debug = true;
   const apply = () => {
@@ -99,11 +95,11 @@ el.addEventListener('load', async () => {
   };
   const useAvatar = (avatar: Avatar | null) => {
     character.setAvatar(avatar);
-    hook.avatar = avatar?.name.split('/').pop() ?? '';
+    hook.avatar = avatar?.name.split('?')[0].split('/').pop() ?? '';
     hook.avatarStandingToe = avatar?.standingToeHeight ?? NaN;
     apply();
   };
-  const databases: Record<string, Database | string> = { [character.database.name.split('/').pop()!.replace(/\.mmdb$/, '')]: character.database };
+  const databases: Record<string, Database | string> = { [character.database.name.split('?')[0].split('/').pop()!.replace(/\.mmdb$/, '')]: character.database };
   const useDatabase = (db: Database, name: string) => {
     character.setDatabase(db);
     hook.database = name;
@@ -154,6 +150,9 @@ el.addEventListener('load', async () => {
       fileError(errorMessage(e));
     }
   });
+  // Only databases the site serves (its generated databases/index.json), besides the one loaded.
+  void listDatabases().then((list) => (list.forEach((d) => (databases[d.name] ??= d.url)), databaseSelect.options(Object.keys(databases)).setValue(hook.database)), () => undefined);
+  void registerOfflineCache(); // after the first frame: repeat visits and offline from Cache Storage
   const folder = (title: string) => gui.addFolder(title).close();
   const viewFolder = folder('View');
   for (const key of ['mesh', 'skeleton', 'shadows'] as const) viewFolder.add(view, key).onChange(apply);
@@ -168,7 +167,7 @@ el.addEventListener('load', async () => {
   pathFolder.add({ stop: stopPath }, 'stop').name('stop (back to keys)');
   pathFolder.add({ clear: () => (stopPath(), path.clear()) }, 'clear');
   const settings = character.settings;
-  const runtime = gui.addFolder('Runtime');
+  const runtime = gui.addFolder('Runtime').close();
   const groups = new Map<string, GUI>();
   for (const s of RUNTIME_SETTINGS) {
     if (!groups.has(s.group)) groups.set(s.group, runtime.addFolder(s.group).close());

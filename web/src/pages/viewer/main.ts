@@ -4,7 +4,9 @@
  * a HUD. `?frame=N` starts at frame N, `?paused` starts paused (links to a moment). State for
  * tests is on `window.__viewer`. Only the library's public entry is used.
  */
-import { DEFAULT_DATABASE, Database, FollowCamera, Playback, RootMarker, SkeletonView, Stage, errorMessage, showError } from '../../index.ts';
+import {
+  DEFAULT_DATABASE, Database, FollowCamera, LoadingStatus, Playback, RootMarker, SkeletonView, Stage, assetUrl, errorMessage, registerOfflineCache, showError,
+} from '../../index.ts';
 
 const hook = { numFrames: 0, frame: 0, playing: false, clipName: '', error: null as string | null, ready: false };
 declare global {
@@ -42,10 +44,12 @@ async function main(): Promise<void> {
   const camera = new FollowCamera(stage.camera, stage.renderer.domElement);
   stage.render();
   let db: Database;
+  const loading = LoadingStatus.attach(hud); // each stage with its URL and bytes; stalls; Retry
   try {
-    db = await Database.fetch(params.get('db') ?? DEFAULT_DATABASE, { onProgress: (p) => (hud.textContent = `loading ${p.url} · ${(p.loaded / 1e6).toFixed(1)} MB`) });
+    db = await Database.fetch(params.get('db') ?? assetUrl(DEFAULT_DATABASE), { onProgress: loading.update });
   } catch (e) {
-    return fail(errorMessage(e));
+    fail(errorMessage(e));
+    return loading.fail(errorMessage(e), () => location.reload());
   }
   if (db.numFrames === 0) return fail(`${db.name}: the database has no frames`);
 
@@ -106,6 +110,7 @@ async function main(): Promise<void> {
     }
     button.textContent = playback.playing ? 'Pause' : 'Play';
     stage.render();
+    if (!hook.ready) void registerOfflineCache(); // after the first frame
     [hook.frame, hook.playing, hook.clipName, hook.ready] = [frame, playback.playing, clipName, true];
   });
 }

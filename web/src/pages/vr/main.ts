@@ -1,7 +1,9 @@
 /**
  * The VR page (vr.html): a WebXR `immersive-vr` session on `local-floor` where the headset and
  * both controllers drive a full-body motion-matched avatar (`TrackedDrive`). Only the
- * library's public entry is used (plus three's Reflector and, with `emulate=1`, iwer).
+ * library's public entry is used (plus three's Reflector and, with `emulate=1`, iwer, loaded only then).
+ * Loading: the character first (stages named in the toolbar; a failed avatar → the skeleton, a note);
+ * the network and onnxruntime after the first frame, the heuristic driving until then (shown).
  *
  * URL parameters: `emulate=1` (iwer, a Quest 3; `devui=0` without its panel), `replay=URL` or
  * `replay=scripted` (play a recording on the desktop page; `bench=1` also scores it), `dt=fixed`
@@ -12,10 +14,10 @@
 import * as THREE from 'three';
 import { Reflector } from 'three/addons/objects/Reflector.js';
 import {
-  Character, DEFAULT_ALPHA, DEFAULT_AVATAR, DEFAULT_DATABASE, DEFAULT_ORIENTATION_MODEL, EnterVrButton, FollowCamera, HeadingYawPredictor, LEFT,
-  type NetworkYawPredictor, RIGHT, type Recording, RecordingPlayer, SCRIPT_DURATION, SpectatorView, Stage, TrackedDrive, TrackerRecorder, TrackerSample,
-  UpdateTimer, assetUrl, benchReplay, decodeRecording, encodeRecordingJson, errorMessage, fetchBytes, loadNetworkPredictor, sampleXRFrame,
-  scriptedSample, showError,
+  DEFAULT_ALPHA, DEFAULT_AVATAR, DEFAULT_DATABASE, DEFAULT_ORIENTATION_MODEL, EnterVrButton, FollowCamera, HeadingYawPredictor, LEFT, LoadingStatus,
+  type NetworkYawPredictor, RIGHT, RecordingPlayer, SpectatorView, Stage, TrackedDrive, TrackerRecorder, TrackerSample, UpdateTimer, assetUrl,
+  benchReplay, encodeRecordingJson, errorMessage, loadNetworkPredictor, loadPageCharacter, loadRecording, registerOfflineCache, sampleXRFrame,
+  saveTextFile, scriptedSample, showError,
 } from '../../index.ts';
 
 const $ = <T extends HTMLElement>(id: string) => document.getElementById(id) as T;
@@ -36,20 +38,9 @@ declare global {
   }
 }
 window.__vr = hook;
-const fail = (message: string) => {
-  hook.error = hook.error ? `${hook.error}\n${message}` : message;
-  showError(message);
-};
+const fail = (message: string) => showError((hook.error = hook.error ? `${hook.error}\n${message}` : message) && message);
 window.addEventListener('error', (e) => fail(`error: ${e.message}`));
 window.addEventListener('unhandledrejection', (e) => fail(`error: ${errorMessage(e.reason)}`));
-
-async function loadRecording(url: string): Promise<Recording> {
-  if (url !== 'scripted') return decodeRecording(await fetchBytes(url, { stage: 'recording' }), url);
-  const recorder = new TrackerRecorder(Math.ceil(SCRIPT_DURATION * 72) + 2);
-  const s = new TrackerSample();
-  for (let f = 0; f / 72 <= SCRIPT_DURATION; f++) recorder.add((scriptedSample(f / 72, s), s));
-  return recorder.toRecording({ source: 'scripted-motion', rate: 72 });
-}
 
 async function main(): Promise<void> {
   const params = new URLSearchParams(location.search);
@@ -72,7 +63,11 @@ async function main(): Promise<void> {
   const pip = params.get('spectator') === '0' ? null : new SpectatorView($('viewport'));
 
   const avatarParam = params.get('avatar');
-  const character = await Character.create({ database: params.get('db') ?? assetUrl(DEFAULT_DATABASE), avatar: avatarParam === 'none' ? null : (avatarParam ?? assetUrl(DEFAULT_AVATAR)) });
+  const loading = LoadingStatus.attach($('hud'));
+  const loaded = await loadPageCharacter({ database: params.get('db') ?? assetUrl(DEFAULT_DATABASE), avatar: avatarParam === 'none' ? null : (avatarParam ?? assetUrl(DEFAULT_AVATAR)), status: loading });
+  if (!loaded) return void (hook.error = $('hud').textContent);
+  const { character, avatarNote } = loaded;
+  loading.finish(avatarNote ? (showError(avatarNote), 'skeleton: the avatar did not load') : null);
   stage.scene.add(character.object3d);
   const heuristic = new HeadingYawPredictor();
   const drive = new TrackedDrive(character, heuristic);
@@ -90,31 +85,30 @@ async function main(): Promise<void> {
   alphaInput.addEventListener('input', () => setAlpha(Number(alphaInput.value)));
   hook.setAlpha = setAlpha;
 
-  // Body yaw: the network if it loads, else the heuristic — and the page says which and why.
+  // Body yaw: the heuristic until the network has loaded (after the first frame), the network
+  // then, the heuristic for good if it cannot load — and the page says which and why.
   let network: NetworkYawPredictor | null = null;
+  let networkLoad: Promise<void> | null = null;
   const modelUrl = params.get('model') ?? String(assetUrl(DEFAULT_ORIENTATION_MODEL));
   const select = $<HTMLSelectElement>('predictor');
   const status = $('predictor-status');
   const showPredictor = () => {
     hook.predictor = drive.predictor.name;
     select.value = drive.predictor.name === 'network' ? 'network' : 'heuristic';
-    status.textContent = network ? `body yaw: ${drive.predictor.name}` : 'fallback: heuristic — the orientation model did not load';
+    const failed = hook.predictorFallback !== null;
+    status.textContent = network ? `body yaw: ${drive.predictor.name}` : failed ? 'fallback: heuristic — the orientation model did not load' : 'body yaw: heuristic (loading the network…)';
     status.title = hook.predictorFallback ?? `model: ${modelUrl}`;
-    status.classList.toggle('fallback', !network);
+    status.classList.toggle('fallback', failed);
   };
-  try {
-    network = await loadNetworkPredictor(modelUrl);
-    hook.networkLoaded = true;
-    if (params.get('predictor') !== 'heuristic') drive.setPredictor(network);
-  } catch (e) {
-    hook.predictorFallback = `orientation model unavailable (${modelUrl}): ${errorMessage(e)}`;
-    console.warn(hook.predictorFallback);
+  const loadNetwork = () => (networkLoad ??= loadNetworkPredictor(modelUrl).then((n) => {
+    [network, hook.networkLoaded] = [n, true];
+    choosePredictor(params.get('predictor') === 'heuristic' ? 'heuristic' : 'network');
+  }, (e: unknown) => {
+    console.warn((hook.predictorFallback = `orientation model unavailable (${modelUrl}): ${errorMessage(e)}`));
     (select.querySelector('option[value="network"]') as HTMLOptionElement).disabled = true;
-  }
-  const choosePredictor = (name: string) => {
-    drive.setPredictor(name === 'network' && network ? network : heuristic);
     showPredictor();
-  };
+  }));
+  const choosePredictor = (name: string) => (drive.setPredictor(name === 'network' && network ? network : heuristic), showPredictor());
   select.addEventListener('change', () => choosePredictor(select.value));
   hook.setPredictor = choosePredictor;
   showPredictor();
@@ -134,6 +128,7 @@ async function main(): Promise<void> {
   const button = new EnterVrButton(renderer, fail);
   $('vr-slot').appendChild(button.element);
   await button.init();
+  performance.mark('mm:enter-vr-ready');
   hook.enterVR = () => button.enter();
   hook.exitVR = () => button.exit();
   let xrFrames = 0;
@@ -153,12 +148,7 @@ async function main(): Promise<void> {
   recordButton.addEventListener('click', () => {
     if (!recording) return hook.startRecording();
     const text = hook.stopRecording();
-    if (!text) return;
-    const a = document.createElement('a');
-    a.href = URL.createObjectURL(new Blob([text], { type: 'application/json' }));
-    a.download = `vr-session-${new Date().toISOString().replace(/[:.]/g, '-')}.json`;
-    a.click();
-    setTimeout(() => URL.revokeObjectURL(a.href), 1000);
+    if (text) saveTextFile(text, `vr-session-${new Date().toISOString().replace(/[:.]/g, '-')}.json`);
   });
   hook.calibrate = (eyeHeight = drive.trackers.head.position[1]) => {
     try {
@@ -178,6 +168,7 @@ async function main(): Promise<void> {
   const recordedEye = player?.recording.meta.eyeHeight;
   if (typeof recordedEye === 'number') hook.calibrate(recordedEye);
   if (player && params.get('bench') === '1') {
+    await loadNetwork();
     hook.bench = await benchReplay(drive, player, network, heuristic, replayUrl ?? '');
     choosePredictor(network && params.get('predictor') !== 'heuristic' ? 'network' : 'heuristic');
   }
@@ -211,10 +202,7 @@ async function main(): Promise<void> {
     drive.update(sample, fixedDt ? 1 / 60 : undefined);
     timer.add(drive.lastUpdateMs);
     const tr = drive.trackers;
-    [tr.left, tr.right].forEach((view, k) => {
-      markers[k].position.fromArray(view.position);
-      markers[k].quaternion.fromArray(view.rotation);
-    });
+    [tr.left, tr.right].forEach((view, k) => (markers[k].position.fromArray(view.position), markers[k].quaternion.fromArray(view.rotation)));
     const root = character.root;
     if (!hook.inXR) spectator.follow(root.x, root.z, fixedDt ? 1 / 60 : realDt);
     stage.grid.follow(root.x, root.z);
@@ -224,11 +212,10 @@ async function main(): Promise<void> {
       if (hook.inXR) {
         // Others see the head that first person hides.
         const hidden = head ? head.scale.x : 1;
-        head?.scale.setScalar(1);
-        head?.updateMatrixWorld(true);
+        const show = (s: number) => (head?.scale.setScalar(s), head?.updateMatrixWorld(true));
+        show(1);
         pip.render(stage.scene, root.x, root.z, root.yaw);
-        head?.scale.setScalar(hidden);
-        head?.updateMatrixWorld(true);
+        show(hidden);
       }
     }
     hook.frames++;
@@ -249,6 +236,11 @@ async function main(): Promise<void> {
       const ratio = Number.isFinite(hook.eyeHeight) ? ` · height ${(tr.head.position[1] / hook.eyeHeight).toFixed(2)}` : '';
       const bench = hook.bench ? ` · bench median ${hook.bench.median.toFixed(3)} ms` : '';
       $('hud').textContent = `${hook.mode} · frame ${hook.frames} · VR update ${hook.updateMs.median.toFixed(2)} ms${network ? ` · model runs ${network.runs}` : ''}${ratio}${bench}`;
+    }
+    if (!hook.ready) {
+      performance.mark('mm:first-frame');
+      // After the first frame: the network and onnxruntime (in parallel), then the offline cache.
+      void loadNetwork().then(() => registerOfflineCache());
     }
     hook.ready = true;
   });

@@ -1,0 +1,202 @@
+// `npm run bench -- --load [--json] [--pages demo,vr,embed] [--networks localhost,throttled]`:
+// what a new (and a returning) visitor downloads and waits for, measured in headless Chromium
+// against the production server (dist-server/serve.mjs on dist/, as `npm start` serves it).
+//
+// For each page (the demo `/`, `vr.html`, `examples/embed.html`) and each network (localhost;
+// throttled by the DevTools protocol to 16 Mbit/s down, 8 up, 80 ms latency), a cold visit (a
+// fresh browser context: empty HTTP cache, no service worker, no Cache Storage) and then a warm
+// one (a new tab in the same context, after the first visit's service worker and caches settled):
+// - bytes before the first animated frame: every response body and header byte the page's
+//   network stack received up to that moment (CDP Network events, by their timestamps);
+// - time to the first animated frame (the `mm:first-frame` mark: the element's or the VR page's
+//   first rendered update), and on the VR page when Enter VR becomes possible (`mm:enter-vr-ready`);
+// - bytes the server sent for the whole visit (its --log-json lines: the service worker's
+//   requests too) within 4 s after the first frame;
+// - where the time goes: the library's marks (`mm:fetched:<stage>`, `mm:database-ready`,
+//   `mm:avatar-ready`) and the page's own resource timing.
+// Also prints what the default database costs on the wire today (raw, gzip, brotli as built).
+import { spawn } from 'node:child_process';
+import fs from 'node:fs';
+import os from 'node:os';
+import path from 'node:path';
+import { createInterface } from 'node:readline';
+import { fileURLToPath } from 'node:url';
+
+const ROOT = path.resolve(path.dirname(fileURLToPath(import.meta.url)), '..');
+const DIST = path.join(ROOT, 'dist');
+const SERVER = path.join(ROOT, 'dist-server', 'serve.mjs');
+const CHROMIUM = '/usr/bin/chromium';
+const NETWORKS = {
+  localhost: null,
+  throttled: { offline: false, latency: 80, downloadThroughput: (16e6 / 8) | 0, uploadThroughput: (8e6 / 8) | 0 },
+};
+const PAGES = {
+  demo: { path: '/', title: 'demo (/)' },
+  vr: { path: '/vr.html', title: 'VR page (vr.html)' },
+  embed: { path: '/examples/embed.html', title: 'embed (examples/embed.html)' },
+};
+const TARGETS = { firstFrameLocalMs: 1500, firstFrameThrottledMs: 6000, warmMs: 500, pageBytes: 6e6, vrBytes: 10e6 };
+
+function startServer() {
+  const child = spawn(process.execPath, [SERVER, '--port', '0', '--host', '127.0.0.1', '--root', DIST, '--log-json'], { cwd: ROOT, stdio: ['ignore', 'pipe', 'inherit'] });
+  const responses = [];
+  return new Promise((resolve, reject) => {
+    child.once('error', reject);
+    child.once('exit', (code) => reject(new Error(`server exited (${code})`)));
+    createInterface({ input: child.stdout }).on('line', (line) => {
+      let m;
+      try {
+        m = JSON.parse(line);
+      } catch {
+        return;
+      }
+      if (m.type === 'listening') resolve({ url: `http://127.0.0.1:${m.port}`, responses, close: () => child.kill('SIGTERM') });
+      else if (m.type === 'response') responses.push(m);
+    });
+  });
+}
+
+/** One visit: navigates `page` and measures until 4 s after the first animated frame. */
+async function visit(context, server, pageDef, network, log) {
+  const page = await context.newPage();
+  const cdp = await context.newCDPSession(page);
+  await cdp.send('Network.enable');
+  await cdp.send('Network.setCacheDisabled', { cacheDisabled: false });
+  if (network) await cdp.send('Network.emulateNetworkConditions', network);
+  const events = { finished: [], received: [], wallOffset: null, requests: new Map() };
+  cdp.on('Network.requestWillBeSent', (e) => {
+    if (events.wallOffset === null) events.wallOffset = e.wallTime - e.timestamp;
+    events.requests.set(e.requestId, e.request.url);
+  });
+  cdp.on('Network.dataReceived', (e) => events.received.push(e));
+  cdp.on('Network.loadingFinished', (e) => events.finished.push(e));
+  const errors = [];
+  page.on('pageerror', (e) => errors.push(e.message));
+  const serverFrom = server.responses.length;
+  const t0 = Date.now();
+  await page.goto(server.url + pageDef.path, { waitUntil: 'commit' });
+  await page.waitForFunction(() => performance.getEntriesByName('mm:first-frame').length > 0, null, { timeout: 180_000, polling: 50 });
+  const marks = await page.evaluate(() => ({
+    origin: performance.timeOrigin,
+    // The first of each (the embed page has two elements: its first one counts).
+    entries: Object.fromEntries(performance.getEntriesByType('mark').filter((m) => m.name.startsWith('mm:')).reverse().map((m) => [m.name, m.startTime])),
+    resources: performance.getEntriesByType('resource').map((r) => ({ name: r.name, start: r.startTime, end: r.responseEnd, transfer: r.transferSize, body: r.encodedBodySize })),
+    nav: (() => {
+      const n = performance.getEntriesByType('navigation')[0];
+      return n ? { end: n.responseEnd, transfer: n.transferSize } : null;
+    })(),
+  }));
+  await page.waitForTimeout(4000);
+  // On the VR page, Enter VR may come after the first frame in principle: wait for it too.
+  if (pageDef.path.includes('vr')) await page.waitForFunction(() => performance.getEntriesByName('mm:enter-vr-ready').length > 0, null, { timeout: 60_000 }).catch(() => undefined);
+  const vrMark = await page.evaluate(() => performance.getEntriesByName('mm:enter-vr-ready')[0]?.startTime ?? null);
+  const firstFrame = marks.entries['mm:first-frame'];
+  // CDP timestamps are monotonic seconds; the page's marks are ms after its time origin (epoch ms).
+  const toMono = (pageMs) => (marks.origin + pageMs) / 1000 - (events.wallOffset ?? 0);
+  const bytesBy = (pageMs) => {
+    const limit = toMono(pageMs);
+    const done = new Set();
+    let bytes = 0;
+    for (const e of events.finished) {
+      if (e.timestamp <= limit) {
+        bytes += e.encodedDataLength;
+        done.add(e.requestId);
+      }
+    }
+    for (const e of events.received) if (e.timestamp <= limit && !done.has(e.requestId)) bytes += e.encodedDataLength;
+    const requests = events.finished.filter((e) => e.timestamp <= limit).length;
+    return { bytes, requests };
+  };
+  const before = bytesBy(firstFrame);
+  const vr = vrMark !== null ? bytesBy(vrMark) : null;
+  const serverBytes = server.responses.slice(serverFrom).filter((r) => r.t <= t0 + firstFrame + 4000 + 2000).reduce((n, r) => n + r.bytes, 0);
+  // Where the time went: the main downloads (resource timing), the library's marks.
+  const big = marks.resources
+    .filter((r) => r.end <= firstFrame && (r.body > 50e3 || /\.(mmdb|glb|wasm)/.test(r.name)))
+    .map((r) => ({ file: new URL(r.name).pathname.split('/').pop(), start: Math.round(r.start), end: Math.round(r.end), kB: Math.round(r.transfer / 1e3) }));
+  await page.close();
+  if (errors.length) log(`  page errors: ${errors.join(' | ')}`);
+  return {
+    firstFrameMs: Math.round(firstFrame),
+    bytesBeforeFirstFrame: before.bytes,
+    requestsBeforeFirstFrame: before.requests,
+    enterVrMs: vrMark !== null ? Math.round(vrMark) : null,
+    bytesBeforeEnterVr: vr?.bytes ?? null,
+    serverBytes,
+    marks: Object.fromEntries(Object.entries(marks.entries).map(([k, v]) => [k.replace(/^mm:/, ''), Math.round(v)])),
+    htmlMs: marks.nav ? Math.round(marks.nav.end) : null,
+    downloads: big,
+    errors,
+  };
+}
+
+export async function loadBenchmark({ json, args, log }) {
+  for (const [what, p] of [['dist/', path.join(DIST, 'index.html')], ['the site server', SERVER]]) {
+    if (!fs.existsSync(p)) throw new Error(`bench --load: ${what} missing (${path.relative(ROOT, p)}); run \`npm run build\` first`);
+  }
+  const pick = (flag, all) => (args.includes(flag) ? args[args.indexOf(flag) + 1].split(',') : Object.keys(all));
+  const pages = pick('--pages', PAGES);
+  const networks = pick('--networks', NETWORKS);
+  const server = await startServer();
+  const { chromium } = await import('playwright-core');
+  const browser = await chromium.launch({
+    executablePath: CHROMIUM,
+    args: ['--headless', '--no-sandbox', '--disable-gpu', '--disable-quic', '--no-first-run', '--disable-background-networking', '--disable-component-update', '--disable-sync', '--use-angle=swiftshader', '--enable-unsafe-swiftshader'],
+  });
+  const rows = [];
+  try {
+    for (const network of networks) {
+      for (const pageId of pages) {
+        const context = await browser.newContext({ viewport: { width: 1280, height: 720 } });
+        log(`${pageId} · ${network} · cold`);
+        const cold = await visit(context, server, PAGES[pageId], NETWORKS[network], log);
+        // Let the first visit's service worker install and the library's cache writes finish.
+        const sw = await context.newPage();
+        await sw.goto(`${server.url}/404-probe`, { waitUntil: 'commit' }).catch(() => undefined);
+        await sw.evaluate(() => navigator.serviceWorker?.ready && Promise.race([navigator.serviceWorker.ready, new Promise((r) => setTimeout(r, 5000))])).catch(() => undefined);
+        await sw.close();
+        log(`${pageId} · ${network} · warm`);
+        const warm = await visit(context, server, PAGES[pageId], NETWORKS[network], log);
+        await context.close();
+        rows.push({ page: pageId, network, cache: 'cold', ...cold }, { page: pageId, network, cache: 'warm', ...warm });
+      }
+    }
+  } finally {
+    await browser.close();
+    server.close();
+  }
+  const db = path.join(DIST, 'databases', 'locomotion.mmdb');
+  const size = (p) => (fs.existsSync(p) ? fs.statSync(p).size : null);
+  const database = { raw: size(db), gzip: size(`${db}.gz`), brotli: size(`${db}.br`) };
+  const result = { machine: { cores: os.availableParallelism(), load_average_1min: os.loadavg()[0] }, networks: NETWORKS, targets: TARGETS, database, rows };
+  if (json) console.log(JSON.stringify(result, null, 2));
+  else printLoad(result);
+  return result;
+}
+
+function printLoad({ rows, database, machine }) {
+  const mb = (n) => (n === null || n === undefined ? '—' : (n / 1e6).toFixed(2));
+  const s = (ms) => (ms === null || ms === undefined ? '—' : (ms / 1000).toFixed(2));
+  console.log(`load benchmark: headless Chromium (SwiftShader), production server (dist/), ${machine.cores} cores, load ${machine.load_average_1min.toFixed(1)}`);
+  console.log('page   network    cache  MB before 1st frame (requests)  1st frame s  Enter VR s (MB)  server MB total  where the time goes (ms after navigation)');
+  for (const r of rows) {
+    const where = Object.entries(r.marks)
+      .filter(([k]) => k !== 'first-frame')
+      .map(([k, v]) => `${k} ${v}`)
+      .join(', ');
+    console.log(
+      `${r.page.padEnd(6)} ${r.network.padEnd(10)} ${r.cache.padEnd(6)} ${`${mb(r.bytesBeforeFirstFrame)} (${r.requestsBeforeFirstFrame})`.padStart(30)}  ${s(r.firstFrameMs).padStart(11)}  ${(r.enterVrMs === null ? '—' : `${s(r.enterVrMs)} (${mb(r.bytesBeforeEnterVr)})`).padStart(15)}  ${mb(r.serverBytes).padStart(15)}  html ${r.htmlMs}, ${where}`,
+    );
+  }
+  console.log(`database on the wire: raw ${mb(database.raw)} MB, gzip ${mb(database.gzip)} MB, brotli ${mb(database.brotli)} MB (dist/databases/locomotion.mmdb and its precompressed siblings)`);
+  const check = (label, ok, detail) => console.log(`target: ${label} → ${ok ? 'met' : 'MISSED'} (${detail})`);
+  for (const r of rows) {
+    if (r.cache === 'cold' && r.page !== 'vr') check(`${r.page} ≤ 6 MB before the first frame (${r.network})`, r.bytesBeforeFirstFrame <= TARGETS.pageBytes, `${mb(r.bytesBeforeFirstFrame)} MB`);
+    if (r.cache === 'cold' && r.page !== 'vr') {
+      const limit = r.network === 'localhost' ? TARGETS.firstFrameLocalMs : TARGETS.firstFrameThrottledMs;
+      check(`${r.page} first frame ≤ ${limit / 1000} s cold (${r.network})`, r.firstFrameMs <= limit, `${s(r.firstFrameMs)} s`);
+    }
+    if (r.cache === 'warm') check(`${r.page} warm first frame ≤ 0.5 s (${r.network})`, r.firstFrameMs <= TARGETS.warmMs, `${s(r.firstFrameMs)} s`);
+    if (r.cache === 'cold' && r.page === 'vr') check(`VR page ≤ 10 MB before Enter VR (${r.network})`, (r.bytesBeforeEnterVr ?? Infinity) <= TARGETS.vrBytes, `${mb(r.bytesBeforeEnterVr)} MB`);
+  }
+}

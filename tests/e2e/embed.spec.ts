@@ -1,0 +1,107 @@
+// examples/embed.html as a web developer would serve it: the built dist/ on a plain static
+// server (not vite) under a strict Content-Security-Policy. Both avatars load with no console
+// error and no CSP violation; the focused keyboard one walks on W while the other keeps its
+// path; walkTo arrives within α; removing an element frees its WASM memory.
+import fs from 'node:fs';
+import path from 'node:path';
+import { expect, test } from '@playwright/test';
+import { type StaticServer, serveStatic } from './static-server.ts';
+
+const ROOT = path.resolve(import.meta.dirname, '../..');
+const DIST = path.join(ROOT, 'dist');
+const CSP = "default-src 'self'; script-src 'self' 'wasm-unsafe-eval'; style-src 'self' 'unsafe-inline'; img-src 'self' blob: data:; connect-src 'self' blob: data:";
+
+let server: StaticServer;
+test.beforeAll(async () => {
+  expect(fs.existsSync(path.join(DIST, 'mm-avatar.js')), 'dist/ is built by `npm run build` (npm test builds it)').toBe(true);
+  server = await serveStatic(DIST, { 'content-security-policy': CSP });
+});
+test.afterAll(async () => server?.close());
+
+type Root = { x: number; y: number; z: number; yaw: number };
+
+test('embed.html from dist/ under a strict CSP: two avatars, keyboard only where focused, walkTo, freeing', async ({ page }) => {
+  test.setTimeout(300_000);
+  await page.setViewportSize({ width: 900, height: 700 });
+  const errors: string[] = [];
+  page.on('console', (m) => m.type() === 'error' && errors.push(m.text()));
+  page.on('pageerror', (e) => errors.push(e.message));
+  // CSP violations are reported to the page as events: count them from the start.
+  await page.addInitScript(() => {
+    (window as unknown as { __csp: string[] }).__csp = [];
+    document.addEventListener('securitypolicyviolation', (e) => (window as unknown as { __csp: string[] }).__csp.push(`${e.violatedDirective} ${e.blockedURI}`));
+  });
+  await page.goto(`${server.url}/examples/embed.html`);
+  // Both fire `load` (the lazy one is in view). Fixed time steps from then on: 1/60 s a frame.
+  await page.waitForFunction(() => [...document.querySelectorAll('mm-avatar')].every((el) => (el as unknown as { character: unknown }).character), null, { timeout: 120_000 });
+  await page.evaluate(() => {
+    for (const el of document.querySelectorAll('mm-avatar')) (el as unknown as { timeStep: number }).timeStep = 1 / 60;
+  });
+  const root = (id: string) => page.evaluate((id) => (document.getElementById(id) as unknown as { root: Root }).root, id);
+  const following = () => page.evaluate(() => (document.getElementById('walker') as unknown as { character: { followingPath: boolean } }).character.followingPath);
+  expect(await following()).toBe(true);
+
+  // Focus the keyboard avatar by clicking it, as a visitor would; hold W until it walked 1.5 m.
+  await page.locator('#keys').click({ position: { x: 20, y: 20 } });
+  const a = await root('keys');
+  const w = await root('walker');
+  await page.keyboard.down('KeyW');
+  await page.waitForFunction(
+    (a) => {
+      const r = (document.getElementById('keys') as unknown as { root: Root }).root;
+      return Math.hypot(r.x - a.x, r.z - a.z) > 1.6;
+    },
+    a,
+    { timeout: 180_000, polling: 200 },
+  );
+  await page.keyboard.up('KeyW');
+  const b = await root('keys');
+  const forward = [Math.sin(b.yaw), Math.cos(b.yaw)];
+  const along = (b.x - a.x) * forward[0] + (b.z - a.z) * forward[1];
+  console.log(`keyboard avatar walked ${along.toFixed(2)} m along its facing`);
+  expect(along).toBeGreaterThan(1.5);
+  // The other one never saw the keys: still on its path (a key would have taken it off), moving.
+  expect(await following()).toBe(true);
+  const w2 = await root('walker');
+  expect(Math.hypot(w2.x - w.x, w2.z - w.z)).toBeGreaterThan(0.3);
+
+  // walkTo arrives within α (the runtime's clamp, in the element's metres).
+  const target = { x: b.x + 1.5, z: b.z - 1.0 };
+  await page.evaluate((t) => (document.getElementById('keys') as unknown as { walkTo(x: number, z: number): void }).walkTo(t.x, t.z), target);
+  const alpha = await page.evaluate(() => {
+    const c = (document.getElementById('keys') as unknown as { character: { settings: { clamp_distance: number }; metresPerDatabaseUnit: number } }).character;
+    return c.settings.clamp_distance * c.metresPerDatabaseUnit;
+  });
+  await page.waitForFunction(
+    ([t, alpha]) => {
+      const r = (document.getElementById('keys') as unknown as { root: Root }).root;
+      return Math.hypot(r.x - t.x, r.z - t.z) < alpha;
+    },
+    [target, alpha] as const,
+    { timeout: 180_000, polling: 200 },
+  );
+  const c = await root('keys');
+  console.log(`walkTo: ${Math.hypot(c.x - target.x, c.z - target.z).toFixed(3)} m from the target (α ${alpha.toFixed(3)} m)`);
+  await page.screenshot({ path: path.join(ROOT, 'test-results', 'embed.png') });
+
+  // Removing an element frees its character and, with the last one, the shared database.
+  // The same module instance the page loaded (a module is evaluated once per URL).
+  const live = () => page.evaluate(async (url) => ((await import(url)) as { liveObjects(): Record<string, number> }).liveObjects(), '/mm-avatar.js');
+  const before = await live();
+  expect(before.characters).toBe(2);
+  expect(before.databases).toBe(1);
+  await page.evaluate(() => document.getElementById('walker')!.remove());
+  expect((await live()).characters).toBe(1);
+  await page.evaluate(() => document.getElementById('keys')!.remove());
+  const after = await live();
+  expect(after.characters).toBe(0);
+  expect(after.retargeters).toBe(0);
+  expect(after.databases).toBe(0);
+  // Re-adding works: the element loads again.
+  await page.evaluate(() => document.querySelector('.pair figure')!.append(Object.assign(document.createElement('mm-avatar'), { id: 'again' })));
+  await page.waitForFunction(() => (document.getElementById('again') as unknown as { character: unknown }).character, null, { timeout: 120_000 });
+  expect((await live()).characters).toBe(1);
+
+  expect(await page.evaluate(() => (window as unknown as { __csp: string[] }).__csp)).toEqual([]);
+  expect(errors).toEqual([]);
+});

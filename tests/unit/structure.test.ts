@@ -1,0 +1,132 @@
+// The library's shape, checked on the source: pages use only the public entry and stay small,
+// the raw layer mirrors the bindings and is the only importer of the generated package, the
+// runtime has one forward kinematics and one two-bone IK, and nothing points outside the repo.
+import fs from 'node:fs';
+import path from 'node:path';
+import { describe, expect, it } from 'vitest';
+
+const ROOT = path.resolve(import.meta.dirname, '../..');
+const WEB = path.join(ROOT, 'web/src');
+
+function files(dir: string, ext: RegExp): string[] {
+  return fs.readdirSync(dir, { withFileTypes: true }).flatMap((e) => {
+    const p = path.join(dir, e.name);
+    if (e.isDirectory()) return e.name === 'pkg' ? [] : files(p, ext);
+    return ext.test(e.name) ? [p] : [];
+  });
+}
+
+/** Module specifiers of a TS file's static and dynamic imports and re-exports. */
+function imports(file: string): string[] {
+  const text = fs.readFileSync(file, 'utf8');
+  return [...text.matchAll(/(?:^|\n)\s*(?:import|export)\b[^'"]*?from\s+['"]([^'"]+)['"]|import\(\s*['"]([^'"]+)['"]\s*\)|(?:^|\n)\s*import\s+['"]([^'"]+)['"]/g)].map((m) => m[1] ?? m[2] ?? m[3]);
+}
+
+const lines = (file: string) => fs.readFileSync(file, 'utf8').split('\n').length;
+const rel = (file: string) => path.relative(ROOT, file);
+const source = (file: string) => !/\.test\.ts$/.test(file);
+
+describe('pages are built on the public entry only', () => {
+  const pages = fs.readdirSync(path.join(WEB, 'pages'), { withFileTypes: true }).filter((e) => e.isDirectory()).map((e) => e.name);
+
+  it('has the four pages', () => {
+    expect(pages.sort()).toEqual(['bench', 'demo', 'viewer', 'vr']);
+  });
+
+  for (const page of pages) {
+    it(`${page}: imports only '../../index.ts' (and third-party packages); ≤ 250 lines`, () => {
+      const ts = files(path.join(WEB, 'pages', page), /\.ts$/).filter(source);
+      expect(ts.length).toBeGreaterThan(0);
+      for (const f of ts) {
+        for (const spec of imports(f)) {
+          if (!spec.startsWith('.')) continue; // a package: three, lil-gui, iwer
+          expect(spec, `${rel(f)} imports ${spec}`).toBe('../../index.ts');
+        }
+      }
+      const total = ts.reduce((n, f) => n + lines(f), 0);
+      expect(total, `${page}: ${total} lines`).toBeLessThanOrEqual(250);
+    });
+  }
+
+  it('the HTML pages load their page module and nothing else of the library', () => {
+    for (const html of ['index.html', 'viewer.html', 'vr.html', 'bench.html']) {
+      const scripts = [...fs.readFileSync(path.join(ROOT, html), 'utf8').matchAll(/<script[^>]*src="([^"]+)"/g)].map((m) => m[1]);
+      expect(scripts.length, html).toBe(1);
+      expect(scripts[0], html).toMatch(/^\/web\/src\/pages\/[a-z]+\/main\.ts$/);
+    }
+  });
+});
+
+describe('the raw layer', () => {
+  it('core/raw.ts is the only importer of the generated package', () => {
+    for (const f of files(WEB, /\.ts$/)) {
+      for (const spec of imports(f)) if (/pkg\//.test(spec)) expect(rel(f), spec).toBe('web/src/core/raw.ts');
+    }
+  });
+
+  it('mirrors wasm-core/src/bindings/ file for file', () => {
+    const rust = fs.readdirSync(path.join(ROOT, 'wasm-core/src/bindings')).filter((f) => f !== 'mod.rs').map((f) => f.replace(/\.rs$/, ''));
+    const ts = fs.readdirSync(path.join(WEB, 'core')).filter((f) => f.endsWith('.ts') && !f.endsWith('.test.ts')).map((f) => f.replace(/\.ts$/, ''));
+    for (const r of rust) expect(ts, `bindings/${r}.rs has no core/${r}.ts`).toContain(r);
+  });
+
+  it('core/ imports only itself and the fetch and asset helpers (not devices, views or pages)', () => {
+    for (const f of files(path.join(WEB, 'core'), /\.ts$/).filter(source)) {
+      for (const spec of imports(f)) {
+        if (!spec.startsWith('.')) continue;
+        expect(['./', '../fetch.ts', '../assets.ts'].some((ok) => spec.startsWith(ok) || spec === ok), `${rel(f)} imports ${spec}`).toBe(true);
+      }
+    }
+  });
+});
+
+describe('one of each', () => {
+  const rust = files(path.join(ROOT, 'wasm-core/src'), /\.rs$/);
+  const ts = files(WEB, /\.ts$/).filter(source);
+
+  it('one forward kinematics: kinematics.rs in Rust, none in TS', () => {
+    const defs = rust.filter((f) => /fn (local_to_model|forward_kinematics)\s*[<(]/.test(fs.readFileSync(f, 'utf8')));
+    expect(defs.map(rel)).toContain('wasm-core/src/kinematics.rs');
+    // Other `forward_kinematics` methods (database, pose) only call the one function.
+    for (const f of defs) if (rel(f) !== 'wasm-core/src/kinematics.rs') expect(fs.readFileSync(f, 'utf8'), rel(f)).toMatch(/local_to_model\(/);
+    for (const f of ts) expect(fs.readFileSync(f, 'utf8'), rel(f)).not.toMatch(/function\s+forwardKinematics|forwardKinematics\s*\(/);
+  });
+
+  it('one two-bone IK: ik.rs in Rust; TS calls it through its binding', () => {
+    const defs = rust.filter((f) => /fn two_bone_ik\w*\s*\(/.test(fs.readFileSync(f, 'utf8')));
+    expect(defs.map(rel)).toEqual(['wasm-core/src/ik.rs']);
+    for (const f of ts) expect(fs.readFileSync(f, 'utf8'), rel(f)).not.toMatch(/solveTwoBone|lawOfCosines/);
+  });
+
+  it('one role vocabulary: roles.rs; TS reads it through the binding', () => {
+    const defs = rust.filter((f) => /fn find_roles\s*[<(]/.test(fs.readFileSync(f, 'utf8')));
+    expect(defs.map(rel)).toEqual(['wasm-core/src/roles.rs']);
+    for (const f of ts) expect(fs.readFileSync(f, 'utf8'), rel(f)).not.toMatch(/JOINT_NAME_TABLE|\/foot\|ankle\|toe\/i/);
+  });
+});
+
+describe('the repository stands alone', () => {
+  it('no source, test or doc points outside the repository', () => {
+    const all = [
+      ...files(path.join(ROOT, 'wasm-core/src'), /\.rs$/),
+      ...files(path.join(ROOT, 'wasm-core/tests'), /\.rs$/),
+      ...files(WEB, /\.(ts|css)$/),
+      ...files(path.join(ROOT, 'tests'), /\.ts$/).filter((f) => !f.endsWith('structure.test.ts')),
+      ...files(path.join(ROOT, 'docs'), /\.md$/),
+      path.join(ROOT, 'README.md'),
+    ];
+    const outside = new RegExp(['THESIS', 'NOTES'].join('_') + '|shared/docs|DESIGN\\.md');
+    for (const f of all) expect(fs.readFileSync(f, 'utf8'), rel(f)).not.toMatch(outside);
+  });
+});
+
+describe('the API reference', () => {
+  it('docs/api (npm run docs) lists every name the public entry exports', () => {
+    const entry = fs.readFileSync(path.join(WEB, 'index.ts'), 'utf8');
+    const names = [...entry.matchAll(/export (?:type )?\{([^}]+)\}/g)].flatMap((m) => m[1].split(',').map((n) => n.trim().replace(/^type /, '')).filter(Boolean));
+    const index = fs.readFileSync(path.join(ROOT, 'docs/api/README.md'), 'utf8');
+    expect(names.length).toBeGreaterThan(60);
+    const missing = names.filter((n) => !index.includes(`[${n.replace(/_/g, '\\_')}]`));
+    expect(missing, 'run `npm run docs`').toEqual([]);
+  });
+});

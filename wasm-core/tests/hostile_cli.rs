@@ -1,0 +1,126 @@
+//! The CLI on hostile input and out-of-range flags: usage errors (exit 2) name the flag, bad
+//! files (exit 1) name the file and line or section — never a NaN database with exit 0.
+
+mod hostile;
+
+use std::path::PathBuf;
+use std::process::{Command, Output};
+
+fn mmdb(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_mmdb")).args(args).output().expect("run mmdb")
+}
+
+fn temp(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("mmdb-hostile-cli-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    dir.join(name)
+}
+
+fn stderr(out: &Output) -> String {
+    String::from_utf8_lossy(&out.stderr).into_owned()
+}
+
+#[test]
+fn out_of_range_flags_are_usage_errors() {
+    let bvh = temp("walk.bvh");
+    std::fs::write(&bvh, hostile::humanoid_bvh(60)).unwrap();
+    let (bvh, db) = (bvh.to_str().unwrap(), temp("walk.mmdb"));
+    let db = db.to_str().unwrap();
+    for (flag, value, expected) in [
+        ("--fps", "0", "--fps: fps must be between 1 and 1000, found 0"),
+        ("--fps", "1e300", "--fps: fps must be between 1 and 1000"),
+        ("--fps", "nan", "--fps: fps must be between 1 and 1000, found NaN"),
+        ("--scale", "inf", "--scale: scale must be between"),
+        ("--scale", "0", "--scale: scale must be between"),
+        ("--scale", "1e300", "--scale: scale must be between"),
+        ("--scale", "metres", "--scale: 'metres' is not a number or 'auto'"),
+    ] {
+        let out = mmdb(&["build", bvh, "-o", db, flag, value]);
+        assert_eq!(out.status.code(), Some(2), "{flag} {value}: {}", stderr(&out));
+        assert!(stderr(&out).contains(expected), "{flag} {value}: {}", stderr(&out));
+    }
+    let out = mmdb(&["build", bvh, "-o", db, "--fps", "30", "--scale", "0.01"]);
+    assert!(out.status.success(), "{}", stderr(&out));
+}
+
+#[test]
+fn extreme_values_fail_the_build_naming_the_line() {
+    let text = hostile::humanoid_bvh(60);
+    for (what, from, to, expected) in [
+        ("1e308", "0.000000 0.950000", "1e308 0.950000", "bad.bvh:77: frame 0: value 1e308 at column 1 is out of range"),
+        ("1e39", "0.000000 0.950000", "1e39 0.950000", "bad.bvh:77: frame 0: value 1e39"),
+        ("offset 1e300", "OFFSET 0 -0.42 0", "OFFSET 0 -1e300 0", "bad.bvh:12: OFFSET y is -1e300, out of range"),
+        ("frame time", "Frame Time: 0.00833333", "Frame Time: 1e-300", "bad.bvh:76: 'Frame Time:' must be 0.0001 to 1 seconds"),
+    ] {
+        let bad = temp("bad.bvh");
+        std::fs::write(&bad, text.replacen(from, to, 1)).unwrap();
+        let out = mmdb(&["build", bad.to_str().unwrap(), "-o", temp("bad.mmdb").to_str().unwrap()]);
+        assert_eq!(out.status.code(), Some(1), "{what}");
+        assert!(stderr(&out).contains(expected), "{what}: {}", stderr(&out));
+    }
+}
+
+/// Search and benchmark flags are range-checked too (a huge -k reserved k result slots).
+#[test]
+fn search_flags_are_bounded() {
+    let path = temp("tiny.mmdb");
+    std::fs::write(&path, mmcore::format::to_bytes(&hostile::tiny_database())).unwrap();
+    let p = path.to_str().unwrap();
+    let out = mmdb(&["search", p, "--frame", "0", "-k", "18446744073709551615", "--exclude-radius", "18446744073709551615", "--json"]);
+    assert!(out.status.success(), "{}", stderr(&out));
+    for (flag, value) in [("--beta-pose", "nan"), ("--beta-trajectory", "-1"), ("--beta-pose", "inf")] {
+        let out = mmdb(&["search", p, "--frame", "0", flag, value]);
+        assert_eq!(out.status.code(), Some(2), "{flag} {value}");
+        assert!(stderr(&out).contains(&format!("{flag}: must be 0 to 1e6")), "{}", stderr(&out));
+    }
+    let out = mmdb(&["quality", p, "--seconds", "1e300"]);
+    assert_eq!(out.status.code(), Some(2));
+    assert!(stderr(&out).contains("--seconds: must be more than 0"), "{}", stderr(&out));
+}
+
+/// One flipped bit in INFO.fps (checksum recomputed) froze the page; the loader refuses it.
+#[test]
+fn a_flipped_fps_bit_is_refused_by_inspect() {
+    let mut bytes = mmcore::format::to_bytes(&hostile::tiny_database());
+    let info = hostile::table(&bytes).iter().find(|e| &e.0 == b"INFO").unwrap().2;
+    bytes[info + 8 + 3] ^= 0x20; // exponent bit of 60.0 → 1.1e21 fps
+    hostile::refix(&mut bytes);
+    let path = temp("flipped.mmdb");
+    std::fs::write(&path, &bytes).unwrap();
+    let out = mmdb(&["inspect", path.to_str().unwrap()]);
+    assert_eq!(out.status.code(), Some(1));
+    assert!(stderr(&out).contains("flipped.mmdb: INFO.fps must be between 1 and 1000"), "{}", stderr(&out));
+}
+
+/// Found by this suite: a second take whose legs have zero length got root scale
+/// `ref_leg / 0 = ∞`, and `mmdb build` wrote a database its own loader refused
+/// (`CLIP 'b': root scale inf`). The builder now warns and keeps that take's root motion as is.
+#[test]
+fn a_take_with_zero_length_legs_is_refused_or_builds_a_loadable_database() {
+    let a = hostile::humanoid_bvh(40);
+    let mut b = a.clone();
+    for offset in ["OFFSET 0.1 -0.05 0", "OFFSET -0.1 -0.05 0", "OFFSET 0 -0.42 0", "OFFSET 0 -0.41 0", "OFFSET 0 -0.05 0.12"] {
+        b = b.replace(offset, "OFFSET 0 0 0");
+    }
+    let (pa, pb, db) = (temp("a.bvh"), temp("b.bvh"), temp("ab.mmdb"));
+    std::fs::write(&pa, a).unwrap();
+    std::fs::write(&pb, b).unwrap();
+    let out = mmdb(&["build", pa.to_str().unwrap(), pb.to_str().unwrap(), "-o", db.to_str().unwrap(), "--scale", "1"]);
+    if out.status.success() {
+        let out = mmdb(&["inspect", db.to_str().unwrap()]);
+        assert!(out.status.success(), "the builder wrote a database its loader refuses: {}", stderr(&out));
+    }
+}
+
+/// Found by the builder fuzz target: a small BVH at 1 fps built at 1,000 fps asked the
+/// allocator for gigabytes and aborted. The builder now counts the output before allocating.
+#[test]
+fn a_slow_take_resampled_past_the_size_limit_is_refused_before_allocating() {
+    let bvh = hostile::humanoid_bvh(2000).replace("Frame Time: 0.00833333", "Frame Time: 1");
+    let (path, db) = (temp("slow.bvh"), temp("slow.mmdb"));
+    std::fs::write(&path, bvh).unwrap();
+    let out = mmdb(&["build", path.to_str().unwrap(), "-o", db.to_str().unwrap(), "--fps", "1000", "--scale", "1"]);
+    assert_eq!(out.status.code(), Some(1), "{}", stderr(&out));
+    assert!(stderr(&out).contains("the database would have"), "{}", stderr(&out));
+    assert!(!db.exists());
+}
