@@ -185,6 +185,16 @@ fn switching_databases_is_inertialized() {
         c.update(&other, &other_index, &Input { direction: Vec2::new(0.0, 1.0), run: true, ..Default::default() }, 1.0 / 60.0);
         assert!(c.frame() < other.num_frames, "step {step}");
     }
+    // A mask made for one database, then updates with another without `switch_database`: the
+    // searches run unmasked instead of reading the mask out of range (a panic, a WASM trap).
+    let (short, long) = if walk.num_frames < other.num_frames { (walk, &other) } else { (&other, walk) };
+    let long_index = SearchIndex::new(long).unwrap();
+    c.set_mask(short, Some(vec![true; short.num_frames])).unwrap();
+    let searches = c.stats.searches;
+    for _ in 0..60 {
+        c.update(long, &long_index, &Input { direction: Vec2::new(1.0, 0.0), ..Default::default() }, 1.0 / 60.0);
+    }
+    assert!(c.stats.searches > searches && c.frame() < long.num_frames);
 }
 
 /// docs/method.md §7 through the whole character: while a foot stays locked, its toe (in the

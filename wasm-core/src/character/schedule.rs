@@ -112,6 +112,9 @@ impl Schedule {
             (_, user, _) if !switching => user.as_deref(),
             _ => None,
         };
+        // A mask made for another database (a character updated with a database it was not
+        // switched to) would be read out of range: search unmasked until a new one is set.
+        let mask = mask.filter(|m| m.len() == index.num_frames());
         let options = SearchOptions {
             beta_pose: settings.beta_pose,
             beta_trajectory: settings.beta_trajectory,
