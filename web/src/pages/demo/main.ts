@@ -239,7 +239,7 @@ el.addEventListener('load', async () => {
       [hook.lockRings[2 * k], hook.lockRings[2 * k + 1]] = p ? [p.x, p.z] : [NaN, NaN];
     });
     timer.add(el.lastUpdateMs);
-    if (hook.updates % 15 === 0) {
+    if (hook.updates % 15 === 1) { // from the first update on: "loading…" never outlives the load
       hud.textContent = `${character.clip} · frame ${rt.frame} · ${character.tags.join(' ') || '—'} · cost ${rt.searchCost.toFixed(2)} → ${rt.bestCost.toFixed(2)} · update ${timer.median().toFixed(3)} ms (median of 64)`;
     }
     hook.ready = true;
