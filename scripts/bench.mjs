@@ -1,6 +1,6 @@
 #!/usr/bin/env node
 // `npm run bench [-- --json] [-- --seconds S] [-- --queries N] [-- --search-only] [-- --vr] [-- --compare REV] [-- --load]`
-// (--vr: only the VR replay benchmark, see vrBenchmark; --load: bytes and time to the first
+// (--vr [--recordings a,b] [--alpha A]: only the VR replay benchmark, see vrBenchmark; --load: bytes and time to the first
 // animated frame of the pages, cold and warm, localhost and throttled: scripts/bench-load.mjs):
 // 1. BVH parse speed (MB/s) and database build speed (frames/s), native (the mmdb CLI) and WASM
 //    in Node, on the same files in one run so the two are comparable under the same machine
@@ -289,7 +289,9 @@ async function vrBenchmark(log) {
     log('making public/recordings (training/make_recordings.py)');
     execFileSync(py, ['make_recordings.py'], { cwd: path.join(ROOT, 'training'), stdio: 'inherit' });
   }
-  const names = JSON.parse(fs.readFileSync(index, 'utf8'));
+  // --recordings a,b: only those (names without .json).
+  const only = args.includes('--recordings') ? args[args.indexOf('--recordings') + 1].split(',').map((n) => n.replace(/\.json$/, '') + '.json') : null;
+  const names = JSON.parse(fs.readFileSync(index, 'utf8')).filter((n) => !only || only.includes(n));
   const alpha = args.includes('--alpha') ? Number(args[args.indexOf('--alpha') + 1]) : 0.3;
   const server = await startVite();
   const { chromium } = await import('playwright-core');
@@ -328,6 +330,13 @@ function printVrBenchmark(vr) {
       `${r.name.padEnd(11)} ${String(r.frames).padStart(6)}  ${cm(r.rootDistance).padStart(20)}  ${`(${cm(r.rootDistanceHeuristic)})`.padStart(12)}   ` +
         `${deg(r.yawError.network).padStart(16)} | ${deg(r.yawError.heuristic).padStart(16)} | ${deg(r.yawError.hmdForward).padStart(16)}  ${f(r.skatingCmPerS).padStart(12)}  ${`${f(r.median, 3)} / ${f(r.p95, 3)}`.padStart(17)}  ${f(r.modelMedian, 3).padStart(12)}`,
     );
+  }
+  console.log('\nPose checks (docs/vr.md): upright = headset within 5 cm of the calibrated height; hips ≥ 95 % of standing there; no elbow > 5 cm behind the torso unless its controller is');
+  console.log('recording   upright frames  hips low  hips ratio min/mean  largest drop cm  elbow-behind arm-frames  worst elbow cm');
+  for (const r of vr.recordings) {
+    const p = r.pose;
+    if (!p) continue;
+    console.log(`${r.name.padEnd(11)} ${String(p.uprightFrames).padStart(14)}  ${String(p.hipsLowFrames).padStart(8)}  ${`${f(p.hipsMinRatio, 3)} / ${f(p.hipsMeanRatio, 3)}`.padStart(19)}  ${f(100 * p.hipsDropMax).padStart(15)}  ${String(p.elbowBehindFrames).padStart(23)}  ${f(100 * p.elbowBehindMax).padStart(14)}`);
   }
   const all = vr.recordings.filter((r) => r.rootDistance);
   if (all.length) {

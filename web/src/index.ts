@@ -81,6 +81,7 @@ export { SCRIPT_DURATION, scriptedSample } from './vr/scripted-motion.ts';
 export { loadRecording } from './vr/load-recording.ts';
 export { EnterVrButton } from './vr/enter-vr-button.ts';
 export { SpectatorView } from './vr/spectator-view.ts';
+export { FIRST_PERSON_LAYER, FirstPerson, THIRD_PERSON_LAYER, setHeadsetView } from './vr/first-person.ts';
 export { UpperBody } from './vr/upper-body.ts';
 export type { UpperBodyOptions, UpperBodyRig } from './vr/upper-body.ts';
 
@@ -103,5 +104,5 @@ export { benchRuntime } from './bench/runtime-bench.ts';
 export type { RuntimeBenchResult } from './bench/runtime-bench.ts';
 export { realisticQueries, seededRandom } from './bench/queries.ts';
 export type { BenchQuery } from './bench/queries.ts';
-export { benchReplay, stats } from './vr/replay-bench.ts';
-export type { ReplayBenchResult, Stats } from './vr/replay-bench.ts';
+export { ELBOW_LIMIT, HIPS_MIN_RATIO, UPRIGHT_BAND, benchReplay, stats } from './vr/replay-bench.ts';
+export type { PoseCheck, ReplayBenchResult, Stats } from './vr/replay-bench.ts';

@@ -50,7 +50,37 @@ export interface ReplayBenchResult {
   rootSpeed: number;
   /** Room metres per database metre. */
   scale: number;
+  /** The pose checks (docs/vr.md), over the timed pass; null without an avatar. */
+  pose: PoseCheck | null;
 }
+
+/**
+ * The VR pose checks: upright frames are those whose headset is within `UPRIGHT_BAND` of the
+ * reference (calibrated) eye height; on them the crouch should keep the hips ≥ 95 % of their
+ * standing height. An elbow more than `ELBOW_LIMIT` behind the torso's frontal plane while its controller
+ * is not is an arm bent the wrong way.
+ */
+export interface PoseCheck {
+  uprightFrames: number;
+  /**
+   * Upright frames whose hips the crouch lowered by more than 5 % of their standing (rest-pose)
+   * height, and the largest such drop (m). The animation's own hips are not counted: a walk's
+   * hips are 93–96 % of the straight-legged rest pose's by themselves (gait), which the mocap
+   * walker did too.
+   */
+  hipsLowFrames: number;
+  hipsDropMax: number;
+  /** Hips height over the rest pose's, lowest and mean, on upright frames (information). */
+  hipsMinRatio: number;
+  hipsMeanRatio: number;
+  /** Arm-frames (two per frame) with an elbow behind the torso while its controller is not, and the worst such elbow (m). */
+  elbowBehindFrames: number;
+  elbowBehindMax: number;
+}
+
+export const UPRIGHT_BAND = 0.05;
+export const HIPS_MIN_RATIO = 0.95;
+export const ELBOW_LIMIT = 0.05;
 
 /** Mean, median, p95 and max of the first `count` values; null when empty. */
 export function stats(values: Float64Array, count: number): Stats | null {
@@ -77,6 +107,9 @@ export async function benchReplay(drive: TrackedDrive, player: RecordingPlayer, 
   const dist = new Float64Array(n), gap = new Float64Array(n), yawErr = new Float64Array(n), hmdErr = new Float64Array(n);
   let headPath = 0, rootPath = 0;
   const last = new Float64Array(4);
+  const hips = character.avatar?.bone('hips') ?? null;
+  const body = drive.upperBody;
+  const pose: PoseCheck | null = hips && body && drive.avatarHipsHeight > 0 ? { uprightFrames: 0, hipsLowFrames: 0, hipsMinRatio: Infinity, hipsMeanRatio: 0, hipsDropMax: 0, elbowBehindFrames: 0, elbowBehindMax: 0 } : null;
 
   const pass = async (predictor: BodyYawPredictor, timed: boolean) => {
     drive.setPredictor(predictor);
@@ -98,6 +131,22 @@ export async function benchReplay(drive: TrackedDrive, player: RecordingPlayer, 
       }
       const root = character.root;
       if (truth) yawErr[count] = (Math.abs(wrapAngle(drive.yaw - truth.bodyYaw[f])) * 180) / Math.PI;
+      if (timed && pose) {
+        if (Math.abs(drive.trackers.head.position[1] - drive.referenceEyeHeight) <= UPRIGHT_BAND) {
+          const ratio = hips!.matrixWorld.elements[13] / (drive.avatarHipsHeight * drive.scale);
+          pose.uprightFrames++;
+          if (drive.hipsDrop > (1 - HIPS_MIN_RATIO) * drive.avatarHipsHeight * drive.scale) pose.hipsLowFrames++;
+          pose.hipsMinRatio = Math.min(pose.hipsMinRatio, ratio);
+          pose.hipsMeanRatio += ratio;
+          pose.hipsDropMax = Math.max(pose.hipsDropMax, drive.hipsDrop);
+        }
+        for (let k = 0; k < 2; k++) {
+          if (body!.elbowBehind[k] > ELBOW_LIMIT && !(body!.targetBehind[k] > ELBOW_LIMIT)) {
+            pose.elbowBehindFrames++;
+            pose.elbowBehindMax = Math.max(pose.elbowBehindMax, body!.elbowBehind[k]);
+          }
+        }
+      }
       if (timed) {
         timer.add(drive.lastUpdateMs);
         gap[count] = Math.hypot(root.x - drive.headFloor[0], root.z - drive.headFloor[1]);
@@ -141,7 +190,9 @@ export async function benchReplay(drive: TrackedDrive, player: RecordingPlayer, 
     headSpeed: headPath / duration,
     rootSpeed: rootPath / duration,
     scale,
+    pose,
   };
+  if (pose && pose.uprightFrames) pose.hipsMeanRatio /= pose.uprightFrames;
   if (truth) {
     const h = await pass(heuristic, false);
     result.yawError.heuristic = stats(yawErr, h.count);

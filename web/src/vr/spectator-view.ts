@@ -20,16 +20,20 @@ export class SpectatorView {
     this.renderer.outputColorSpace = THREE.SRGBColorSpace;
     const canvas = this.renderer.domElement;
     canvas.id = 'spectator';
-    canvas.hidden = true;
     container.appendChild(canvas);
+    this.visible = false;
   }
 
   get visible(): boolean {
     return !this.renderer.domElement.hidden;
   }
 
+  /** `hidden` alone does not hide it: three.js gives its canvas an inline `display: block`. */
   set visible(on: boolean) {
-    this.renderer.domElement.hidden = !on;
+    const canvas = this.renderer.domElement;
+    if (on === this.visible && canvas.style.display) return;
+    canvas.hidden = !on;
+    canvas.style.display = on ? 'block' : 'none';
   }
 
   /** Draws `scene` looking at the avatar root (x, z) from behind its right shoulder, yaw `yaw`. */

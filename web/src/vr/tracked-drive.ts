@@ -10,9 +10,13 @@
  * `Character.toDatabase`). Calibration scales the character (`object3d.scale`) so the avatar's
  * eyes are at the user's.
  *
- * Height (docs/vr.md): crouching lowers the hips by (reference eye height − HMD height) with leg
- * IK in the runtime (feet planted). Before a calibration the reference is the highest HMD height
- * seen since the last reset. Standing taller (tip-toe) leaves the avatar standing.
+ * Height (docs/vr.md): crouching lowers the hips by (reference height − head-centre height) with
+ * leg IK in the runtime (feet planted). The head centre is the point the head turns about,
+ * `HMD_TO_HEAD_CENTRE` behind the headset along its view axis: the headset itself sits in front of
+ * it, so looking down 35° lowers the headset by 0.10·sin 35° = 5.7 cm while the head centre stays
+ * put — measuring the headset made looking down crouch the avatar. Before a calibration the
+ * reference is the highest head-centre height seen since the last reset. Standing taller
+ * (tip-toe) leaves the avatar standing.
  */
 import { type Character } from '../character/character.ts';
 import { headingYaw } from '../yaw.ts';
@@ -21,7 +25,10 @@ import { type TrackerSample } from './tracker-sample.ts';
 import { TrackerState } from './trackers.ts';
 import { UpperBody } from './upper-body.ts';
 
-/** HMD (eyes) → head centre, m backward along the heading (MMVR: HMD = head + 0.10 m forward). */
+/**
+ * HMD (eyes) → head centre, m backward along the headset's view axis (MMVR: HMD = head + 0.10 m
+ * forward). The floor position uses its horizontal part along the heading.
+ */
 export const HMD_TO_HEAD_CENTRE = 0.1;
 
 /** The runtime settings of the VR mode (docs/runtime.md); α is set separately (`setAlpha`). */
@@ -65,8 +72,11 @@ export class TrackedDrive {
   /** The user's calibrated eye height (NaN before `calibrate`), and the reference used now. */
   calibratedEyeHeight = NaN;
   referenceEyeHeight = NaN;
-  /** Hips drop of the last frame (room m). */
+  /** Hips drop of the last frame (room m), and the head centre's height it came from. */
   hipsDrop = 0;
+  headCentreHeight = NaN;
+  /** The avatar's hips height in its rest pose at scale 1, m (NaN without an avatar or hips). */
+  readonly avatarHipsHeight: number;
   /** α in room metres. */
   private alpha = DEFAULT_ALPHA;
 
@@ -84,8 +94,9 @@ export class TrackedDrive {
     const rest = character.database.restPositions();
     this.databaseEyeHeight = head === undefined ? 1.6 : rest[3 * head + 1] - Math.min(...rest.filter((_, i) => i % 3 === 1));
     const headBone = avatar?.bone('head');
+    avatar?.object.updateMatrixWorld(true);
+    this.avatarHipsHeight = avatar?.bone('hips')?.matrixWorld.elements[13] ?? NaN;
     if (headBone) {
-      avatar!.object.updateMatrixWorld(true);
       this.avatarEyeHeight = headBone.matrixWorld.elements[13];
     } else {
       this.avatarEyeHeight = this.databaseEyeHeight * character.worldScale;
@@ -150,8 +161,10 @@ export class TrackedDrive {
     this.headFloor[0] = head.position[0] - HMD_TO_HEAD_CENTRE * Math.sin(heading);
     this.headFloor[1] = head.position[2] - HMD_TO_HEAD_CENTRE * Math.cos(heading);
 
-    // Crouch: the hips go down as far as the eyes did (tip-toe: no drop).
-    const eye = head.position[1];
+    // Crouch: the hips go down as far as the head centre did (tip-toe: no drop). The head centre
+    // is HMD + R·(0, 0, d) (+Z is backward in the headset's frame); its height is the HMD's plus
+    // d·(R·ẑ)_y = d·2(yz − wx), so pitching the head does not move it.
+    const eye = (this.headCentreHeight = head.position[1] + HMD_TO_HEAD_CENTRE * 2 * (q[1] * q[2] - q[3] * q[0]));
     if (!(this.calibratedEyeHeight > 0) && tr.status[0] === 0 && !(eye <= this.referenceEyeHeight)) this.referenceEyeHeight = eye;
     const d = this.referenceEyeHeight > 0 ? this.referenceEyeHeight - eye : 0;
     const b = CROUCH_DEADBAND;

@@ -39,18 +39,25 @@ export interface UpperBodyOptions {
   /** Wrist → fist centre along the hand (m at avatar scale 1) and toward the palm. */
   gripForward: number;
   gripPalm: number;
-  /** Elbow pole in the torso's frame: outward, downward, backward weights. */
+  /**
+   * Elbow pole in the torso's frame: outward, downward, backward weights. No backward weight by
+   * default: with 0.5 the elbows of a walk's hanging arms sat up to 20 cm behind the torso
+   * (replay bench pose check: 77–365 arm-frames per recording → 0–39).
+   */
   poleOut: number;
   poleDown: number;
   poleBack: number;
+  /**
+   * An elbow more than this (m) behind the torso's frontal plane while its target is not is bent
+   * the wrong way: the arm is solved again with its pole pointing forward.
+   */
+  elbowBehindLimit: number;
   /**
    * Most the forearm and hand may lengthen (share of their rest length) when a controller is out
    * of the arm's reach — the last resort that keeps hands on the controllers while the avatar's
    * shoulders lag the user's (walk sway, turning, a root up to α from the head).
    */
   maxStretch: number;
-  /** Scale the head to nothing (first-person view, so it does not fill the eyes' view). */
-  hideHead: boolean;
 }
 
 export const DEFAULT_UPPER_BODY_OPTIONS: Readonly<UpperBodyOptions> = {
@@ -62,9 +69,9 @@ export const DEFAULT_UPPER_BODY_OPTIONS: Readonly<UpperBodyOptions> = {
   gripPalm: 0.02,
   poleOut: 0.6,
   poleDown: 1,
-  poleBack: 0.5,
+  poleBack: 0,
+  elbowBehindLimit: 0.04,
   maxStretch: 0.25,
-  hideHead: false,
 };
 
 interface Arm {
@@ -104,6 +111,12 @@ const _p = new THREE.Vector3();
 const _scale = new THREE.Vector3();
 const _world = new THREE.Quaternion();
 const _parent = new THREE.Quaternion();
+const _mid = new THREE.Vector3();
+
+/** Metres `v` is behind the frontal plane through `_mid` facing (sin ψ, 0, cos ψ) = (sy, 0, cy). */
+function behind(v: THREE.Vector3, sy: number, cy: number): number {
+  return -((v.x - _mid.x) * sy + (v.z - _mid.z) * cy);
+}
 
 /** Pre-multiplies `bone`'s world rotation by `delta` (world frame), writing its local rotation. */
 function rotateBoneWorld(bone: THREE.Object3D, delta: THREE.Quaternion): void {
@@ -129,6 +142,14 @@ export class UpperBody {
   readonly handError = new Float64Array(2);
   /** The hand bones' world positions after the last `apply` (left xyz, right xyz). */
   readonly handPositions = new Float64Array(6);
+  /**
+   * How far (m) each elbow, and each controller's wrist target, is behind the torso's frontal
+   * plane (through the shoulders' midpoint, normal the torso's forward) after the last `apply`
+   * (left, right; negative: in front). An elbow well behind while its target is not is an arm
+   * bent the wrong way (the pose check of docs/vr.md).
+   */
+  readonly elbowBehind = new Float64Array(2);
+  readonly targetBehind = new Float64Array(2);
   private readonly object: THREE.Object3D;
   private readonly spine: { bone: THREE.Object3D; weight: number; torso: boolean }[] = [];
   private readonly head: THREE.Object3D | null;
@@ -234,14 +255,15 @@ export class UpperBody {
     if (this.head) {
       _q.set(h[0], h[1], h[2], h[3]).multiply(this.headFromHmd);
       setWorldQuaternion(this.head, _q);
-      const hide = o.hideHead ? 1e-3 : 1;
-      this.head.scale.set(hide, hide, hide);
       this.head.updateWorldMatrix(false, true);
     }
 
     const objectScale = this.object.matrixWorld.getMaxScaleOnAxis();
     const torsoYaw = rootYaw + torsoTwist;
     const sy = Math.sin(torsoYaw), cy = Math.cos(torsoYaw);
+    // The frontal plane: through the shoulders' midpoint, facing (sin ψ, 0, cos ψ).
+    _mid.set(0, 0, 0);
+    for (const arm of this.arms) _mid.addScaledVector(_a.setFromMatrixPosition(arm.upper.matrixWorld), 1 / this.arms.length);
     for (let k = 0; k < this.arms.length; k++) {
       const arm = this.arms[k];
       const tracker = arm.side > 0 ? left : right;
@@ -259,10 +281,18 @@ export class UpperBody {
       // Torso frame: outward = side·R_y(ψ)·(1, 0, 0) = side·(cos ψ, 0, −sin ψ); backward = −(sin ψ, 0, cos ψ).
       _pole.set(arm.side * cy * o.poleOut - sy * o.poleBack, -o.poleDown, -arm.side * sy * o.poleOut - cy * o.poleBack);
       this.reach(arm);
+      const j = arm.side > 0 ? 0 : 1;
+      this.targetBehind[j] = behind(_target, sy, cy);
+      this.elbowBehind[j] = behind(_v.setFromMatrixPosition(arm.lower.matrixWorld), sy, cy);
+      if (this.elbowBehind[j] > o.elbowBehindLimit && !(this.targetBehind[j] > o.elbowBehindLimit)) {
+        // Swing the elbow forward about the shoulder–target axis: outward and down as before, plus forward.
+        _pole.set(arm.side * cy * o.poleOut + sy, -o.poleDown, -arm.side * sy * o.poleOut + cy);
+        this.reach(arm);
+        this.elbowBehind[j] = behind(_v.setFromMatrixPosition(arm.lower.matrixWorld), sy, cy);
+      }
       setWorldQuaternion(arm.hand, _q.copy(_q2).multiply(arm.handFromGrip));
       arm.hand.updateWorldMatrix(false, true);
       _pos.setFromMatrixPosition(arm.hand.matrixWorld);
-      const j = arm.side > 0 ? 0 : 1;
       this.handError[j] = _pos.distanceTo(_target);
       this.handPositions[3 * j] = _pos.x;
       this.handPositions[3 * j + 1] = _pos.y;

@@ -15,9 +15,9 @@ import * as THREE from 'three';
 import { Reflector } from 'three/addons/objects/Reflector.js';
 import {
   DEFAULT_ALPHA, DEFAULT_AVATAR, DEFAULT_DATABASE, DEFAULT_ORIENTATION_MODEL, EnterVrButton, FollowCamera, HeadingYawPredictor, LEFT, LoadingStatus,
-  type NetworkYawPredictor, RIGHT, RecordingPlayer, SpectatorView, Stage, TrackedDrive, TrackerRecorder, TrackerSample, UpdateTimer, assetUrl,
+  FirstPerson, type NetworkYawPredictor, RIGHT, RecordingPlayer, SpectatorView, Stage, TrackedDrive, TrackerRecorder, TrackerSample, UpdateTimer, assetUrl,
   benchReplay, encodeRecordingJson, errorMessage, loadNetworkPredictor, loadPageCharacter, loadRecording, registerOfflineCache, sampleXRFrame,
-  saveTextFile, scriptedSample, showError,
+  saveTextFile, scriptedSample, setHeadsetView, showError,
 } from '../../index.ts';
 
 const $ = <T extends HTMLElement>(id: string) => document.getElementById(id) as T;
@@ -27,7 +27,7 @@ const hook = {
   predictor: '', predictorFallback: null as string | null, networkLoaded: false, predictorRuns: 0, predictorSkipped: 0, predictorFailures: 0,
   alpha: DEFAULT_ALPHA, hipsHeight: NaN, toeHeights: [NaN, NaN], hipsDrop: 0, avatarScale: 1, handErrors: [NaN, NaN], trackerStatus: [0, 0, 0],
   updateMs: { median: NaN, p95: NaN, last: NaN }, replayDone: false, bench: null as Awaited<ReturnType<typeof benchReplay>> | null,
-  eyeHeight: NaN, emulator: null as unknown, beforeFrame: null as ((frame: number) => void) | null,
+  eyeHeight: NaN, headTrianglesHidden: 0, emulator: null as unknown, beforeFrame: null as ((frame: number) => void) | null,
   enterVR: () => Promise.reject(new Error('not ready')) as Promise<void>, exitVR: () => Promise.resolve(),
   calibrate: (_eye?: number) => undefined as void, setPredictor: (_name: string) => undefined as void, setAlpha: (_a: number) => undefined as void,
   startRecording: () => undefined as void, stopRecording: () => '',
@@ -71,7 +71,9 @@ async function main(): Promise<void> {
   stage.scene.add(character.object3d);
   const heuristic = new HeadingYawPredictor();
   const drive = new TrackedDrive(character, heuristic);
-  const head = character.avatar?.bone('head') ?? null;
+  // First person: the headset sees a headless copy, the mirror and the spectator the whole avatar.
+  const head = character.avatar?.bone('head');
+  if (head) (hook.headTrianglesHidden = new FirstPerson(character.avatar!.object, head).hiddenTriangles), FirstPerson.attach(stage.scene);
   const hips = character.avatar?.bone('hips') ?? null;
 
   const alphaInput = $<HTMLInputElement>('alpha');
@@ -133,8 +135,8 @@ async function main(): Promise<void> {
   hook.exitVR = () => button.exit();
   let xrFrames = 0;
   const spectatorPose = new THREE.Matrix4();
-  renderer.xr.addEventListener('sessionstart', () => (spectatorPose.copy(stage.camera.matrix), drive.reset(), (xrFrames = 0)));
-  renderer.xr.addEventListener('sessionend', () => (spectatorPose.decompose(stage.camera.position, stage.camera.quaternion, stage.camera.scale), stage.resize(), drive.reset()));
+  renderer.xr.addEventListener('sessionstart', () => (spectatorPose.copy(stage.camera.matrix), setHeadsetView(stage.camera, true), drive.reset(), (xrFrames = 0)));
+  renderer.xr.addEventListener('sessionend', () => (spectatorPose.decompose(stage.camera.position, stage.camera.quaternion, stage.camera.scale), setHeadsetView(stage.camera, false), stage.resize(), drive.reset()));
 
   // Recording and calibration.
   const recorder = new TrackerRecorder();
@@ -198,7 +200,6 @@ async function main(): Promise<void> {
     }
     hook.inXR = renderer.xr.isPresenting;
     if (recording) recorder.add(sample);
-    if (drive.upperBody) drive.upperBody.options.hideHead = hook.inXR; // first person: not in the eyes' view
     drive.update(sample, fixedDt ? 1 / 60 : undefined);
     timer.add(drive.lastUpdateMs);
     const tr = drive.trackers;
@@ -209,14 +210,7 @@ async function main(): Promise<void> {
     stage.render();
     if (pip) {
       pip.visible = hook.inXR;
-      if (hook.inXR) {
-        // Others see the head that first person hides.
-        const hidden = head ? head.scale.x : 1;
-        const show = (s: number) => (head?.scale.setScalar(s), head?.updateMatrixWorld(true));
-        show(1);
-        pip.render(stage.scene, root.x, root.z, root.yaw);
-        show(hidden);
-      }
+      if (hook.inXR) pip.render(stage.scene, root.x, root.z, root.yaw);
     }
     hook.frames++;
     [hook.head[0], hook.head[1]] = drive.headFloor;
