@@ -26,7 +26,7 @@ import {
   type StateMessage,
   type StreamMessage,
   type TrackedMessage,
-  type TrackerPose,
+  type RoomTrackerPose,
 } from './protocol.ts';
 
 export interface RemoteAvatarOptions {
@@ -40,6 +40,11 @@ export interface RemoteAvatarOptions {
   worldLimit?: number;
   /** Called with a reason whenever remote data is refused or patched over. */
   onNote?: (note: string) => void;
+  /**
+   * Called when a message's last step has played, with its sender time (ms): the character is
+   * where the sender's report in that message says (up to the drift correction's offset).
+   */
+  onPlayed?: (senderTimeMs: number) => void;
 }
 
 export interface RemoteAvatarStats {
@@ -55,7 +60,7 @@ export interface RemoteAvatarStats {
   underflows: number;
 }
 
-function poseCopy(): TrackerPose {
+function poseCopy(): RoomTrackerPose {
   return { tracked: false, fromHand: false, position: [0, 0, 0], rotation: [0, 0, 0, 1] };
 }
 
@@ -66,8 +71,9 @@ export class RemoteAvatar {
   /** True once placed by a state (snapshot or in-stream) or a first message. */
   ready = false;
   /** The trackers shown this frame (VR members). */
-  readonly trackers: [TrackerPose, TrackerPose, TrackerPose] = [poseCopy(), poseCopy(), poseCopy()];
-  private readonly o: Required<Omit<RemoteAvatarOptions, 'jitter' | 'drift' | 'onNote'>>;
+  readonly trackers: [RoomTrackerPose, RoomTrackerPose, RoomTrackerPose] = [poseCopy(), poseCopy(), poseCopy()];
+  private readonly o: Required<Omit<RemoteAvatarOptions, 'jitter' | 'drift' | 'onNote' | 'onPlayed'>>;
+  private readonly onPlayed: ((senderTimeMs: number) => void) | undefined;
   private readonly note: (n: string) => void;
   private current: MoveMessage | TrackedMessage | null = null;
   private stepIndex = 0;
@@ -80,8 +86,8 @@ export class RemoteAvatar {
   private scale = 1;
   private alpha = 0.2;
   private drive: 'move' | 'path' | 'tracked' = 'move';
-  private readonly trackerA: TrackerPose[] = [poseCopy(), poseCopy(), poseCopy()];
-  private readonly trackerB: TrackerPose[] = [poseCopy(), poseCopy(), poseCopy()];
+  private readonly trackerA: RoomTrackerPose[] = [poseCopy(), poseCopy(), poseCopy()];
+  private readonly trackerB: RoomTrackerPose[] = [poseCopy(), poseCopy(), poseCopy()];
   private trackerTimeA = NaN;
   private trackerTimeB = NaN;
   /** Lost time played in the current gap (ms), reset when a message plays. */
@@ -97,6 +103,7 @@ export class RemoteAvatar {
     this.drift = new DriftCorrector(options.drift);
     this.o = { maxStepsPerUpdate: options.maxStepsPerUpdate ?? 32, maxGapSeconds: options.maxGapSeconds ?? 2, worldLimit: options.worldLimit ?? 10_000 };
     this.note = options.onNote ?? (() => {});
+    this.onPlayed = options.onPlayed;
   }
 
   private refuse(reason: string): PushResult {
@@ -154,10 +161,26 @@ export class RemoteAvatar {
     this.drift.measure(fromMm(toMm(c.rootX)), fromMm(toMm(c.rootZ)), i16ToAngle(angleToI16(c.rootYaw)), x, z, yaw);
   }
 
+  /** Sender time (ms) at the end of the last step played (NaN before the first). */
+  get playedTime(): number {
+    return this.lastEnd;
+  }
+
+  /** Part of a message's steps is played (its sender time is not reached yet). */
+  get midMessage(): boolean {
+    return this.current !== null;
+  }
+
+  private setScale(scale: number): void {
+    if (scale === this.scale) return;
+    this.scale = scale;
+    this.character.setScale?.(scale);
+  }
+
   private resetTo(s: StateMessage): void {
     const c = this.character;
+    this.setScale(s.scale);
     const [x0, z0, yaw0] = [c.rootX, c.rootZ, c.rootYaw];
-    this.scale = s.scale;
     this.alpha = s.alpha;
     this.drive = s.drive;
     c.reset(s.frame, s.rootX, s.rootZ, s.rootYaw);
@@ -216,8 +239,8 @@ export class RemoteAvatar {
         if (m.type === 'state') {
           if (!this.ready) this.resetTo(m);
           else {
+            this.setScale(m.scale);
             this.measure(m.rootX, m.rootZ, m.rootYaw);
-            this.scale = m.scale;
             this.alpha = m.alpha;
             this.lastEnd = m.time;
           }
@@ -237,7 +260,7 @@ export class RemoteAvatar {
           this.ready = true;
         }
         if (m.type === 'tracked') {
-          this.scale = m.scale;
+          this.setScale(m.scale);
           this.alpha = m.alpha;
           this.pushTrackers(m);
         }
@@ -259,6 +282,7 @@ export class RemoteAvatar {
         this.measure(m.rootX, m.rootZ, m.rootYaw);
         this.lastEnd = m.time;
         this.current = null;
+        this.onPlayed?.(m.time);
       }
     }
     this.drift.update(dt);
@@ -365,7 +389,7 @@ export class RemoteAvatar {
   }
 }
 
-function copyPose(d: TrackerPose, s: TrackerPose): void {
+function copyPose(d: RoomTrackerPose, s: RoomTrackerPose): void {
   d.tracked = s.tracked;
   d.fromHand = s.fromHand;
   for (let k = 0; k < 3; k++) d.position[k] = s.position[k];
