@@ -90,7 +90,9 @@ export { DriftCorrector, InputStream, JitterBuffer, LocalAvatar, RemoteAvatar, m
 export { CloseCode, PROTOCOL_VERSION, ProtocolError, TICKS_PER_SECOND, createRoomId, decodeClientMessage, decodeServerMessage, isRoomId } from './rooms/index.ts';
 export type { RoomMember, RoomPanelOptions, RoomSessionOptions, RoomClientEvents, RoomClientOptions, RoomStatus, DrivenCharacter, PathInput } from './rooms/index.ts';
 export type { AvatarChoice, DeviceSet, JoinInfo, LeaveReasonName, MemberInfo, MoveStep, PathMessage, RoomTrackerPose, StateMessage, StreamMessage, TrackedStep } from './rooms/index.ts';
-export type { BandwidthResult, RemoteAvatarOptions } from './rooms/index.ts';
+export { LeaveReason, TickClock } from './rooms/index.ts';
+export type { BandwidthOptions, BandwidthResult, DriftCorrectorOptions, JitterBufferOptions, JitterStats, PushResult, Released, RemoteAvatarOptions, RemoteAvatarStats, WebSocketLike } from './rooms/index.ts';
+export type { ClientMessage, DeviceMode, DriveMode, MoveMessage, ServerMessage, StreamReport, TrackedMessage } from './rooms/index.ts';
 
 // Page helpers.
 export { installDropTarget, sortDroppedFiles } from './ui/drop.ts';

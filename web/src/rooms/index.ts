@@ -5,7 +5,7 @@
  * `RoomPanel` and `NameLabel` put them on the engine's `Character` and a three.js scene.
  */
 export * from './protocol.ts';
-export { InputStream, TickClock } from './input-stream.ts';
+export { InputStream, TickClock, type StreamReport } from './input-stream.ts';
 export { RoomClient, type RoomClientEvents, type RoomClientOptions, type RoomStatus, type WebSocketLike } from './room-client.ts';
 export { JitterBuffer, type JitterBufferOptions, type JitterStats, type PushResult, type Released } from './jitter-buffer.ts';
 export { DriftCorrector, type DriftCorrectorOptions } from './drift-corrector.ts';

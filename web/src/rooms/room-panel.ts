@@ -49,8 +49,10 @@ function cleanName(name: string): string {
   return s || 'Guest';
 }
 
-const BOX = 'position:fixed;left:10px;bottom:10px;z-index:20;max-width:300px;padding:8px 10px;font:13px/1.4 system-ui,sans-serif;color:#e6e9ee;background:rgba(20,23,28,.86);border-radius:6px';
-const BUTTON = 'font:inherit;color:#fff;background:#2f5fb3;border:1px solid #5b8de0;border-radius:4px;padding:3px 10px;cursor:pointer';
+// The box lets clicks through to the page (its text must not cover a page's controls); its
+// buttons and link take them.
+const BOX = 'position:fixed;left:10px;bottom:10px;z-index:20;max-width:300px;pointer-events:none;padding:8px 10px;font:13px/1.4 system-ui,sans-serif;color:#e6e9ee;background:rgba(20,23,28,.86);border-radius:6px';
+const BUTTON = 'pointer-events:auto;font:inherit;color:#fff;background:#2f5fb3;border:1px solid #5b8de0;border-radius:4px;padding:3px 10px;cursor:pointer';
 
 export class RoomPanel {
   /** The room session once joined (null before). */
@@ -77,15 +79,19 @@ export class RoomPanel {
     (options.parent ?? document.body).append(this.element);
     this.share.addEventListener('click', () => {
       if (this.session) this.details.hidden = !this.details.hidden;
-      else this.join(createRoomId());
+      else this.join(createRoomId(), true);
     });
     const id = roomIdFromUrl(pageUrl);
     if (id) this.join(id);
     else if (new URL(pageUrl).searchParams.has('room')) this.say('The link\'s room id is not valid (22 characters expected): "Share this room" makes a new room.');
   }
 
-  /** Joins room `id` (leaving the one joined before) and shows its link. */
-  join(id: string): void {
+  /**
+   * Joins room `id` (leaving the one joined before). Its link and QR code show when `showLink`
+   * (a room just made, to be shared), else behind the "Room link" button: a page opened from a
+   * link keeps its controls uncovered.
+   */
+  join(id: string, showLink = false): void {
     this.session?.close();
     this.session = null;
     const pageUrl = this.o.pageUrl ?? location.href;
@@ -99,7 +105,7 @@ export class RoomPanel {
     }
     this.session.client.on('status', () => this.showMembers());
     this.share.textContent = 'Room link';
-    this.showLink(link);
+    this.showLink(link, showLink);
     this.showMembers();
   }
 
@@ -115,9 +121,9 @@ export class RoomPanel {
     this.element.remove();
   }
 
-  private showLink(link: string): void {
+  private showLink(link: string, show: boolean): void {
     const a = Object.assign(document.createElement('a'), { href: link, textContent: link, className: 'mm-room-link' });
-    a.style.cssText = 'display:block;word-break:break-all;color:#9cc2ff;margin:4px 0';
+    a.style.cssText = 'pointer-events:auto;display:block;word-break:break-all;color:#9cc2ff;margin:4px 0';
     const copy = Object.assign(document.createElement('button'), { type: 'button', textContent: 'Copy link' });
     copy.style.cssText = BUTTON;
     copy.addEventListener('click', () => {
@@ -129,7 +135,7 @@ export class RoomPanel {
     const qr = Object.assign(document.createElement('img'), { src: qrCodeImage(link), alt: `QR code of ${link}`, className: 'mm-room-qr', width: 160, height: 160 });
     qr.style.cssText = 'display:block;margin-top:6px;image-rendering:pixelated';
     this.details.replaceChildren(a, copy, qr);
-    this.details.hidden = false;
+    this.details.hidden = !show;
   }
 
   private showMembers(): void {

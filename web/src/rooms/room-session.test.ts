@@ -119,7 +119,25 @@ describe('RoomSession (real WASM, real room server)', () => {
     ];
     for (let k = 0; k < 500 && !(ready(desk, 1) && ready(vr, 1)); k++) await run(both, 1);
     expect(ready(desk, 1) && ready(vr, 1)).toBe(true);
+    const before = [desk, vr].map((p) => ({ ...p.session.client.traffic, steps: p.session.client.stream.simTicks, t: performance.now() }));
     await run(both, 360);
+    // Bandwidth of each avatar in the room as the pages run it (real frames ≈ 50–60 Hz here):
+    // payload bytes counted by the client, plus WebSocket framing (client frames are masked;
+    // the server adds a 3-byte relay prefix).
+    for (const [p, b, what] of [
+      [desk, before[0], 'desktop'],
+      [vr, before[1], 'VR'],
+    ] as const) {
+      const t = p.session.client.traffic;
+      const seconds = (performance.now() - b.t) / 1000;
+      const messages = t.sentMessages - b.sentMessages;
+      const payload = t.sentBytes - b.sentBytes;
+      const up = (payload + messages * 6) / seconds; // 2-byte header + 4-byte mask (messages < 126 B)
+      const down = (payload + messages * 5) / seconds; // + 3-byte relay prefix + 2-byte header
+      const stepsPerSecond = (p.session.client.stream.simTicks - b.steps) / 7200 / seconds * 60;
+      console.log(`bandwidth, ${what} avatar: ${(messages / seconds).toFixed(1)} messages/s, ${(payload / messages).toFixed(0)} B mean payload, up ${up.toFixed(0)} B/s, down ${down.toFixed(0)} B/s per receiver (${stepsPerSecond.toFixed(0)} steps/s of 1/60 s)`);
+      expect(up).toBeLessThan(what === 'VR' ? 4000 : 2000);
+    }
     await sleep(300);
     await run(both, 20, 6); // play out what is buffered (standing still)
 

@@ -12,6 +12,7 @@
  * database / the skeleton, with a note. Nothing from the room reaches the page as markup.
  */
 import * as THREE from 'three';
+import { clone as cloneSkinned } from 'three/addons/utils/SkeletonUtils.js';
 import { DEFAULT_AVATAR, assetUrl } from '../assets.ts';
 import { Avatar } from '../avatar/avatar.ts';
 import { Character, type CharacterStepper } from '../character/character.ts';
@@ -99,6 +100,8 @@ export class RoomSession {
   private readonly stepper: CharacterStepper;
   private readonly sentTrackers: [RoomTrackerPose, RoomTrackerPose, RoomTrackerPose];
   private pathVersion = -1;
+  /** One loaded avatar per URL, cloned for each member who uses it (no second download, parse or texture decode). */
+  private readonly templates = new Map<string, Promise<Avatar>>();
   private now = 0;
   private closed = false;
 
@@ -184,6 +187,8 @@ export class RoomSession {
     this.closed = true;
     this.client.close();
     for (const id of [...this.members.keys()]) this.remove(id);
+    for (const t of this.templates.values()) void t.then((a) => a.dispose(), () => undefined);
+    this.templates.clear();
     if (this.o.character.stepper === this.stepper) this.o.character.stepper = null;
   }
 
@@ -278,7 +283,7 @@ export class RoomSession {
     }
     let avatar: Avatar | null = null;
     try {
-      if (url !== null) avatar = await Avatar.load(url);
+      if (url !== null) avatar = await this.avatarFor(url);
     } catch (e) {
       note(`avatar unavailable, showing the skeleton (${errorMessage(e)})`);
     }
@@ -297,6 +302,18 @@ export class RoomSession {
     m.pending = [];
     for (const f of pending) f();
     this.o.onMembers?.();
+  }
+
+  private async avatarFor(url: string): Promise<Avatar> {
+    let template = this.templates.get(url);
+    if (!template) {
+      template = Avatar.load(url);
+      this.templates.set(url, template);
+      template.catch(() => this.templates.delete(url));
+    }
+    const t = await template;
+    // A VRM's extras (its humanoid, the VRM 0 turn) come with a load of its own.
+    return t.vrm ? Avatar.load(url) : Avatar.load(cloneSkinned(t.object), { name: t.name });
   }
 
   private feed(from: number, f: (m: Member) => void): void {
