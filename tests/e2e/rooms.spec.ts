@@ -196,7 +196,11 @@ test('three people in one room (two desktop, one VR under iwer): each sees the o
     expect(await seen(p)).toEqual(people.filter((q) => q !== p).map((q) => q.name).sort());
   }
   await expect(ada.page.locator('.mm-room-status')).toContainText(/Bo|Vera/);
+  // Joined from a link: the room's link and QR code show on "Room link".
+  await expect(ada.page.locator('.mm-room-qr')).toBeHidden();
+  await ada.page.locator('.mm-room-share').click();
   await expect(ada.page.locator('.mm-room-qr')).toBeVisible();
+  await expect(ada.page.locator('.mm-room-link')).toHaveAttribute('href', new RegExp(`room=${roomId}`));
 
   // The script: from each sender's stream time at its start.
   const startTimes = await Promise.all(people.map((p) => p.page.evaluate((h) => (window as any)[h].room.session.client.stream.lastStepTime as number, hookName(p))));
