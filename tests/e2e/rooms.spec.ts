@@ -192,9 +192,14 @@ test('three people in one room (two desktop, one VR under iwer): each sees the o
 
   // Everyone sees the other two (by their names), placed by the stream.
   for (const p of people) {
-    await p.page.waitForFunction((h) => [...((window as any)[h].room?.session?.members.values() ?? [])].filter((m: any) => m.remote?.ready).length === 2, hookName(p), { timeout: 120_000, polling: 250 });
-    expect(await seen(p)).toEqual(people.filter((q) => q !== p).map((q) => q.name).sort());
+    const others = people.filter((q) => q !== p).map((q) => q.name).sort().join();
+    await p.page.waitForFunction(
+      ([h, others]) => [...((window as any)[h].room?.session?.members.values() ?? [])].filter((m: any) => m.remote?.ready).map((m: any) => m.join.name).sort().join() === others,
+      [hookName(p), others] as const,
+      { timeout: 120_000, polling: 250 },
+    );
   }
+  for (const p of people) expect(await seen(p)).toEqual(people.filter((q) => q !== p).map((q) => q.name).sort());
   await expect(ada.page.locator('.mm-room-status')).toContainText(/Bo|Vera/);
   // Joined from a link: the room's link and QR code show on "Room link".
   await expect(ada.page.locator('.mm-room-qr')).toBeHidden();

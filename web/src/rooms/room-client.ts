@@ -109,6 +109,7 @@ export class RoomClient {
   private attempts = 0;
   private wanted = false;
   private lastStateAt = -Infinity;
+  private lastTickAt = -Infinity;
   private readonly now: () => number;
 
   constructor(options: RoomClientOptions) {
@@ -335,8 +336,18 @@ export class RoomClient {
     this.sendTimer = null;
   }
 
+  /**
+   * Sends what is due if the send timer is late (call once a frame). A page whose frames take
+   * seconds (software rendering, a busy machine) can starve its timers — browsers run rendering
+   * first — and a member silent for the server's idle timeout is dropped.
+   */
+  pump(): void {
+    if (this.sendTimer && this.now() - this.lastTickAt >= 1000 / this.sendHz) this.tick();
+  }
+
   private tick(): void {
     const t = this.now();
+    this.lastTickAt = t;
     if (t - this.lastStateAt >= (this.o.stateIntervalMs ?? 1000)) {
       this.stream.queueState();
       this.lastStateAt = t;

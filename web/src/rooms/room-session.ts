@@ -160,6 +160,7 @@ export class RoomSession {
   /** Once a frame, after the local character's update: replays and poses the other members. */
   update(dt: number): void {
     this.now = performance.now();
+    this.client.pump();
     for (const member of this.members.values()) {
       const m = member as Member;
       const rc = m.roomCharacter;
