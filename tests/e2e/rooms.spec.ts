@@ -228,9 +228,10 @@ test('three people in one room (two desktop, one VR under iwer): each sees the o
     }
   }
   console.log(`worst pair: root mean ${(worst.mean * 100).toFixed(2)} cm, max ${(worst.max * 100).toFixed(2)} cm, yaw max ${worst.yawMax.toFixed(2)}°`);
-  expect(worst.mean).toBeLessThan(0.1);
-  expect(worst.max).toBeLessThan(0.25);
-  expect(worst.yawMax).toBeLessThan(5);
+  // Soft: a miss still fails the test, after the leave and the late join have been measured too.
+  expect.soft(worst.mean).toBeLessThan(0.1);
+  expect.soft(worst.max).toBeLessThan(0.25);
+  expect.soft(worst.yawMax).toBeLessThan(5);
 
   // Bo closes the tab: Ada and Vera stop showing him within 2 s.
   const boId = traces[1].id;
@@ -243,7 +244,7 @@ test('three people in one room (two desktop, one VR under iwer): each sees the o
     }),
   );
   console.log(`Bo left: gone from Ada after ${goneAfter[0]} ms, from Vera after ${goneAfter[1]} ms`);
-  for (const ms of goneAfter) expect(ms).toBeLessThan(2000);
+  for (const ms of goneAfter) expect.soft(ms).toBeLessThan(2000);
 
   // A late joiner while Ada and Vera keep moving: placed by the snapshot, then blended onto them.
   await Promise.all([ada, vera].map((p, k) => script(p, 30, k)));
@@ -272,8 +273,8 @@ test('three people in one room (two desktop, one VR under iwer): each sees the o
     console.log(
       `Cy joined late; ${sender.name} converged after ${simSeconds.toFixed(2)} s of simulation (${((at[1] - first[1]) / 1000).toFixed(1)} s of ${sender.name}'s wall clock; first error ${(errorAt(first).d * 100).toFixed(1)} cm, ${errorAt(first).yaw.toFixed(1)}°); after: ${fmt(tail)}`,
     );
-    expect(k, `Cy's copy of ${sender.name} ends converged`).toBeLessThan(matched.length);
-    expect(simSeconds).toBeLessThan(1);
+    expect.soft(k, `Cy's copy of ${sender.name} ends converged`).toBeLessThan(matched.length);
+    expect.soft(simSeconds, `Cy's copy of ${sender.name}: seconds to converge`).toBeLessThan(1);
   }
 
   for (const p of [ada, vera, cy]) expect(p.errors, p.name).toEqual([]);
