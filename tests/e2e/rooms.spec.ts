@@ -207,6 +207,10 @@ test('three people in one room (two desktop, one VR under iwer): each sees the o
   await expect(ada.page.locator('.mm-room-qr')).toBeVisible();
   await expect(ada.page.locator('.mm-room-link')).toHaveAttribute('href', new RegExp(`room=${roomId}`));
 
+  // Copies of someone who was there before its viewer are exact once that person has stood
+  // still half a second after the viewer came (its runtime restarts for them): wait for it.
+  for (const p of people) await p.page.waitForFunction((h) => !(window as any)[h].room.session.resyncPending, hookName(p), { timeout: 120_000, polling: 250 });
+
   // The script: from each sender's stream time at its start.
   const startTimes = await Promise.all(people.map((p) => p.page.evaluate((h) => (window as any)[h].room.session.client.stream.lastStepTime as number, hookName(p))));
   await Promise.all(people.map((p, k) => script(p, SCRIPT_SECONDS, k)));

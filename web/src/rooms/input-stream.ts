@@ -199,14 +199,15 @@ export class InputStream {
   }
 
   /** Queues a STATE message (after the steps so far): sent by the next `flush()`. */
-  queueState(): void {
+  queueState(restart = false): void {
     this.batch();
     this.seq++;
-    this.queue.push(this.encodeState());
+    this.queue.push(this.encodeState(restart));
   }
 
-  private encodeState(): Uint8Array {
+  private encodeState(restart: boolean): Uint8Array {
     return encodeState({
+      restart,
       seq: this.seq,
       time: this.stamp(this.wallMs()),
       frame: this.root.frame,

@@ -225,7 +225,7 @@ describe('client messages round trip', () => {
     const bytes = encodeState(state);
     expect(bytes.length).toBe(STATE_BYTES);
     const s = decodeClientMessage(bytes);
-    expect(s).toEqual({ type: 'state', ...state, rootYaw: i16ToAngle(angleToI16(2.5)), scale: Math.fround(1.05), move: { ...state.move, ticks: 0 } });
+    expect(s).toEqual({ type: 'state', ...state, restart: false, rootYaw: i16ToAngle(angleToI16(2.5)), scale: Math.fround(1.05), move: { ...state.move, ticks: 0 } });
   });
 });
 

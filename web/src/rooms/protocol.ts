@@ -302,6 +302,7 @@ export interface PathMessage extends StreamHeader {
 
 export type DriveMode = 'move' | 'path' | 'tracked';
 const DRIVES: DriveMode[] = ['move', 'path', 'tracked'];
+const STATE_RESTART = 0x80;
 
 /** A member's compact state: the late-join snapshot and a periodic drift reference. */
 export interface StateMessage extends StreamHeader {
@@ -312,6 +313,11 @@ export interface StateMessage extends StreamHeader {
   rootZ: number;
   rootYaw: number;
   drive: DriveMode;
+  /**
+   * The sender restarted its runtime here (a fresh runtime at this root): receivers restart
+   * their copies too, which from then on compute the sender's floats (the drive byte's bit 7).
+   */
+  restart?: boolean;
   /** Seconds since the current path started (drive 'path'). */
   pathTime: number;
   scale: number;
@@ -874,7 +880,7 @@ export function encodeState(m: Omit<StateMessage, 'type'>): Uint8Array {
   w.i32(ox);
   w.i32(oz);
   w.i16(angleToI16(m.rootYaw));
-  w.u8(DRIVES.indexOf(m.drive));
+  w.u8(DRIVES.indexOf(m.drive) | (m.restart ? STATE_RESTART : 0));
   w.f32(m.pathTime);
   w.f32(m.scale);
   w.u8(Math.max(0, Math.min(255, Math.round(m.alpha * 100))));
@@ -900,8 +906,9 @@ function decodeStateBody(r: Reader, h: StreamHeader): StateMessage {
   const ox = r.i32('root x');
   const oz = r.i32('root z');
   const rootYaw = i16ToAngle(r.i16('root yaw'));
-  const driveIndex = r.u8('drive');
-  if (driveIndex >= DRIVES.length) fail(`drive ${driveIndex} (0 move, 1 path, 2 tracked)`);
+  const driveByte = r.u8('drive');
+  const driveIndex = driveByte & ~STATE_RESTART;
+  if (driveIndex >= DRIVES.length) fail(`drive ${driveIndex} (0 move, 1 path, 2 tracked; bit 7 restart)`);
   const pathTime = r.f32('path time');
   checkRange(pathTime, 0, 86400, 'path time (s)');
   const scale = readScale(r);
@@ -920,7 +927,7 @@ function decodeStateBody(r: Reader, h: StreamHeader): StateMessage {
     hipsDrop: fromMm(r.u16('hips drop')),
   };
   r.end('state');
-  return { type: 'state', ...h, frame, rootX: fromMm(ox), rootZ: fromMm(oz), rootYaw, drive: DRIVES[driveIndex], pathTime, scale, alpha, move, tracked };
+  return { type: 'state', ...h, frame, rootX: fromMm(ox), rootZ: fromMm(oz), rootYaw, drive: DRIVES[driveIndex], restart: (driveByte & STATE_RESTART) !== 0, pathTime, scale, alpha, move, tracked };
 }
 
 /**

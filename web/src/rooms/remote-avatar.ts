@@ -237,7 +237,8 @@ export class RemoteAvatar {
         }
         this.inGap = false;
         if (m.type === 'state') {
-          if (!this.ready) this.resetTo(m);
+          // The sender restarted its runtime: restarting the copy at the same numbers makes it the sender's floats.
+          if (!this.ready || m.restart) this.resetTo(m);
           else {
             this.setScale(m.scale);
             this.measure(m.rootX, m.rootZ, m.rootYaw);

@@ -54,6 +54,8 @@ export interface RoomClientEvents {
   note: (text: string) => void;
   /** The server's error message or close reason. */
   error: (code: number, reason: string) => void;
+  /** Someone joined (the server asked for a fresh STATE, sent already). */
+  stateRequested: () => void;
 }
 
 export interface RoomClientOptions {
@@ -103,6 +105,7 @@ export class RoomClient {
     snapshot: new Set(),
     note: new Set(),
     error: new Set(),
+    stateRequested: new Set(),
   };
   private sendTimer: ReturnType<typeof setInterval> | null = null;
   private retryTimer: ReturnType<typeof setTimeout> | null = null;
@@ -319,6 +322,7 @@ export class RoomClient {
         this.stream.queueState();
         this.lastStateAt = t;
         this.flush();
+        this.emit('stateRequested');
         break;
       case 'error':
         this.emit('error', m.code, m.reason);

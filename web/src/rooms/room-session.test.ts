@@ -171,7 +171,9 @@ describe('RoomSession (real WASM, real room server)', () => {
       const rows = late.session.trace.shown.slice(start).filter((s) => s[0] === id && sent.has(s[1]));
       const last = rows.slice(-20).map((s) => Math.hypot(s[2] - sent.get(s[1])![2], s[3] - sent.get(s[1])![3]));
       console.log(`late joiner's copy of ${sender === desk ? "Desk" : "Headset"}: error over its last 20 messages ≤ ${(Math.max(...last) * 100).toFixed(2)} cm`);
-      expect(Math.max(...last)).toBeLessThan(0.05);
+      // The desktop person stands still by then: it restarted its runtime for the newcomer, whose
+      // copy is exact from there; the VR person keeps walking, its copy drift-corrected.
+      expect(Math.max(...last)).toBeLessThan(sender === desk ? 0.001 : 0.05);
     }
 
     // Leaving: the others remove the member as soon as the server says so.

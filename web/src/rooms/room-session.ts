@@ -104,6 +104,12 @@ export class RoomSession {
   private readonly templates = new Map<string, Promise<Avatar>>();
   private now = 0;
   private closed = false;
+  /** Someone joined since this person's runtime last restarted (their copy of it is not exact yet). */
+  private resyncWanted = false;
+  /** Simulated seconds this person has been standing still. */
+  private stillFor = 0;
+  /** Leaving the page leaves the room at once (a closed socket may otherwise linger until the server's idle timeout). */
+  private readonly onPageHide = () => this.close();
 
   constructor(options: RoomSessionOptions) {
     this.o = options;
@@ -147,9 +153,16 @@ export class RoomSession {
       options.onMembers?.();
     });
     this.client.on('memberLeft', (id) => (this.remove(id), options.onMembers?.()));
+    this.client.on('stateRequested', () => (this.resyncWanted = true));
+    globalThis.addEventListener?.('pagehide', this.onPageHide);
     this.client.on('stream', (from, message, arrival) => this.feed(from, (m) => m.remote!.receive(message, arrival)));
     this.client.on('snapshot', (from, state, path) => this.feed(from, (m) => m.remote!.applySnapshot(state, path)));
     this.client.connect();
+  }
+
+  /** A newcomer's copy of this person is not exact yet: the runtime restarts at the next standstill. */
+  get resyncPending(): boolean {
+    return this.resyncWanted;
   }
 
   /** Connection state: connecting, open, reconnecting or closed. */
@@ -186,6 +199,7 @@ export class RoomSession {
   close(): void {
     if (this.closed) return;
     this.closed = true;
+    globalThis.removeEventListener?.('pagehide', this.onPageHide);
     this.client.close();
     for (const id of [...this.members.keys()]) this.remove(id);
     for (const t of this.templates.values()) void t.then((a) => a.dispose(), () => undefined);
@@ -200,6 +214,18 @@ export class RoomSession {
     const d = c.drive;
     const local = this.local;
     const scale = c.metresPerDatabaseUnit;
+    // A newcomer started its copy of this person from a snapshot: not the same runtime state, so
+    // drift correction keeps it close but not exact. Standing still for half a second, this
+    // person restarts its runtime (the idle pose hardly changes) and says so in a STATE: every
+    // copy restarts with it and computes this person's floats from then on.
+    const t = d.tracked;
+    const still = d.mode === 'move' ? d.move.moveX === 0 && d.move.moveZ === 0 : d.mode === 'tracked' && Math.hypot(t.velocityX, t.velocityZ) < 0.05;
+    this.stillFor = still ? this.stillFor + dt : 0;
+    if (this.resyncWanted && this.client.memberId && this.stillFor >= 0.5) {
+      this.resyncWanted = false;
+      this.restartOwn();
+      this.client.stream.queueState(true);
+    }
     if (d.mode === 'tracked') {
       local.setTracked(d.tracked, scale, Number.isFinite(d.alpha) ? d.alpha : DEFAULT_ALPHA);
       const t = this.o.trackers;
