@@ -88,7 +88,8 @@ function simulate(o: Options) {
       const steps0 = remote.stats.stepsApplied;
       remote.update(recvNow, 1 / 60);
       maxStepsPerFrame = Math.max(maxStepsPerFrame, remote.stats.stepsApplied - steps0);
-      if (remote.ready) {
+      // What is drawn (a copy placed only by the server's snapshot is not: `shown`).
+      if (remote.shown) {
         const d: [number, number] = [b.displayX, b.displayZ];
         if (prevDisplay) {
           // Never pops: the display moves no more than the steps played this frame could move

@@ -70,6 +70,12 @@ export class RemoteAvatar {
   readonly stats: RemoteAvatarStats = { stepsApplied: 0, lostMessages: 0, extrapolatedSeconds: 0, resyncs: 0, gapSeconds: 0, refused: 0, underflows: 0 };
   /** True once placed by a state (snapshot or in-stream) or a first message. */
   ready = false;
+  /**
+   * Placed by the server's cached snapshot (up to a STATE interval old) and not yet by a STATE
+   * from the stream: the sender answers a newcomer with a fresh STATE at once, which re-places
+   * the copy (no blend: it is not shown yet). See `shown`.
+   */
+  private provisional = false;
   /** The trackers shown this frame (VR members). */
   readonly trackers: [RoomTrackerPose, RoomTrackerPose, RoomTrackerPose] = [poseCopy(), poseCopy(), poseCopy()];
   private readonly o: Required<Omit<RemoteAvatarOptions, 'jitter' | 'drift' | 'onNote' | 'onPlayed'>>;
@@ -152,6 +158,7 @@ export class RemoteAvatar {
       return;
     }
     this.resetTo(state);
+    this.provisional = true;
     this.buffer.skipTo(Math.max(state.seq, path?.seq ?? 0));
   }
 
@@ -159,6 +166,11 @@ export class RemoteAvatar {
   private measure(x: number, z: number, yaw: number): void {
     const c = this.character;
     this.drift.measure(fromMm(toMm(c.rootX)), fromMm(toMm(c.rootZ)), i16ToAngle(angleToI16(c.rootYaw)), x, z, yaw);
+  }
+
+  /** Whether to draw the avatar: placed by the stream (a snapshot alone is too old to show). */
+  get shown(): boolean {
+    return this.ready && !this.provisional;
   }
 
   /** Sender time (ms) at the end of the last step played (NaN before the first). */
@@ -238,6 +250,10 @@ export class RemoteAvatar {
         this.inGap = false;
         if (m.type === 'state') {
           // The sender restarted its runtime: restarting the copy at the same numbers makes it the sender's floats.
+          if (this.provisional) {
+            this.provisional = false;
+            this.ready = false; // placed afresh, not blended from where nobody saw it
+          }
           if (!this.ready || m.restart) this.resetTo(m);
           else {
             this.setScale(m.scale);

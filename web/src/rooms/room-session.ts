@@ -179,7 +179,7 @@ export class RoomSession {
       const rc = m.roomCharacter;
       if (!rc || !m.character || !m.remote) continue;
       m.character.update(dt); // its stepper replays the due steps (RemoteAvatar.update)
-      rc.display.visible = m.remote.ready;
+      rc.display.visible = m.remote.shown;
       rc.display.updateMatrixWorld();
       const root = m.character.root;
       rc.display.localToWorld(_v.set(root.x, root.y, root.z));
@@ -191,7 +191,7 @@ export class RoomSession {
       if (head) head.getWorldPosition(_v);
       else _v.y += 1.8 * m.character.metresPerDatabaseUnit;
       m.label.object.position.set(shown.x, _v.y + 0.3, shown.z);
-      m.label.object.visible = m.remote.ready;
+      m.label.object.visible = m.remote.shown;
     }
   }
 
@@ -371,6 +371,7 @@ export class RoomSession {
    * its translation moves the root).
    */
   private traceShown(m: Member, rc: RoomCharacter, remote: RemoteAvatar, time: number): void {
+    if (!remote.shown) return;
     const d = remote.drift;
     this.push(this.trace.shown, [m.id, time, rc.rootX + d.offsetX, rc.rootZ + d.offsetZ, rc.rootYaw + d.offsetYaw]);
   }
