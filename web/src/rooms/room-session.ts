@@ -321,11 +321,11 @@ export class RoomSession {
     if (m.join.database !== this.databaseId) note(`uses database "${m.join.database}", which this page does not have; replaying on "${this.databaseId}"`);
     const character = new Character(this.o.character.database, avatar, { settings: m.join.mode === 'vr' ? { ...VR_SETTINGS } : undefined });
     const rc = new RoomCharacter(character, true);
-    // A copy that is not the sender's floats (a late joiner's: it started from the snapshot) plays
-    // other frames now and then, mostly in turns: a shorter half-life than the default keeps its
-    // yaw within a few degrees of the sender's (e2e: 9.7° → see README) — still a blend, its
-    // per-frame change capped.
-    const remote = new RemoteAvatar(rc, { drift: { halflife: 0.1, maxAngularSpeed: 4 }, onNote: replayNote, onPlayed: this.o.trace ? (time) => this.traceShown(m, rc, remote, time) : undefined });
+    // A copy that is not the sender's floats yet (a late joiner's, until the sender next stands
+    // still) plays other frames now and then, mostly in turns, and one placed while its sender
+    // runs starts from rest and lags: a shorter half-life than the default and a speed cap above
+    // a run (4 m/s, 4 rad/s) keep it on the sender — still a blend, its per-frame change capped.
+    const remote = new RemoteAvatar(rc, { drift: { halflife: 0.1, maxSpeed: 4, maxAngularSpeed: 4 }, onNote: replayNote, onPlayed: this.o.trace ? (time) => this.traceShown(m, rc, remote, time) : undefined });
     character.stepper = { step: (_c, dt) => remote.update(this.now, dt) };
     Object.assign(m, { character, roomCharacter: rc, remote });
     this.o.scene.add(rc.display);
