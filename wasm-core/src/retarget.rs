@@ -17,24 +17,8 @@
 
 use crate::database::Database;
 use crate::kinematics::local_to_model;
-use crate::roles::{Role, Roles};
+use crate::roles::{Role, Roles, LIMB_BONES};
 use glam::{Quat, Vec3};
-
-/// Limb bones as (joint role, child role): their directions are aligned. Not the clavicles:
-/// anatomy differs there (CMU's clavicle rises ~20° to the shoulder, a game avatar's is
-/// level), and copying its direction shrugs the avatar's shoulders.
-const LIMB_BONES: [(Role, Role); 10] = [
-    (Role::LeftUpperArm, Role::LeftLowerArm),
-    (Role::LeftLowerArm, Role::LeftHand),
-    (Role::RightUpperArm, Role::RightLowerArm),
-    (Role::RightLowerArm, Role::RightHand),
-    (Role::LeftUpperLeg, Role::LeftLowerLeg),
-    (Role::LeftLowerLeg, Role::LeftFoot),
-    (Role::LeftFoot, Role::LeftToe),
-    (Role::RightUpperLeg, Role::RightLowerLeg),
-    (Role::RightLowerLeg, Role::RightFoot),
-    (Role::RightFoot, Role::RightToe),
-];
 
 /// An avatar's skeleton at rest, as the renderer has it (glTF skins need not list parents
 /// before children).

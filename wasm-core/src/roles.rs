@@ -180,6 +180,24 @@ pub fn normalize_name(name: &str) -> String {
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct Roles([Option<usize>; NUM_ROLES]);
 
+/// Limb bones as (joint role, child role): the bones whose rest directions retargeting aligns,
+/// at build time (`builder/retarget.rs`) and onto an avatar (`retarget.rs`). A role without a
+/// child joint (a foot without a toe) uses its end site. Not the clavicles: anatomy differs there
+/// (CMU's clavicle rises ~20° to the shoulder, a game avatar's is level), and copying its
+/// direction shrugs the shoulders.
+pub const LIMB_BONES: [(Role, Role); 10] = [
+    (Role::LeftUpperArm, Role::LeftLowerArm),
+    (Role::LeftLowerArm, Role::LeftHand),
+    (Role::RightUpperArm, Role::RightLowerArm),
+    (Role::RightLowerArm, Role::RightHand),
+    (Role::LeftUpperLeg, Role::LeftLowerLeg),
+    (Role::LeftLowerLeg, Role::LeftFoot),
+    (Role::LeftFoot, Role::LeftToe),
+    (Role::RightUpperLeg, Role::RightLowerLeg),
+    (Role::RightLowerLeg, Role::RightFoot),
+    (Role::RightFoot, Role::RightToe),
+];
+
 impl Roles {
     pub fn get(&self, role: Role) -> Option<usize> {
         self.0[role.index()]

@@ -8,21 +8,9 @@ use mmcore::bvh::{BvhJoint, Channel};
 use mmcore::config::BuildConfig;
 use mmcore::roles::Role;
 use mmcore::{build, format, Bvh, Database, Source};
-use std::path::{Path, PathBuf};
 
-fn mocap() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../../shared/mocap")
-}
-
-fn source(rel: &str) -> Source {
-    let path = mocap().join(rel);
-    let bytes = std::fs::read(&path).unwrap_or_else(|e| panic!("{}: {e} (is ../shared beside the repo?)", path.display()));
-    Source { name: rel.to_string(), bvh: Bvh::parse(rel, &bytes).unwrap() }
-}
-
-fn config(json: &str) -> BuildConfig {
-    BuildConfig::from_json(json).unwrap()
-}
+mod common;
+use common::{config, source};
 
 /// `bvh` with new joint names.
 fn renamed(bvh: &Bvh, name: impl Fn(usize, &str) -> String) -> Bvh {

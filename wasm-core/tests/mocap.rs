@@ -4,22 +4,11 @@
 
 use glam::{Quat, Vec3};
 use mmcore::config::BuildConfig;
-use mmcore::{build, format, inspect, Bvh, Database, Source};
-use std::path::{Path, PathBuf};
+use mmcore::{build, format, inspect, Database, Source};
+use std::path::Path;
 
-fn mocap() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../../shared/mocap")
-}
-
-fn source(rel: &str) -> Source {
-    let path = mocap().join(rel);
-    let bytes = std::fs::read(&path).unwrap_or_else(|e| panic!("{}: {e} (is ../shared beside the repo?)", path.display()));
-    Source { name: rel.to_string(), bvh: Bvh::parse(rel, &bytes).unwrap() }
-}
-
-fn config(json: &str) -> BuildConfig {
-    BuildConfig::from_json(json).unwrap()
-}
+mod common;
+use common::{config, mocap, source};
 
 fn world_positions(db: &Database, frame: usize) -> Vec<Vec3> {
     let mut p = vec![Vec3::ZERO; db.num_joints()];

@@ -23,23 +23,8 @@
 use super::poses::Poses;
 use crate::ik::{knee_bend_direction, two_bone_ik};
 use crate::kinematics::local_to_model;
-use crate::roles::{Role, Roles};
+use crate::roles::{Role, Roles, LIMB_BONES};
 use glam::{DQuat, DVec3};
-
-/// Limb bones (joint role, child role) whose rest directions are aligned; a role without a child
-/// role (a foot without a toe joint) uses its end site.
-const LIMB_BONES: [(Role, Role); 10] = [
-    (Role::LeftUpperArm, Role::LeftLowerArm),
-    (Role::LeftLowerArm, Role::LeftHand),
-    (Role::RightUpperArm, Role::RightLowerArm),
-    (Role::RightLowerArm, Role::RightHand),
-    (Role::LeftUpperLeg, Role::LeftLowerLeg),
-    (Role::LeftLowerLeg, Role::LeftFoot),
-    (Role::LeftFoot, Role::LeftToe),
-    (Role::RightUpperLeg, Role::RightLowerLeg),
-    (Role::RightLowerLeg, Role::RightFoot),
-    (Role::RightFoot, Role::RightToe),
-];
 
 /// End effectors the error is measured on, in report groups (toes: where both skeletons have them).
 const FEET: [Role; 2] = [Role::LeftFoot, Role::RightFoot];
