@@ -17,7 +17,7 @@ import {
   quantizeMoveStep,
   quantizeTrackedStep,
 } from '../web/src/rooms/protocol.ts';
-import { seededRandom } from '../web/src/rooms/testing.ts';
+import { seededRandom } from '../web/src/bench/queries.ts';
 import { createRoomId, moveBytes, settle, startServer, TestClient, testJoin, type TestServer } from './test-helpers.ts';
 
 let server: TestServer | null = null;

@@ -8,7 +8,7 @@
 import { WebSocket } from 'ws';
 import { InputStream } from '../web/src/rooms/input-stream.ts';
 import { LocalAvatar } from '../web/src/rooms/local-avatar.ts';
-import { createRoomId, decodeServerMessage, encodeJoin, MsgType, websocketFrameOverhead, type TrackerPose } from '../web/src/rooms/protocol.ts';
+import { createRoomId, decodeServerMessage, encodeJoin, MsgType, websocketFrameOverhead, type RoomTrackerPose } from '../web/src/rooms/protocol.ts';
 import { TestCharacter } from '../web/src/rooms/testing.ts';
 
 function arg(name: string, fallback: number): number;
@@ -57,7 +57,7 @@ interface Client {
 const roomIds = Array.from({ length: numRooms }, () => createRoomId());
 const clients: Client[] = [];
 const byRoomAndId = new Map<string, Client>();
-const trackers: TrackerPose[] = [0, 1, 2].map(() => ({ tracked: true, fromHand: false, position: [0, 1.6, 0], rotation: [0, 0, 0, 1] }));
+const trackers: RoomTrackerPose[] = [0, 1, 2].map(() => ({ tracked: true, fromHand: false, position: [0, 1.6, 0], rotation: [0, 0, 0, 1] }));
 
 function open(index: number): Promise<void> {
   const room = index % numRooms;

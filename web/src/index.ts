@@ -16,7 +16,7 @@
 
 // Characters: a database and an avatar → a three.js object; the per-frame recipe.
 export { Character, RUN_SPEED, WALK_SPEED } from './character/character.ts';
-export type { CharacterOptions, CreateOptions, MoveOptions, PathOptions, Root } from './character/character.ts';
+export type { CharacterDrive, CharacterOptions, CharacterStepper, CreateOptions, MoveOptions, PathOptions, Root } from './character/character.ts';
 export { Avatar } from './avatar/avatar.ts';
 export type { AvatarOptions } from './avatar/avatar.ts';
 
@@ -37,8 +37,8 @@ export { registerOfflineCache } from './offline.ts';
 export type { FetchOptions, FetchProgress } from './fetch.ts';
 
 // The runtime underneath (advanced: crowds, benchmarks, tools).
-export { CharacterRuntime, createMoveInput } from './core/character.ts';
-export type { MoveInput, RuntimeSettings } from './core/character.ts';
+export { CharacterRuntime, createMoveInput, createTrackedInput } from './core/character.ts';
+export type { MoveInput, RuntimeSettings, TrackedInput } from './core/character.ts';
 export { Crowd } from './core/crowd.ts';
 export { SEARCH_METHODS, SearchIndex } from './core/search.ts';
 export { ROLE_NAMES, findRoles } from './core/roles.ts';
@@ -84,6 +84,16 @@ export { SpectatorView } from './vr/spectator-view.ts';
 export { FIRST_PERSON_LAYER, FirstPerson, THIRD_PERSON_LAYER, setHeadsetView } from './vr/first-person.ts';
 export { UpperBody } from './vr/upper-body.ts';
 export type { UpperBodyOptions, UpperBodyRig } from './vr/upper-body.ts';
+
+// Shared rooms: people see each other's avatars over the network (docs/rooms.md).
+export { RoomCharacter, RoomClient, RoomPanel, RoomSession, NameLabel, qrCodeImage, roomIdFromUrl, roomUrl } from './rooms/index.ts';
+export { DriftCorrector, InputStream, JitterBuffer, LocalAvatar, RemoteAvatar, measureBandwidth } from './rooms/index.ts';
+export { CloseCode, PROTOCOL_VERSION, ProtocolError, TICKS_PER_SECOND, createRoomId, decodeClientMessage, decodeServerMessage, isRoomId } from './rooms/index.ts';
+export type { RoomMember, RoomPanelOptions, RoomSessionOptions, RoomClientEvents, RoomClientOptions, RoomStatus, DrivenCharacter, PathInput } from './rooms/index.ts';
+export type { AvatarChoice, DeviceSet, JoinInfo, LeaveReasonName, MemberInfo, MoveStep, PathMessage, RoomTrackerPose, StateMessage, StreamMessage, TrackedStep } from './rooms/index.ts';
+export { LeaveReason, TickClock } from './rooms/index.ts';
+export type { BandwidthOptions, BandwidthResult, DriftCorrectorOptions, JitterBufferOptions, JitterStats, PushResult, Released, RemoteAvatarOptions, RemoteAvatarStats, WebSocketLike } from './rooms/index.ts';
+export type { ClientMessage, DeviceMode, DriveMode, MoveMessage, ServerMessage, StreamReport, TrackedMessage } from './rooms/index.ts';
 
 // Page helpers.
 export { installDropTarget, sortDroppedFiles } from './ui/drop.ts';

@@ -13,7 +13,7 @@
  */
 import * as THREE from 'three';
 import { Avatar, type AvatarOptions } from '../avatar/avatar.ts';
-import { CharacterRuntime, createMoveInput, type MoveInput, type RuntimeSettings } from '../core/character.ts';
+import { CharacterRuntime, createMoveInput, createTrackedInput, type MoveInput, type RuntimeSettings, type TrackedInput } from '../core/character.ts';
 import { type Database, loadDatabase } from '../core/database.ts';
 import { type FetchOptions } from '../fetch.ts';
 import { DebugViews } from '../views/debug-views.ts';
@@ -59,6 +59,31 @@ export interface CreateOptions extends CharacterOptions, FetchOptions {
   avatarOptions?: AvatarOptions;
 }
 
+/** What drives the character, as its callers last set it (read by a `CharacterStepper`). */
+export interface CharacterDrive {
+  /** `move`: the move input; `path`: following `path`; `tracked`: `tracked` and `alpha` (VR). */
+  readonly mode: 'move' | 'path' | 'tracked';
+  /** Move input in database axes (what `setMove`/`setInput` made of the caller's directions). */
+  readonly move: Readonly<MoveInput>;
+  /** The path (`followPath`, `walkTo`) in database units; each new path bumps `pathVersion`. */
+  readonly path: { readonly points: Float32Array; readonly speeds: Float32Array; readonly looped: boolean } | null;
+  readonly pathVersion: number;
+  /** Tracked input (`setTracked`, `setHipsDrop`) in the parent frame, and α (`setAlpha`, m; NaN: never set). */
+  readonly tracked: Readonly<TrackedInput>;
+  readonly alpha: number;
+}
+
+/**
+ * Takes over a character's simulation step. With a stepper set, the drive methods only record
+ * (`character.drive`; paths are still checked) and `update(dt)` calls `stepper.step(character,
+ * dt)` instead of stepping the runtime itself, then poses the avatar as usual. A shared room
+ * needs this: its local member quantizes and sends every step before taking it, and a remote
+ * member replays the steps its sender sent (web/src/rooms).
+ */
+export interface CharacterStepper {
+  step(character: Character, dt: number): void;
+}
+
 /** Walking and running speeds of paths (m/s). */
 export const WALK_SPEED = 1.4;
 export const RUN_SPEED = 3.5;
@@ -79,9 +104,18 @@ export class Character {
   private skeletonView: SkeletonView;
   private debugViews_: DebugViews | null = null;
   private readonly input: MoveInput = createMoveInput();
+  private readonly drive_: { -readonly [K in keyof CharacterDrive]: CharacterDrive[K] } & { tracked: TrackedInput } = {
+    mode: 'move',
+    move: this.input,
+    path: null,
+    pathVersion: 0,
+    tracked: createTrackedInput(),
+    alpha: NaN,
+  };
+  /** Takes over `update`'s simulation step when set (see `CharacterStepper`); null: the character steps itself. */
+  stepper: CharacterStepper | null = null;
   private readonly root_: Root = { x: 0, y: 0, z: 0, yaw: 0 };
   private worldScale_ = 1;
-  private following = false;
   private showSkeleton_: boolean | undefined;
   private disposed = false;
 
@@ -144,6 +178,20 @@ export class Character {
     this.databaseSpace.scale.setScalar(scale);
     this.updateSkeletonVisibility();
     if (before) this.teleport(before.x, before.z, before.yaw);
+  }
+
+  /**
+   * Starts the runtime afresh on the same database with the same settings, at the database
+   * origin: no inertialization from the motion before (shared rooms start every copy of a
+   * member's character this way, then place it, so the copies compute the same motion).
+   */
+  restartRuntime(): void {
+    const old = this.runtime;
+    (this as { runtime: CharacterRuntime }).runtime = new CharacterRuntime(old.database, old.settings());
+    old.free();
+    const debug = this.debug;
+    this.debug = false;
+    this.debug = debug;
   }
 
   /**
@@ -254,10 +302,8 @@ export class Character {
       this.input.faceX = f.x / l;
       this.input.faceZ = f.z / l;
     }
-    if (this.following) {
-      this.following = false;
-      this.runtime.clearPath();
-    }
+    if (this.drive_.mode === 'path' && !this.stepper) this.runtime.clearPath();
+    this.drive_.mode = 'move';
   }
 
   /** The move input as devices write it (parent-frame directions); see `setMove`. */
@@ -291,22 +337,29 @@ export class Character {
       flat[2 * i] = p.x;
       flat[2 * i + 1] = p.z;
     });
-    this.runtime.setPath(flat, speeds, loop);
+    this.runtime.setPath(flat, speeds, loop); // throws on a bad path (a stepper sets it again: the same)
     this.input.moveX = this.input.moveZ = 0;
-    this.following = true;
+    this.drive_.mode = 'path';
+    this.drive_.path = { points: flat, speeds, looped: loop };
+    this.drive_.pathVersion++;
   }
 
   /** Whether the character is on a path (`walkTo`, `followPath`) rather than move input. */
   get followingPath(): boolean {
-    return this.following;
+    return this.drive_.mode === 'path';
+  }
+
+  /** What drives the character now (the last move input, path or tracked input). */
+  get drive(): CharacterDrive {
+    return this.drive_;
   }
 
   /** Stands still: no move input, no path. */
   stop(): void {
     this.input.moveX = this.input.moveZ = 0;
     this.input.strafe = false;
-    this.following = false;
-    this.runtime.clearPath();
+    this.drive_.mode = 'move';
+    if (!this.stepper) this.runtime.clearPath();
   }
 
   /** Places the character at (x, z) facing `yaw` (parent frame). */
@@ -321,7 +374,14 @@ export class Character {
    * and the body yaw (rad) this frame. See `TrackedDrive` for the whole VR recipe.
    */
   setTracked(headX: number, headZ: number, velocityX: number, velocityZ: number, yaw: number): void {
-    this.following = false;
+    const t = this.drive_.tracked;
+    t.headX = headX;
+    t.headZ = headZ;
+    t.velocityX = velocityX;
+    t.velocityZ = velocityZ;
+    t.yaw = yaw;
+    this.drive_.mode = 'tracked';
+    if (this.stepper) return;
     const p = this.toDatabase(headX, headZ);
     const [px, pz] = [p.x, p.z];
     const v = this.directionToDatabase(velocityX, velocityZ).multiplyScalar(1 / this.metresPerDatabaseUnit);
@@ -330,12 +390,14 @@ export class Character {
 
   /** Lowers the hips `drop` metres (parent frame) with the feet kept planted (VR crouching). */
   setHipsDrop(drop: number): void {
-    this.runtime.setHipsDrop(drop / this.metresPerDatabaseUnit);
+    this.drive_.tracked.hipsDrop = drop;
+    if (!this.stepper) this.runtime.setHipsDrop(drop / this.metresPerDatabaseUnit);
   }
 
   /** α: how far (m, parent frame) the character may lag where it is asked to be. */
   setAlpha(alpha: number): void {
-    this.runtime.setSettings({ clamp_distance: alpha / this.metresPerDatabaseUnit });
+    this.drive_.alpha = alpha;
+    if (!this.stepper) this.runtime.setSettings({ clamp_distance: alpha / this.metresPerDatabaseUnit });
   }
 
   // ---- the frame
@@ -343,8 +405,11 @@ export class Character {
   /** Advances `dt` seconds and poses everything (the per-frame recipe). */
   update(dt: number): void {
     if (this.disposed) return;
-    this.runtime.setInput(this.input);
-    this.runtime.update(dt);
+    if (this.stepper) this.stepper.step(this, dt);
+    else {
+      this.runtime.setInput(this.input);
+      this.runtime.update(dt);
+    }
     this.draw(dt);
   }
 

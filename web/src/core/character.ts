@@ -28,6 +28,25 @@ export function createMoveInput(): MoveInput {
   return { moveX: 0, moveZ: 0, faceX: 0, faceZ: 1, run: false, strafe: false };
 }
 
+/**
+ * What a tracked user (VR) asks of the character this frame, on the floor of the caller's frame:
+ * the head centre's floor position (m), its ground velocity (m/s), the body yaw (rad, 0 = +Z)
+ * and how far the hips go down (m, crouching). `Character.setTracked`/`setHipsDrop` write it;
+ * shared rooms send it quantized (web/src/rooms).
+ */
+export interface TrackedInput {
+  headX: number;
+  headZ: number;
+  velocityX: number;
+  velocityZ: number;
+  yaw: number;
+  hipsDrop: number;
+}
+
+export function createTrackedInput(): TrackedInput {
+  return { headX: 0, headZ: 0, velocityX: 0, velocityZ: 0, yaw: 0, hipsDrop: 0 };
+}
+
 /** The runtime settings (docs/runtime.md lists them; `CharacterSettings` in Rust). */
 export type RuntimeSettings = Record<string, unknown>;
 

@@ -5,7 +5,7 @@
  * adds. TCP/IP headers are not counted (they depend on how the OS coalesces segments).
  */
 import { InputStream } from './input-stream.ts';
-import { createMoveStep, websocketFrameOverhead, type TrackerPose } from './protocol.ts';
+import { createMoveStep, websocketFrameOverhead, type RoomTrackerPose } from './protocol.ts';
 
 export interface BandwidthOptions {
   mode: 'desktop' | 'vr';
@@ -52,7 +52,7 @@ export function measureBandwidth(o: BandwidthOptions): BandwidthResult {
   let nextSend = 0;
   let nextState = 0;
   const step = createMoveStep();
-  const trackers: TrackerPose[] = [0, 1, 2].map(() => ({ tracked: true, fromHand: false, position: [0, 0, 0], rotation: [0, 0, 0, 1] }));
+  const trackers: RoomTrackerPose[] = [0, 1, 2].map(() => ({ tracked: true, fromHand: false, position: [0, 0, 0], rotation: [0, 0, 0, 1] }));
   let x = 0;
   let z = 0;
   for (let f = 0; f < frames; f++) {

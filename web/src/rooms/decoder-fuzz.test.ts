@@ -23,7 +23,7 @@ import {
   quantizeTrackedStep,
   type ClientMessage,
 } from './protocol.ts';
-import { seededRandom } from './testing.ts';
+import { seededRandom } from '../bench/queries.ts';
 
 function finiteEverywhere(v: unknown): boolean {
   if (typeof v === 'number') return Number.isFinite(v);

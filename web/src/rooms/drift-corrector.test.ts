@@ -1,6 +1,6 @@
 import { describe, expect, it } from 'vitest';
 import { DriftCorrector } from './drift-corrector.ts';
-import { wrapAngle } from './protocol.ts';
+import { wrapAngle } from '../yaw.ts';
 
 const DT = 1 / 60;
 

@@ -10,7 +10,7 @@
  *   displayed root = simulated root + (offsetX, offsetZ); displayed yaw = simulated yaw + offsetYaw
  *   (the body turned by offsetYaw about its root).
  */
-import { wrapAngle } from './protocol.ts';
+import { wrapAngle } from '../yaw.ts';
 
 export interface DriftCorrectorOptions {
   /** Half-life of the spring, s: the offset covers half the error in about this time. Default 0.25. */

@@ -7,7 +7,7 @@
  * same calls with the same numbers in the same order, two characters compute the same motion.
  * The rooms code calls exactly `set*` then `update(dt)` per step, on both sides.
  */
-import { type MoveStep, type TrackedStep, type TrackerPose } from './protocol.ts';
+import { type MoveStep, type TrackedStep, type RoomTrackerPose } from './protocol.ts';
 
 export interface PathInput {
   /** Keypoints (x, z interleaved) in database units. */
@@ -48,6 +48,12 @@ export interface DrivenCharacter {
    * its root. Never changes the simulation. Called every frame for remote avatars.
    */
   setDisplayOffset(dx: number, dz: number, dyaw: number): void;
+  /**
+   * Room metres per database unit of the member this character stands for (optional): the
+   * sender's own, from its STATE and TRACKED messages. Positions (`reset`, `rootX`/`rootZ`) are
+   * converted with it and the avatar drawn at that size.
+   */
+  setScale?(scale: number): void;
   /** VR display (optional): head and grips (head, left, right) at this frame, room space. */
-  setTrackers?(trackers: readonly TrackerPose[]): void;
+  setTrackers?(trackers: readonly RoomTrackerPose[]): void;
 }

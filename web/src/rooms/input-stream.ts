@@ -24,7 +24,7 @@ import {
   type DriveMode,
   type MoveStep,
   type TrackedStep,
-  type TrackerPose,
+  type RoomTrackerPose,
 } from './protocol.ts';
 
 /**
@@ -53,7 +53,7 @@ export interface StreamReport {
   frame: number;
 }
 
-function identityTracker(): TrackerPose {
+function identityTracker(): RoomTrackerPose {
   return { tracked: false, fromHand: false, position: [0, 0, 0], rotation: [0, 0, 0, 1] };
 }
 
@@ -72,7 +72,7 @@ export class InputStream {
   readonly root: StreamReport = { rootX: 0, rootZ: 0, rootYaw: 0, frame: 0 };
   readonly lastMove: MoveStep = createMoveStep();
   readonly lastTracked: TrackedStep = createTrackedStep();
-  readonly trackers: [TrackerPose, TrackerPose, TrackerPose] = [identityTracker(), identityTracker(), identityTracker()];
+  readonly trackers: [RoomTrackerPose, RoomTrackerPose, RoomTrackerPose] = [identityTracker(), identityTracker(), identityTracker()];
   private path: { points: Float32Array; speeds: Float32Array; looped: boolean } | null = null;
   private moveSteps: MoveStep[] = [];
   private trackedSteps: TrackedStep[] = [];
@@ -87,6 +87,11 @@ export class InputStream {
   constructor(now: () => number = () => performance.now()) {
     this.now = now;
     this.startMs = now();
+  }
+
+  /** Wall time (ms since the stream started) of the last recorded step: the `time` of the message that will carry it. */
+  get lastStepTime(): number {
+    return this.lastStepMs;
   }
 
   private wallMs(): number {
@@ -133,7 +138,7 @@ export class InputStream {
   }
 
   /** The latest tracker sample (head, left, right) for the next TRACKED message. */
-  setTrackers(t: readonly TrackerPose[]): void {
+  setTrackers(t: readonly RoomTrackerPose[]): void {
     for (let i = 0; i < 3; i++) {
       const d = this.trackers[i];
       const s = t[i];
@@ -194,14 +199,15 @@ export class InputStream {
   }
 
   /** Queues a STATE message (after the steps so far): sent by the next `flush()`. */
-  queueState(): void {
+  queueState(restart = false): void {
     this.batch();
     this.seq++;
-    this.queue.push(this.encodeState());
+    this.queue.push(this.encodeState(restart));
   }
 
-  private encodeState(): Uint8Array {
+  private encodeState(restart: boolean): Uint8Array {
     return encodeState({
+      restart,
       seq: this.seq,
       time: this.stamp(this.wallMs()),
       frame: this.root.frame,

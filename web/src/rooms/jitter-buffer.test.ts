@@ -1,6 +1,6 @@
 import { describe, expect, it } from 'vitest';
 import { JitterBuffer } from './jitter-buffer.ts';
-import { seededRandom } from './testing.ts';
+import { seededRandom } from '../bench/queries.ts';
 
 /** Drains everything due at `now`. */
 function drain<T>(b: JitterBuffer<T>, now: number) {

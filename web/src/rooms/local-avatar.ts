@@ -4,18 +4,10 @@
  * stream compute the same motion. Call `setMove` / `setPath` / `setTracked` as the devices say,
  * then `update(dt)` once a frame instead of the character's own update.
  */
+import { type MoveInput, type TrackedInput } from '../core/character.ts';
 import { type DrivenCharacter } from './driven-character.ts';
 import { type InputStream } from './input-stream.ts';
-import { createMoveStep, createTrackedStep, TICKS_PER_SECOND, type MoveStep, type TrackedStep, type TrackerPose } from './protocol.ts';
-
-export interface MoveInputLike {
-  moveX: number;
-  moveZ: number;
-  faceX: number;
-  faceZ: number;
-  run: boolean;
-  strafe: boolean;
-}
+import { createMoveStep, createTrackedStep, TICKS_PER_SECOND, type MoveStep, type TrackedStep, type RoomTrackerPose } from './protocol.ts';
 
 export class LocalAvatar {
   private mode: 'move' | 'path' | 'tracked' = 'move';
@@ -30,7 +22,7 @@ export class LocalAvatar {
   ) {}
 
   /** Desktop input for the next frame (leaves path mode). */
-  setMove(input: MoveInputLike): void {
+  setMove(input: Readonly<MoveInput>): void {
     const m = this.move;
     m.moveX = input.moveX;
     m.moveZ = input.moveZ;
@@ -40,6 +32,18 @@ export class LocalAvatar {
     m.strafe = input.strafe;
     if (this.mode === 'path') this.character.setPath(null, 0);
     this.mode = 'move';
+  }
+
+  /**
+   * Room metres per database unit of this member's character (desktop; VR passes it with every
+   * `setTracked`): sent in STATE so receivers place and size their copy alike.
+   */
+  setScale(scale: number): void {
+    const s = Math.fround(scale);
+    if (s === this.scale) return;
+    this.scale = s;
+    this.stream.scale = s;
+    this.character.setScale?.(s);
   }
 
   /** Follows a path (database units) from the next frame on. */
@@ -52,7 +56,7 @@ export class LocalAvatar {
   }
 
   /** VR: the tracked-mode input for the next frame (room metres), the avatar scale and α. */
-  setTracked(step: Omit<TrackedStep, 'ticks'>, scale: number, alpha: number): void {
+  setTracked(step: Readonly<TrackedInput>, scale: number, alpha: number): void {
     Object.assign(this.tracked, step);
     // As the wire carries them (float32, whole cm), so both sides divide by the same numbers.
     this.scale = Math.fround(scale);
@@ -63,7 +67,7 @@ export class LocalAvatar {
   }
 
   /** VR: the latest head and grip poses (sent with the next message, for display). */
-  setTrackers(trackers: readonly TrackerPose[]): void {
+  setTrackers(trackers: readonly RoomTrackerPose[]): void {
     this.stream.setTrackers(trackers);
   }
 

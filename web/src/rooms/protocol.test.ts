@@ -33,7 +33,7 @@ import {
   type MoveStep,
   type StateMessage,
   type TrackedStep,
-  type TrackerPose,
+  type RoomTrackerPose,
 } from './protocol.ts';
 import { measureBandwidth } from './bandwidth.ts';
 
@@ -61,7 +61,7 @@ function moveStep(ticks: number, mx: number, mz: number, fx: number, fz: number,
   return quantizeMoveStep({ ...createMoveStep(), ticks, moveX: mx, moveZ: mz, faceX: fx, faceZ: fz, run });
 }
 
-function trackers(): [TrackerPose, TrackerPose, TrackerPose] {
+function trackers(): [RoomTrackerPose, RoomTrackerPose, RoomTrackerPose] {
   return [
     { tracked: true, fromHand: false, position: [1.2, 1.65, -3.4], rotation: [0, 0.3826834, 0, 0.9238795] },
     { tracked: true, fromHand: true, position: [1.0, 1.1, -3.2], rotation: [0.5, 0.5, 0.5, 0.5] },
@@ -225,7 +225,7 @@ describe('client messages round trip', () => {
     const bytes = encodeState(state);
     expect(bytes.length).toBe(STATE_BYTES);
     const s = decodeClientMessage(bytes);
-    expect(s).toEqual({ type: 'state', ...state, rootYaw: i16ToAngle(angleToI16(2.5)), scale: Math.fround(1.05), move: { ...state.move, ticks: 0 } });
+    expect(s).toEqual({ type: 'state', ...state, restart: false, rootYaw: i16ToAngle(angleToI16(2.5)), scale: Math.fround(1.05), move: { ...state.move, ticks: 0 } });
   });
 });
 

@@ -3,7 +3,7 @@
  * Node room server: binary, little-endian, versioned, one protocol message per WebSocket binary
  * message. Decoding validates every length, range and string and throws a `ProtocolError`
  * naming what is wrong; nothing out of range is ever returned. No three.js, WASM or Node
- * imports: this file runs in both places.
+ * imports (types only): this file runs in both places.
  *
  * Determinism contract (docs/rooms.md, "Replaying the sender's steps"): a sender streams every
  * simulation step it took — its `dt` in ticks of 1/7200 s and the runtime input of that step,
@@ -11,6 +11,8 @@
  * (`LocalAvatar` does this). A receiver replaying the same steps on the same database and
  * settings then computes the same motion; the sender's reported root corrects what differs.
  */
+
+import { type MoveInput, type TrackedInput } from '../core/character.ts';
 
 // ------------------------------------------------------------------ constants
 
@@ -117,12 +119,6 @@ export function angleToI16(rad: number): number {
 }
 export function i16ToAngle(q: number): number {
   return (q * Math.PI) / 32768;
-}
-
-/** Wraps an angle to [−π, π). */
-export function wrapAngle(a: number): number {
-  const t = a + Math.PI;
-  return t - Math.floor(t / (2 * Math.PI)) * 2 * Math.PI - Math.PI;
 }
 
 export function ticksToSeconds(ticks: number): number {
@@ -246,16 +242,10 @@ export interface StreamHeader {
   time: number;
 }
 
-/** One desktop simulation step, decoded: the exact values the sender's runtime used. */
-export interface MoveStep {
+/** One desktop simulation step, decoded: the exact values the sender's runtime used (the move input, quantized). */
+export interface MoveStep extends MoveInput {
   /** Step, ticks of 1/7200 s (1–1800). */
   ticks: number;
-  moveX: number;
-  moveZ: number;
-  faceX: number;
-  faceZ: number;
-  run: boolean;
-  strafe: boolean;
   /** Following the last PATH (move and face are ignored). */
   path: boolean;
 }
@@ -269,23 +259,17 @@ export interface MoveMessage extends StreamHeader {
   steps: MoveStep[];
 }
 
-/** One VR simulation step: the runtime's tracked-mode input (room metres). */
-export interface TrackedStep {
+/**
+ * One VR simulation step: the tracked input (room metres), quantized — head centre on the floor
+ * 1 mm, its ground velocity 1 mm/s (±32.767 m/s), the body yaw (from the sender's orientation
+ * network or heuristic) int16, the hips drop 1 mm (0–65.535 m).
+ */
+export interface TrackedStep extends TrackedInput {
   ticks: number;
-  /** Head centre on the floor, m (1 mm). */
-  headX: number;
-  headZ: number;
-  /** Head ground velocity, m/s (1 mm/s, ±32.767). */
-  velocityX: number;
-  velocityZ: number;
-  /** Body yaw from the sender's orientation network (or heuristic), rad. */
-  yaw: number;
-  /** Hips drop (crouch), m (1 mm, 0–65.535). */
-  hipsDrop: number;
 }
 
-/** One tracker's pose: position (m, room) and rotation (x, y, z, w). */
-export interface TrackerPose {
+/** One tracker's pose as a room carries it: position (m, room) and rotation (x, y, z, w). */
+export interface RoomTrackerPose {
   tracked: boolean;
   /** Left/right only: the grip is derived from a tracked hand, not a controller. */
   fromHand: boolean;
@@ -303,7 +287,7 @@ export interface TrackedMessage extends StreamHeader {
   /** Clamp distance α, m (1 cm). */
   alpha: number;
   /** head, left, right: the sample at the message's time (display: head and arms). */
-  trackers: [TrackerPose, TrackerPose, TrackerPose];
+  trackers: [RoomTrackerPose, RoomTrackerPose, RoomTrackerPose];
   steps: TrackedStep[];
 }
 
@@ -318,6 +302,7 @@ export interface PathMessage extends StreamHeader {
 
 export type DriveMode = 'move' | 'path' | 'tracked';
 const DRIVES: DriveMode[] = ['move', 'path', 'tracked'];
+const STATE_RESTART = 0x80;
 
 /** A member's compact state: the late-join snapshot and a periodic drift reference. */
 export interface StateMessage extends StreamHeader {
@@ -328,6 +313,11 @@ export interface StateMessage extends StreamHeader {
   rootZ: number;
   rootYaw: number;
   drive: DriveMode;
+  /**
+   * The sender restarted its runtime here (a fresh runtime at this root): receivers restart
+   * their copies too, which from then on compute the sender's floats (the drive byte's bit 7).
+   */
+  restart?: boolean;
   /** Seconds since the current path started (drive 'path'). */
   pathTime: number;
   scale: number;
@@ -817,7 +807,7 @@ function decodeTrackedBody(r: Reader, h: StreamHeader): TrackedMessage {
   const flags = r.u8('tracker flags');
   if (flags >= 32) fail('tracker flags has unknown bits');
   const q = [0, 0, 0, 0];
-  const trackers = [0, 1, 2].map((i): TrackerPose => {
+  const trackers = [0, 1, 2].map((i): RoomTrackerPose => {
     const x = fromMm(ox + r.i16('tracker x'));
     const y = fromMm(r.i16('tracker y'));
     const z = fromMm(oz + r.i16('tracker z'));
@@ -828,7 +818,7 @@ function decodeTrackedBody(r: Reader, h: StreamHeader): TrackedMessage {
       position: [x, y, z],
       rotation: [q[0], q[1], q[2], q[3]],
     };
-  }) as [TrackerPose, TrackerPose, TrackerPose];
+  }) as [RoomTrackerPose, RoomTrackerPose, RoomTrackerPose];
   const n = r.u8('step count');
   if (n > MAX_STEPS) fail(`${n} steps (at most ${MAX_STEPS})`);
   const steps: TrackedStep[] = [];
@@ -890,7 +880,7 @@ export function encodeState(m: Omit<StateMessage, 'type'>): Uint8Array {
   w.i32(ox);
   w.i32(oz);
   w.i16(angleToI16(m.rootYaw));
-  w.u8(DRIVES.indexOf(m.drive));
+  w.u8(DRIVES.indexOf(m.drive) | (m.restart ? STATE_RESTART : 0));
   w.f32(m.pathTime);
   w.f32(m.scale);
   w.u8(Math.max(0, Math.min(255, Math.round(m.alpha * 100))));
@@ -916,8 +906,9 @@ function decodeStateBody(r: Reader, h: StreamHeader): StateMessage {
   const ox = r.i32('root x');
   const oz = r.i32('root z');
   const rootYaw = i16ToAngle(r.i16('root yaw'));
-  const driveIndex = r.u8('drive');
-  if (driveIndex >= DRIVES.length) fail(`drive ${driveIndex} (0 move, 1 path, 2 tracked)`);
+  const driveByte = r.u8('drive');
+  const driveIndex = driveByte & ~STATE_RESTART;
+  if (driveIndex >= DRIVES.length) fail(`drive ${driveIndex} (0 move, 1 path, 2 tracked; bit 7 restart)`);
   const pathTime = r.f32('path time');
   checkRange(pathTime, 0, 86400, 'path time (s)');
   const scale = readScale(r);
@@ -936,7 +927,7 @@ function decodeStateBody(r: Reader, h: StreamHeader): StateMessage {
     hipsDrop: fromMm(r.u16('hips drop')),
   };
   r.end('state');
-  return { type: 'state', ...h, frame, rootX: fromMm(ox), rootZ: fromMm(oz), rootYaw, drive: DRIVES[driveIndex], pathTime, scale, alpha, move, tracked };
+  return { type: 'state', ...h, frame, rootX: fromMm(ox), rootZ: fromMm(oz), rootYaw, drive: DRIVES[driveIndex], restart: (driveByte & STATE_RESTART) !== 0, pathTime, scale, alpha, move, tracked };
 }
 
 /**

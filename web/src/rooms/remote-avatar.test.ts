@@ -1,9 +1,10 @@
 import { describe, expect, it } from 'vitest';
 import { InputStream } from './input-stream.ts';
 import { LocalAvatar } from './local-avatar.ts';
-import { decodeClientMessage, encodeMove, createMoveStep, TICKS_PER_SECOND, type PathMessage, type StateMessage, type StreamMessage, type TrackerPose } from './protocol.ts';
+import { decodeClientMessage, encodeMove, createMoveStep, TICKS_PER_SECOND, type PathMessage, type StateMessage, type StreamMessage, type RoomTrackerPose } from './protocol.ts';
 import { RemoteAvatar } from './remote-avatar.ts';
-import { seededRandom, TestCharacter } from './testing.ts';
+import { seededRandom } from '../bench/queries.ts';
+import { TestCharacter } from './testing.ts';
 
 interface Options {
   seconds: number;
@@ -51,7 +52,7 @@ function simulate(o: Options) {
       if (rand() < (o.duplicates ?? 0)) inFlight.push({ at: at + rand() * 40, bytes });
     }
   };
-  const trackers: TrackerPose[] = [0, 1, 2].map(() => ({ tracked: true, fromHand: false, position: [0, 1.6, 0], rotation: [0, 0, 0, 1] }));
+  const trackers: RoomTrackerPose[] = [0, 1, 2].map(() => ({ tracked: true, fromHand: false, position: [0, 1.6, 0], rotation: [0, 0, 0, 1] }));
   // Sender: a display at 60 Hz (VR 90 Hz) with frame-time jitter; messages at 20 Hz (VR 30 Hz).
   const frameMs = o.vr ? 1000 / 90 : 1000 / 60;
   const sendMs = o.vr ? 1000 / 30 : 50;
@@ -87,7 +88,8 @@ function simulate(o: Options) {
       const steps0 = remote.stats.stepsApplied;
       remote.update(recvNow, 1 / 60);
       maxStepsPerFrame = Math.max(maxStepsPerFrame, remote.stats.stepsApplied - steps0);
-      if (remote.ready) {
+      // What is drawn (a copy placed only by the server's snapshot is not: `shown`).
+      if (remote.shown) {
         const d: [number, number] = [b.displayX, b.displayZ];
         if (prevDisplay) {
           // Never pops: the display moves no more than the steps played this frame could move

@@ -26,7 +26,7 @@ import {
   type StateMessage,
   type StreamMessage,
   type TrackedMessage,
-  type TrackerPose,
+  type RoomTrackerPose,
 } from './protocol.ts';
 
 export interface RemoteAvatarOptions {
@@ -40,6 +40,11 @@ export interface RemoteAvatarOptions {
   worldLimit?: number;
   /** Called with a reason whenever remote data is refused or patched over. */
   onNote?: (note: string) => void;
+  /**
+   * Called when a message's last step has played, with its sender time (ms): the character is
+   * where the sender's report in that message says (up to the drift correction's offset).
+   */
+  onPlayed?: (senderTimeMs: number) => void;
 }
 
 export interface RemoteAvatarStats {
@@ -55,7 +60,7 @@ export interface RemoteAvatarStats {
   underflows: number;
 }
 
-function poseCopy(): TrackerPose {
+function poseCopy(): RoomTrackerPose {
   return { tracked: false, fromHand: false, position: [0, 0, 0], rotation: [0, 0, 0, 1] };
 }
 
@@ -65,9 +70,16 @@ export class RemoteAvatar {
   readonly stats: RemoteAvatarStats = { stepsApplied: 0, lostMessages: 0, extrapolatedSeconds: 0, resyncs: 0, gapSeconds: 0, refused: 0, underflows: 0 };
   /** True once placed by a state (snapshot or in-stream) or a first message. */
   ready = false;
+  /**
+   * Placed by the server's cached snapshot (up to a STATE interval old) and not yet by a STATE
+   * from the stream: the sender answers a newcomer with a fresh STATE at once, which re-places
+   * the copy (no blend: it is not shown yet). See `shown`.
+   */
+  private provisional = false;
   /** The trackers shown this frame (VR members). */
-  readonly trackers: [TrackerPose, TrackerPose, TrackerPose] = [poseCopy(), poseCopy(), poseCopy()];
-  private readonly o: Required<Omit<RemoteAvatarOptions, 'jitter' | 'drift' | 'onNote'>>;
+  readonly trackers: [RoomTrackerPose, RoomTrackerPose, RoomTrackerPose] = [poseCopy(), poseCopy(), poseCopy()];
+  private readonly o: Required<Omit<RemoteAvatarOptions, 'jitter' | 'drift' | 'onNote' | 'onPlayed'>>;
+  private readonly onPlayed: ((senderTimeMs: number) => void) | undefined;
   private readonly note: (n: string) => void;
   private current: MoveMessage | TrackedMessage | null = null;
   private stepIndex = 0;
@@ -80,8 +92,8 @@ export class RemoteAvatar {
   private scale = 1;
   private alpha = 0.2;
   private drive: 'move' | 'path' | 'tracked' = 'move';
-  private readonly trackerA: TrackerPose[] = [poseCopy(), poseCopy(), poseCopy()];
-  private readonly trackerB: TrackerPose[] = [poseCopy(), poseCopy(), poseCopy()];
+  private readonly trackerA: RoomTrackerPose[] = [poseCopy(), poseCopy(), poseCopy()];
+  private readonly trackerB: RoomTrackerPose[] = [poseCopy(), poseCopy(), poseCopy()];
   private trackerTimeA = NaN;
   private trackerTimeB = NaN;
   /** Lost time played in the current gap (ms), reset when a message plays. */
@@ -97,6 +109,7 @@ export class RemoteAvatar {
     this.drift = new DriftCorrector(options.drift);
     this.o = { maxStepsPerUpdate: options.maxStepsPerUpdate ?? 32, maxGapSeconds: options.maxGapSeconds ?? 2, worldLimit: options.worldLimit ?? 10_000 };
     this.note = options.onNote ?? (() => {});
+    this.onPlayed = options.onPlayed;
   }
 
   private refuse(reason: string): PushResult {
@@ -145,6 +158,7 @@ export class RemoteAvatar {
       return;
     }
     this.resetTo(state);
+    this.provisional = true;
     this.buffer.skipTo(Math.max(state.seq, path?.seq ?? 0));
   }
 
@@ -154,10 +168,31 @@ export class RemoteAvatar {
     this.drift.measure(fromMm(toMm(c.rootX)), fromMm(toMm(c.rootZ)), i16ToAngle(angleToI16(c.rootYaw)), x, z, yaw);
   }
 
+  /** Whether to draw the avatar: placed by the stream (a snapshot alone is too old to show). */
+  get shown(): boolean {
+    return this.ready && !this.provisional;
+  }
+
+  /** Sender time (ms) at the end of the last step played (NaN before the first). */
+  get playedTime(): number {
+    return this.lastEnd;
+  }
+
+  /** Part of a message's steps is played (its sender time is not reached yet). */
+  get midMessage(): boolean {
+    return this.current !== null;
+  }
+
+  private setScale(scale: number): void {
+    if (scale === this.scale) return;
+    this.scale = scale;
+    this.character.setScale?.(scale);
+  }
+
   private resetTo(s: StateMessage): void {
     const c = this.character;
+    this.setScale(s.scale);
     const [x0, z0, yaw0] = [c.rootX, c.rootZ, c.rootYaw];
-    this.scale = s.scale;
     this.alpha = s.alpha;
     this.drive = s.drive;
     c.reset(s.frame, s.rootX, s.rootZ, s.rootYaw);
@@ -214,10 +249,15 @@ export class RemoteAvatar {
         }
         this.inGap = false;
         if (m.type === 'state') {
-          if (!this.ready) this.resetTo(m);
+          // The sender restarted its runtime: restarting the copy at the same numbers makes it the sender's floats.
+          if (this.provisional) {
+            this.provisional = false;
+            this.ready = false; // placed afresh, not blended from where nobody saw it
+          }
+          if (!this.ready || m.restart) this.resetTo(m);
           else {
+            this.setScale(m.scale);
             this.measure(m.rootX, m.rootZ, m.rootYaw);
-            this.scale = m.scale;
             this.alpha = m.alpha;
             this.lastEnd = m.time;
           }
@@ -237,7 +277,7 @@ export class RemoteAvatar {
           this.ready = true;
         }
         if (m.type === 'tracked') {
-          this.scale = m.scale;
+          this.setScale(m.scale);
           this.alpha = m.alpha;
           this.pushTrackers(m);
         }
@@ -259,6 +299,7 @@ export class RemoteAvatar {
         this.measure(m.rootX, m.rootZ, m.rootYaw);
         this.lastEnd = m.time;
         this.current = null;
+        this.onPlayed?.(m.time);
       }
     }
     this.drift.update(dt);
@@ -365,7 +406,7 @@ export class RemoteAvatar {
   }
 }
 
-function copyPose(d: TrackerPose, s: TrackerPose): void {
+function copyPose(d: RoomTrackerPose, s: RoomTrackerPose): void {
   d.tracked = s.tracked;
   d.fromHand = s.fromHand;
   for (let k = 0; k < 3; k++) d.position[k] = s.position[k];

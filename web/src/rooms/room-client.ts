@@ -54,6 +54,8 @@ export interface RoomClientEvents {
   note: (text: string) => void;
   /** The server's error message or close reason. */
   error: (code: number, reason: string) => void;
+  /** Someone joined (the server asked for a fresh STATE, sent already). */
+  stateRequested: () => void;
 }
 
 export interface RoomClientOptions {
@@ -103,12 +105,14 @@ export class RoomClient {
     snapshot: new Set(),
     note: new Set(),
     error: new Set(),
+    stateRequested: new Set(),
   };
   private sendTimer: ReturnType<typeof setInterval> | null = null;
   private retryTimer: ReturnType<typeof setTimeout> | null = null;
   private attempts = 0;
   private wanted = false;
   private lastStateAt = -Infinity;
+  private lastTickAt = -Infinity;
   private readonly now: () => number;
 
   constructor(options: RoomClientOptions) {
@@ -318,6 +322,7 @@ export class RoomClient {
         this.stream.queueState();
         this.lastStateAt = t;
         this.flush();
+        this.emit('stateRequested');
         break;
       case 'error':
         this.emit('error', m.code, m.reason);
@@ -335,8 +340,18 @@ export class RoomClient {
     this.sendTimer = null;
   }
 
+  /**
+   * Sends what is due if the send timer is late (call once a frame). A page whose frames take
+   * seconds (software rendering, a busy machine) can starve its timers — browsers run rendering
+   * first — and a member silent for the server's idle timeout is dropped.
+   */
+  pump(): void {
+    if (this.sendTimer && this.now() - this.lastTickAt >= 1000 / this.sendHz) this.tick();
+  }
+
   private tick(): void {
     const t = this.now();
+    this.lastTickAt = t;
     if (t - this.lastStateAt >= (this.o.stateIntervalMs ?? 1000)) {
       this.stream.queueState();
       this.lastStateAt = t;

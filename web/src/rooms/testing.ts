@@ -4,7 +4,8 @@
  * of the head. Same calls with the same numbers → the same floats, like the real runtime.
  */
 import { type DrivenCharacter, type PathInput } from './driven-character.ts';
-import { createMoveStep, createTrackedStep, wrapAngle, type MoveStep, type TrackedStep, type TrackerPose } from './protocol.ts';
+import { wrapAngle } from '../yaw.ts';
+import { createMoveStep, createTrackedStep, type MoveStep, type TrackedStep, type RoomTrackerPose } from './protocol.ts';
 
 export class TestCharacter implements DrivenCharacter {
   rootX = 0;
@@ -25,7 +26,7 @@ export class TestCharacter implements DrivenCharacter {
   offsetYaw = 0;
   updates = 0;
   simulatedSeconds = 0;
-  trackers: readonly TrackerPose[] | null = null;
+  trackers: readonly RoomTrackerPose[] | null = null;
 
   setMove(step: Readonly<MoveStep>): void {
     Object.assign(this.move, step);
@@ -103,7 +104,7 @@ export class TestCharacter implements DrivenCharacter {
     this.offsetZ = dz;
     this.offsetYaw = dyaw;
   }
-  setTrackers(trackers: readonly TrackerPose[]): void {
+  setTrackers(trackers: readonly RoomTrackerPose[]): void {
     this.trackers = trackers;
   }
   get displayX(): number {
@@ -112,16 +113,4 @@ export class TestCharacter implements DrivenCharacter {
   get displayZ(): number {
     return this.rootZ + this.offsetZ;
   }
-}
-
-/** Seeded uniform [0, 1) (mulberry32). */
-export function seededRandom(seed: number): () => number {
-  let s = seed >>> 0;
-  return () => {
-    s = (s + 0x6d2b79f5) >>> 0;
-    let t = s;
-    t = Math.imul(t ^ (t >>> 15), t | 1);
-    t ^= t + Math.imul(t ^ (t >>> 7), t | 61);
-    return ((t ^ (t >>> 14)) >>> 0) / 4294967296;
-  };
 }

@@ -4,13 +4,13 @@
  * database built here, `.mmdb`, `.glb`/`.vrm`); a HUD. Only the library's public entry is used.
  *
  * URL parameters: `db=<url>`, `avatar=<url>|none`, `roles=<JSON role → bone name>` (manual
- * joint map), `skeleton=1`, `shadows=0`, `dt=fixed` (exactly 1/60 s per frame, for tests).
- * State for tests is on `window.__mm`.
+ * joint map), `skeleton=1`, `shadows=0`, `dt=fixed` (exactly 1/60 s per frame, for tests; `dt=0.05`: that many s),
+ * `room=<id>` and `name=` (a shared room: `RoomPanel`). State for tests is on `window.__mm`.
  */
 import GUI from 'lil-gui';
 import * as THREE from 'three';
 import {
-  Avatar, Database, DatabaseBuilder, type DroppedFiles, PathEditor, RUNTIME_SETTINGS, type RoleOverrides, UpdateTimer,
+  Avatar, Database, DatabaseBuilder, type DroppedFiles, PathEditor, RUNTIME_SETTINGS, type RoleOverrides, RoomPanel, UpdateTimer,
   defineMMAvatar, errorMessage, installDropTarget, listDatabases, registerOfflineCache, showError,
 } from '../../index.ts';
 
@@ -41,7 +41,7 @@ const hook = {
   avatar: '',
   databaseLoads: 0,
   path: { points: [] as number[], following: false },
-  screenOf: (x: number, z: number) => ({ x: x * 0, y: z * 0 }),
+  screenOf: (x: number, z: number) => ({ x: x * 0, y: z * 0 }), room: null as RoomPanel | null,
 };
 declare global {
   interface Window {
@@ -72,7 +72,7 @@ try {
 const avatarParam = params.get('avatar');
 if (avatarParam === 'none' || roles) el.setAttribute('avatar', 'none');
 else if (avatarParam) el.setAttribute('avatar', avatarParam);
-if (params.get('dt') === 'fixed') el.timeStep = 1 / 60;
+if (params.get('dt')) el.timeStep = params.get('dt') === 'fixed' ? 1 / 60 : Number(params.get('dt')) || null;
 document.getElementById('viewport')!.append(el);
 el.addEventListener('error', (e) => fileError((e as unknown as CustomEvent<{ message: string }>).detail.message));
 
@@ -81,6 +81,7 @@ el.addEventListener('load', async () => {
   const stage = el.stage!;
   el.orbit!.controls.enableZoom = true; // a full page: the wheel zooms
   stage.camera.position.set(2.2, 1.7, 3.8);
+  const room = (hook.room = new RoomPanel({ character, scene: stage.scene, mode: 'desktop', onNote: fileError, trace: el.timeStep !== null, avatar: avatarParam && avatarParam !== 'none' ? { kind: 'url', url: avatarParam } : undefined }));
   const view = { mesh: true, skeleton: params.get('skeleton') === '1', shadows: params.get('shadows') !== '0', simulation: true, trajectory: true, matched: true, locks: true };
   character.debug = true;
   const apply = () => {
@@ -210,7 +211,8 @@ el.addEventListener('load', async () => {
   const timer = new UpdateTimer(64);
   const v = new THREE.Vector3();
   let previousContacts = 0;
-  el.afterUpdate = () => {
+  el.afterUpdate = (dt) => {
+    room.update(dt);
     const r = character.root;
     const rt = character.runtime;
     const contacts = character.contacts;

@@ -7,15 +7,15 @@
  *
  * URL parameters: `emulate=1` (iwer, a Quest 3; `devui=0` without its panel), `replay=URL` or
  * `replay=scripted` (play a recording on the desktop page; `bench=1` also scores it), `dt=fixed`
- * (1/60 s per frame), `model=URL` (orientation model; a missing one falls back, visibly, to the
+ * (1/60 s per frame; `dt=0.05`: that many seconds), `model=URL` (orientation model; a missing one falls back, visibly, to the
  * heuristic), `predictor=heuristic`, `alpha=0.2`, `mirror=0|<texture px>`, `spectator=0`,
- * `settings={...}` (runtime settings), `db=`, `avatar=URL|none`. State for tests: `window.__vr`.
+ * `settings={...}`, `db=`, `avatar=URL|none`, `room=<id>`, `name=` (a shared room: `RoomPanel`). Tests: `window.__vr`.
  */
 import * as THREE from 'three';
 import { Reflector } from 'three/addons/objects/Reflector.js';
 import {
   DEFAULT_ALPHA, DEFAULT_AVATAR, DEFAULT_DATABASE, DEFAULT_ORIENTATION_MODEL, EnterVrButton, FollowCamera, HeadingYawPredictor, LEFT, LoadingStatus,
-  FirstPerson, type NetworkYawPredictor, RIGHT, RecordingPlayer, SpectatorView, Stage, TrackedDrive, TrackerRecorder, TrackerSample, UpdateTimer, assetUrl,
+  FirstPerson, type NetworkYawPredictor, RIGHT, RecordingPlayer, RoomPanel, SpectatorView, Stage, TrackedDrive, TrackerRecorder, TrackerSample, UpdateTimer, assetUrl,
   benchReplay, encodeRecordingJson, errorMessage, loadNetworkPredictor, loadPageCharacter, loadRecording, registerOfflineCache, sampleXRFrame,
   saveTextFile, scriptedSample, setHeadsetView, showError,
 } from '../../index.ts';
@@ -30,12 +30,10 @@ const hook = {
   eyeHeight: NaN, headTrianglesHidden: 0, emulator: null as unknown, beforeFrame: null as ((frame: number) => void) | null,
   enterVR: () => Promise.reject(new Error('not ready')) as Promise<void>, exitVR: () => Promise.resolve(),
   calibrate: (_eye?: number) => undefined as void, setPredictor: (_name: string) => undefined as void, setAlpha: (_a: number) => undefined as void,
-  startRecording: () => undefined as void, stopRecording: () => '',
+  startRecording: () => undefined as void, stopRecording: () => '', room: null as RoomPanel | null,
 };
 declare global {
-  interface Window {
-    __vr: typeof hook;
-  }
+  interface Window { __vr: typeof hook }
 }
 window.__vr = hook;
 const fail = (message: string) => showError((hook.error = hook.error ? `${hook.error}\n${message}` : message) && message);
@@ -44,7 +42,7 @@ window.addEventListener('unhandledrejection', (e) => fail(`error: ${errorMessage
 
 async function main(): Promise<void> {
   const params = new URLSearchParams(location.search);
-  const fixedDt = params.get('dt') === 'fixed';
+  const fixedDt = params.get('dt') === 'fixed' ? 1 / 60 : Number(params.get('dt')) || 0; // s per frame; 0: real time
   const emulated = params.get('emulate') === '1';
   if (emulated) {
     // iwer's Quest 3 over Chromium's own navigator.xr (forceInstall), its panel for people.
@@ -74,6 +72,7 @@ async function main(): Promise<void> {
   // First person: the headset sees a headless copy, the mirror and the spectator the whole avatar.
   const head = character.avatar?.bone('head');
   if (head) (hook.headTrianglesHidden = new FirstPerson(character.avatar!.object, head).hiddenTriangles), FirstPerson.attach(stage.scene);
+  const room = (hook.room = new RoomPanel({ character, scene: stage.scene, mode: 'vr', trackers: drive.trackers, onNote: showError, trace: fixedDt > 0 }));
   const hips = character.avatar?.bone('hips') ?? null;
 
   const alphaInput = $<HTMLInputElement>('alpha');
@@ -131,8 +130,7 @@ async function main(): Promise<void> {
   $('vr-slot').appendChild(button.element);
   await button.init();
   performance.mark('mm:enter-vr-ready');
-  hook.enterVR = () => button.enter();
-  hook.exitVR = () => button.exit();
+  [hook.enterVR, hook.exitVR] = [() => button.enter(), () => button.exit()];
   let xrFrames = 0;
   const spectatorPose = new THREE.Matrix4();
   renderer.xr.addEventListener('sessionstart', () => (spectatorPose.copy(stage.camera.matrix), setHeadsetView(stage.camera, true), drive.reset(), (xrFrames = 0)));
@@ -186,11 +184,11 @@ async function main(): Promise<void> {
     const space = renderer.xr.getReferenceSpace();
     if (frame && space) {
       hook.mode = 'xr';
-      sampleXRFrame(frame, space, fixedDt ? xrFrames++ / 60 : now / 1000, sample, emulated);
+      sampleXRFrame(frame, space, fixedDt ? xrFrames++ * fixedDt : now / 1000, sample, emulated);
     } else if (player) {
       hook.mode = 'replay';
       player.sampleAt(replayTime, sample);
-      replayTime += fixedDt ? 1 / 60 : realDt;
+      replayTime += fixedDt || realDt;
       hook.replayDone = replayTime > player.duration;
     } else {
       // Desktop, no XR: a user standing still at the origin (or where the last session ended).
@@ -200,12 +198,13 @@ async function main(): Promise<void> {
     }
     hook.inXR = renderer.xr.isPresenting;
     if (recording) recorder.add(sample);
-    drive.update(sample, fixedDt ? 1 / 60 : undefined);
+    drive.update(sample, fixedDt || undefined);
+    room.update(fixedDt || realDt);
     timer.add(drive.lastUpdateMs);
     const tr = drive.trackers;
     [tr.left, tr.right].forEach((view, k) => (markers[k].position.fromArray(view.position), markers[k].quaternion.fromArray(view.rotation)));
     const root = character.root;
-    if (!hook.inXR) spectator.follow(root.x, root.z, fixedDt ? 1 / 60 : realDt);
+    if (!hook.inXR) spectator.follow(root.x, root.z, fixedDt || realDt);
     stage.grid.follow(root.x, root.z);
     stage.render();
     if (pip) {

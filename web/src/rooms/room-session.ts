@@ -1,0 +1,383 @@
+/**
+ * `RoomSession`: a page's person in a shared room, on the public API. It takes the local
+ * `Character`'s step (`character.stepper`: every step quantized, sent and taken with the sent
+ * numbers — `LocalAvatar`), and shows every other member as a `Character` of their own, fed by
+ * the room stream (`RemoteAvatar` through a `RoomCharacter`), with a name label; members who
+ * leave or time out are removed at once. Call `update(dt)` once a frame after the local
+ * character's update; it steps and poses the remote members.
+ *
+ * Remote data is untrusted: the client screens joins (avatar URLs outside the page's origin
+ * become the built-in avatar) and decodes every message with the protocol's checks; here a
+ * database the page does not have or an avatar that fails to load becomes the page's own
+ * database / the skeleton, with a note. Nothing from the room reaches the page as markup.
+ */
+import * as THREE from 'three';
+import { clone as cloneSkinned } from 'three/addons/utils/SkeletonUtils.js';
+import { DEFAULT_AVATAR, assetUrl } from '../assets.ts';
+import { Avatar } from '../avatar/avatar.ts';
+import { Character, type CharacterStepper } from '../character/character.ts';
+import { errorMessage } from '../fetch.ts';
+import { TRACKED } from '../vr/trackers.ts';
+import { VR_SETTINGS, DEFAULT_ALPHA } from '../vr/tracked-drive.ts';
+import { type TrackerPose } from '../vr/body-yaw.ts';
+import { LocalAvatar } from './local-avatar.ts';
+import { NameLabel } from './name-label.ts';
+import { angleToI16, fromMm, i16ToAngle, toMm, type AvatarChoice, type DeviceSet, type JoinInfo, type MemberInfo, type RoomTrackerPose } from './protocol.ts';
+import { RemoteAvatar } from './remote-avatar.ts';
+import { RoomCharacter } from './room-character.ts';
+import { RoomClient, type RoomClientOptions } from './room-client.ts';
+
+export interface RoomSessionOptions {
+  roomId: string;
+  /** The local person's character: the session takes its `stepper` until `close()`. */
+  character: Character;
+  /** Where the other members' avatars go (the page's scene). */
+  scene: THREE.Object3D;
+  mode: 'desktop' | 'vr';
+  /** Shown above this person's avatar to the others (≤ 48 UTF-8 bytes). */
+  name: string;
+  /** How the others load this person's avatar: a same-origin URL or a built-in one (default: built-in 0). */
+  avatar?: AvatarChoice;
+  /** Database id (default: the character's database file name without `.mmdb`). */
+  database?: string;
+  /** Calibrated eye height, m (0: not calibrated). */
+  height?: number;
+  devices?: DeviceSet;
+  /** VR: the head and grips to send each step (e.g. `TrackedDrive.trackers`), shown by the others. */
+  trackers?: { head: TrackerPose; left: TrackerPose; right: TrackerPose };
+  /** Built-in avatar URLs by id (default: [the shipped avatar]); null: the skeleton. */
+  builtinAvatars?: readonly (string | null)[];
+  /** Passed to the `RoomClient` (url, reconnect, avatarAllowList…). */
+  client?: Partial<Omit<RoomClientOptions, 'roomId' | 'join'>>;
+  /** Refused or patched remote data, connection trouble: shown to the person. */
+  onNote?: (text: string) => void;
+  /** Members came, went or changed. */
+  onMembers?: () => void;
+  /** Records sent and shown roots (tests: `trace`). */
+  trace?: boolean;
+}
+
+/** One other person in the room. */
+export interface RoomMember {
+  readonly id: number;
+  readonly join: JoinInfo;
+  /** Null while the avatar loads (the stream is kept meanwhile). */
+  readonly character: Character | null;
+  readonly remote: RemoteAvatar | null;
+  readonly label: NameLabel;
+  /** Where the avatar is drawn now (scene frame: m, rad). */
+  readonly shown: { x: number; z: number; yaw: number };
+}
+
+interface Member extends RoomMember {
+  character: Character | null;
+  remote: RemoteAvatar | null;
+  roomCharacter: RoomCharacter | null;
+  /** Messages that arrived while the avatar loaded, replayed once it is there. */
+  pending: (() => void)[];
+  gone: boolean;
+}
+
+/** Messages kept per member while its avatar loads (~6 s of stream); more start it over. */
+const MAX_PENDING = 128;
+
+const _v = new THREE.Vector3();
+
+export class RoomSession {
+  readonly client: RoomClient;
+  readonly local: LocalAvatar;
+  readonly members = new Map<number, RoomMember>();
+  /**
+   * With `trace`: `sent` = [memberId, senderTimeMs, x, z, yaw] of this person's character after
+   * each step; `shown` = [fromId, senderTimeMs, x, z, yaw] of a remote avatar as drawn when a
+   * message's last step has played. Matching the two by id and time gives the replay error.
+   */
+  readonly trace = { sent: [] as number[][], shown: [] as number[][] };
+  private readonly o: RoomSessionOptions;
+  /** The database id this page replays on. */
+  private readonly databaseId: string;
+  private readonly own: RoomCharacter;
+  private readonly stepper: CharacterStepper;
+  private readonly sentTrackers: [RoomTrackerPose, RoomTrackerPose, RoomTrackerPose];
+  private pathVersion = -1;
+  /** One loaded avatar per URL, cloned for each member who uses it (no second download, parse or texture decode). */
+  private readonly templates = new Map<string, Promise<Avatar>>();
+  private now = 0;
+  private closed = false;
+  /** Someone joined since this person's runtime last restarted (their copy of it is not exact yet). */
+  private resyncWanted = false;
+  /** Simulated seconds this person has been standing still. */
+  private stillFor = 0;
+  /** Leaving the page leaves the room at once (a closed socket may otherwise linger until the server's idle timeout). */
+  private readonly onPageHide = () => this.close();
+
+  constructor(options: RoomSessionOptions) {
+    this.o = options;
+    const character = options.character;
+    const database = options.database ?? (character.database.name.split('?')[0].split('/').pop() ?? '').replace(/\.mmdb$/, '');
+    this.databaseId = /^[A-Za-z0-9._-]{1,64}$/.test(database) ? database : 'locomotion';
+    this.client = new RoomClient({
+      ...options.client,
+      roomId: options.roomId,
+      join: {
+        name: options.name,
+        avatar: options.avatar ?? { kind: 'builtin', id: 0 },
+        database: this.databaseId,
+        height: options.height ?? 0,
+        mode: options.mode,
+        devices: options.devices ?? (options.mode === 'vr' ? { headset: true, leftController: true, rightController: true } : { keyboard: true, pointer: true }),
+      },
+    });
+    this.own = new RoomCharacter(character, false);
+    this.local = new LocalAvatar(this.own, this.client.stream);
+    this.local.setScale(character.metresPerDatabaseUnit);
+    const pose = (): RoomTrackerPose => ({ tracked: false, fromHand: false, position: [0, 0, 0], rotation: [0, 0, 0, 1] });
+    this.sentTrackers = [pose(), pose(), pose()];
+    this.stepper = { step: (_c, dt) => this.stepLocal(dt) };
+    character.stepper = this.stepper;
+
+    const note = (text: string) => options.onNote?.(text);
+    this.client.on('note', note);
+    this.client.on('error', (code, reason) => note(`room: ${reason || 'closed'} (${code})`));
+    this.client.on('welcome', (_id, members) => {
+      for (const id of [...this.members.keys()]) this.remove(id);
+      this.restartOwn();
+      for (const m of members) this.add(m);
+      options.onMembers?.();
+    });
+    this.client.on('memberJoined', (m) => (this.add(m), options.onMembers?.()));
+    this.client.on('memberUpdated', (m) => {
+      // A new profile (avatar, height): the member starts over with it from its next message.
+      this.remove(m.id);
+      this.add(m);
+      options.onMembers?.();
+    });
+    this.client.on('memberLeft', (id) => (this.remove(id), options.onMembers?.()));
+    this.client.on('stateRequested', () => (this.resyncWanted = true));
+    globalThis.addEventListener?.('pagehide', this.onPageHide);
+    this.client.on('stream', (from, message, arrival) => this.feed(from, (m) => m.remote!.receive(message, arrival)));
+    this.client.on('snapshot', (from, state, path) => this.feed(from, (m) => m.remote!.applySnapshot(state, path)));
+    this.client.connect();
+  }
+
+  /** A newcomer's copy of this person is not exact yet: the runtime restarts at the next standstill. */
+  get resyncPending(): boolean {
+    return this.resyncWanted;
+  }
+
+  /** Connection state: connecting, open, reconnecting or closed. */
+  get status(): string {
+    return this.client.status;
+  }
+
+  /** Once a frame, after the local character's update: replays and poses the other members. */
+  update(dt: number): void {
+    this.now = performance.now();
+    this.client.pump();
+    for (const member of this.members.values()) {
+      const m = member as Member;
+      const rc = m.roomCharacter;
+      if (!rc || !m.character || !m.remote) continue;
+      m.character.update(dt); // its stepper replays the due steps (RemoteAvatar.update)
+      rc.display.visible = m.remote.shown;
+      rc.display.updateMatrixWorld();
+      const root = m.character.root;
+      rc.display.localToWorld(_v.set(root.x, root.y, root.z));
+      const shown = m.shown as { x: number; z: number; yaw: number };
+      shown.x = _v.x;
+      shown.z = _v.z;
+      shown.yaw = root.yaw + rc.display.rotation.y;
+      const head = m.character.avatar?.bone('head');
+      if (head) head.getWorldPosition(_v);
+      else _v.y += 1.8 * m.character.metresPerDatabaseUnit;
+      m.label.object.position.set(shown.x, _v.y + 0.3, shown.z);
+      m.label.object.visible = m.remote.shown;
+    }
+  }
+
+  /** Leaves the room: the other members disappear and the character steps itself again. */
+  close(): void {
+    if (this.closed) return;
+    this.closed = true;
+    globalThis.removeEventListener?.('pagehide', this.onPageHide);
+    this.client.close();
+    for (const id of [...this.members.keys()]) this.remove(id);
+    for (const t of this.templates.values()) void t.then((a) => a.dispose(), () => undefined);
+    this.templates.clear();
+    if (this.o.character.stepper === this.stepper) this.o.character.stepper = null;
+  }
+
+  // ---- the local member
+
+  private stepLocal(dt: number): void {
+    const c = this.o.character;
+    const d = c.drive;
+    const local = this.local;
+    const scale = c.metresPerDatabaseUnit;
+    // A newcomer started its copy of this person from a snapshot: not the same runtime state, so
+    // drift correction keeps it close but not exact. Standing still for half a second, this
+    // person restarts its runtime (the idle pose hardly changes) and says so in a STATE: every
+    // copy restarts with it and computes this person's floats from then on.
+    const t = d.tracked;
+    const still = d.mode === 'move' ? d.move.moveX === 0 && d.move.moveZ === 0 : d.mode === 'tracked' && Math.hypot(t.velocityX, t.velocityZ) < 0.05;
+    this.stillFor = still ? this.stillFor + dt : 0;
+    if (this.resyncWanted && this.client.memberId && this.stillFor >= 0.5) {
+      this.resyncWanted = false;
+      this.restartOwn();
+      this.client.stream.queueState(true);
+    }
+    if (d.mode === 'tracked') {
+      local.setTracked(d.tracked, scale, Number.isFinite(d.alpha) ? d.alpha : DEFAULT_ALPHA);
+      const t = this.o.trackers;
+      if (t) {
+        this.copyTracker(t.head, this.sentTrackers[0]);
+        this.copyTracker(t.left, this.sentTrackers[1]);
+        this.copyTracker(t.right, this.sentTrackers[2]);
+        local.setTrackers(this.sentTrackers);
+      }
+    } else {
+      local.setScale(scale);
+      if (d.mode === 'path' && d.path) {
+        if (d.pathVersion !== this.pathVersion) local.setPath(d.path.points, d.path.speeds, d.path.looped);
+      } else local.setMove(d.move);
+      this.pathVersion = d.mode === 'path' ? d.pathVersion : -1;
+    }
+    local.update(dt);
+    // Not in the room (yet, or between reconnects): nothing to send; joining starts the stream over.
+    if (!this.client.memberId) this.client.stream.flush();
+    else if (this.o.trace) {
+      const r = c.root;
+      this.push(this.trace.sent, [this.client.memberId, this.client.stream.lastStepTime, r.x, r.z, r.yaw]);
+    }
+  }
+
+  private copyTracker(s: TrackerPose, d: RoomTrackerPose): void {
+    d.tracked = s.status === TRACKED;
+    for (let k = 0; k < 3; k++) d.position[k] = s.position[k];
+    for (let k = 0; k < 4; k++) d.rotation[k] = s.rotation[k];
+  }
+
+  /**
+   * Joined (again): this person's copies start now. The runtime restarts at the root as the wire
+   * carries it (1 mm, int16 yaw) — what every member present restarts its copy at from the
+   * first STATE — so the copies compute the same motion from here on. A path being followed
+   * is left (a fresh runtime would walk it again from its start).
+   */
+  private restartOwn(): void {
+    const c = this.o.character;
+    if (c.followingPath) {
+      c.stop();
+      this.o.onNote?.('joined the room: the path was stopped');
+    }
+    this.local.setScale(c.metresPerDatabaseUnit);
+    const own = this.own;
+    own.reset(-1, fromMm(toMm(own.rootX)), fromMm(toMm(own.rootZ)), i16ToAngle(angleToI16(own.rootYaw)));
+    this.client.stream.report(own.rootX, own.rootZ, own.rootYaw, own.frame);
+  }
+
+  // ---- the other members
+
+  private add(info: MemberInfo): void {
+    const label = new NameLabel(info.join.name);
+    label.object.visible = false;
+    this.o.scene.add(label.object);
+    const member: Member = {
+      id: info.id,
+      join: info.join,
+      character: null,
+      remote: null,
+      roomCharacter: null,
+      label,
+      shown: { x: NaN, z: NaN, yaw: NaN },
+      pending: [],
+      gone: false,
+    };
+    this.members.set(info.id, member);
+    void this.load(member);
+  }
+
+  private async load(m: Member): Promise<void> {
+    const note = (text: string) => this.o.onNote?.(`${m.join.name}: ${text}`);
+    // Lost messages are the network's weather (and a late joiner never gets those before its
+    // snapshot): the jitter buffer and the drift correction deal with them; not a note for people.
+    const replayNote = (text: string) => (/message\(s\) lost/.test(text) ? undefined : note(text));
+    const a = m.join.avatar;
+    const builtins = this.o.builtinAvatars ?? [String(assetUrl(DEFAULT_AVATAR))];
+    let url = a.kind === 'url' ? a.url : builtins[a.id];
+    if (url === undefined) {
+      note(`unknown built-in avatar ${a.kind === 'builtin' ? a.id : ''}; showing the first`);
+      url = builtins[0];
+    }
+    let avatar: Avatar | null = null;
+    try {
+      if (url !== null) avatar = await this.avatarFor(url);
+    } catch (e) {
+      note(`avatar unavailable, showing the skeleton (${errorMessage(e)})`);
+    }
+    if (m.gone || this.closed) {
+      avatar?.dispose();
+      return;
+    }
+    if (m.join.database !== this.databaseId) note(`uses database "${m.join.database}", which this page does not have; replaying on "${this.databaseId}"`);
+    const character = new Character(this.o.character.database, avatar, { settings: m.join.mode === 'vr' ? { ...VR_SETTINGS } : undefined });
+    const rc = new RoomCharacter(character, true);
+    // A copy that is not the sender's floats yet (a late joiner's, until the sender next stands
+    // still) plays other frames now and then, mostly in turns, and one placed while its sender
+    // runs starts from rest and lags: a shorter half-life than the default and a speed cap above
+    // a run (4 m/s, 4 rad/s) keep it on the sender — still a blend, its per-frame change capped.
+    const remote = new RemoteAvatar(rc, { drift: { halflife: 0.1, maxSpeed: 4, maxAngularSpeed: 4 }, onNote: replayNote, onPlayed: this.o.trace ? (time) => this.traceShown(m, rc, remote, time) : undefined });
+    character.stepper = { step: (_c, dt) => remote.update(this.now, dt) };
+    Object.assign(m, { character, roomCharacter: rc, remote });
+    this.o.scene.add(rc.display);
+    const pending = m.pending;
+    m.pending = [];
+    for (const f of pending) f();
+    this.o.onMembers?.();
+  }
+
+  private async avatarFor(url: string): Promise<Avatar> {
+    let template = this.templates.get(url);
+    if (!template) {
+      template = Avatar.load(url);
+      this.templates.set(url, template);
+      template.catch(() => this.templates.delete(url));
+    }
+    const t = await template;
+    // A VRM's extras (its humanoid, the VRM 0 turn) come with a load of its own.
+    return t.vrm ? Avatar.load(url) : Avatar.load(cloneSkinned(t.object), { name: t.name });
+  }
+
+  private feed(from: number, f: (m: Member) => void): void {
+    const m = this.members.get(from) as Member | undefined;
+    if (!m) return;
+    if (m.remote) f(m);
+    else if (m.pending.length < MAX_PENDING) m.pending.push(() => f(m));
+    else m.pending.length = 0; // the avatar takes very long: start over from later messages
+  }
+
+  private remove(id: number): void {
+    const m = this.members.get(id) as Member | undefined;
+    if (!m) return;
+    m.gone = true;
+    this.members.delete(id);
+    m.label.dispose();
+    m.roomCharacter?.display.removeFromParent();
+    m.character?.dispose();
+  }
+
+  /**
+   * A message of member `m` has played: where its avatar is drawn if the frame ended now — the
+   * simulated root plus the display offset (the offset turns the body about its root, so only
+   * its translation moves the root).
+   */
+  private traceShown(m: Member, rc: RoomCharacter, remote: RemoteAvatar, time: number): void {
+    if (!remote.shown) return;
+    const d = remote.drift;
+    this.push(this.trace.shown, [m.id, time, rc.rootX + d.offsetX, rc.rootZ + d.offsetZ, rc.rootYaw + d.offsetYaw]);
+  }
+
+  private push(list: number[][], row: number[]): void {
+    if (list.length >= 50_000) list.splice(0, 10_000);
+    list.push(row);
+  }
+}
