@@ -1,6 +1,6 @@
 #!/usr/bin/env node
 // `npm run bench [-- --json] [-- --seconds S] [-- --queries N] [-- --search-only] [-- --vr] [-- --compare REV] [-- --load]`
-// (--vr [--recordings a,b] [--alpha A]: only the VR replay benchmark, see vrBenchmark; --load: bytes and time to the first
+// (--vr [--recordings a,b] [--alpha A]: only the VR replay benchmark, see vrBenchmark; --vr-shots: screenshots of the replays; --load: bytes and time to the first
 // animated frame of the pages, cold and warm, localhost and throttled: scripts/bench-load.mjs):
 // 1. BVH parse speed (MB/s) and database build speed (frames/s), native (the mmdb CLI) and WASM
 //    in Node, on the same files in one run so the two are comparable under the same machine
@@ -347,6 +347,40 @@ function printVrBenchmark(vr) {
   }
 }
 
+/**
+ * `npm run bench -- --vr-shots [--recordings a,b]`: screenshots of each recording's replay (and
+ * the scripted motion) at 0, 3 and 10 s of replay time (the end for shorter ones), fixed steps
+ * of 1/60 s, mirror on, 960×540, into test-results/vr-shots/ — the VR body looked at by eye.
+ */
+async function vrShots(log) {
+  const names = [...JSON.parse(fs.readFileSync(path.join(ROOT, 'public', 'recordings', 'index.json'), 'utf8')).map((n) => `recordings/${n}`), 'scripted']
+    .filter((n) => !args.includes('--recordings') || args[args.indexOf('--recordings') + 1].split(',').some((o) => n.includes(o)));
+  const out = path.join(ROOT, 'test-results', 'vr-shots');
+  fs.mkdirSync(out, { recursive: true });
+  const server = await startVite();
+  const { chromium } = await import('playwright-core');
+  const browser = await chromium.launch({ executablePath: CHROMIUM, args: ['--headless', '--no-sandbox', '--disable-gpu', '--use-angle=swiftshader', '--enable-unsafe-swiftshader'] });
+  try {
+    for (const name of names) {
+      const page = await browser.newPage({ viewport: { width: 960, height: 540 } });
+      await page.goto(`${server.resolvedUrls.local[0]}vr.html?replay=${name}&dt=fixed&mirror=256&alpha=0.3`);
+      await page.waitForFunction(() => window.__vr?.ready || window.__vr?.error, null, { timeout: 120_000 });
+      const duration = await page.evaluate(() => window.__vr.replayDuration);
+      for (const t of [0, 3, 10]) {
+        const at = Math.min(t, Math.max(0, duration - 0.05));
+        await page.waitForFunction((f) => window.__vr.frames >= f, Math.round(at * 60), { timeout: 600_000, polling: 100 });
+        const file = path.join(out, `${path.basename(name, '.json')}-${t}s.png`);
+        await page.screenshot({ path: file });
+        log(`${file} (replay ${at.toFixed(2)} s)`);
+      }
+      await page.close();
+    }
+  } finally {
+    await browser.close();
+    await server.close();
+  }
+}
+
 // ---------------------------------------------------------------- before / after (--compare REV)
 
 /**
@@ -425,6 +459,10 @@ if (args.includes('--compare')) {
     console.log(`  characters in 4 ms: ${c.revision} ${c.before.characters_in_4ms} → now ${c.after.characters_in_4ms} (${pct(c.before.characters_in_4ms, c.after.characters_in_4ms)})`);
     console.log(`  rounds: ${c.rounds.before.map((r, i) => `${r.characters_in_4ms}/${c.rounds.after[i].characters_in_4ms}`).join(' ')} (before/after characters in 4 ms)`);
   }
+  process.exit(0);
+}
+if (args.includes('--vr-shots')) {
+  await vrShots(log);
   process.exit(0);
 }
 if (args.includes('--vr')) {

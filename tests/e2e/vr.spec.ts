@@ -81,11 +81,24 @@ test('VR under iwer: enter VR; scripted walk, side-step, 360° turn and crouch; 
   expect(await page.evaluate(() => [window.__vr.networkLoaded, window.__vr.predictor])).toEqual([true, 'network']);
   await expect(page.locator('#predictor-status')).toHaveText('body yaw: network');
 
+  // Outside a session the spectator canvas is not shown and does not cover the page (three.js's
+  // inline display: block used to beat its `hidden`).
+  expect(await page.evaluate(() => {
+    const c = document.getElementById('spectator')!;
+    const top = document.elementFromPoint(innerWidth - 20, innerHeight - 20);
+    return [getComputedStyle(c).display, top === c];
+  })).toEqual(['none', false]);
+
   // Enter VR through the button, as a person would.
   await expect(page.locator('#enter-vr')).toHaveText('Enter VR');
   await page.locator('#enter-vr').click();
   await page.waitForFunction(() => window.__vr.inXR || window.__vr.error, null, { timeout: 30_000 });
   expect(await page.evaluate(() => window.__vr.mode)).toBe('xr');
+  // First person: the headset's cameras draw the headless copy, not the whole avatar; the
+  // spectator (and the mirror, any camera but the headset's) the whole one.
+  await waitFrames(page, 2);
+  expect(await page.evaluate(() => window.__vr.headTrianglesHidden)).toBeGreaterThan(100);
+  expect(await page.evaluate(() => window.__vr.views())).toMatchObject({ headsetWhole: false, headsetHeadless: true, spectatorWhole: true });
 
   // Script the emulated headset and controllers per frame, calibrate at 1.6 m once standing,
   // and log every frame's state in the page.
@@ -181,6 +194,7 @@ test('VR under iwer: enter VR; scripted walk, side-step, 360° turn and crouch; 
   await page.evaluate(() => window.__vr.exitVR());
   await page.waitForFunction(() => !window.__vr.inXR, null, { timeout: 30_000 });
   await waitFrames(page, 3);
+  expect((await page.evaluate(() => window.__vr.views())).pageWhole).toBe(true); // the page camera is third person again
   await page.screenshot({ path: path.join(SHOTS, 'vr-spectator.png') });
   expect(errors).toEqual([]);
 });
@@ -222,5 +236,28 @@ test('replay of a synthetic held-in recording with the benchmark: loose bounds',
   expect(await page.evaluate(() => window.__vr.mode)).toBe('replay');
   expect(Math.max(...(await page.evaluate(() => window.__vr.handErrors)))).toBeLessThan(0.01);
   await page.screenshot({ path: path.join(SHOTS, 'vr-replay.png') });
+  expect(errors).toEqual([]);
+});
+
+test('VR pose checks over every shipped recording and the scripted motion: the crouch leaves upright users standing, no elbow bent behind the torso', async ({ page }) => {
+  const names = [...(JSON.parse(fs.readFileSync(path.join(ROOT, 'public/recordings/index.json'), 'utf8')) as string[]).map((n) => `recordings/${n}`), 'scripted'];
+  test.setTimeout(120_000 * names.length);
+  await page.setViewportSize({ width: 320, height: 200 });
+  const errors = collectErrors(page);
+  await muteHmr(page);
+  const rows: string[] = [];
+  let upright = 0;
+  for (const name of names) {
+    await page.goto(`/vr.html?replay=${name}&bench=1&mirror=0&spectator=0&alpha=0.3`);
+    await page.waitForFunction(() => window.__vr?.ready || window.__vr?.error, null, { timeout: 110_000 });
+    expect(await page.evaluate(() => window.__vr.error)).toBeNull();
+    const p = (await page.evaluate(() => window.__vr.bench!.pose))!;
+    rows.push(`${name}: upright ${p.uprightFrames}, hips low ${p.hipsLowFrames} (largest drop ${(100 * p.hipsDropMax).toFixed(1)} cm; hips/rest min ${p.hipsMinRatio.toFixed(3)}), elbows behind ${p.elbowBehindFrames} (worst ${(100 * p.elbowBehindMax).toFixed(1)} cm)`);
+    upright += p.uprightFrames;
+    expect(p.hipsLowFrames, name).toBe(0);
+    expect(p.elbowBehindFrames, name).toBe(0);
+  }
+  console.log(rows.join('\n'));
+  expect(upright).toBeGreaterThan(1000);
   expect(errors).toEqual([]);
 });

@@ -330,3 +330,37 @@ fn the_world_pose_is_the_fk_of_the_shown_pose() {
     }
     assert!(worst < 1e-5, "world pose differs from its FK by {worst} m");
 }
+
+/// A late joiner's copy (rooms): placed at someone walking with `teleport_playing` (their
+/// frame, root and yaw) and fed the same input, it keeps up from the first second; placed with
+/// a plain `teleport` it starts from rest and falls behind.
+#[test]
+fn a_copy_placed_playing_the_senders_frame_keeps_up() {
+    let db = db();
+    let walk = Input { direction: Vec2::new(0.3, 1.0), ..Default::default() };
+    let mut sender = Character::new(db, CharacterSettings::default());
+    for _ in 0..90 {
+        sender.update(db, index(), &walk, 1.0 / 60.0); // 1.5 s: walking at speed
+    }
+    let (p, q, frame) = (sender.root_position(), sender.root_rotation(), sender.frame());
+    let mut playing = Character::new(db, CharacterSettings::default());
+    playing.teleport_playing(db, frame, p, q);
+    assert_eq!(playing.frame(), frame);
+    let mut rest = Character::new(db, CharacterSettings::default());
+    rest.teleport(db, p, q);
+    let (mut worst_playing, mut worst_rest) = (0.0f32, 0.0f32);
+    for _ in 0..60 {
+        for c in [&mut sender, &mut playing, &mut rest] {
+            c.update(db, index(), &walk, 1.0 / 60.0);
+        }
+        worst_playing = worst_playing.max((playing.root_position() - sender.root_position()).length());
+        worst_rest = worst_rest.max((rest.root_position() - sender.root_position()).length());
+    }
+    println!("copy placed mid-walk, worst root distance over 1 s: playing the frame {:.1} cm, from rest {:.1} cm", worst_playing * 100.0, worst_rest * 100.0);
+    assert!(worst_playing < 0.1, "playing the sender's frame: {worst_playing} m");
+    assert!(worst_playing < 0.5 * worst_rest, "playing {worst_playing} m vs from rest {worst_rest} m");
+    // An out-of-range frame is a plain teleport, not a panic.
+    let mut bad = Character::new(db, CharacterSettings::default());
+    bad.teleport_playing(db, usize::MAX, p, q);
+    assert!(bad.root_position().abs_diff_eq(Vec3::new(p.x, 0.0, p.z), 1e-6));
+}

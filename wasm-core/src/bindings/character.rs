@@ -91,6 +91,13 @@ impl RawCharacter {
         self.write_outputs();
     }
 
+    /// Places the character like `teleport` and plays database `frame` from there, moving as
+    /// that frame moves (a late joiner's copy of someone walking; see `Character::teleport_playing`).
+    pub fn teleport_playing(&mut self, frame: usize, x: f32, z: f32, yaw: f32) {
+        self.character.teleport_playing(&self.shared.db, frame, Vec3::new(x, 0.0, z), Quat::from_rotation_y(yaw));
+        self.write_outputs();
+    }
+
     /// Settings patch as JSON (`CharacterSettings` fields; unknown ones throw).
     pub fn set_settings_json(&mut self, json: &str) -> Result<(), JsError> {
         self.character.settings = self.character.settings.patched(json).map_err(|e| JsError::new(&e))?;

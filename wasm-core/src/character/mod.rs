@@ -140,6 +140,26 @@ impl Character {
         self.reset_feet(db);
     }
 
+    /// Places the character like [`Self::teleport`] and plays `frame` from there, with no blend,
+    /// its simulated twin moving and turning as that frame does. A late joiner's copy of a
+    /// walking person starts walking where the person's snapshot says (its frame, root and
+    /// yaw) instead of from rest, which left it up to 60 cm behind for over a second. A frame
+    /// out of range, or a refused position, leaves it a plain teleport (or none).
+    pub fn teleport_playing(&mut self, db: &Database, frame: usize, position: Vec3, rotation: Quat) {
+        let refused = self.stats.rejected_inputs;
+        self.teleport(db, position, rotation);
+        if self.stats.rejected_inputs != refused || frame >= db.num_frames {
+            return;
+        }
+        self.frame = frame;
+        self.pose.play(db, frame, false, self.settings.inertialization_halflife, 0.0);
+        self.root.start_at(db, frame);
+        self.pose.set_root(self.root.position, self.root.rotation);
+        self.simulation.velocity = Vec3::new(self.root.velocity.x, 0.0, self.root.velocity.z);
+        self.simulation.angular_velocity = Vec3::new(0.0, self.root.angular_velocity.y, 0.0);
+        self.reset_feet(db);
+    }
+
     /// Height of a planted toe on this database's floor (m): foot locks plant toes there
     /// (with `foot_lock_floor`). Usually `db.toe_height_in_contact()`, computed once per
     /// database and shared by its characters.

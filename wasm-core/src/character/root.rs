@@ -53,6 +53,12 @@ impl RootMotion {
         (to_world * db.local_velocities[frame * j], to_world * db.local_angular_velocities[frame * j])
     }
 
+    /// Starts playing `frame` with no offsets, moving as it moves (a placed copy, not a jump).
+    pub fn start_at(&mut self, db: &Database, frame: usize) {
+        self.transition(db, frame, false);
+        (self.velocity, self.angular_velocity) = self.motion_at(db, frame);
+    }
+
     /// A jump to `frame`: with `inertialize`, the velocity and yaw-rate mismatch becomes an
     /// offset that decays (what is output now already includes the old offset, so the new one
     /// is simply output − target, Bollo's form); else a hard cut.

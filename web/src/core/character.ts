@@ -123,6 +123,11 @@ export class CharacterRuntime {
     this.raw.teleport(x, z, yaw);
   }
 
+  /** Teleports and plays database `frame` from there, moving as it moves (a late joiner's copy of someone walking). */
+  teleportPlaying(frame: number, x: number, z: number, yaw: number): void {
+    this.raw.teleport_playing(frame, x, z, yaw);
+  }
+
   /** Patches settings; throws on unknown keys or wrong types. */
   setSettings(patch: RuntimeSettings): void {
     try {

@@ -195,7 +195,9 @@ export class RemoteAvatar {
     const [x0, z0, yaw0] = [c.rootX, c.rootZ, c.rootYaw];
     this.alpha = s.alpha;
     this.drive = s.drive;
-    c.reset(s.frame, s.rootX, s.rootZ, s.rootYaw);
+    // A restart is recomputed from the same numbers as the sender's (a fresh runtime, frame −1);
+    // any other snapshot places the copy playing the sender's frame.
+    c.reset(s.restart ? -1 : s.frame, s.rootX, s.rootZ, s.rootYaw);
     Object.assign(this.lastMove, s.move);
     Object.assign(this.lastTracked, s.tracked);
     if (s.drive === 'path' && this.path) c.setPath(this.path, s.pathTime);

@@ -85,14 +85,17 @@ export class RoomCharacter implements DrivenCharacter {
   /**
    * A fresh runtime (same database and settings) placed at (x, z, yaw): every copy of a member
    * restarts this way from the same numbers — the sender when it joins, each receiver at the
-   * sender's first STATE — so from there on they compute the same motion. `frame` is not used
-   * (a fresh runtime searches from the placed root on its first update).
+   * sender's restart STATE — so from there on they compute the same motion (`frame` −1: a fresh
+   * runtime searches from the placed root on its first update). A copy placed at a snapshot that
+   * is not a restart (a late joiner, the sender moving) plays the sender's database `frame`,
+   * moving as it moves, so it does not start from rest while its sender walks.
    */
-  reset(_frame: number, x: number, z: number, yaw: number): void {
+  reset(frame: number, x: number, z: number, yaw: number): void {
     this.character.restartRuntime();
     this.clamp = NaN;
     const s = this.scale_;
-    this.character.runtime.teleport(x / s, z / s, yaw);
+    if (frame >= 0) this.character.runtime.teleportPlaying(frame, x / s, z / s, yaw);
+    else this.character.runtime.teleport(x / s, z / s, yaw);
   }
 
   get rootX(): number {

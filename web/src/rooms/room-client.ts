@@ -290,9 +290,12 @@ export class RoomClient {
         for (const x of members) this.members.set(x.id, x);
         this.setStatus('open', `member ${m.memberId}`);
         this.emit('welcome', m.memberId, members);
-        // Our stream starts over for the room: a STATE (and the path being followed) first.
+        // Our stream starts over for the room: a STATE (and the path being followed) first. It
+        // carries the restart bit: the page restarted its runtime on 'welcome' (RoomSession), so
+        // copies restart fresh from it and compute the same floats (any other STATE places a
+        // copy playing the sender's frame, close but not exact).
         this.stream.restart();
-        this.stream.queueState();
+        this.stream.queueState(true);
         this.lastStateAt = t;
         this.flush();
         this.startSending();

@@ -16,7 +16,10 @@ import { RoomSession, type RoomSessionOptions } from './room-session.ts';
 export interface RoomPanelOptions extends Omit<RoomSessionOptions, 'roomId' | 'name'> {
   /** Shown to the others; default the page URL's `name`, else "Guest" and four random digits. */
   name?: string;
-  /** Where the panel goes (default `document.body`: a small box in the bottom-left corner). */
+  /**
+   * Where the panel goes: default `document.body`, a small box in the bottom-left corner; given a
+   * parent (a page's toolbar), it flows inline there and covers nothing.
+   */
   parent?: HTMLElement;
   /** The page URL (default `location.href`). */
   pageUrl?: string;
@@ -52,6 +55,7 @@ function cleanName(name: string): string {
 // The box lets clicks through to the page (its text must not cover a page's controls); its
 // buttons and link take them.
 const BOX = 'position:fixed;left:10px;bottom:10px;z-index:20;max-width:300px;pointer-events:none;padding:8px 10px;font:13px/1.4 system-ui,sans-serif;color:#e6e9ee;background:rgba(20,23,28,.86);border-radius:6px';
+const INLINE = 'display:inline-block;vertical-align:middle;max-width:300px';
 const BUTTON = 'pointer-events:auto;font:inherit;color:#fff;background:#2f5fb3;border:1px solid #5b8de0;border-radius:4px;padding:3px 10px;cursor:pointer';
 
 export class RoomPanel {
@@ -69,7 +73,7 @@ export class RoomPanel {
     const pageUrl = options.pageUrl ?? location.href;
     this.name = cleanName(options.name ?? new URL(pageUrl).searchParams.get('name') ?? `Guest ${String(Math.floor(Math.random() * 10000)).padStart(4, '0')}`);
     this.element = Object.assign(document.createElement('div'), { className: 'mm-room-panel' });
-    this.element.style.cssText = BOX;
+    this.element.style.cssText = options.parent ? INLINE : BOX;
     this.share = Object.assign(document.createElement('button'), { type: 'button', textContent: 'Share this room', className: 'mm-room-share' });
     this.share.style.cssText = BUTTON;
     this.details = document.createElement('div');

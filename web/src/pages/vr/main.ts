@@ -15,9 +15,9 @@ import * as THREE from 'three';
 import { Reflector } from 'three/addons/objects/Reflector.js';
 import {
   DEFAULT_ALPHA, DEFAULT_AVATAR, DEFAULT_DATABASE, DEFAULT_ORIENTATION_MODEL, EnterVrButton, FollowCamera, HeadingYawPredictor, LEFT, LoadingStatus,
-  FirstPerson, type NetworkYawPredictor, RIGHT, RecordingPlayer, RoomPanel, SpectatorView, Stage, TrackedDrive, TrackerRecorder, TrackerSample, UpdateTimer, assetUrl,
+  FIRST_PERSON_LAYER, FirstPerson, type NetworkYawPredictor, RIGHT, RecordingPlayer, RoomPanel, SpectatorView, Stage, TrackedDrive, TrackerRecorder, TrackerSample, UpdateTimer, assetUrl,
   benchReplay, encodeRecordingJson, errorMessage, loadNetworkPredictor, loadPageCharacter, loadRecording, registerOfflineCache, sampleXRFrame,
-  saveTextFile, scriptedSample, setHeadsetView, showError,
+  THIRD_PERSON_LAYER, saveTextFile, scriptedSample, setHeadsetView, showError,
 } from '../../index.ts';
 
 const $ = <T extends HTMLElement>(id: string) => document.getElementById(id) as T;
@@ -26,8 +26,8 @@ const hook = {
   head: [0, 0], hmd: [0, 0, 0], root: [0, 0, 0], rootYaw: 0, bodyYaw: 0,
   predictor: '', predictorFallback: null as string | null, networkLoaded: false, predictorRuns: 0, predictorSkipped: 0, predictorFailures: 0,
   alpha: DEFAULT_ALPHA, hipsHeight: NaN, toeHeights: [NaN, NaN], hipsDrop: 0, avatarScale: 1, handErrors: [NaN, NaN], trackerStatus: [0, 0, 0],
-  updateMs: { median: NaN, p95: NaN, last: NaN }, replayDone: false, bench: null as Awaited<ReturnType<typeof benchReplay>> | null,
-  eyeHeight: NaN, headTrianglesHidden: 0, emulator: null as unknown, beforeFrame: null as ((frame: number) => void) | null,
+  updateMs: { median: NaN, p95: NaN, last: NaN }, replayDone: false, replayDuration: NaN, bench: null as Awaited<ReturnType<typeof benchReplay>> | null,
+  eyeHeight: NaN, headTrianglesHidden: 0, views: () => ({ headsetWhole: false, headsetHeadless: false, spectatorWhole: false, pageWhole: false }), emulator: null as unknown, beforeFrame: null as ((frame: number) => void) | null,
   enterVR: () => Promise.reject(new Error('not ready')) as Promise<void>, exitVR: () => Promise.resolve(),
   calibrate: (_eye?: number) => undefined as void, setPredictor: (_name: string) => undefined as void, setAlpha: (_a: number) => undefined as void,
   startRecording: () => undefined as void, stopRecording: () => '', room: null as RoomPanel | null,
@@ -72,7 +72,11 @@ async function main(): Promise<void> {
   // First person: the headset sees a headless copy, the mirror and the spectator the whole avatar.
   const head = character.avatar?.bone('head');
   if (head) (hook.headTrianglesHidden = new FirstPerson(character.avatar!.object, head).hiddenTriangles), FirstPerson.attach(stage.scene);
-  const room = (hook.room = new RoomPanel({ character, scene: stage.scene, mode: 'vr', trackers: drive.trackers, onNote: showError, trace: fixedDt > 0 }));
+  hook.views = () => {
+    const xr = renderer.xr.getCamera().layers;
+    return { headsetWhole: xr.isEnabled(THIRD_PERSON_LAYER), headsetHeadless: xr.isEnabled(FIRST_PERSON_LAYER), spectatorWhole: !!pip?.camera.layers.isEnabled(THIRD_PERSON_LAYER), pageWhole: stage.camera.layers.isEnabled(THIRD_PERSON_LAYER) && !stage.camera.layers.isEnabled(FIRST_PERSON_LAYER) };
+  };
+  const room = (hook.room = new RoomPanel({ character, scene: stage.scene, parent: $('toolbar'), mode: 'vr', trackers: drive.trackers, onNote: showError, trace: fixedDt > 0 }));
   const hips = character.avatar?.bone('hips') ?? null;
 
   const alphaInput = $<HTMLInputElement>('alpha');
@@ -165,6 +169,7 @@ async function main(): Promise<void> {
   // Replay (and its benchmark).
   const replayUrl = params.get('replay');
   const player = replayUrl ? new RecordingPlayer(await loadRecording(replayUrl)) : null;
+  hook.replayDuration = player?.duration ?? NaN;
   const recordedEye = player?.recording.meta.eyeHeight;
   if (typeof recordedEye === 'number') hook.calibrate(recordedEye);
   if (player && params.get('bench') === '1') {
