@@ -55,7 +55,7 @@ function cleanName(name: string): string {
 // The box lets clicks through to the page (its text must not cover a page's controls); its
 // buttons and link take them.
 const BOX = 'position:fixed;left:10px;bottom:10px;z-index:20;max-width:300px;pointer-events:none;padding:8px 10px;font:13px/1.4 system-ui,sans-serif;color:#e6e9ee;background:rgba(20,23,28,.86);border-radius:6px';
-const INLINE = 'display:inline-block;vertical-align:middle;max-width:300px';
+const INLINE = 'display:inline-block;flex:none;vertical-align:middle;max-width:300px';
 const BUTTON = 'pointer-events:auto;font:inherit;color:#fff;background:#2f5fb3;border:1px solid #5b8de0;border-radius:4px;padding:3px 10px;cursor:pointer';
 
 export class RoomPanel {
@@ -80,7 +80,8 @@ export class RoomPanel {
     this.details.hidden = true;
     this.status = Object.assign(document.createElement('div'), { className: 'mm-room-status' });
     this.element.append(this.share, this.status, this.details);
-    (options.parent ?? document.body).append(this.element);
+    if (options.parent) options.parent.prepend(this.element);
+    else document.body.append(this.element);
     this.share.addEventListener('click', () => {
       if (this.session) this.details.hidden = !this.details.hidden;
       else this.join(createRoomId(), true);

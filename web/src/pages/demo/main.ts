@@ -81,7 +81,7 @@ el.addEventListener('load', async () => {
   const stage = el.stage!;
   el.orbit!.controls.enableZoom = true; // a full page: the wheel zooms
   stage.camera.position.set(2.2, 1.7, 3.8);
-  const room = (hook.room = new RoomPanel({ character, scene: stage.scene, mode: 'desktop', onNote: fileError, trace: el.timeStep !== null, avatar: avatarParam && avatarParam !== 'none' ? { kind: 'url', url: avatarParam } : undefined }));
+  const room = (hook.room = new RoomPanel({ character, scene: stage.scene, parent: document.getElementById('toolbar')!, mode: 'desktop', onNote: fileError, trace: el.timeStep !== null, avatar: avatarParam && avatarParam !== 'none' ? { kind: 'url', url: avatarParam } : undefined }));
   const view = { mesh: true, skeleton: params.get('skeleton') === '1', shadows: params.get('shadows') !== '0', simulation: true, trajectory: true, matched: true, locks: true };
   character.debug = true;
   const apply = () => {
