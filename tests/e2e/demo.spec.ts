@@ -77,11 +77,35 @@ test('the character walks, turns and strafes under the keyboard', async ({ page 
   const c = await hook(page);
   expect(Math.abs(angleDiff(c.yaw, b.yaw))).toBeGreaterThan((60 * Math.PI) / 180);
 
-  // Strafe (F) moving right for 2 s: the facing stays within 10°.
+  // Strafe (F) moving right for 2 s: the facing stays within 10°, the root goes sideways
+  // (across the facing more than along it) and both feet step: side-steps, not a turned walk.
+  /** Root displacement from `p` to `q` along and across `p`'s facing (m). */
+  const moved = (p: typeof c, q: typeof c) => {
+    const [dx, dz] = [q.root[0] - p.root[0], q.root[2] - p.root[2]];
+    return { along: dx * Math.sin(p.yaw) + dz * Math.cos(p.yaw), across: Math.abs(dx * Math.cos(p.yaw) - dz * Math.sin(p.yaw)) };
+  };
+  // Controls are camera-relative: W for 1 s faces the character along the camera first, so
+  // camera-right (D) is its right and camera-back (S) its back.
+  await hold(page, ['KeyW'], 60);
+  const c1 = await hook(page);
   await hold(page, ['KeyF', 'KeyD'], 120);
   const d = await hook(page);
-  expect(Math.abs(angleDiff(d.yaw, c.yaw))).toBeLessThan((10 * Math.PI) / 180);
-  expect(Math.hypot(d.root[0] - c.root[0], d.root[2] - c.root[2])).toBeGreaterThan(0.5);
+  const side = moved(c1, d);
+  console.log(`strafe right 2 s: ${side.across.toFixed(2)} m across the facing, ${side.along.toFixed(2)} m along; steps ${d.steps[0] - c1.steps[0]} / ${d.steps[1] - c1.steps[1]}; facing turned ${((angleDiff(d.yaw, c1.yaw) * 180) / Math.PI).toFixed(1)}°`);
+  expect(Math.abs(angleDiff(d.yaw, c1.yaw))).toBeLessThan((10 * Math.PI) / 180);
+  expect(side.across).toBeGreaterThan(0.5);
+  expect(side.across).toBeGreaterThan(2 * Math.abs(side.along));
+  expect(Math.min(d.steps[0] - c1.steps[0], d.steps[1] - c1.steps[1])).toBeGreaterThan(0);
+
+  // Backward: S with the facing held (F) for 2 s: the root goes back, the facing stays, both feet step.
+  await hold(page, ['KeyF', 'KeyS'], 120);
+  const e = await hook(page);
+  const back = moved(d, e);
+  console.log(`backward 2 s: ${(-back.along).toFixed(2)} m back, ${back.across.toFixed(2)} m across; steps ${e.steps[0] - d.steps[0]} / ${e.steps[1] - d.steps[1]}; facing turned ${((angleDiff(e.yaw, d.yaw) * 180) / Math.PI).toFixed(1)}°`);
+  expect(Math.abs(angleDiff(e.yaw, d.yaw))).toBeLessThan((15 * Math.PI) / 180);
+  expect(-back.along).toBeGreaterThan(0.5);
+  expect(-back.along).toBeGreaterThan(2 * back.across);
+  expect(Math.min(e.steps[0] - d.steps[0], e.steps[1] - d.steps[1])).toBeGreaterThan(0);
 
   fs.mkdirSync(path.join(ROOT, 'test-results'), { recursive: true });
   await page.screenshot({ path: path.join(ROOT, 'test-results/demo.png') });
