@@ -261,3 +261,66 @@ test('VR pose checks over every shipped recording and the scripted motion: the c
   expect(upright).toBeGreaterThan(1000);
   expect(errors).toEqual([]);
 });
+
+test('device sets under iwer: two controllers, one, none, tracked hands and back, switched live while walking; the page names each, the avatar stays within α, no hand pops', async ({ page }) => {
+  test.setTimeout(300_000);
+  const errors = await openVr(page, '&mirror=0&spectator=0');
+  await page.locator('#enter-vr').click();
+  await page.waitForFunction(() => window.__vr.inXR || window.__vr.error, null, { timeout: 30_000 });
+  // Each phase lasts 1.5 s of tracker time while the user walks along −Z at 0.4 m/s.
+  const PHASES = ['headset + 2 controllers', 'headset + left controller', 'headset only', 'headset + hands', 'headset + 2 controllers'];
+  await page.evaluate((phases) => {
+    type V = { set(x: number, y: number, z: number): void };
+    type Q = { set(x: number, y: number, z: number, w: number): void };
+    type Input = { position: V; quaternion: Q; connected: boolean };
+    const device = window.__vr.emulator as { position: V; quaternion: Q; primaryInputMode: 'controller' | 'hand'; controllers: Record<string, Input>; hands: Record<string, Input> };
+    const log: unknown[] = [];
+    (window as unknown as { __log: unknown[] }).__log = log;
+    let start = -1;
+    window.__vr.beforeFrame = (frame) => {
+      const h = window.__vr;
+      if (start >= 0) log.push({ t: (frame - 1 - start) / 60, set: h.deviceSet, head: [...h.head], root: [...h.root], hands: [...h.hands] });
+      else start = frame;
+      const t = (frame - start) / 60;
+      if (t === 0.25) h.calibrate(1.6);
+      const phase = Math.min(phases.length - 1, Math.floor(t / 1.5));
+      device.primaryInputMode = phase === 3 ? 'hand' : 'controller';
+      device.controllers.left.connected = phase !== 2;
+      device.controllers.right.connected = phase === 0 || phase === 4;
+      const z = -0.4 * Math.max(0, t - 0.5);
+      device.position.set(0, 1.6, z);
+      device.quaternion.set(0, 0, 0, 1);
+      for (const [side, x] of [['left', -0.22], ['right', 0.22]] as const) {
+        for (const input of [device.controllers[side], device.hands[side]]) {
+          input.position.set(x, 1.0, z - 0.25);
+          input.quaternion.set(0, 0, 0, 1);
+        }
+      }
+    };
+  }, PHASES);
+  await waitFrames(page, 60 * 1.5 * PHASES.length + 2, 250_000);
+  const log = (await page.evaluate(() => (window as unknown as { __log: unknown[] }).__log)) as { t: number; set: string; head: number[]; root: number[]; hands: number[] }[];
+  const alpha = await page.evaluate(() => window.__vr.alpha);
+  PHASES.forEach((name, k) => {
+    // The set is named from the first frames of its phase on (the tracker state sees a controller leave at once).
+    const frames = log.filter((f) => f.t >= 1.5 * k + 0.1 && f.t < 1.5 * (k + 1));
+    const named = frames.filter((f) => f.set === name).length / frames.length;
+    console.log(`${name}: named on ${(100 * named).toFixed(0)} % of its frames`);
+    expect(named, name).toBeGreaterThan(0.95);
+  });
+  const worstGap = Math.max(...log.map((f) => Math.hypot(f.root[0] - f.head[0], f.root[2] - f.head[1])));
+  // Hands from the calibration on (it rescales the avatar at 0.25 s).
+  let worstJump = 0, worstAt = 0;
+  for (let i = 1; i < log.length; i++) {
+    if (log[i - 1].t < 0.3) continue;
+    for (const o of [0, 3]) {
+      const jump = Math.hypot(log[i].hands[o] - log[i - 1].hands[o], log[i].hands[o + 1] - log[i - 1].hands[o + 1], log[i].hands[o + 2] - log[i - 1].hands[o + 2]);
+      if (jump > worstJump) [worstJump, worstAt] = [jump, log[i].t];
+    }
+  }
+  console.log(`device sets: root↔head worst ${worstGap.toFixed(3)} m (α ${alpha}); largest hand move in one frame ${(100 * worstJump).toFixed(1)} cm at ${worstAt.toFixed(2)} s`);
+  expect(worstGap).toBeLessThan(alpha + 0.005);
+  expect(worstJump).toBeLessThan(0.08); // a pop would move a hand by tens of centimetres in a frame
+  await expect(page.locator('#devices')).toHaveText('headset + 2 controllers');
+  expect(errors).toEqual([]);
+});

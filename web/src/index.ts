@@ -66,7 +66,8 @@ export { UpdateTimer } from './views/update-timer.ts';
 
 // VR: tracked devices drive the character.
 export { CROUCH_DEADBAND, DEFAULT_ALPHA, HMD_TO_HEAD_CENTRE, TrackedDrive, VR_SETTINGS } from './vr/tracked-drive.ts';
-export { HEAD, LEFT, NUM_TRACKERS, RIGHT, TrackerSample, sampleXRFrame } from './vr/tracker-sample.ts';
+export { HEAD, LEFT, NUM_TRACKERS, RIGHT, TrackerSample, gripFromHand, sampleXRFrame } from './vr/tracker-sample.ts';
+export { deviceKind, deviceSetName } from './vr/device-set.ts';
 export { TrackerState, TrackerView } from './vr/trackers.ts';
 export type { TrackerOptions } from './vr/trackers.ts';
 export type { BodyYawPredictor, TrackerPose } from './vr/body-yaw.ts';

@@ -20,6 +20,8 @@ export class TrackerSample {
   readonly rotation = new Float64Array(NUM_TRACKERS * 4);
   /** 1 when the device reported a (non-emulated) pose for the tracker this frame. */
   readonly tracked = new Uint8Array(NUM_TRACKERS);
+  /** 1 when that pose is a tracked hand's rather than a controller's (live only; recordings do not keep it). */
+  readonly hand = new Uint8Array(NUM_TRACKERS);
 
   constructor() {
     for (let t = 0; t < NUM_TRACKERS; t++) this.rotation[4 * t + 3] = 1;
@@ -42,6 +44,7 @@ export class TrackerSample {
     this.position.set(other.position);
     this.rotation.set(other.rotation);
     this.tracked.set(other.tracked);
+    this.hand.set(other.hand);
   }
 }
 
@@ -52,21 +55,60 @@ export class TrackerSample {
  * previous values and is marked untracked; trackers.ts decides what to show instead.
  * `acceptEmulated`: take emulated positions as tracked — an emulator (iwer) flags every pose so.
  *
+ * Hand tracking: a hand input source is read through its grip space like a controller (Quest
+ * Browser gives hands one); a hand without one gets a grip-like pose from its joints
+ * (`gripFromHand`). `hand` flags which trackers are hands.
+ *
  * WebXR itself allocates the XRPose objects it returns; nothing else is allocated here.
  */
 export function sampleXRFrame(frame: XRFrame, space: XRReferenceSpace, time: number, out: TrackerSample, acceptEmulated = false): void {
   out.time = time;
   out.tracked.fill(0);
+  out.hand.fill(0);
   const viewer = frame.getViewerPose(space);
   if (viewer && (acceptEmulated || !viewer.emulatedPosition)) writePose(out, HEAD, viewer.transform);
   const sources = frame.session.inputSources;
   for (let i = 0; i < sources.length; i++) {
     const source = sources[i];
     const t = source.handedness === 'left' ? LEFT : source.handedness === 'right' ? RIGHT : -1;
-    if (t < 0 || !source.gripSpace) continue;
-    const pose = frame.getPose(source.gripSpace, space);
-    if (pose && (acceptEmulated || !pose.emulatedPosition)) writePose(out, t, pose.transform);
+    if (t < 0) continue;
+    if (source.gripSpace) {
+      const pose = frame.getPose(source.gripSpace, space);
+      if (pose && (acceptEmulated || !pose.emulatedPosition)) writePose(out, t, pose.transform);
+    } else if (source.hand && frame.getJointPose) {
+      const wrist = source.hand.get('wrist');
+      const knuckle = source.hand.get('middle-finger-phalanx-proximal');
+      const w = wrist && frame.getJointPose(wrist, space);
+      const k = knuckle && frame.getJointPose(knuckle, space);
+      if (w && k) {
+        const a = w.transform.position, b = k.transform.position, q = w.transform.orientation;
+        gripFromHand(source.handedness === 'left', a.x, a.y, a.z, q.x, q.y, q.z, q.w, b.x, b.y, b.z, out, t);
+      }
+    }
+    if (out.tracked[t] && source.hand) out.hand[t] = 1;
   }
+}
+
+/** The components of the grip-from-wrist rotations, all ±½ (120° turns about (1, ±1, ±1)/√3). */
+const G = 0.5;
+
+/**
+ * A controller-grip-like pose from a tracked hand's joints: the position halfway from the wrist
+ * to the middle finger's knuckle (the palm's centre, where a held rod would pass), the
+ * orientation the wrist joint's turned into the grip convention. WebXR hand joints look along
+ * −Z toward the fingertips with +Y out of the back of the hand; a grip looks along −Z toward
+ * the thumb with +X out of the back of the right hand (the palm of the left). So for the right
+ * hand grip (X, Y, Z) = joint (Y, Z, X) — a rotation by 120° about (1, 1, 1) — and for the left
+ * grip (X, Y, Z) = joint (−Y, Z, −X).
+ */
+export function gripFromHand(left: boolean, wx: number, wy: number, wz: number, qx: number, qy: number, qz: number, qw: number, kx: number, ky: number, kz: number, out: TrackerSample, t: number): void {
+  // Right: q·g with g = (½, ½, ½, ½). Left: q·g' where g' maps grip axes to (−Y, Z, −X): g' = (½, −½, −½, ½).
+  const gx = G, gy = left ? -G : G, gz = left ? -G : G, gw = G;
+  const x = qw * gx + qx * gw + qy * gz - qz * gy;
+  const y = qw * gy - qx * gz + qy * gw + qz * gx;
+  const z = qw * gz + qx * gy - qy * gx + qz * gw;
+  const w = qw * gw - qx * gx - qy * gy - qz * gz;
+  out.set(t, (wx + kx) / 2, (wy + ky) / 2, (wz + kz) / 2, x, y, z, w);
 }
 
 function writePose(out: TrackerSample, t: number, transform: XRRigidTransform): void {

@@ -105,6 +105,30 @@ describe('TrackerState', () => {
     expect(state.right.position[2]).toBeCloseTo(0.3, 2);
   });
 
+  it('blends from a controller to a tracked hand (and back) whose grip is elsewhere, without a jump', () => {
+    const s = new TrackerSample();
+    const state = new TrackerState();
+    let worst = 0;
+    const at = (k: number, hand: boolean) => {
+      walk(s, k / 60, 0.5);
+      s.hand[LEFT] = hand ? 1 : 0;
+      // The hand's grip-like pose sits 12 cm from where the controller's grip was, turned 40°.
+      if (hand) s.set(LEFT, 0.25 + 0.12, 1.0, 0.5 * (k / 60) + 0.3, 0, Math.sin(0.35), 0, Math.cos(0.35));
+      const before = [...state.left.position];
+      state.update(s);
+      if (k > 0) worst = Math.max(worst, Math.hypot(state.left.position[0] - before[0], state.left.position[1] - before[1], state.left.position[2] - before[2]));
+    };
+    for (let k = 0; k < 60; k++) at(k, false);
+    for (let k = 60; k < 180; k++) at(k, true);
+    expect(state.left.status).toBe(TRACKED);
+    expect(state.left.position[0]).toBeCloseTo(0.37, 3); // on the hand after 2 s
+    expect(Math.abs(state.left.rotation[1])).toBeCloseTo(Math.sin(0.35), 3);
+    for (let k = 180; k < 300; k++) at(k, false);
+    expect(state.left.position[0]).toBeCloseTo(0.25, 3);
+    // Walking moves it 0.8 cm a frame; the 12 cm switch is spread over ~0.1 s half-lives.
+    expect(worst).toBeLessThan(0.03);
+  });
+
   it('hangs controllers relative to the head heading, for a controller never seen too', () => {
     const s = new TrackerSample();
     const state = new TrackerState();

@@ -114,6 +114,12 @@ export class TrackerState {
   private readonly hasDevicePose = new Uint8Array(NUM_TRACKERS);
   private readonly previousPosition = new Float64Array(NUM_TRACKERS * 3);
   private readonly previousRotation = new Float64Array(NUM_TRACKERS * 4);
+  // Hand ↔ controller: which one tracks each tracker, and the decaying offset (position, rotation)
+  // from the new device's pose to where the old one left the hand, so a switch does not pop.
+  private readonly kind = new Uint8Array(NUM_TRACKERS);
+  private readonly switched = new Uint8Array(NUM_TRACKERS);
+  private readonly switchPosition = new Float64Array(NUM_TRACKERS * 3);
+  private readonly switchRotation = new Float64Array(NUM_TRACKERS * 4);
   private lastTime = 0;
 
   constructor(options: Partial<TrackerOptions> = {}) {
@@ -139,9 +145,13 @@ export class TrackerState {
     this.rotation.fill(0);
     this.devicePosition.fill(0);
     this.deviceRotation.fill(0);
+    this.kind.fill(0);
+    this.switchPosition.fill(0);
+    this.switchRotation.fill(0);
     for (let t = 0; t < NUM_TRACKERS; t++) {
       this.rotation[4 * t + 3] = 1;
       this.deviceRotation[4 * t + 3] = 1;
+      this.switchRotation[4 * t + 3] = 1;
     }
     // A standing head until the first HMD pose, so the hanging hands have somewhere to hang.
     this.position[3 * HEAD + 1] = 1.6;
@@ -175,6 +185,8 @@ export class TrackerState {
       const same = this.hasDevicePose[t] === 1 && samePose(sample, t, this.devicePosition, this.deviceRotation);
       if (!same) this.unchangedFor[t] = 0;
       else if (headMoved) this.unchangedFor[t] += Math.max(rawDt, 0);
+      this.switched[t] = !first && this.hasDevicePose[t] === 1 && sample.hand[t] !== this.kind[t] ? 1 : 0;
+      this.kind[t] = sample.hand[t];
       copyPose(sample.position, sample.rotation, t, this.devicePosition, this.deviceRotation);
       this.hasDevicePose[t] = 1;
       // The head is never called frozen: a still head is a person standing still.
@@ -193,6 +205,7 @@ export class TrackerState {
       this.fallbackWeight[t] += (goal - this.fallbackWeight[t]) * blend;
       if (first || !this.hasDevicePose[t]) this.fallbackWeight[t] = goal;
       this.writeHand(t, yaw, this.fallbackWeight[t]);
+      this.smoothSwitch(t, first ? 0 : this.dt);
     }
 
     for (let t = 0; t < NUM_TRACKERS; t++) this.differentiate(t, differentiate ? rawDt : 0);
@@ -230,6 +243,56 @@ export class TrackerState {
     r[4 * t + 1] = y;
     r[4 * t + 2] = z;
     r[4 * t + 3] = qw;
+  }
+
+  /**
+   * A hand put down for a controller (or back): the two devices' grips are not at the same place,
+   * so the output keeps the previous pose plus an offset that decays with `fallbackHalflife`
+   * (the same as a controller coming back), instead of jumping by the difference.
+   */
+  private smoothSwitch(t: number, dt: number): void {
+    const p = this.position, r = this.rotation, sp = this.switchPosition, sr = this.switchRotation;
+    const i = 3 * t, j = 4 * t;
+    if (this.switched[t]) {
+      this.switched[t] = 0;
+      for (let k = 0; k < 3; k++) sp[i + k] = this.previousPosition[i + k] - p[i + k];
+      // Offset rotation = previous · current⁻¹ (unit quaternions: the inverse is the conjugate).
+      const ax = this.previousRotation[j], ay = this.previousRotation[j + 1], az = this.previousRotation[j + 2], aw = this.previousRotation[j + 3];
+      const bx = -r[j], by = -r[j + 1], bz = -r[j + 2], bw = r[j + 3];
+      sr[j] = aw * bx + ax * bw + ay * bz - az * by;
+      sr[j + 1] = aw * by - ax * bz + ay * bw + az * bx;
+      sr[j + 2] = aw * bz + ax * by - ay * bx + az * bw;
+      sr[j + 3] = aw * bw - ax * bx - ay * by - az * bz;
+    }
+    if (sp[i] === 0 && sp[i + 1] === 0 && sp[i + 2] === 0 && sr[j + 3] === 1) return;
+    for (let k = 0; k < 3; k++) p[i + k] += sp[i + k];
+    // Rotation: offset · current, renormalized.
+    const ax = sr[j], ay = sr[j + 1], az = sr[j + 2], aw = sr[j + 3];
+    const bx = r[j], by = r[j + 1], bz = r[j + 2], bw = r[j + 3];
+    let x = aw * bx + ax * bw + ay * bz - az * by;
+    let y = aw * by - ax * bz + ay * bw + az * bx;
+    let z = aw * bz + ax * by - ay * bx + az * bw;
+    let w = aw * bw - ax * bx - ay * by - az * bz;
+    const n = Math.hypot(x, y, z, w) || 1;
+    r[j] = x / n;
+    r[j + 1] = y / n;
+    r[j + 2] = z / n;
+    r[j + 3] = w / n;
+    // Decay toward no offset; below 0.1 mm and ~0.01° it is gone.
+    const keep = Math.pow(2, -dt / this.options.fallbackHalflife);
+    for (let k = 0; k < 3; k++) sp[i + k] *= keep;
+    const sign = sr[j + 3] < 0 ? -1 : 1;
+    x = sr[j] * keep; y = sr[j + 1] * keep; z = sr[j + 2] * keep; w = sign * (1 - keep) + sr[j + 3] * keep;
+    const m = Math.hypot(x, y, z, w) || 1;
+    sr[j] = x / m;
+    sr[j + 1] = y / m;
+    sr[j + 2] = z / m;
+    sr[j + 3] = w / m;
+    if (Math.hypot(sp[i], sp[i + 1], sp[i + 2]) < 1e-4 && Math.abs(sr[j + 3]) > 1 - 1e-8) {
+      sp.fill(0, i, i + 3);
+      sr.fill(0, j, j + 3);
+      sr[j + 3] = 1;
+    }
   }
 
   /** Velocity and angular velocity of tracker `t` over `dt` (0: restart from rest). */

@@ -15,7 +15,7 @@ import * as THREE from 'three';
 import { Reflector } from 'three/addons/objects/Reflector.js';
 import {
   DEFAULT_ALPHA, DEFAULT_AVATAR, DEFAULT_DATABASE, DEFAULT_ORIENTATION_MODEL, EnterVrButton, FollowCamera, HeadingYawPredictor, LEFT, LoadingStatus,
-  FIRST_PERSON_LAYER, FirstPerson, type NetworkYawPredictor, RIGHT, RecordingPlayer, RoomPanel, SpectatorView, Stage, TrackedDrive, TrackerRecorder, TrackerSample, UpdateTimer, assetUrl,
+  FIRST_PERSON_LAYER, FirstPerson, deviceSetName, type NetworkYawPredictor, RIGHT, RecordingPlayer, RoomPanel, SpectatorView, Stage, TrackedDrive, TrackerRecorder, TrackerSample, UpdateTimer, assetUrl,
   benchReplay, encodeRecordingJson, errorMessage, loadNetworkPredictor, loadPageCharacter, loadRecording, registerOfflineCache, sampleXRFrame,
   THIRD_PERSON_LAYER, saveTextFile, scriptedSample, setHeadsetView, showError,
 } from '../../index.ts';
@@ -27,7 +27,7 @@ const hook = {
   predictor: '', predictorFallback: null as string | null, networkLoaded: false, predictorRuns: 0, predictorSkipped: 0, predictorFailures: 0,
   alpha: DEFAULT_ALPHA, hipsHeight: NaN, toeHeights: [NaN, NaN], hipsDrop: 0, avatarScale: 1, handErrors: [NaN, NaN], trackerStatus: [0, 0, 0],
   updateMs: { median: NaN, p95: NaN, last: NaN }, replayDone: false, replayDuration: NaN, bench: null as Awaited<ReturnType<typeof benchReplay>> | null,
-  eyeHeight: NaN, headTrianglesHidden: 0, views: () => ({ headsetWhole: false, headsetHeadless: false, spectatorWhole: false, pageWhole: false }), emulator: null as unknown, beforeFrame: null as ((frame: number) => void) | null,
+  eyeHeight: NaN, headTrianglesHidden: 0, deviceSet: '', hands: [0, 0, 0, 0, 0, 0], views: () => ({ headsetWhole: false, headsetHeadless: false, spectatorWhole: false, pageWhole: false }), emulator: null as unknown, beforeFrame: null as ((frame: number) => void) | null,
   enterVR: () => Promise.reject(new Error('not ready')) as Promise<void>, exitVR: () => Promise.resolve(),
   calibrate: (_eye?: number) => undefined as void, setPredictor: (_name: string) => undefined as void, setAlpha: (_a: number) => undefined as void,
   startRecording: () => undefined as void, stopRecording: () => '', room: null as RoomPanel | null,
@@ -228,6 +228,9 @@ async function main(): Promise<void> {
     hook.hipsDrop = drive.hipsDrop;
     if (drive.upperBody) [hook.handErrors[0], hook.handErrors[1]] = drive.upperBody.handError;
     [hook.trackerStatus[0], hook.trackerStatus[1], hook.trackerStatus[2]] = [tr.status[0], tr.status[LEFT], tr.status[RIGHT]];
+    if (drive.upperBody) for (let k = 0; k < 6; k++) hook.hands[k] = drive.upperBody.handPositions[k];
+    const devices = deviceSetName(tr.status, sample.hand);
+    if (devices !== hook.deviceSet) $('devices').textContent = hook.deviceSet = devices;
     hook.updateMs.last = drive.lastUpdateMs;
     if (hook.frames % 30 === 0) {
       [hook.updateMs.median, hook.updateMs.p95] = [timer.median(), timer.quantile(0.95)];
