@@ -72,10 +72,8 @@ async function main(): Promise<void> {
   // First person: the headset sees a headless copy, the mirror and the spectator the whole avatar.
   const head = character.avatar?.bone('head');
   if (head) (hook.headTrianglesHidden = new FirstPerson(character.avatar!.object, head).hiddenTriangles), FirstPerson.attach(stage.scene);
-  hook.views = () => {
-    const xr = renderer.xr.getCamera().layers;
-    return { headsetWhole: xr.isEnabled(THIRD_PERSON_LAYER), headsetHeadless: xr.isEnabled(FIRST_PERSON_LAYER), spectatorWhole: !!pip?.camera.layers.isEnabled(THIRD_PERSON_LAYER), pageWhole: stage.camera.layers.isEnabled(THIRD_PERSON_LAYER) && !stage.camera.layers.isEnabled(FIRST_PERSON_LAYER) };
-  };
+  const sees = (c: THREE.Camera, layer: number) => c.layers.isEnabled(layer);
+  hook.views = () => ({ headsetWhole: sees(renderer.xr.getCamera(), THIRD_PERSON_LAYER), headsetHeadless: sees(renderer.xr.getCamera(), FIRST_PERSON_LAYER), spectatorWhole: !!pip && sees(pip.camera, THIRD_PERSON_LAYER), pageWhole: sees(stage.camera, THIRD_PERSON_LAYER) && !sees(stage.camera, FIRST_PERSON_LAYER) });
   const room = (hook.room = new RoomPanel({ character, scene: stage.scene, parent: $('toolbar'), mode: 'vr', trackers: drive.trackers, onNote: showError, trace: fixedDt > 0 }));
   const hips = character.avatar?.bone('hips') ?? null;
 
