@@ -13,6 +13,11 @@ Predictors: the committed network (r = 50), the network trained with r = 1, the 
 network trained without look-around, HMD-forward, and the dead-zone heuristic (the body turns
 toward the head once the head is more than 25° off). Writes docs/orientation-error-time.png
 and docs/orientation-error-hist.png and prints the README table.
+
+Device sets: the same look-around sequences with one or both controllers absent, each replaced
+by the pose the VR page gives an absent controller (`TrackerState`'s hanging hand at the side of
+the head's heading: `HANG_*` below, the page's defaults) — the inputs the network sees live with
+the headset alone or one controller. The network is not retrained per set.
 """
 
 from __future__ import annotations
@@ -22,7 +27,7 @@ import json
 import subprocess
 import sys
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -30,6 +35,7 @@ import numpy as np
 from . import data
 from .motion_classes import CLASSES
 from .predictors import OnnxModel, dead_zone, hmd_forward, run_network, sequence_features, yaw_error_deg
+from .geometry import hmd_yaw, quat_from_yaw, rotate_y
 from .simulate import EVAL_AUGMENT, TrackerSequence, simulate, without_look_around
 from .train import MODELS_DIR, PUBLIC_MODEL
 
@@ -37,6 +43,28 @@ WARMUP = 1.0  # s
 EVAL_FPS = (72.0, 90.0, 120.0)
 EVAL_SEED = 20220
 DOCS = data.REPO / "docs"
+
+# An absent controller's pose on the VR page (web/src/vr/trackers.ts DEFAULT_TRACKER_OPTIONS):
+# at the side of the head's heading, hangSide out, hangForward ahead, at hangHeight × head height.
+HANG_SIDE, HANG_HEIGHT, HANG_FORWARD = 0.2, 0.5, 0.05
+# Device set -> trackers absent (1 left, 2 right).
+DEVICE_SETS = {"two controllers": (), "left controller only": (2,), "headset only": (1, 2)}
+
+
+def with_absent(seq: TrackerSequence, absent: tuple[int, ...]) -> TrackerSequence:
+    """`seq` with the controllers `absent` replaced by the page's hanging pose."""
+    if not absent:
+        return seq
+    pos, rot = seq.pos.copy(), seq.rot.copy()
+    yaw = hmd_yaw(seq.rot[:, 0])
+    head = seq.pos[:, 0]
+    for t in absent:
+        side = HANG_SIDE if t == 1 else -HANG_SIDE  # left is +X when facing +Z
+        local = np.stack([np.full_like(yaw, side), np.zeros_like(yaw), np.full_like(yaw, HANG_FORWARD)], axis=-1)
+        pos[:, t] = head + rotate_y(local, yaw)
+        pos[:, t, 1] = head[:, 1] * HANG_HEIGHT
+        rot[:, t] = quat_from_yaw(yaw + np.pi)  # the back of the hand outward, thumb forward
+    return replace(seq, pos=pos, rot=rot)
 
 PREDICTORS = {
     "network r=50": PUBLIC_MODEL,
@@ -226,7 +254,10 @@ def run(quick: bool = False, make_plots: bool = True, models: dict[str, Path] | 
         f"{len(clips)} takes × {len(EVAL_FPS)} frame rates × 2 conditions, {frames} scored frames")
     written = plots(results, arrays, seqs) if make_plots else []
     nets = [n for n in loaded] + ["HMD forward"]
-    return results, written, per_subject(results, seqs), class_table(arrays["with look-around"], nets)
+    main_net = {n: m for n, m in loaded.items() if n == next(iter(loaded))}
+    sets = {name: evaluate([with_absent(q, absent) for q in seqs["with look-around"]], main_net)[0]
+            for name, absent in DEVICE_SETS.items()}
+    return results, written, per_subject(results, seqs), class_table(arrays["with look-around"], nets), sets
 
 
 def main(argv=None) -> int:
@@ -243,13 +274,15 @@ def main(argv=None) -> int:
     models = None
     if args.model:
         models = dict(m.split("=", 1) for m in args.model)
-    results, written, subjects, classes = run(args.quick, not args.no_plots and models is None, models)
+    results, written, subjects, classes, sets = run(args.quick, not args.no_plots and models is None, models)
     print("\nmean / median / p95 |body yaw error| over all scored frames:\n")
     print(table(results))
     print("\nmean / p95 per motion class (with look-around):\n")
     print(classes)
     print("\nmean per held-out subject:\n")
     print(subjects)
+    print("\nper device set (with look-around; an absent controller as the VR page shows it):\n")
+    print(table(sets))
     print()
     for p in written:
         print(f"wrote {p.relative_to(data.REPO)}")
