@@ -72,7 +72,7 @@ async function openVr(page: Page, query: string): Promise<string[]> {
 }
 
 test('VR under iwer: enter VR; scripted walk, side-step, 360° turn and crouch; avatar within α, hands on the controllers, the network runs every frame', async ({ page }) => {
-  test.setTimeout(200_000);
+  test.setTimeout(360_000); // ~2.5 min alone; software WebGL under a loaded 2-core machine takes longer
   const errors = await openVr(page, '&mirror=128');
 
   // The network loads after the first frame (the heuristic drives meanwhile), then is the
@@ -132,7 +132,7 @@ test('VR under iwer: enter VR; scripted walk, side-step, 360° turn and crouch; 
       }
     };
   }, SCRIPT);
-  await waitFrames(page, Math.ceil(60 * SCRIPT_SECONDS) + 2, 170_000);
+  await waitFrames(page, Math.ceil(60 * SCRIPT_SECONDS) + 2, 300_000);
   const log = (await page.evaluate(() => (window as unknown as { __log: unknown[] }).__log)) as Frame[];
   if (process.env.VR_LOG) for (const f of log) console.log(JSON.stringify(f));
   const at = (t: number) => log.reduce((a, b) => (Math.abs(b.t - t) < Math.abs(a.t - t) ? b : a));
