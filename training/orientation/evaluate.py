@@ -16,7 +16,7 @@ and docs/orientation-error-hist.png and prints the README table.
 
 Device sets: the same look-around sequences with one or both controllers absent, each replaced
 by the pose the VR page gives an absent controller (`TrackerState`'s hanging hand at the side of
-the head's heading: `HANG_*` below, the page's defaults) — the inputs the network sees live with
+the head's heading: `simulate.hanging_pose`, the page's defaults) — the inputs the network sees live with
 the headset alone or one controller. The network is not retrained per set.
 """
 
@@ -35,8 +35,7 @@ import numpy as np
 from . import data
 from .motion_classes import CLASSES
 from .predictors import OnnxModel, dead_zone, hmd_forward, run_network, sequence_features, yaw_error_deg
-from .geometry import hmd_yaw, quat_from_yaw, rotate_y
-from .simulate import EVAL_AUGMENT, TrackerSequence, simulate, without_look_around
+from .simulate import EVAL_AUGMENT, TrackerSequence, hanging_pose, simulate, without_look_around
 from .train import MODELS_DIR, PUBLIC_MODEL
 
 WARMUP = 1.0  # s
@@ -44,9 +43,6 @@ EVAL_FPS = (72.0, 90.0, 120.0)
 EVAL_SEED = 20220
 DOCS = data.REPO / "docs"
 
-# An absent controller's pose on the VR page (web/src/vr/trackers.ts DEFAULT_TRACKER_OPTIONS):
-# at the side of the head's heading, hangSide out, hangForward ahead, at hangHeight × head height.
-HANG_SIDE, HANG_HEIGHT, HANG_FORWARD = 0.2, 0.5, 0.05
 # Device set -> trackers absent (1 left, 2 right).
 DEVICE_SETS = {"two controllers": (), "left controller only": (2,), "headset only": (1, 2)}
 
@@ -56,14 +52,8 @@ def with_absent(seq: TrackerSequence, absent: tuple[int, ...]) -> TrackerSequenc
     if not absent:
         return seq
     pos, rot = seq.pos.copy(), seq.rot.copy()
-    yaw = hmd_yaw(seq.rot[:, 0])
-    head = seq.pos[:, 0]
     for t in absent:
-        side = HANG_SIDE if t == 1 else -HANG_SIDE  # left is +X when facing +Z
-        local = np.stack([np.full_like(yaw, side), np.zeros_like(yaw), np.full_like(yaw, HANG_FORWARD)], axis=-1)
-        pos[:, t] = head + rotate_y(local, yaw)
-        pos[:, t, 1] = head[:, 1] * HANG_HEIGHT
-        rot[:, t] = quat_from_yaw(yaw + np.pi)  # the back of the hand outward, thumb forward
+        pos[:, t], rot[:, t] = hanging_pose(seq.pos[:, 0], seq.rot[:, 0], t)
     return replace(seq, pos=pos, rot=rot)
 
 PREDICTORS = {

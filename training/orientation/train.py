@@ -263,6 +263,7 @@ def main(argv=None) -> int:
     ap.add_argument("--seed", type=int)
     ap.add_argument("--max-batches", type=int, help="batches per epoch at most (a cheaper experiment)")
     ap.add_argument("--arms", type=float, help="Augment.arms_prob (an experiment)")
+    ap.add_argument("--absent", type=float, help="Augment.absent_prob (an experiment)")
     ap.add_argument("--arms-idle", type=float, help="Augment.arms_idle_prob (an experiment)")
     ap.add_argument("--style-arms", action="store_true", help="TrainConfig.style_arms (an experiment)")
     ap.add_argument("--out-dir", type=Path, help="write every model here instead of the committed paths")
@@ -288,6 +289,8 @@ def main(argv=None) -> int:
             cfg = replace(cfg, max_batches_per_epoch=args.max_batches)
         if args.arms is not None:
             cfg = replace(cfg, augment=replace(cfg.augment, arms_prob=args.arms))
+        if args.absent is not None:
+            cfg = replace(cfg, augment=replace(cfg.augment, absent_prob=args.absent))
         if args.arms_idle is not None:
             cfg = replace(cfg, augment=replace(cfg.augment, arms_idle_prob=args.arms_idle))
         if args.style_arms:

