@@ -237,6 +237,15 @@ test('three people in one room (two desktop, one VR under iwer): each sees the o
   expect.soft(worst.max).toBeLessThan(0.25);
   expect.soft(worst.yawMax).toBeLessThan(5);
 
+  // Vera's copy on the desktop pages reaches for her replayed controllers (head and arms as on
+  // her own page): each copy's wrists within 2 cm of where her grips put them.
+  for (const p of [ada, bo]) {
+    const errors = await p.page.evaluate(() => [...(window.__mm.room?.session?.members.values() ?? [])].flatMap((m: any) => (m.upperBody ? [...m.upperBody.body.handError] : [])));
+    console.log(`${p.name}'s copy of Vera: wrist ↔ controller ${errors.map((e) => `${(e * 100).toFixed(2)} cm`).join(', ')}`);
+    expect.soft(errors.length, `${p.name} shows Vera's arms`).toBe(2);
+    for (const e of errors) expect.soft(e).toBeLessThan(0.02);
+  }
+
   // Bo closes the tab: Ada and Vera stop showing him within 2 s (each page notes the moment the
   // room told it, on the wall clock; polling a page that draws a frame a second would add its own delay).
   const boId = traces[1].id;

@@ -20,6 +20,7 @@ import { errorMessage } from '../fetch.ts';
 import { TRACKED } from '../vr/trackers.ts';
 import { VR_SETTINGS, DEFAULT_ALPHA } from '../vr/tracked-drive.ts';
 import { type TrackerPose } from '../vr/body-yaw.ts';
+import { UpperBody } from '../vr/upper-body.ts';
 import { LocalAvatar } from './local-avatar.ts';
 import { NameLabel } from './name-label.ts';
 import { angleToI16, fromMm, i16ToAngle, toMm, type AvatarChoice, type DeviceSet, type JoinInfo, type MemberInfo, type RoomTrackerPose } from './protocol.ts';
@@ -73,6 +74,8 @@ interface Member extends RoomMember {
   character: Character | null;
   remote: RemoteAvatar | null;
   roomCharacter: RoomCharacter | null;
+  /** A VR member's head turn and arms reaching its controllers, and the world trackers fed to it. */
+  upperBody: RemoteUpperBody | null;
   /** Messages that arrived while the avatar loaded, replayed once it is there. */
   pending: (() => void)[];
   gone: boolean;
@@ -82,6 +85,21 @@ interface Member extends RoomMember {
 const MAX_PENDING = 128;
 
 const _v = new THREE.Vector3();
+const _q = new THREE.Quaternion();
+const _q2 = new THREE.Quaternion();
+const _up = new THREE.Vector3(0, 1, 0);
+
+/** A remote VR member's upper body and the world-space tracker poses handed to it each frame. */
+interface RemoteUpperBody {
+  body: UpperBody;
+  poses: [WorldPose, WorldPose, WorldPose];
+}
+interface WorldPose extends TrackerPose {
+  readonly position: Float64Array;
+  readonly rotation: Float64Array;
+  status: number;
+}
+const worldPose = (): WorldPose => ({ position: new Float64Array(3), rotation: new Float64Array([0, 0, 0, 1]), velocity: new Float64Array(3), angularVelocity: new Float64Array(3), status: TRACKED });
 
 export class RoomSession {
   readonly client: RoomClient;
@@ -187,6 +205,7 @@ export class RoomSession {
       shown.x = _v.x;
       shown.z = _v.z;
       shown.yaw = root.yaw + rc.display.rotation.y;
+      if (m.upperBody && rc.trackers && m.remote.shown) this.applyUpperBody(m.upperBody, rc, shown.yaw);
       const head = m.character.avatar?.bone('head');
       if (head) head.getWorldPosition(_v);
       else _v.y += 1.8 * m.character.metresPerDatabaseUnit;
@@ -287,6 +306,7 @@ export class RoomSession {
       character: null,
       remote: null,
       roomCharacter: null,
+      upperBody: null,
       label,
       shown: { x: NaN, z: NaN, yaw: NaN },
       pending: [],
@@ -321,6 +341,11 @@ export class RoomSession {
     if (m.join.database !== this.databaseId) note(`uses database "${m.join.database}", which this page does not have; replaying on "${this.databaseId}"`);
     const character = new Character(this.o.character.database, avatar, { settings: m.join.mode === 'vr' ? { ...VR_SETTINGS } : undefined });
     const rc = new RoomCharacter(character, true);
+    // A VR member's arms reach for its controllers as on its own page (built at rest, before the first pose).
+    if (m.join.mode === 'vr' && avatar) {
+      avatar.resetToRest();
+      m.upperBody = { body: new UpperBody({ object: avatar.object, bones: avatar.bones, roles: avatar.roles }), poses: [worldPose(), worldPose(), worldPose()] };
+    }
     // A copy that is not the sender's floats yet (a late joiner's, until the sender next stands
     // still) plays other frames now and then, mostly in turns, and one placed while its sender
     // runs starts from rest and lags: a shorter half-life than the default and a speed cap above
@@ -362,7 +387,32 @@ export class RoomSession {
     this.members.delete(id);
     m.label.dispose();
     m.roomCharacter?.display.removeFromParent();
+    m.upperBody?.body.dispose();
     m.character?.dispose();
+  }
+
+  /**
+   * A VR member's upper body on its copy: the replayed head and grips (room space) carried
+   * through the display offset into the scene, then the same spine twist, head and arm IK as on
+   * the member's own page.
+   */
+  private applyUpperBody(u: RemoteUpperBody, rc: RoomCharacter, yaw: number): void {
+    const trackers = rc.trackers!;
+    _q.setFromAxisAngle(_up, rc.display.rotation.y);
+    for (let i = 0; i < 3; i++) {
+      const t = trackers[i], w = u.poses[i];
+      rc.display.localToWorld(_v.set(t.position[0], t.position[1], t.position[2]));
+      w.position[0] = _v.x;
+      w.position[1] = _v.y;
+      w.position[2] = _v.z;
+      _q2.set(t.rotation[0], t.rotation[1], t.rotation[2], t.rotation[3]).premultiply(_q);
+      w.rotation[0] = _q2.x;
+      w.rotation[1] = _q2.y;
+      w.rotation[2] = _q2.z;
+      w.rotation[3] = _q2.w;
+      w.status = t.tracked ? TRACKED : 1;
+    }
+    u.body.apply(u.poses[0], u.poses[1], u.poses[2], yaw);
   }
 
   /**
