@@ -10,7 +10,7 @@
 // at that pace, so nothing depends on the pages keeping up with each other. Positions are
 // compared message by message: each sender records its character's root after every step
 // (keyed by its stream time), each receiver the root it draws when that step has played.
-import { expect, test, type Browser, type Page } from '@playwright/test';
+import { expect, test, type Browser, type BrowserContext, type Page } from '@playwright/test';
 import { createRoomId } from '../../web/src/rooms/protocol.ts';
 
 const SCRIPT_SECONDS = Number(process.env.ROOMS_SCRIPT_SECONDS) || 20;
@@ -33,8 +33,16 @@ interface Person {
 
 const hookName = (p: Person) => (p.vr ? '__vr' : '__mm');
 
+// Contexts made here are not the test's own: closed after the test, or their pages keep drawing
+// in software WebGL and starve the tests that follow (the VR e2e timed out behind them).
+const contexts: BrowserContext[] = [];
+test.afterEach(async () => {
+  for (const c of contexts.splice(0)) await c.close().catch(() => undefined);
+});
+
 async function open(browser: Browser, vr: boolean, name: string, roomId: string): Promise<Person> {
   const context = await browser.newContext({ viewport: { width: 320, height: 240 } });
+  contexts.push(context);
   const page = await context.newPage();
   const errors: string[] = [];
   page.on('console', (m) => m.type() === 'error' && errors.push(m.text()));
