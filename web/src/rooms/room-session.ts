@@ -17,7 +17,7 @@ import { DEFAULT_AVATAR, assetUrl } from '../assets.ts';
 import { Avatar } from '../avatar/avatar.ts';
 import { Character, type CharacterStepper } from '../character/character.ts';
 import { errorMessage } from '../fetch.ts';
-import { TRACKED } from '../vr/trackers.ts';
+import { MISSING, TRACKED } from '../vr/trackers.ts';
 import { VR_SETTINGS, DEFAULT_ALPHA } from '../vr/tracked-drive.ts';
 import { type TrackerPose } from '../vr/body-yaw.ts';
 import { UpperBody } from '../vr/upper-body.ts';
@@ -85,9 +85,7 @@ interface Member extends RoomMember {
 const MAX_PENDING = 128;
 
 const _v = new THREE.Vector3();
-const _q = new THREE.Quaternion();
 const _q2 = new THREE.Quaternion();
-const _up = new THREE.Vector3(0, 1, 0);
 
 /** A remote VR member's upper body and the world-space tracker poses handed to it each frame. */
 interface RemoteUpperBody {
@@ -398,19 +396,18 @@ export class RoomSession {
    */
   private applyUpperBody(u: RemoteUpperBody, rc: RoomCharacter, yaw: number): void {
     const trackers = rc.trackers!;
-    _q.setFromAxisAngle(_up, rc.display.rotation.y);
     for (let i = 0; i < 3; i++) {
       const t = trackers[i], w = u.poses[i];
       rc.display.localToWorld(_v.set(t.position[0], t.position[1], t.position[2]));
       w.position[0] = _v.x;
       w.position[1] = _v.y;
       w.position[2] = _v.z;
-      _q2.set(t.rotation[0], t.rotation[1], t.rotation[2], t.rotation[3]).premultiply(_q);
+      _q2.set(t.rotation[0], t.rotation[1], t.rotation[2], t.rotation[3]).premultiply(rc.display.quaternion);
       w.rotation[0] = _q2.x;
       w.rotation[1] = _q2.y;
       w.rotation[2] = _q2.z;
       w.rotation[3] = _q2.w;
-      w.status = t.tracked ? TRACKED : 1;
+      w.status = t.tracked ? TRACKED : MISSING;
     }
     u.body.apply(u.poses[0], u.poses[1], u.poses[2], yaw);
   }

@@ -6,6 +6,8 @@
  */
 
 /** Tracker indices into every SoA array of the VR modules. */
+import { mulQuat } from '../quat.ts';
+
 export const HEAD = 0;
 export const LEFT = 1;
 export const RIGHT = 2;
@@ -91,6 +93,7 @@ export function sampleXRFrame(frame: XRFrame, space: XRReferenceSpace, time: num
 
 /** The components of the grip-from-wrist rotations, all ±½ (120° turns about (1, ±1, ±1)/√3). */
 const G = 0.5;
+const _q = new Float64Array(4);
 
 /**
  * A controller-grip-like pose from a tracked hand's joints: the position halfway from the wrist
@@ -103,12 +106,8 @@ const G = 0.5;
  */
 export function gripFromHand(left: boolean, wx: number, wy: number, wz: number, qx: number, qy: number, qz: number, qw: number, kx: number, ky: number, kz: number, out: TrackerSample, t: number): void {
   // Right: q·g with g = (½, ½, ½, ½). Left: q·g' where g' maps grip axes to (−Y, Z, −X): g' = (½, −½, −½, ½).
-  const gx = G, gy = left ? -G : G, gz = left ? -G : G, gw = G;
-  const x = qw * gx + qx * gw + qy * gz - qz * gy;
-  const y = qw * gy - qx * gz + qy * gw + qz * gx;
-  const z = qw * gz + qx * gy - qy * gx + qz * gw;
-  const w = qw * gw - qx * gx - qy * gy - qz * gz;
-  out.set(t, (wx + kx) / 2, (wy + ky) / 2, (wz + kz) / 2, x, y, z, w);
+  mulQuat(_q, 0, qx, qy, qz, qw, G, left ? -G : G, left ? -G : G, G);
+  out.set(t, (wx + kx) / 2, (wy + ky) / 2, (wz + kz) / 2, _q[0], _q[1], _q[2], _q[3]);
 }
 
 function writePose(out: TrackerSample, t: number, transform: XRRigidTransform): void {

@@ -22,6 +22,7 @@
  */
 import { HEAD, LEFT, NUM_TRACKERS, RIGHT, type TrackerSample } from './tracker-sample.ts';
 import { headingYaw } from '../yaw.ts';
+import { mulQuat } from '../quat.ts';
 
 /** Tracker status values (`TrackerState.status`). */
 export const TRACKED = 0;
@@ -257,32 +258,20 @@ export class TrackerState {
       this.switched[t] = 0;
       for (let k = 0; k < 3; k++) sp[i + k] = this.previousPosition[i + k] - p[i + k];
       // Offset rotation = previous · current⁻¹ (unit quaternions: the inverse is the conjugate).
-      const ax = this.previousRotation[j], ay = this.previousRotation[j + 1], az = this.previousRotation[j + 2], aw = this.previousRotation[j + 3];
-      const bx = -r[j], by = -r[j + 1], bz = -r[j + 2], bw = r[j + 3];
-      sr[j] = aw * bx + ax * bw + ay * bz - az * by;
-      sr[j + 1] = aw * by - ax * bz + ay * bw + az * bx;
-      sr[j + 2] = aw * bz + ax * by - ay * bx + az * bw;
-      sr[j + 3] = aw * bw - ax * bx - ay * by - az * bz;
+      const pr = this.previousRotation;
+      mulQuat(sr, j, pr[j], pr[j + 1], pr[j + 2], pr[j + 3], -r[j], -r[j + 1], -r[j + 2], r[j + 3]);
     }
     if (sp[i] === 0 && sp[i + 1] === 0 && sp[i + 2] === 0 && sr[j + 3] === 1) return;
     for (let k = 0; k < 3; k++) p[i + k] += sp[i + k];
     // Rotation: offset · current, renormalized.
-    const ax = sr[j], ay = sr[j + 1], az = sr[j + 2], aw = sr[j + 3];
-    const bx = r[j], by = r[j + 1], bz = r[j + 2], bw = r[j + 3];
-    let x = aw * bx + ax * bw + ay * bz - az * by;
-    let y = aw * by - ax * bz + ay * bw + az * bx;
-    let z = aw * bz + ax * by - ay * bx + az * bw;
-    let w = aw * bw - ax * bx - ay * by - az * bz;
-    const n = Math.hypot(x, y, z, w) || 1;
-    r[j] = x / n;
-    r[j + 1] = y / n;
-    r[j + 2] = z / n;
-    r[j + 3] = w / n;
+    mulQuat(r, j, sr[j], sr[j + 1], sr[j + 2], sr[j + 3], r[j], r[j + 1], r[j + 2], r[j + 3]);
+    const n = Math.hypot(r[j], r[j + 1], r[j + 2], r[j + 3]) || 1;
+    for (let k = 0; k < 4; k++) r[j + k] /= n;
     // Decay toward no offset; below 0.1 mm and ~0.01° it is gone.
     const keep = Math.pow(2, -dt / this.options.fallbackHalflife);
     for (let k = 0; k < 3; k++) sp[i + k] *= keep;
     const sign = sr[j + 3] < 0 ? -1 : 1;
-    x = sr[j] * keep; y = sr[j + 1] * keep; z = sr[j + 2] * keep; w = sign * (1 - keep) + sr[j + 3] * keep;
+    const x = sr[j] * keep, y = sr[j + 1] * keep, z = sr[j + 2] * keep, w = sign * (1 - keep) + sr[j + 3] * keep;
     const m = Math.hypot(x, y, z, w) || 1;
     sr[j] = x / m;
     sr[j + 1] = y / m;
