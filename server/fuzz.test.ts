@@ -48,6 +48,8 @@ function validSamples(): Uint8Array[] {
     }),
     encodePath({ seq: 1, time: 0, points: new Float32Array([0, 0, 1, 1, 2, 0]), speeds: new Float32Array([1, 2]), looped: false }),
     encodeState({ seq: 1, time: 0, frame: 1, rootX: 0, rootZ: 0, rootYaw: 0, drive: 'move', pathTime: 0, scale: 1, alpha: 0.2, move: step, tracked: quantizeTrackedStep({ ticks: 0, headX: 0, headZ: 0, velocityX: 0, velocityZ: 0, yaw: 0, hipsDrop: 0 }) }),
+    // With a runtime state (opaque to the server: its length is what is checked).
+    encodeState({ seq: 1, time: 0, frame: 1, rootX: 0, rootZ: 0, rootYaw: 0, drive: 'move', pathTime: 0, scale: 1, alpha: 0.2, move: step, tracked: quantizeTrackedStep({ ticks: 0, headX: 0, headZ: 0, velocityX: 0, velocityZ: 0, yaw: 0, hipsDrop: 0 }), runtime: randomBytes(600) }),
   ];
 }
 
@@ -65,7 +67,8 @@ const kinds: Record<string, Kind> = {
   mutated: (s) => ({ join: true, messages: Array.from({ length: BURST }, () => mutate(s[1 + int(s.length - 1)])) }),
   mutatedJoin: (s) => ({ join: false, messages: Array.from({ length: BURST }, () => mutate(s[0])) }),
   truncated: (s) => ({ join: true, messages: Array.from({ length: BURST }, () => { const b = s[int(s.length)]; return b.subarray(0, int(b.length)); }) }),
-  oversized: () => ({ join: true, messages: Array.from({ length: BURST }, () => randomBytes(1025 + int(3000))) }),
+  // Over the 1 KiB limit of all but a STATE (decoded and refused), or over the frame limit (ws closes with 1009).
+  oversized: () => ({ join: true, messages: Array.from({ length: BURST }, () => randomBytes(1025 + int(20_000))) }),
   text: () => ({ join: true, messages: Array.from({ length: BURST }, () => 'x'.repeat(int(100))) }),
   beforeJoin: () => ({ join: false, messages: Array.from({ length: BURST }, (_, i) => moveBytes(i + 1, 7)) }),
   outOfOrder: () => ({ join: true, messages: Array.from({ length: BURST }, (_, i) => moveBytes(BURST - i, 7)) }),

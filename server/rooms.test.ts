@@ -8,6 +8,7 @@ import {
   encodePath,
   encodeState,
   isRoomId,
+  MAX_MESSAGE_BYTES,
   quantizeMoveStep,
   quantizeTrackedStep,
   type StateMessage,
@@ -272,7 +273,7 @@ describe('room server', () => {
     expect(c.reason).toMatch(/must increase/);
 
     const big = await join(room, 'big');
-    big.send(new Uint8Array(5000));
+    big.send(new Uint8Array(MAX_MESSAGE_BYTES + 1));
     expect((await big.waitClosed()).code).toBe(CloseCode.tooBig);
 
     const mute = await TestClient.open(server.url(room), server.origin);

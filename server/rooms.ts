@@ -26,7 +26,7 @@ import {
   encodeStateRequest,
   encodeWelcome,
   isRoomId,
-  MAX_CLIENT_MESSAGE_BYTES,
+  MAX_MESSAGE_BYTES,
   MAX_MEMBERS_LIMIT,
   ProtocolError,
   stepSeconds,
@@ -170,7 +170,7 @@ export function attachRooms(server: HttpServer | HttpsServer, options: RoomsOpti
     ignoredAfterDrop: 0,
     internalErrors: 0,
   };
-  const wss = new WebSocketServer({ noServer: true, maxPayload: MAX_CLIENT_MESSAGE_BYTES, perMessageDeflate: false, clientTracking: false });
+  const wss = new WebSocketServer({ noServer: true, maxPayload: MAX_MESSAGE_BYTES, perMessageDeflate: false, clientTracking: false });
   const allowed = new Set(o.allowedOrigins.map((s) => s.toLowerCase()));
 
   const internal = (where: string, e: unknown, c?: Connection) => {

@@ -4,6 +4,7 @@
 //! offsets (+20/40/60 frames). A path mode drives the simulated character along a polyline.
 
 use crate::spring::{spring_character_update, spring_damper_exact_quat};
+use crate::persist::{Persist, Visitor};
 use glam::{Quat, Vec2, Vec3};
 
 /// What the user asks for this frame, on the ground plane in world space.
@@ -62,6 +63,25 @@ pub struct Simulation {
     pub acceleration: Vec3,
     pub rotation: Quat,
     pub angular_velocity: Vec3,
+}
+
+impl Persist for Simulation {
+    fn persist(&mut self, v: &mut dyn Visitor, _: &'static str) {
+        self.position.persist(v, "simulation position");
+        self.velocity.persist(v, "simulation velocity");
+        self.acceleration.persist(v, "simulation acceleration");
+        self.rotation.persist(v, "simulation rotation");
+        self.angular_velocity.persist(v, "simulation angular velocity");
+    }
+}
+
+impl Persist for Input {
+    fn persist(&mut self, v: &mut dyn Visitor, _: &'static str) {
+        self.direction.persist(v, "input direction");
+        self.facing.persist(v, "input facing");
+        self.run.persist(v, "input run");
+        self.strafe.persist(v, "input strafe");
+    }
 }
 
 impl Default for Simulation {
@@ -132,6 +152,12 @@ impl Simulation {
 #[derive(Clone, Copy, Debug, Default)]
 pub struct ChangeDetector {
     previous_rate: f32,
+}
+
+impl Persist for ChangeDetector {
+    fn persist(&mut self, v: &mut dyn Visitor, what: &'static str) {
+        self.previous_rate.persist(v, what);
+    }
 }
 
 impl ChangeDetector {

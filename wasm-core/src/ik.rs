@@ -13,6 +13,7 @@
 
 use crate::database::Skeleton;
 use crate::inertialize::decay_spring_vec3;
+use crate::persist::{Persist, Visitor};
 use glam::{Mat3, Quat, Vec3};
 
 /// Below this length a direction is treated as undefined (metres, or unit-vector length).
@@ -310,6 +311,20 @@ pub struct FootLock {
     /// that touches down while an inertialization offset still holds it in the air (or below
     /// the floor) is brought to the floor over the lock's blend. `None`: lock where it is.
     pub floor: Option<f32>,
+}
+
+/// Everything but `floor` (a setting the legs give it every update).
+impl Persist for FootLock {
+    fn persist(&mut self, v: &mut dyn Visitor, _: &'static str) {
+        self.initialized.persist(v, "foot lock initialized");
+        self.contact.persist(v, "foot lock contact");
+        self.locked.persist(v, "foot lock locked");
+        self.lock_position.persist(v, "foot lock position");
+        self.offset.persist(v, "foot lock offset");
+        self.offset_velocity.persist(v, "foot lock offset velocity");
+        self.position.persist(v, "foot lock target");
+        self.velocity.persist(v, "foot lock target velocity");
+    }
 }
 
 impl Default for FootLock {

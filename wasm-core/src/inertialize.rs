@@ -21,6 +21,7 @@
 //! it is not inertialized here: the character's root motion (`character::root`) plays the new
 //! take's motion from where the character stands and inertializes only the velocity mismatch.
 
+use crate::persist::{Persist, Visitor};
 use glam::{Quat, Vec3};
 
 /// Exact critically damped decay toward zero, the same spring as everywhere in the crate
@@ -122,6 +123,15 @@ pub struct Inertializer {
     offset_velocities: Vec<Vec3>,
     offset_rotations: Vec<Quat>,
     offset_angular_velocities: Vec<Vec3>,
+}
+
+impl Persist for Inertializer {
+    fn persist(&mut self, v: &mut dyn Visitor, _: &'static str) {
+        self.offset_positions.persist(v, "inertialization position offsets");
+        self.offset_velocities.persist(v, "inertialization velocity offsets");
+        self.offset_rotations.persist(v, "inertialization rotation offsets");
+        self.offset_angular_velocities.persist(v, "inertialization angular velocity offsets");
+    }
 }
 
 impl Inertializer {

@@ -21,6 +21,7 @@ pub mod kinematics;
 pub mod limits;
 pub mod lanes;
 pub mod parallel;
+pub mod persist;
 pub mod quality;
 pub mod retarget;
 pub mod rng;

@@ -98,6 +98,20 @@ impl RawCharacter {
         self.write_outputs();
     }
 
+    /// The runtime state as bytes (`Character::save_state`): what a shared room sends a late
+    /// joiner so that its copy continues from this character's own floats.
+    pub fn save_state(&self) -> Vec<u8> {
+        self.character.save_state(&self.shared.db)
+    }
+
+    /// Continues from `save_state` bytes of a character on the same database (a path it follows
+    /// must be set first). Throws with the reason on bytes it refuses; the character is unchanged then.
+    pub fn load_state(&mut self, bytes: &[u8]) -> Result<(), JsError> {
+        self.character.load_state(&self.shared.db, bytes).map_err(|e| JsError::new(&e))?;
+        self.write_outputs();
+        Ok(())
+    }
+
     /// Settings patch as JSON (`CharacterSettings` fields; unknown ones throw).
     pub fn set_settings_json(&mut self, json: &str) -> Result<(), JsError> {
         self.character.settings = self.character.settings.patched(json).map_err(|e| JsError::new(&e))?;

@@ -4,6 +4,7 @@
 
 use crate::controller::{desired_rotation, desired_velocity, yaw_facing, ChangeDetector, ControllerSettings, Input, Path, Simulation};
 use crate::spring::{quat_abs, spring_damper_exact, spring_damper_exact_quat, spring_rotation_predict};
+use crate::persist::{Persist, Visitor};
 use glam::{Quat, Vec3};
 
 /// A tracked user (VR), as given each frame: raw, the drive smooths it.
@@ -42,6 +43,46 @@ pub struct Drive {
     pub desired_rotation: Quat,
     velocity_change: ChangeDetector,
     rotation_change: ChangeDetector,
+}
+
+impl Persist for Tracked {
+    fn persist(&mut self, v: &mut dyn Visitor, _: &'static str) {
+        self.position.persist(v, "tracked position");
+        self.velocity.persist(v, "tracked velocity");
+        self.yaw.persist(v, "tracked yaw");
+    }
+}
+
+/// The mode and how far along it is; a path's points are not state (the receiver is given the
+/// same path first, as a shared room's PATH message does).
+impl Persist for Drive {
+    fn persist(&mut self, v: &mut dyn Visitor, _: &'static str) {
+        let mut tag: u32 = match self.mode {
+            Mode::Input => 0,
+            Mode::Path { .. } => 1,
+            Mode::Tracked(_) => 2,
+        };
+        tag.persist(v, "drive mode");
+        if v.reading() {
+            match (tag, &self.mode) {
+                (0, _) => self.mode = Mode::Input,
+                (1, Mode::Path { .. }) | (2, Mode::Tracked(_)) => {}
+                (1, _) => v.fail("the state follows a path this character was not given (set the same path first)".into()),
+                (2, _) => self.mode = Mode::Tracked(Tracked::default()),
+                _ => v.fail(format!("drive mode {tag} (0 input, 1 path, 2 tracked)")),
+            }
+        }
+        match &mut self.mode {
+            Mode::Input => {}
+            Mode::Path { time, .. } => time.persist(v, "path time"),
+            Mode::Tracked(t) => t.persist(v, "tracked sample"),
+        }
+        self.head_offset.persist(v, "drive head offset");
+        self.desired_velocity.persist(v, "desired velocity");
+        self.desired_rotation.persist(v, "desired rotation");
+        self.velocity_change.persist(v, "velocity change detector");
+        self.rotation_change.persist(v, "rotation change detector");
+    }
 }
 
 impl Default for Drive {

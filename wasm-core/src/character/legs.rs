@@ -8,6 +8,7 @@ use super::settings::CharacterSettings;
 use crate::database::Database;
 use crate::ik::{knee_bend_direction, leg_ik, FootLock, LegJoints};
 use crate::kinematics::subtree_range;
+use crate::persist::{Persist, Visitor};
 use glam::{Quat, Vec3};
 use std::ops::Range;
 
@@ -30,6 +31,17 @@ pub struct Legs {
     previous_toes: [Vec3; 2],
     /// Toe points of the shown pose (world), after the touch-ups.
     pub toes: [Vec3; 2],
+}
+
+/// The locks and the drop; the joints, ranges and toe floor come from the database.
+impl Persist for Legs {
+    fn persist(&mut self, v: &mut dyn Visitor, _: &'static str) {
+        self.locks.persist(v, "");
+        self.hips_drop.persist(v, "hips drop");
+        self.applied_drop.persist(v, "applied hips drop");
+        self.previous_toes.persist(v, "previous toes");
+        self.toes.persist(v, "toes");
+    }
 }
 
 impl Legs {

@@ -16,6 +16,7 @@ pub mod query;
 pub mod root;
 pub mod schedule;
 pub mod settings;
+mod state;
 
 pub use drive::Tracked;
 pub use schedule::CharacterStats;
@@ -43,7 +44,7 @@ pub const HEAD_OFFSET_HALFLIFE: f32 = 0.2;
 pub const MAX_DT: f32 = 0.25;
 
 /// Most database frames one update plays (a safety net under [`MAX_DT`] and the playback speed).
-const MAX_FRAMES_PER_UPDATE: u32 = 64;
+pub(crate) const MAX_FRAMES_PER_UPDATE: u32 = 64;
 
 /// Fastest ground velocity taken from a tracked user (m/s): beyond it a sample is garbage.
 const MAX_TRACKED_SPEED: f32 = 50.0;
@@ -63,6 +64,7 @@ struct LastGood {
 /// non-finite state anyway goes back to its last good state within the same update
 /// ([`CharacterStats::recoveries`]). Preconditions on the database (≥ 1 frame and clip, the
 /// same feature layout across a switch) are what the `.mmdb` loader guarantees.
+#[derive(Clone)]
 pub struct Character {
     pub settings: CharacterSettings,
     pub simulation: Simulation,

@@ -5,6 +5,7 @@
 use crate::database::Database;
 use crate::inertialize::Inertializer;
 use crate::kinematics::local_to_model;
+use crate::persist::{Persist, Visitor};
 use glam::{Quat, Vec3};
 
 #[derive(Clone, Debug)]
@@ -31,6 +32,20 @@ fn frame_slices(db: &Database, frame: usize) -> (&[Vec3], &[Quat], &[Vec3], &[Ve
     let j = db.num_joints();
     let r = frame * j..(frame + 1) * j;
     (&db.local_positions[r.clone()], &db.local_rotations[r.clone()], &db.local_velocities[r.clone()], &db.local_angular_velocities[r])
+}
+
+/// The world transforms are not stored: the reader recomputes them from the rest by the one FK
+/// ([`Pose::forward_kinematics`]), so a stored shown pose can never disagree with its locals.
+impl Persist for Pose {
+    fn persist(&mut self, v: &mut dyn Visitor, _: &'static str) {
+        self.inertializer.persist(v, "");
+        self.positions.persist(v, "joint positions");
+        self.rotations.persist(v, "joint rotations");
+        self.velocities.persist(v, "joint velocities");
+        self.angular_velocities.persist(v, "joint angular velocities");
+        self.output_rotations.persist(v, "shown joint rotations");
+        self.contacts.persist(v, "contacts");
+    }
 }
 
 impl Pose {

@@ -5,6 +5,7 @@
 use super::drive::Drive;
 use crate::controller::{ControllerSettings, Simulation};
 use crate::database::{Axes, Database, FeatureKind};
+use crate::persist::{Persist, Visitor};
 use glam::{Quat, Vec3};
 
 /// Where a trajectory feature dimension comes from.
@@ -32,6 +33,15 @@ pub struct Query {
     /// The predicted trajectory at the last search (world space).
     pub predicted_positions: Vec<Vec3>,
     pub predicted_rotations: Vec<Quat>,
+}
+
+/// The last query (a database switch searches with its pose part) and the prediction shown.
+impl Persist for Query {
+    fn persist(&mut self, v: &mut dyn Visitor, _: &'static str) {
+        self.values.persist(v, "query");
+        self.predicted_positions.persist(v, "predicted positions");
+        self.predicted_rotations.persist(v, "predicted rotations");
+    }
 }
 
 impl Query {

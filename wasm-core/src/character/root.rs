@@ -6,6 +6,7 @@ use super::settings::CharacterSettings;
 use crate::controller::Simulation;
 use crate::database::Database;
 use crate::spring::{decay_spring_damper_exact, quat_abs};
+use crate::persist::{Persist, Visitor};
 use glam::{Quat, Vec3};
 
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -41,6 +42,20 @@ impl Default for RootMotion {
             angular_offset_rate: Vec3::ZERO,
             drag_velocity: Vec3::ZERO,
         }
+    }
+}
+
+impl Persist for RootMotion {
+    fn persist(&mut self, v: &mut dyn Visitor, _: &'static str) {
+        self.position.persist(v, "root position");
+        self.rotation.persist(v, "root rotation");
+        self.velocity.persist(v, "root velocity");
+        self.angular_velocity.persist(v, "root angular velocity");
+        self.velocity_offset.persist(v, "root velocity offset");
+        self.velocity_offset_rate.persist(v, "root velocity offset rate");
+        self.angular_offset.persist(v, "root angular offset");
+        self.angular_offset_rate.persist(v, "root angular offset rate");
+        self.drag_velocity.persist(v, "root drag velocity");
     }
 }
 

@@ -5,6 +5,7 @@
 use super::query::Query;
 use super::settings::CharacterSettings;
 use crate::database::Database;
+use crate::persist::{Persist, Visitor};
 use crate::search::{SearchIndex, SearchOptions};
 
 /// Counters and the last search, for debug views and the quality harness.
@@ -55,6 +56,15 @@ pub enum Outcome {
     Stay,
     /// Jump to this frame.
     Jump(usize),
+}
+
+/// The timer and the pending flags; the mask is the caller's setting and the idle mask a cache.
+impl Persist for Schedule {
+    fn persist(&mut self, v: &mut dyn Visitor, _: &'static str) {
+        self.frames_since_search.persist(v, "frames since search");
+        self.force.persist(v, "search forced");
+        self.switching.persist(v, "database switch pending");
+    }
 }
 
 impl Schedule {

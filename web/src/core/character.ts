@@ -128,6 +128,23 @@ export class CharacterRuntime {
     this.raw.teleport_playing(frame, x, z, yaw);
   }
 
+  /**
+   * The runtime state as bytes (~4.7 KB for 32 joints): `loadState` on a runtime of the same
+   * database continues from these exact floats (a shared room's late joiner; docs/rooms.md).
+   */
+  saveState(): Uint8Array {
+    return this.raw.save_state();
+  }
+
+  /** Continues from `saveState` bytes (set a path it follows first); throws with the reason on bytes it refuses, changing nothing. */
+  loadState(bytes: Uint8Array): void {
+    try {
+      this.raw.load_state(bytes);
+    } catch (e) {
+      throw asError(e);
+    }
+  }
+
   /** Patches settings; throws on unknown keys or wrong types. */
   setSettings(patch: RuntimeSettings): void {
     try {

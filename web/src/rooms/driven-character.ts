@@ -38,6 +38,12 @@ export interface DrivenCharacter {
    * room m) and yaw (rad, 0 = +Z).
    */
   reset(frame: number, x: number, z: number, yaw: number): void;
+  /**
+   * Continues from a member's runtime state (`CharacterRuntime.saveState` bytes, sent when
+   * someone joins), after `reset` and `setPath`: from then on this copy computes the sender's
+   * own floats. Throws with the reason on bytes the runtime refuses (nothing changes then).
+   */
+  loadState?(bytes: Uint8Array): void;
   /** The simulated root after the last update (room m, rad) and the database frame playing. */
   readonly rootX: number;
   readonly rootZ: number;

@@ -198,16 +198,20 @@ export class InputStream {
     return out;
   }
 
-  /** Queues a STATE message (after the steps so far): sent by the next `flush()`. */
-  queueState(restart = false): void {
+  /**
+   * Queues a STATE message (after the steps so far): sent by the next `flush()`. `runtime`: the
+   * character's runtime state after the last recorded step (`CharacterRuntime.saveState`).
+   */
+  queueState(restart = false, runtime: Uint8Array | null = null): void {
     this.batch();
     this.seq++;
-    this.queue.push(this.encodeState(restart));
+    this.queue.push(this.encodeState(restart, runtime));
   }
 
-  private encodeState(restart: boolean): Uint8Array {
+  private encodeState(restart: boolean, runtime: Uint8Array | null): Uint8Array {
     return encodeState({
       restart,
+      runtime,
       seq: this.seq,
       time: this.stamp(this.wallMs()),
       frame: this.root.frame,

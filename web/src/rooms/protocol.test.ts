@@ -20,6 +20,8 @@ import {
   i16ToAngle,
   isRoomId,
   MAX_CLIENT_MESSAGE_BYTES,
+  MAX_MESSAGE_BYTES,
+  MAX_RUNTIME_STATE_BYTES,
   MOVE_HEADER_BYTES,
   packQuat,
   ProtocolError,
@@ -225,7 +227,22 @@ describe('client messages round trip', () => {
     const bytes = encodeState(state);
     expect(bytes.length).toBe(STATE_BYTES);
     const s = decodeClientMessage(bytes);
-    expect(s).toEqual({ type: 'state', ...state, restart: false, rootYaw: i16ToAngle(angleToI16(2.5)), scale: Math.fround(1.05), move: { ...state.move, ticks: 0 } });
+    expect(s).toEqual({ type: 'state', ...state, restart: false, runtime: null, rootYaw: i16ToAngle(angleToI16(2.5)), scale: Math.fround(1.05), move: { ...state.move, ticks: 0 } });
+    // A runtime state rides after the fixed part, opaque (the runtime checks it), bit 6 of the drive byte.
+    const runtime = Uint8Array.from({ length: 4700 }, (_, i) => (i * 37) & 0xff);
+    const full = encodeState({ ...state, runtime });
+    expect(full.length).toBe(STATE_BYTES + 2 + 4700);
+    const f = decodeClientMessage(full);
+    if (f.type !== 'state') throw new Error('type');
+    expect(f.runtime).toEqual(runtime);
+    expect(f.drive).toBe(state.drive);
+    expect(() => decodeClientMessage(full.subarray(0, full.length - 1))).toThrow(/runtime state/);
+    const empty = full.slice();
+    empty[STATE_BYTES] = empty[STATE_BYTES + 1] = 0;
+    expect(() => decodeClientMessage(empty)).toThrow(/runtime state of 0 bytes/);
+    expect(() => encodeState({ ...state, runtime: new Uint8Array(MAX_RUNTIME_STATE_BYTES + 1) })).toThrow(/runtime state/);
+    // The largest STATE is the largest message; the server's frame limit is that size.
+    expect(encodeState({ ...state, runtime: new Uint8Array(MAX_RUNTIME_STATE_BYTES) }).length).toBe(MAX_MESSAGE_BYTES);
   });
 });
 
@@ -302,7 +319,10 @@ describe('malformed messages are rejected, never half-decoded', () => {
     expect(() => decodeClientMessage(patch(path, 12, 0x7fc00000, 4))).toThrow(/not finite/);
     expect(() => decodeClientMessage(patch(st, 29, 0x7f800000, 4))).toThrow(/not finite/); // scale = +Inf
     expect(() => decodeClientMessage(patch(st, 24, 3))).toThrow(/drive/);
-    expect(() => decodeClientMessage(new Uint8Array(MAX_CLIENT_MESSAGE_BYTES + 1))).toThrow(/at most/);
+    expect(() => decodeClientMessage(new Uint8Array(MAX_MESSAGE_BYTES + 1))).toThrow(/at most/);
+    const longMove = new Uint8Array(MAX_CLIENT_MESSAGE_BYTES + 1);
+    longMove.set(move);
+    expect(() => decodeClientMessage(longMove)).toThrow(/at most 1024 but a STATE/);
     expect(() => decodeServerMessage(new Uint8Array([1, 0x82, 0, 0]))).toThrow(/member id/);
   });
 });

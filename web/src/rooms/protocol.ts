@@ -63,8 +63,10 @@ export const MAX_PATH_POINTS = 64;
 export const MAX_NAME_BYTES = 48;
 export const MAX_URL_BYTES = 512;
 export const MAX_DATABASE_BYTES = 64;
-/** The largest client → server message (a TRACKED message with 64 steps is 953 bytes). */
+/** The largest client → server message but a STATE (a TRACKED message with 64 steps is 953 bytes). */
 export const MAX_CLIENT_MESSAGE_BYTES = 1024;
+/** The largest runtime state a STATE carries (a 32-joint character's is 4.7 KB; ~136 B a joint). */
+export const MAX_RUNTIME_STATE_BYTES = 16_000;
 export const MAX_MEMBERS_LIMIT = 64;
 /** Positions relative to a message origin are int16 mm: ±32.767 m. */
 export const MAX_RELATIVE_MM = 32767;
@@ -84,6 +86,8 @@ export const MOVE_HEADER_BYTES = 21;
 export const TRACKED_HEADER_BYTES = 57;
 export const TRACKED_STEP_BYTES = 14;
 export const STATE_BYTES = 51;
+/** The largest message of all: a STATE with the largest runtime state (the server's frame limit). */
+export const MAX_MESSAGE_BYTES = STATE_BYTES + 2 + MAX_RUNTIME_STATE_BYTES;
 
 export class ProtocolError extends Error {
   constructor(
@@ -303,6 +307,7 @@ export interface PathMessage extends StreamHeader {
 export type DriveMode = 'move' | 'path' | 'tracked';
 const DRIVES: DriveMode[] = ['move', 'path', 'tracked'];
 const STATE_RESTART = 0x80;
+const STATE_RUNTIME = 0x40;
 
 /** A member's compact state: the late-join snapshot and a periodic drift reference. */
 export interface StateMessage extends StreamHeader {
@@ -326,6 +331,12 @@ export interface StateMessage extends StreamHeader {
   move: MoveStep;
   /** The last tracked step's input (ticks 0). */
   tracked: TrackedStep;
+  /**
+   * The sender's whole runtime state after its last step (`CharacterRuntime.saveState`), or
+   * null: sent when a member joins, so every copy continues from the sender's own floats (the
+   * drive byte's bit 6; `u16` length + bytes after the fixed part).
+   */
+  runtime?: Uint8Array | null;
 }
 
 export type StreamMessage = MoveMessage | TrackedMessage | PathMessage | StateMessage;
@@ -880,7 +891,8 @@ export function encodeState(m: Omit<StateMessage, 'type'>): Uint8Array {
   w.i32(ox);
   w.i32(oz);
   w.i16(angleToI16(m.rootYaw));
-  w.u8(DRIVES.indexOf(m.drive) | (m.restart ? STATE_RESTART : 0));
+  const runtime = m.runtime ?? null;
+  w.u8(DRIVES.indexOf(m.drive) | (m.restart ? STATE_RESTART : 0) | (runtime ? STATE_RUNTIME : 0));
   w.f32(m.pathTime);
   w.f32(m.scale);
   w.u8(Math.max(0, Math.min(255, Math.round(m.alpha * 100))));
@@ -897,6 +909,11 @@ export function encodeState(m: Omit<StateMessage, 'type'>): Uint8Array {
   w.i16(clampI16(toMm(t.velocityZ)));
   w.i16(angleToI16(t.yaw));
   w.u16(Math.max(0, Math.min(65535, toMm(t.hipsDrop))));
+  if (runtime) {
+    if (runtime.length < 1 || runtime.length > MAX_RUNTIME_STATE_BYTES) fail(`runtime state of ${runtime.length} bytes (1–${MAX_RUNTIME_STATE_BYTES})`);
+    w.u16(runtime.length);
+    w.bytes(runtime);
+  }
   return w.finish();
 }
 
@@ -907,8 +924,8 @@ function decodeStateBody(r: Reader, h: StreamHeader): StateMessage {
   const oz = r.i32('root z');
   const rootYaw = i16ToAngle(r.i16('root yaw'));
   const driveByte = r.u8('drive');
-  const driveIndex = driveByte & ~STATE_RESTART;
-  if (driveIndex >= DRIVES.length) fail(`drive ${driveIndex} (0 move, 1 path, 2 tracked; bit 7 restart)`);
+  const driveIndex = driveByte & ~(STATE_RESTART | STATE_RUNTIME);
+  if (driveIndex >= DRIVES.length) fail(`drive ${driveIndex} (0 move, 1 path, 2 tracked; bit 6 runtime state, bit 7 restart)`);
   const pathTime = r.f32('path time');
   checkRange(pathTime, 0, 86400, 'path time (s)');
   const scale = readScale(r);
@@ -926,8 +943,14 @@ function decodeStateBody(r: Reader, h: StreamHeader): StateMessage {
     yaw: i16ToAngle(r.i16('yaw')),
     hipsDrop: fromMm(r.u16('hips drop')),
   };
+  let runtime: Uint8Array | null = null;
+  if (driveByte & STATE_RUNTIME) {
+    const n = r.u16('runtime state length');
+    if (n < 1 || n > MAX_RUNTIME_STATE_BYTES) fail(`runtime state of ${n} bytes (1–${MAX_RUNTIME_STATE_BYTES})`);
+    runtime = r.bytes(n, 'runtime state').slice(); // the runtime checks its contents
+  }
   r.end('state');
-  return { type: 'state', ...h, frame, rootX: fromMm(ox), rootZ: fromMm(oz), rootYaw, drive: DRIVES[driveIndex], restart: (driveByte & STATE_RESTART) !== 0, pathTime, scale, alpha, move, tracked };
+  return { type: 'state', ...h, frame, rootX: fromMm(ox), rootZ: fromMm(oz), rootYaw, drive: DRIVES[driveIndex], restart: (driveByte & STATE_RESTART) !== 0, pathTime, scale, alpha, move, tracked, runtime };
 }
 
 /**
@@ -936,9 +959,10 @@ function decodeStateBody(r: Reader, h: StreamHeader): StateMessage {
  */
 export function decodeClientMessage(bytes: Uint8Array | ArrayBuffer): ClientMessage {
   const view = viewOf(bytes);
-  if (view.byteLength > MAX_CLIENT_MESSAGE_BYTES) fail(`message is ${view.byteLength} bytes (at most ${MAX_CLIENT_MESSAGE_BYTES})`);
+  if (view.byteLength > MAX_MESSAGE_BYTES) fail(`message is ${view.byteLength} bytes (at most ${MAX_MESSAGE_BYTES})`);
   const r = new Reader(view, 0);
   const type = readHeader(r);
+  if (type !== MsgType.state && view.byteLength > MAX_CLIENT_MESSAGE_BYTES) fail(`message is ${view.byteLength} bytes (at most ${MAX_CLIENT_MESSAGE_BYTES} but a STATE)`);
   if (type === MsgType.join) return { type: 'join', ...decodeJoinBody(r) };
   return decodeStream(r, type);
 }
@@ -1094,8 +1118,8 @@ export function decodeServerMessage(bytes: Uint8Array | ArrayBuffer): ServerMess
     case MsgType.relay: {
       const from = checkMemberId(r.u8('member id'));
       const inner = embedded(r, view.byteLength - r.offset, 'relayed message');
-      if (inner.view.byteLength > MAX_CLIENT_MESSAGE_BYTES) fail('relayed message is too long');
       const innerType = readHeader(inner);
+      if (inner.view.byteLength > (innerType === MsgType.state ? MAX_MESSAGE_BYTES : MAX_CLIENT_MESSAGE_BYTES)) fail('relayed message is too long');
       return { type: 'relay', from, message: decodeStream(inner, innerType) };
     }
     case MsgType.snapshot: {

@@ -71,6 +71,11 @@ export class RemoteAvatar {
   /** True once placed by a state (snapshot or in-stream) or a first message. */
   ready = false;
   /**
+   * The copy computes the sender's own floats: placed by the sender's runtime state (or a
+   * restart), every step since replayed and no lost time guessed. Drift is exactly 0 then.
+   */
+  exact = false;
+  /**
    * Placed by the server's cached snapshot (up to a STATE interval old) and not yet by a STATE
    * from the stream: the sender answers a newcomer with a fresh STATE at once, which re-places
    * the copy (no blend: it is not shown yet). See `shown`.
@@ -144,6 +149,7 @@ export class RemoteAvatar {
       this.current = null;
       this.inGap = false;
       this.ready = false;
+      this.exact = false;
       return this.buffer.push(m.seq, m.time, nowMs, m, stepSeconds(m) * 1000);
     }
     return result;
@@ -202,6 +208,18 @@ export class RemoteAvatar {
     Object.assign(this.lastTracked, s.tracked);
     if (s.drive === 'path' && this.path) c.setPath(this.path, s.pathTime);
     else if (s.drive === 'path') this.note('snapshot follows a path it did not include');
+    // The sender's whole runtime state (sent when someone joins): from here on the copy is the
+    // sender's floats. Refused bytes leave the copy placed playing the sender's frame.
+    let loaded = false;
+    if (s.runtime && c.loadState) {
+      try {
+        c.loadState(s.runtime);
+        loaded = true;
+      } catch (e) {
+        this.note(`runtime state refused: ${e instanceof Error ? e.message : String(e)}`);
+      }
+    }
+    this.exact = s.restart === true || loaded;
     if (s.drive === 'tracked') c.setTracked(this.lastTracked, this.scale, this.alpha);
     else if (s.drive === 'move') c.setMove(this.lastMove);
     if (this.ready) this.drift.rebase(c.rootX - x0, c.rootZ - z0, c.rootYaw - yaw0);
@@ -244,7 +262,10 @@ export class RemoteAvatar {
         }
         const m = r.item;
         const start = r.time - r.span;
-        if (r.missingBefore > 0) this.note(`${r.missingBefore} message(s) lost before seq ${r.seq}`);
+        if (r.missingBefore > 0) {
+          this.note(`${r.missingBefore} message(s) lost before seq ${r.seq}`);
+          this.exact = false;
+        }
         // Messages lost (or never sent to us: before a snapshot) and not yet played as they passed.
         if (r.missingBefore > 0 && !this.inGap && this.ready && Number.isFinite(this.lastEnd) && start > this.lastEnd + 1.5) {
           this.fillGap((start - this.lastEnd) / 1000);
@@ -256,7 +277,7 @@ export class RemoteAvatar {
             this.provisional = false;
             this.ready = false; // placed afresh, not blended from where nobody saw it
           }
-          if (!this.ready || m.restart) this.resetTo(m);
+          if (!this.ready || m.restart || m.runtime) this.resetTo(m);
           else {
             this.setScale(m.scale);
             this.measure(m.rootX, m.rootZ, m.rootYaw);
@@ -277,6 +298,7 @@ export class RemoteAvatar {
           this.character.reset(-1, m.rootX, m.rootZ, m.rootYaw);
           this.drift.reset();
           this.ready = true;
+          this.exact = false;
         }
         if (m.type === 'tracked') {
           this.setScale(m.scale);
@@ -349,6 +371,7 @@ export class RemoteAvatar {
     const ms = Math.min(until - this.lastEnd, this.o.maxGapSeconds * 1000 - this.gapMs);
     const ticks = Math.min(Math.floor((ms * TICKS_PER_SECOND) / 1000), TICKS_PER_SECOND / 10);
     if (ticks >= 1) {
+      this.exact = false;
       this.stepLastInput(ticks);
       this.gapMs += (ticks * 1000) / TICKS_PER_SECOND;
       this.stats.extrapolatedSeconds += ticks / TICKS_PER_SECOND;
@@ -364,6 +387,7 @@ export class RemoteAvatar {
   private fillGap(seconds: number): void {
     const total = Math.min(seconds, this.o.maxGapSeconds);
     this.stats.gapSeconds += total;
+    this.exact = false;
     const c = this.character;
     const [x0, z0, yaw0] = [c.rootX, c.rootZ, c.rootYaw];
     let left = Math.round(total * TICKS_PER_SECOND);

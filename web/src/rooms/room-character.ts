@@ -59,7 +59,7 @@ export class RoomCharacter implements DrivenCharacter {
     this.character.runtime.setInput(step);
   }
 
-  /** `time` is not used: the runtime starts a path at its beginning (the drift correction covers a late joiner). */
+  /** `time` is not used: the runtime starts a path at its beginning (a late joiner's copy then loads how far along the sender is: `loadState`). */
   setPath(path: PathInput | null, _time: number): void {
     if (path) this.character.runtime.setPath(path.points, path.speeds, path.looped);
     else this.character.runtime.clearPath();
@@ -96,6 +96,10 @@ export class RoomCharacter implements DrivenCharacter {
     const s = this.scale_;
     if (frame >= 0) this.character.runtime.teleportPlaying(frame, x / s, z / s, yaw);
     else this.character.runtime.teleport(x / s, z / s, yaw);
+  }
+
+  loadState(bytes: Uint8Array): void {
+    this.character.runtime.loadState(bytes);
   }
 
   get rootX(): number {

@@ -14,6 +14,7 @@ import {
   decodeServerMessage,
   encodeJoin,
   isRoomId,
+  MAX_RUNTIME_STATE_BYTES,
   ProtocolError,
   type JoinInfo,
   type LeaveReasonName,
@@ -54,7 +55,7 @@ export interface RoomClientEvents {
   note: (text: string) => void;
   /** The server's error message or close reason. */
   error: (code: number, reason: string) => void;
-  /** Someone joined (the server asked for a fresh STATE, sent already). */
+  /** Someone joined (the server asked for a fresh STATE, sent already; one with the runtime state follows within a second). */
   stateRequested: () => void;
 }
 
@@ -78,7 +79,16 @@ export interface RoomClientOptions {
   baseUrl?: string;
   createSocket?: (url: string) => WebSocketLike;
   now?: () => number;
+  /**
+   * The local character's runtime state after its last step (`CharacterRuntime.saveState`):
+   * when someone joins, a STATE carries it so every copy continues from this member's own
+   * floats (docs/rooms.md, "Late joiners"). At most one a second, however many join.
+   */
+  runtimeState?: () => Uint8Array | null;
 }
+
+/** Shortest time between two STATEs carrying the runtime state (~4.7 KB each; the server allows 12 KB/s). */
+export const RUNTIME_STATE_INTERVAL_MS = 1000;
 
 type Listeners = { [K in keyof RoomClientEvents]: Set<RoomClientEvents[K]> };
 
@@ -113,6 +123,9 @@ export class RoomClient {
   private wanted = false;
   private lastStateAt = -Infinity;
   private lastTickAt = -Infinity;
+  /** Someone joined since the last STATE with the runtime state; when that one was sent. */
+  private runtimeWanted = false;
+  private lastRuntimeAt = -Infinity;
   private readonly now: () => number;
 
   constructor(options: RoomClientOptions) {
@@ -297,6 +310,7 @@ export class RoomClient {
         this.stream.restart();
         this.stream.queueState(true);
         this.lastStateAt = t;
+        this.runtimeWanted = false;
         this.flush();
         this.startSending();
         break;
@@ -322,8 +336,8 @@ export class RoomClient {
         if (this.members.has(m.from)) this.emit('snapshot', m.from, m.state, m.path);
         break;
       case 'stateRequest':
-        this.stream.queueState();
-        this.lastStateAt = t;
+        this.runtimeWanted = true;
+        this.queueState(t);
         this.flush();
         this.emit('stateRequested');
         break;
@@ -355,11 +369,29 @@ export class RoomClient {
   private tick(): void {
     const t = this.now();
     this.lastTickAt = t;
-    if (t - this.lastStateAt >= (this.o.stateIntervalMs ?? 1000)) {
-      this.stream.queueState();
-      this.lastStateAt = t;
-    }
+    const runtimeDue = this.runtimeWanted && t - this.lastRuntimeAt >= RUNTIME_STATE_INTERVAL_MS;
+    if (runtimeDue || t - this.lastStateAt >= (this.o.stateIntervalMs ?? 1000)) this.queueState(t);
     this.flush();
+  }
+
+  /** A STATE now; with the runtime state if someone is waiting for it and the interval allows. */
+  private queueState(t: number): void {
+    let runtime: Uint8Array | null = null;
+    if (this.runtimeWanted && t - this.lastRuntimeAt >= RUNTIME_STATE_INTERVAL_MS && this.o.runtimeState) {
+      this.runtimeWanted = false;
+      this.lastRuntimeAt = t;
+      try {
+        runtime = this.o.runtimeState();
+      } catch (e) {
+        this.emit('note', `the runtime state could not be saved: ${String(e)}`);
+      }
+      if (runtime && runtime.length > MAX_RUNTIME_STATE_BYTES) {
+        this.emit('note', `the runtime state is ${runtime.length} bytes (at most ${MAX_RUNTIME_STATE_BYTES}): newcomers' copies are placed from the snapshot only`);
+        runtime = null;
+      }
+    }
+    this.stream.queueState(false, runtime);
+    this.lastStateAt = t;
   }
 
   /** Sends what the stream has queued (the send timer calls this; exposed for tests). */

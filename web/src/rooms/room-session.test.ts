@@ -2,7 +2,8 @@
  * `RoomSession` on the real engine (WASM in Node) and the real room server on loopback: a
  * desktop person and a VR person (calibrated scale, VR settings, crouching) each see the other
  * re-synthesized to the millimetre — the same floats, so the drift correction stays at zero —
- * a late joiner converges, and a leaving member is removed.
+ * a late joiner's copies are exact from their first drawn frame (the senders' runtime states),
+ * and a leaving member is removed.
  */
 import fs from 'node:fs';
 import path from 'node:path';
@@ -65,9 +66,10 @@ function person(roomId: string, mode: 'desktop' | 'vr', name: string): Person {
   return { character, session, notes };
 }
 
-/** Desktop: walk, turn, side-step (strafe), stop. VR: walk a circle with the head, crouch a bit. */
+/** Desktop: walk, turn, side-step (strafe), stop (and again from 7 s). VR: walk a circle with the head, crouch a bit. */
 function drive(p: Person, mode: 'desktop' | 'vr', t: number): void {
   if (mode === 'desktop') {
+    if (t >= 7) t = (t - 7) % 6; // moving again while a late joiner comes
     if (t < 1.5) p.character.setMove(0, 1);
     else if (t < 3) p.character.setMove(Math.sin(t), Math.cos(t), { run: true });
     else if (t < 4.5) p.character.setMove(1, 0, { face: { x: 0, z: 1 } });
@@ -157,7 +159,7 @@ describe('RoomSession (real WASM, real room server)', () => {
     const vrCopy = [...desk.session.members.values()][0].character!;
     expect(vrCopy.metresPerDatabaseUnit).toBeCloseTo(vr.character.metresPerDatabaseUnit, 5);
 
-    // A late joiner: placed by the server's snapshot, then blended onto the senders.
+    // A late joiner: placed by the server's snapshot, then by each sender's runtime state.
     const late = person(roomId, 'desktop', 'Late');
     const three: [Person, 'desktop' | 'vr'][] = [...both, [late, 'desktop']];
     let frames = 0;
@@ -169,11 +171,18 @@ describe('RoomSession (real WASM, real room server)', () => {
       const id = sender.session.client.memberId;
       const sent = new Map(sender.session.trace.sent.filter((r) => r[0] === id).map((r) => [r[1], r]));
       const rows = late.session.trace.shown.slice(start).filter((s) => s[0] === id && sent.has(s[1]));
-      const last = rows.slice(-20).map((s) => Math.hypot(s[2] - sent.get(s[1])![2], s[3] - sent.get(s[1])![3]));
-      console.log(`late joiner's copy of ${sender === desk ? "Desk" : "Headset"}: error over its last 20 messages ≤ ${(Math.max(...last) * 100).toFixed(2)} cm`);
-      // The desktop person stands still by then: it restarted its runtime for the newcomer, whose
-      // copy is exact from there; the VR person keeps walking, its copy drift-corrected.
-      expect(Math.max(...last)).toBeLessThan(sender === desk ? 0.001 : 0.05);
+      const d = rows.map((s) => Math.hypot(s[2] - sent.get(s[1])![2], s[3] - sent.get(s[1])![3]));
+      const yaw = rows.map((s) => Math.abs(Math.atan2(Math.sin(s[4] - sent.get(s[1])![4]), Math.cos(s[4] - sent.get(s[1])![4]))));
+      const copy = [...late.session.members.values()].find((m) => m.id === id)!.remote!;
+      console.log(
+        `late joiner's copy of ${sender === desk ? 'Desk' : 'Headset'} (${rows.length} messages, exact: ${copy.exact}): root error first ${(d[0] * 100).toFixed(2)} cm, max ${(Math.max(...d) * 100).toFixed(2)} cm; yaw max ${((Math.max(...yaw) * 180) / Math.PI).toFixed(3)}°`,
+      );
+      // Both senders answered the newcomer with their runtime state: its copies are their own
+      // floats from the first message it drew (both are moving: Desk strafes, Headset walks a circle).
+      expect(copy.exact).toBe(true);
+      expect(rows.length).toBeGreaterThan(20);
+      expect(Math.max(...d)).toBeLessThan(0.001);
+      expect(Math.max(...yaw)).toBeLessThan(0.001);
     }
 
     // Leaving: the others remove the member as soon as the server says so.

@@ -120,10 +120,6 @@ export class RoomSession {
   private readonly templates = new Map<string, Promise<Avatar>>();
   private now = 0;
   private closed = false;
-  /** Someone joined since this person's runtime last restarted (their copy of it is not exact yet). */
-  private resyncWanted = false;
-  /** Simulated seconds this person has been standing still. */
-  private stillFor = 0;
   /** Leaving the page leaves the room at once (a closed socket may otherwise linger until the server's idle timeout). */
   private readonly onPageHide = () => this.close();
 
@@ -143,6 +139,8 @@ export class RoomSession {
         mode: options.mode,
         devices: options.devices ?? (options.mode === 'vr' ? { headset: true, leftController: true, rightController: true } : { keyboard: true, pointer: true }),
       },
+      // Someone joined: their copy of this person continues from this runtime's own floats.
+      runtimeState: () => this.own.character.runtime.saveState(),
     });
     this.own = new RoomCharacter(character, false);
     this.local = new LocalAvatar(this.own, this.client.stream);
@@ -169,16 +167,10 @@ export class RoomSession {
       options.onMembers?.();
     });
     this.client.on('memberLeft', (id) => (this.remove(id), options.onMembers?.()));
-    this.client.on('stateRequested', () => (this.resyncWanted = true));
     globalThis.addEventListener?.('pagehide', this.onPageHide);
     this.client.on('stream', (from, message, arrival) => this.feed(from, (m) => m.remote!.receive(message, arrival)));
     this.client.on('snapshot', (from, state, path) => this.feed(from, (m) => m.remote!.applySnapshot(state, path)));
     this.client.connect();
-  }
-
-  /** A newcomer's copy of this person is not exact yet: the runtime restarts at the next standstill. */
-  get resyncPending(): boolean {
-    return this.resyncWanted;
   }
 
   /** Connection state: connecting, open, reconnecting or closed. */
@@ -231,18 +223,6 @@ export class RoomSession {
     const d = c.drive;
     const local = this.local;
     const scale = c.metresPerDatabaseUnit;
-    // A newcomer started its copy of this person from a snapshot: not the same runtime state, so
-    // drift correction keeps it close but not exact. Standing still for half a second, this
-    // person restarts its runtime (the idle pose hardly changes) and says so in a STATE: every
-    // copy restarts with it and computes this person's floats from then on.
-    const t = d.tracked;
-    const still = d.mode === 'move' ? d.move.moveX === 0 && d.move.moveZ === 0 : d.mode === 'tracked' && Math.hypot(t.velocityX, t.velocityZ) < 0.05;
-    this.stillFor = still ? this.stillFor + dt : 0;
-    if (this.resyncWanted && this.client.memberId && this.stillFor >= 0.5) {
-      this.resyncWanted = false;
-      this.restartOwn();
-      this.client.stream.queueState(true);
-    }
     if (d.mode === 'tracked') {
       local.setTracked(d.tracked, scale, Number.isFinite(d.alpha) ? d.alpha : DEFAULT_ALPHA);
       const t = this.o.trackers;

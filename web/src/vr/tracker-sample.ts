@@ -5,9 +5,9 @@
  * back, so the live and replayed pipelines start from identical data.
  */
 
-/** Tracker indices into every SoA array of the VR modules. */
 import { mulQuat } from '../quat.ts';
 
+/** Tracker indices into every SoA array of the VR modules. */
 export const HEAD = 0;
 export const LEFT = 1;
 export const RIGHT = 2;
