@@ -58,7 +58,7 @@ pub fn check_character(data: &[u8]) {
         if r.0.is_empty() {
             break;
         }
-        let updated = match r.byte() % 10 {
+        let updated = match r.byte() % 11 {
             0 => {
                 let flags = r.byte();
                 input = Input { direction: r.vec2(), facing: r.vec2(), run: flags & 1 != 0, strafe: flags & 2 != 0 };
@@ -108,6 +108,18 @@ pub fn check_character(data: &[u8]) {
             }
             8 => {
                 c.request_search();
+                false
+            }
+            9 => {
+                // The runtime state through the network: saved, up to 7 bytes damaged, loaded
+                // (refused whole, or loaded and then held to the same properties).
+                let mut state = c.save_state(db);
+                for _ in 0..r.byte() % 8 {
+                    let at = (r.byte() as usize) << 8 | r.byte() as usize;
+                    let len = state.len();
+                    state[at % len] ^= r.byte();
+                }
+                let _ = c.load_state(db, &state);
                 false
             }
             _ => {
