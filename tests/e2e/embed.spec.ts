@@ -105,3 +105,25 @@ test('embed.html from dist/ under a strict CSP: two avatars, keyboard only where
   expect(await page.evaluate(() => (window as unknown as { __csp: string[] }).__csp)).toEqual([]);
   expect(errors).toEqual([]);
 });
+
+test('a timeStep set before <mm-avatar> is defined is taken through the element (not left hiding its accessor)', async ({ page }) => {
+  // Any same-origin page without the element: the server's 404.
+  await page.goto(`${server.url}/nothing-here`);
+  const result = await page.evaluate(async (url) => {
+    const el = document.createElement('mm-avatar') as HTMLElement & { timeStep: number | null; warnings: string[] };
+    el.timeStep = 0.05; // before the element is defined: a plain own property
+    document.body.append(el);
+    await import(url);
+    const own = Object.prototype.hasOwnProperty.call(el, 'timeStep');
+    const kept = el.timeStep;
+    el.timeStep = 5; // the accessor refuses it (> 1 s) and keeps 0.05
+    const after = el.timeStep;
+    const warnings = [...el.warnings];
+    el.remove();
+    return { own, kept, after, warnings };
+  }, '/mm-avatar.js');
+  expect(result.own).toBe(false);
+  expect(result.kept).toBe(0.05);
+  expect(result.after).toBe(0.05);
+  expect(result.warnings.join('\n')).toContain('timeStep 5 refused');
+});

@@ -120,6 +120,14 @@ export class MMAvatarElement extends ElementBase {
   }
 
   connectedCallback(): void {
+    // A page (or a framework rendering before the script loads) may have set `timeStep` on the
+    // element before <mm-avatar> was defined: that own property hides the accessor, so the value
+    // would never be checked or used. Take it through the setter instead.
+    if (Object.prototype.hasOwnProperty.call(this, 'timeStep')) {
+      const value = (this as { timeStep: number | null }).timeStep;
+      delete (this as { timeStep?: number | null }).timeStep;
+      this.timeStep = value;
+    }
     if (!this.hasAttribute('tabindex')) this.tabIndex = 0;
     this.setAttribute('role', 'img');
     this.updateAlt();
