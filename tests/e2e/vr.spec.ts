@@ -279,7 +279,7 @@ test('device sets under iwer: two controllers, one, none, tracked hands and back
     let start = -1;
     window.__vr.beforeFrame = (frame) => {
       const h = window.__vr;
-      if (start >= 0) log.push({ t: (frame - 1 - start) / 60, set: h.deviceSet, head: [...h.head], root: [...h.root], hands: [...h.hands] });
+      if (start >= 0) log.push({ t: (frame - 1 - start) / 60, set: h.deviceSet, model: h.predictor === 'network' ? h.yawModel : h.predictor, head: [...h.head], root: [...h.root], hands: [...h.hands] });
       else start = frame;
       const t = (frame - start) / 60;
       if (t === 0.25) h.calibrate(1.6);
@@ -299,15 +299,23 @@ test('device sets under iwer: two controllers, one, none, tracked hands and back
     };
   }, PHASES);
   await waitFrames(page, 60 * 1.5 * PHASES.length + 2, 250_000);
-  const log = (await page.evaluate(() => (window as unknown as { __log: unknown[] }).__log)) as { t: number; set: string; head: number[]; root: number[]; hands: number[] }[];
+  const log = (await page.evaluate(() => (window as unknown as { __log: unknown[] }).__log)) as { t: number; set: string; model: string; head: number[]; root: number[]; hands: number[] }[];
   const alpha = await page.evaluate(() => window.__vr.alpha);
   PHASES.forEach((name, k) => {
     // The set is named from the first frames of its phase on (the tracker state sees a controller leave at once).
     const frames = log.filter((f) => f.t >= 1.5 * k + 0.1 && f.t < 1.5 * (k + 1));
     const named = frames.filter((f) => f.set === name).length / frames.length;
-    console.log(`${name}: named on ${(100 * named).toFixed(0)} % of its frames`);
+    // The body yaw comes from the model for the set (once the network has loaded): the main one
+    // with both hands tracked, the recurrent one with a controller missing.
+    const want = name === 'headset + left controller' || name === 'headset only' ? 'fewer devices' : 'main';
+    const networked = frames.filter((f) => f.model === 'main' || f.model === 'fewer devices');
+    const right = networked.filter((f) => f.model === want).length / Math.max(1, networked.length);
+    console.log(`${name}: named on ${(100 * named).toFixed(0)} % of its frames; body yaw from the ${want} model on ${(100 * right).toFixed(0)} % of ${networked.length} networked frames`);
     expect(named, name).toBeGreaterThan(0.95);
+    expect(right, `${name}: ${want} model`).toBeGreaterThan(0.95);
   });
+  expect(log.filter((f) => f.model === 'fewer devices').length, 'the network loaded during the phases without two controllers').toBeGreaterThan(60);
+  expect(await page.evaluate(() => window.__vr.predictorFailures)).toBe(0);
   const worstGap = Math.max(...log.map((f) => Math.hypot(f.root[0] - f.head[0], f.root[2] - f.head[1])));
   // Hands from the calibration on (it rescales the avatar at 0.25 s).
   let worstJump = 0, worstAt = 0;

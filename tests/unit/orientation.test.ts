@@ -190,3 +190,51 @@ describe('OrientationModel (onnxruntime-web in Node)', () => {
     }
   });
 });
+
+// The recurrent model the VR page uses with one controller or none (training/orientation/gru.py),
+// against the fixture the export wrote: the same loop, its state carried by the runner.
+describe('OrientationModel, recurrent (onnxruntime-web in Node)', () => {
+  const gruFixture = JSON.parse(fs.readFileSync(path.join(ROOT, 'training/fixtures/orientation_gru_parity.json'), 'utf8')) as Fixture;
+  const gseq = gruFixture.sequence;
+  let gru: Uint8Array;
+  beforeAll(() => {
+    ort.env.wasm.numThreads = 1;
+    gru = fs.readFileSync(path.join(ROOT, 'public/models/orientation_gru.onnx'));
+  });
+
+  it('is the model the fixture was recorded with, and small', () => {
+    expect(createHash('sha256').update(gru).digest('hex')).toBe(gruFixture.model_sha256);
+    expect(gru.byteLength).toBeLessThan(96 * 1024);
+  });
+
+  it('carries its state like Python: same inputs, outputs and body yaw; a reset repeats the run; timed', async () => {
+    const model = await OrientationModel.create(gru);
+    try {
+      expect(model.recurrent).toBe(true);
+      const times: number[] = [];
+      for (let pass = 0; pass < 2; pass++) {
+        let worstIn = 0;
+        let worstOut = 0;
+        let worstYaw = 0;
+        for (let t = 0; t < gseq.dt.length; t++) {
+          const t0 = performance.now();
+          const yaw = await model.update(gseq.positions[t], gseq.quaternions[t], gseq.dt[t]);
+          times.push(performance.now() - t0);
+          worstIn = Math.max(worstIn, maxErr(model.features.input.subarray(0, 36), gseq.inputs[t]));
+          worstOut = Math.max(worstOut, maxErr(model.output, gseq.outputs[t]));
+          worstYaw = Math.max(worstYaw, Math.abs(wrapAngle(yaw - gseq.body_yaw[t])));
+        }
+        expect(worstIn).toBeLessThan(1e-5);
+        expect(worstOut).toBeLessThan(1e-4);
+        expect(worstYaw).toBeLessThan(1e-4);
+        if (pass === 0) console.log(`recurrent model: max |yaw − Python| ${worstYaw.toExponential(2)} rad over ${gseq.dt.length} frames`);
+        model.reset();
+      }
+      times.sort((a, b) => a - b);
+      console.log(`recurrent model: median ${times[times.length >> 1].toFixed(3)} ms per update (Node ${process.version})`);
+    } finally {
+      await model.release();
+    }
+  });
+
+});

@@ -34,7 +34,7 @@ import numpy as np
 
 from . import data
 from .motion_classes import CLASSES
-from .predictors import OnnxModel, dead_zone, hmd_forward, run_network, sequence_features, yaw_error_deg
+from .predictors import dead_zone, hmd_forward, load_model, run_network, run_recurrent, sequence_features, yaw_error_deg
 from .simulate import EVAL_AUGMENT, TrackerSequence, hanging_pose, simulate, without_look_around
 from .train import MODELS_DIR, PUBLIC_MODEL
 
@@ -56,8 +56,10 @@ def with_absent(seq: TrackerSequence, absent: tuple[int, ...]) -> TrackerSequenc
         pos[:, t], rot[:, t] = hanging_pose(seq.pos[:, 0], seq.rot[:, 0], t)
     return replace(seq, pos=pos, rot=rot)
 
+GRU_MODEL = data.REPO / "public" / "models" / "orientation_gru.onnx"
 PREDICTORS = {
     "network r=50": PUBLIC_MODEL,
+    "GRU (the one-controller and headset-only model)": GRU_MODEL,
     "network r=1": MODELS_DIR / "orientation_r1.onnx",
     "network r=50, trained without look-around": MODELS_DIR / "orientation_nolook.onnx",
 }
@@ -111,7 +113,7 @@ def evaluate(seqs: list[TrackerSequence], models: dict[str, object]) -> tuple[di
         times[b, :n] = np.cumsum(s.dt) - s.dt[0]
         if s.classes is not None:
             classes[b, :n] = s.classes
-    preds = {name: run_network(m, feats, hmd) for name, m in models.items()}
+    preds = {name: (run_recurrent if getattr(m, 'recurrent', False) else run_network)(m, feats, hmd) for name, m in models.items()}
     preds["HMD forward"] = hmd_forward(hmd)
     preds["dead zone 25°"] = dead_zone(hmd, dt)
     out = {name: stats(yaw_error_deg(p, truth), times, lengths) for name, p in preds.items()}
@@ -178,6 +180,7 @@ def plots(results: dict[str, dict[str, Result]], arrays: dict[str, dict], seqs: 
     res, arr = results[cond], arrays[cond]
     colors = {"network r=50": "#1f77b4", "network r=1": "#ff7f0e",
               "network r=50, trained without look-around": "#9467bd",
+              "GRU (the one-controller and headset-only model)": "#17becf",
               "HMD forward": "#d62728", "dead zone 25°": "#2ca02c"}
     written = []
 
@@ -230,7 +233,7 @@ def run(quick: bool = False, make_plots: bool = True, models: dict[str, Path] | 
     missing = [str(p) for p in models.values() if not Path(p).is_file()]
     if missing:
         raise data.DataError(f"model(s) missing: {', '.join(missing)} (run `npm run train`)")
-    loaded = {name: OnnxModel(p) for name, p in models.items()}
+    loaded = {name: load_model(p) for name, p in models.items()}
     clips = data.load_subjects(data.TEST_SUBJECTS, mirrored=False, log=log)
     if quick:
         clips = clips[::4]
@@ -244,8 +247,9 @@ def run(quick: bool = False, make_plots: bool = True, models: dict[str, Path] | 
         f"{len(clips)} takes × {len(EVAL_FPS)} frame rates × 2 conditions, {frames} scored frames")
     written = plots(results, arrays, seqs) if make_plots else []
     nets = [n for n in loaded] + ["HMD forward"]
-    main_net = {n: m for n, m in loaded.items() if n == next(iter(loaded))}
-    sets = {name: evaluate([with_absent(q, absent) for q in seqs["with look-around"]], main_net)[0]
+    # The page's per-set choice: the feed-back network with two controllers, the GRU with fewer.
+    per_set = {n: m for n, m in loaded.items() if n == next(iter(loaded)) or getattr(m, "recurrent", False)}
+    sets = {name: evaluate([with_absent(q, absent) for q in seqs["with look-around"]], per_set)[0]
             for name, absent in DEVICE_SETS.items()}
     return results, written, per_subject(results, seqs), class_table(arrays["with look-around"], nets), sets
 

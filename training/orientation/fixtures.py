@@ -33,18 +33,26 @@ def _floats(a) -> list:
     return np.asarray(a, dtype=np.float64).round(12).tolist()
 
 
+def fixture_sequence(rng: np.random.Generator, clips, n: int = 150):
+    """A held-out take at 90 Hz with look-around: its first `n` frames, one dropped frame, one
+    0.3 s pause (velocities restart from zero) and some quaternions negated (WebXR may give q
+    or −q: the features must not care)."""
+    clip = next(c for c in clips if c.name == "cmu_08_03")
+    seq = simulate(clip, rng, EVAL_AUGMENT, fps=90.0)
+    dt = seq.dt[:n].copy()
+    dt[40] = 2.0 / 90.0
+    dt[100] = 0.3
+    pos, rot = seq.pos[:n], seq.rot[:n].copy()
+    rot[::7] *= -1.0
+    return seq, dt, pos, rot
+
+
 def build_fixture(onnx_path: Path, weights: Path) -> dict:
     model = TorchModel(net_from_state(dict(np.load(weights))))
     rng = np.random.default_rng(SEED)
     clips = data.load_subjects(data.TEST_SUBJECTS, mirrored=False, log=lambda *_: None)
-    clip = next(c for c in clips if c.name == "cmu_08_03")
-    seq = simulate(clip, rng, EVAL_AUGMENT, fps=90.0)
-    n = 150
-    dt = seq.dt[:n].copy()
-    dt[40] = 2.0 / 90.0  # a dropped frame
-    dt[100] = 0.3  # a pause longer than MAX_DT: velocities restart from zero
-    pos, rot = seq.pos[:n], seq.rot[:n].copy()
-    rot[::7] *= -1.0  # WebXR may give q or −q: the features must not care
+    seq, dt, pos, rot = fixture_sequence(rng, clips)
+    n = len(dt)
 
     fb = FeatureBuilder()
     inputs, outputs, body, hmd = [], [], [], []
@@ -76,6 +84,42 @@ def build_fixture(onnx_path: Path, weights: Path) -> dict:
         "sequence": {
             "name": seq.name, "fps": seq.fps, "dt": _floats(dt),
             "positions": _floats(pos.reshape(n, 9)), "quaternions": _floats(rot.reshape(n, 12)),
+            "inputs": _floats(np.array(inputs)), "outputs": _floats(np.array(outputs)),
+            "body_yaw": _floats(body), "hmd_yaw": _floats(hmd),
+        },
+    }
+
+
+def build_gru_fixture(onnx_path: Path, step) -> dict:
+    """The recurrent model's parity fixture: the same sequence, with the 36 inputs, the outputs
+    and the body yaw of the Python reference loop (`predictors.run_recurrent`), run in PyTorch
+    (`step`: a `gru.GruStep`)."""
+    import torch
+
+    rng = np.random.default_rng(SEED)
+    clips = data.load_subjects(data.TEST_SUBJECTS, mirrored=False, log=lambda *_: None)
+    seq, dt, pos, rot = fixture_sequence(rng, clips)
+    fb = FeatureBuilder()
+    h = torch.zeros(1, step.net.hidden)
+    inputs, outputs, body, hmd = [], [], [], []
+    prev = None
+    for t in range(len(dt)):
+        x = fb.update(pos[t], rot[t], dt[t])[:36].astype(np.float32)
+        with torch.no_grad():
+            out, h = step(torch.from_numpy(x[None]), h)
+        out = out.numpy()[0]
+        phi, ok = relative_yaw_of_output(out)
+        prev = (fb.hmd_yaw + float(phi)) if ok else (fb.hmd_yaw if prev is None else prev)
+        inputs.append(x)
+        outputs.append(out)
+        body.append(prev)
+        hmd.append(fb.hmd_yaw)
+    return {
+        "model": str(onnx_path.relative_to(data.REPO)),
+        "model_sha256": hashlib.sha256(onnx_path.read_bytes()).hexdigest(),
+        "sequence": {
+            "name": seq.name, "fps": seq.fps, "dt": _floats(dt),
+            "positions": _floats(pos.reshape(len(dt), 9)), "quaternions": _floats(rot.reshape(len(dt), 12)),
             "inputs": _floats(np.array(inputs)), "outputs": _floats(np.array(outputs)),
             "body_yaw": _floats(body), "hmd_yaw": _floats(hmd),
         },

@@ -17,21 +17,26 @@ MLP and HMD-forward on the same frames.
 from __future__ import annotations
 
 import argparse
+import json
 import sys
 import time
-from dataclasses import dataclass, replace
+from dataclasses import asdict, dataclass, replace
 
 import numpy as np
 import torch
 from torch import nn
 
 from . import data
-from .evaluate import class_table, evaluate, held_out_sequences, stats, with_absent, DEVICE_SETS
+from .evaluate import DEVICE_SETS, GRU_MODEL, class_table, evaluate, held_out_sequences, stats, with_absent
 from .features import relative_yaw_of_output, yaw_slot
+from .fixtures import build_gru_fixture
 from .geometry import wrap_angle
-from .predictors import OnnxModel, sequence_features, yaw_error_deg
+from .model import export_onnx
+from .predictors import OnnxModel, OnnxRecurrentModel, sequence_features, yaw_error_deg
 from .simulate import TRAIN_AUGMENT
-from .train import PUBLIC_MODEL, TrainConfig, simulate_epoch
+from .train import MODELS_DIR, PUBLIC_MODEL, TrainConfig, quiet_exporter, simulate_epoch
+
+GRU_FIXTURE = data.TRAINING / "fixtures" / "orientation_gru_parity.json"
 
 
 class GruNet(nn.Module):
@@ -50,6 +55,28 @@ class GruNet(nn.Module):
         z = torch.relu(self.inp((x - self.mean) * self.inv_std))
         y, h = self.gru(z, h)
         return self.out(y), h
+
+
+class GruStep(nn.Module):
+    """One frame of a `GruNet`, for export and the browser: (features (B, 36), state (B, H)) →
+    (6D (B, 6), next state (B, H)). The GRU cell written out (PyTorch's gate order r, z, n) so
+    the ONNX graph is plain matrix products any runtime runs."""
+
+    def __init__(self, net: GruNet):
+        super().__init__()
+        self.net = net
+
+    def forward(self, x: torch.Tensor, h: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        n, g = self.net, self.net.gru
+        H = n.hidden
+        z = torch.relu(n.inp((x - n.mean) * n.inv_std))
+        gi = z @ g.weight_ih_l0.T + g.bias_ih_l0
+        gh = h @ g.weight_hh_l0.T + g.bias_hh_l0
+        r = torch.sigmoid(gi[:, :H] + gh[:, :H])
+        u = torch.sigmoid(gi[:, H:2 * H] + gh[:, H:2 * H])
+        c = torch.tanh(gi[:, 2 * H:] + r * gh[:, 2 * H:])
+        h2 = (1 - u) * c + u * h
+        return n.out(h2), h2
 
 
 @dataclass
@@ -146,17 +173,53 @@ def main(argv=None) -> int:
     ap.add_argument("--max-batches", type=int, default=500)
     ap.add_argument("--seed", type=int, default=7)
     ap.add_argument("--save", help="write the weights (.pt) here")
+    ap.add_argument("--load", help="score (and export) these weights (.pt) instead of training")
+    ap.add_argument("--export", action="store_true",
+                    help=f"write {GRU_MODEL.relative_to(data.REPO)}, its config in training/models "
+                         "and its parity fixture (the committed model: the defaults)")
     args = ap.parse_args(argv)
     if hasattr(sys.stdout, "reconfigure"):
         sys.stdout.reconfigure(line_buffering=True)
+    quiet_exporter()
     cfg = GruConfig(hidden=args.hidden, window=args.window, epochs=args.epochs, max_batches_per_epoch=args.max_batches, seed=args.seed)
-    clips = data.load_subjects(TrainConfig().subjects, mirrored=None)
     print(f"GRU {cfg}")
-    net = train_gru(cfg, clips)
+    if args.load:
+        net = GruNet(np.zeros(36), np.ones(36), cfg.hidden)  # the normalization is in the weights
+        net.load_state_dict(torch.load(args.load))
+        net.eval()
+    else:
+        net = train_gru(cfg, data.load_subjects(TrainConfig().subjects, mirrored=None))
     if args.save:
         torch.save(net.state_dict(), args.save)
+    if args.export:
+        export(net, cfg)
     score(net, data.load_subjects(data.TEST_SUBJECTS, mirrored=False))
     return 0
+
+
+def export(net: GruNet, cfg: GruConfig) -> None:
+    """The browser's file (features and state in, 6D and the next state out), checked against
+    PyTorch over a sequence, its config beside the other models, and its parity fixture."""
+    step = GruStep(net).eval()
+    meta = {"model": "gru", "hidden": str(cfg.hidden), "window": str(cfg.window), "seed": str(cfg.seed),
+            "train_subjects": " ".join(data.subject_name(*s) for s in TrainConfig().subjects)}
+    export_onnx(step, GRU_MODEL, meta, state_size=cfg.hidden)
+    onnx_model = OnnxRecurrentModel(GRU_MODEL)
+    x = np.random.default_rng(1).normal(0, 1, (50, 4, 36)).astype(np.float32)
+    h_t, h_o, worst = torch.zeros(4, cfg.hidden), np.zeros((4, cfg.hidden), np.float32), 0.0
+    with torch.no_grad():
+        seq_out, _ = net(torch.from_numpy(x.transpose(1, 0, 2)))
+        for t in range(50):
+            o_t, h_t = step(torch.from_numpy(x[t]), h_t)
+            o_o, h_o = onnx_model(x[t], h_o)
+            worst = max(worst, float(np.abs(o_o - o_t.numpy()).max()), float(np.abs(o_t.numpy() - seq_out[:, t].numpy()).max()))
+    assert worst < 1e-4, f"exported GRU differs from PyTorch by {worst}"
+    print(f"wrote {GRU_MODEL.relative_to(data.REPO)} ({GRU_MODEL.stat().st_size / 1024:.1f} KiB; |ONNX − PyTorch| ≤ {worst:.1e})")
+    MODELS_DIR.mkdir(parents=True, exist_ok=True)
+    (MODELS_DIR / "orientation_gru.json").write_text(json.dumps({"config": asdict(cfg)}, indent=1) + "\n")
+    fixture = build_gru_fixture(GRU_MODEL, step)
+    GRU_FIXTURE.write_text(json.dumps(fixture) + "\n")
+    print(f"wrote {GRU_FIXTURE.relative_to(data.REPO)}")
 
 
 if __name__ == "__main__":

@@ -93,19 +93,26 @@ def net_from_state(state: dict) -> OrientationNet:
     return net.eval()
 
 
-def export_onnx(net: OrientationNet, path: Path, metadata: dict[str, str] | None = None) -> Path:
+def export_onnx(net: nn.Module, path: Path, metadata: dict[str, str] | None = None,
+                state_size: int = 0) -> Path:
     """Write the model as one self-contained ONNX file (weights embedded, no `.onnx.data`),
-    input `features` float32 [batch, 42] raw, output `orientation6d` float32 [batch, 6]."""
+    input `features` float32 [batch, 42] raw, output `orientation6d` float32 [batch, 6]. A
+    recurrent model (`state_size` > 0: `gru.GruStep`) takes `features` [batch, 36] and `state`
+    [batch, state_size] and also outputs `state_out` [batch, state_size]."""
     import onnx
 
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     net = net.eval()
-    example = torch.zeros(1, NUM_INPUTS)
     batch = torch.export.Dim("batch", min=1, max=1 << 20)
-    program = torch.onnx.export(net, (example,), input_names=[INPUT_NAME], output_names=[OUTPUT_NAME],
+    if state_size:
+        example = (torch.zeros(1, 36), torch.zeros(1, state_size))
+        names, outputs, dims = [INPUT_NAME, "state"], [OUTPUT_NAME, "state_out"], ({0: batch}, {0: batch})
+    else:
+        example, names, outputs, dims = (torch.zeros(1, NUM_INPUTS),), [INPUT_NAME], [OUTPUT_NAME], ({0: batch},)
+    program = torch.onnx.export(net, example, input_names=names, output_names=outputs,
                                 dynamo=True, external_data=False, opset_version=18,
-                                dynamic_shapes=({0: batch},), verbose=False, report=False)
+                                dynamic_shapes=dims, verbose=False, report=False)
     model = program.model_proto
     # The exporter annotates every value and node (source locations, export bookkeeping): half
     # the file for a model this small, and nothing a runtime reads.
@@ -116,9 +123,13 @@ def export_onnx(net: OrientationNet, path: Path, metadata: dict[str, str] | None
     for value in list(model.graph.input) + list(model.graph.output) + list(model.graph.initializer):
         del value.metadata_props[:]
     model.doc_string = ("Body-orientation network (docs/method.md §9). Input: 42 raw features "
-                        "(docs/orientation-model.md); output: 6D body rotation in the HMD-yaw frame.")
-    props = {"feature_order": ",".join(FEATURE_NAMES), "units": "m, s, rad; Y up; yaw 0 = +Z",
-             **(metadata or {})}
+                        "(docs/orientation-model.md); output: 6D body rotation in the HMD-yaw frame."
+                        if not state_size else
+                        "Recurrent body-orientation network (docs/orientation-model.md). Inputs: the 36 "
+                        "raw tracker features and the state (zeros after a reset); outputs: 6D body "
+                        "rotation in the HMD-yaw frame and the next state.")
+    props = {"feature_order": ",".join(FEATURE_NAMES[:36] if state_size else FEATURE_NAMES),
+             "units": "m, s, rad; Y up; yaw 0 = +Z", **(metadata or {})}
     del model.metadata_props[:]
     for k, v in props.items():
         entry = model.metadata_props.add()

@@ -41,6 +41,35 @@ class OnnxModel:
         return self.session.run(None, {self.input: np.ascontiguousarray(x, dtype=np.float32)})[0]
 
 
+class OnnxRecurrentModel:
+    """A recurrent model file (`gru.GruStep`): f(x (B, 36), h (B, H)) -> ((B, 6), (B, H))."""
+
+    recurrent = True
+
+    def __init__(self, path):
+        import onnxruntime as ort
+
+        opts = ort.SessionOptions()
+        opts.intra_op_num_threads = 1
+        opts.inter_op_num_threads = 1
+        self.session = ort.InferenceSession(str(path), sess_options=opts, providers=["CPUExecutionProvider"])
+        self.inputs = [i.name for i in self.session.get_inputs()]
+        self.state_size = int(self.session.get_inputs()[1].shape[1])
+
+    def __call__(self, x: np.ndarray, h: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        out, h2 = self.session.run(None, {self.inputs[0]: np.ascontiguousarray(x, dtype=np.float32),
+                                          self.inputs[1]: np.ascontiguousarray(h, dtype=np.float32)})
+        return out, h2
+
+
+def load_model(path):
+    """The model file at `path`: feed-back (1 input) or recurrent (features and state)."""
+    import onnx
+
+    inputs = onnx.load(str(path), load_external_data=False).graph.input
+    return OnnxRecurrentModel(path) if len(inputs) == 2 else OnnxModel(path)
+
+
 class TorchModel:
     def __init__(self, net):
         import torch
@@ -97,6 +126,24 @@ def run_network(model: Callable[[np.ndarray], np.ndarray], feats: np.ndarray, hm
         phi, ok = relative_yaw_of_output(out)
         body[:, t] = np.where(ok, hmd_yaw[:, t] + phi, previous)
         prev_world = body[:, t]
+    return body
+
+
+def run_recurrent(model, feats: np.ndarray, hmd_yaw: np.ndarray) -> np.ndarray:
+    """Body yaw (B, T) of a recurrent model from a zero state at frame 0 — the reference for the
+    recurrent path of `orientation-model.ts`: per frame, run (inputs 0..35, state); φ as for the
+    feed-back network; a non-finite or degenerate output keeps the previous body yaw (the HMD yaw
+    at the start) and a non-finite state starts again from zeros, so a NaN never stays."""
+    B, T, _ = feats.shape
+    h = np.zeros((B, model.state_size), dtype=np.float32)
+    body = np.zeros((B, T))
+    previous = hmd_yaw[:, 0].copy()
+    for t in range(T):
+        out, h = model(feats[:, t], h)
+        h = np.where(np.isfinite(h).all(axis=1, keepdims=True), h, 0.0).astype(np.float32)
+        phi, ok = relative_yaw_of_output(out)
+        previous = np.where(ok, hmd_yaw[:, t] + phi, previous)
+        body[:, t] = previous
     return body
 
 

@@ -61,3 +61,5 @@ export function assetBytes(url: string | URL): number {
 export const DEFAULT_DATABASE = 'databases/locomotion.mmdb';
 export const DEFAULT_AVATAR = 'avatars/ubc_male.glb';
 export const DEFAULT_ORIENTATION_MODEL = 'models/orientation.onnx';
+/** The orientation model for one controller or none (recurrent; docs/orientation-model.md). */
+export const DEFAULT_ORIENTATION_MODEL_FEWER_DEVICES = 'models/orientation_gru.onnx';

@@ -1,7 +1,7 @@
 /**
- * Browser benchmark of the orientation model (`bench.html`): median time per
- * `OrientationModel.update` (features + onnxruntime-web) on the parity fixture's poses, and the
- * largest difference to the recorded PyTorch outputs. Results in `window.__orientationBench`.
+ * Browser benchmark of the orientation models (`bench.html`): median time per
+ * `OrientationModel.update` (features + onnxruntime-web) on each parity fixture's poses, and the
+ * largest difference to the recorded PyTorch outputs — the main model and the recurrent one. Results in `window.__orientationBench`.
  */
 import { OrientationModel } from './orientation-model.ts';
 
@@ -14,6 +14,7 @@ interface BenchResult {
   medianMs: number;
   p95Ms: number;
   maxOutputError: number;
+  recurrent: { updates: number; medianMs: number; p95Ms: number; maxOutputError: number } | null;
 }
 
 declare global {
@@ -24,19 +25,24 @@ declare global {
 
 const result: BenchResult = {
   done: false, error: null, userAgent: navigator.userAgent, crossOriginIsolated,
-  updates: 0, medianMs: NaN, p95Ms: NaN, maxOutputError: NaN,
+  updates: 0, medianMs: NaN, p95Ms: NaN, maxOutputError: NaN, recurrent: null,
 };
 window.__orientationBench = result;
 const out = document.getElementById('out') as HTMLElement;
 
-async function main(): Promise<void> {
-  const fixture = (await (await fetch('/training/fixtures/orientation_parity.json')).json()) as {
-    sequence: { dt: number[]; positions: number[][]; quaternions: number[][]; outputs: number[][] };
-  };
-  const seq = fixture.sequence;
-  const model = await OrientationModel.create(`${import.meta.env.BASE_URL}models/orientation.onnx`);
+interface Sequence {
+  dt: number[];
+  positions: number[][];
+  quaternions: number[][];
+  outputs: number[][];
+}
+
+/** Median and p95 ms per update of the model at `modelPath` on a fixture's poses, and its largest output difference. */
+async function benchModel(modelPath: string, fixturePath: string): Promise<{ updates: number; medianMs: number; p95Ms: number; maxOutputError: number }> {
+  const seq = ((await (await fetch(fixturePath)).json()) as { sequence: Sequence }).sequence;
+  const model = await OrientationModel.create(`${import.meta.env.BASE_URL}${modelPath}`);
   const n = seq.dt.length;
-  // Parity pass: the recorded PyTorch outputs, frame by frame in the feedback loop.
+  // Parity pass: the recorded PyTorch outputs, frame by frame in the model's loop.
   let maxErr = 0;
   for (let t = 0; t < n; t++) {
     await model.update(seq.positions[t], seq.quaternions[t], seq.dt[t]);
@@ -56,9 +62,13 @@ async function main(): Promise<void> {
   }
   per.sort((a, b) => a - b);
   await model.release();
-  Object.assign(result, {
-    updates: per.length * batch, medianMs: per[per.length >> 1], p95Ms: per[Math.floor(per.length * 0.95)], maxOutputError: maxErr,
-  });
+  return { updates: per.length * batch, medianMs: per[per.length >> 1], p95Ms: per[Math.floor(per.length * 0.95)], maxOutputError: maxErr };
+}
+
+async function main(): Promise<void> {
+  Object.assign(result, await benchModel('models/orientation.onnx', '/training/fixtures/orientation_parity.json'));
+  // The recurrent model for one controller or none (the VR page runs both every frame).
+  result.recurrent = await benchModel('models/orientation_gru.onnx', '/training/fixtures/orientation_gru_parity.json');
   out.textContent = JSON.stringify(result, null, 1);
 }
 

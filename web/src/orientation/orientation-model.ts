@@ -12,10 +12,18 @@
  *   4. body yaw = HMD yaw + φ (radians, 0 = facing +Z, as the character's yaw).
  * A previous body yaw that is not finite counts as a reset (previous slot 0, fallback the HMD
  * yaw), so the loop can never keep a NaN.
+ *
+ * A **recurrent** model file (two inputs, `features` [1, 36] and `state` [1, H]; two outputs,
+ * the 6D and `state_out`: `training/orientation/gru.py`) is run the same way, except that
+ * step 2 is its state instead of the previous slot: zeros after `reset()`, the last `state_out`
+ * otherwise, and zeros again whenever it comes back not finite (`predictors.py::run_recurrent`).
  */
 import * as ort from 'onnxruntime-web/wasm';
 import { wrapAngle } from '../yaw.ts';
 import { NUM_INPUTS, OrientationFeatures } from './features.ts';
+
+/** Inputs 0..35: the three trackers' features (a recurrent model takes only these). */
+const TRACKER_INPUTS = 36;
 
 /** The model the app serves (relative to the page). */
 export const DEFAULT_MODEL_URL = 'models/orientation.onnx';
@@ -36,13 +44,34 @@ export class OrientationModel {
   private _relativeYaw = 0;
   private hasYaw = false;
   private busy = false;
+  /** Recurrent models: the tracker inputs (0..35) and the state fed in, filled in place. */
+  private readonly trackerInput: Float32Array | null;
+  private readonly state: Float32Array | null;
+  private readonly stateOutputName: string | null;
 
-  private constructor(private readonly session: ort.InferenceSession) {
-    // The input tensor wraps the features' array: filled in place every frame, never copied by
-    // us. (onnxruntime-web 1.30 leaves a pre-allocated CPU output tensor unwritten, so the
-    // result is copied out of the tensor it returns; that allocation is the runtime's.)
-    this.feeds = { [session.inputNames[0]]: new ort.Tensor('float32', this.features.input, [1, NUM_INPUTS]) };
+  private constructor(
+    private readonly session: ort.InferenceSession,
+    stateSize: number,
+  ) {
+    // The input tensors wrap our arrays: filled in place every frame, never copied by us.
+    // (onnxruntime-web 1.30 leaves a pre-allocated CPU output tensor unwritten, so the result
+    // is copied out of the tensor it returns; that allocation is the runtime's.)
+    const [input, stateInput] = session.inputNames;
+    if (stateSize > 0) {
+      this.trackerInput = new Float32Array(TRACKER_INPUTS);
+      this.state = new Float32Array(stateSize);
+      this.stateOutputName = session.outputNames[1];
+      this.feeds = { [input]: new ort.Tensor('float32', this.trackerInput, [1, TRACKER_INPUTS]), [stateInput]: new ort.Tensor('float32', this.state, [1, stateSize]) };
+    } else {
+      this.trackerInput = this.state = this.stateOutputName = null;
+      this.feeds = { [input]: new ort.Tensor('float32', this.features.input, [1, NUM_INPUTS]) };
+    }
     this.outputName = session.outputNames[0];
+  }
+
+  /** Whether the model is recurrent (carries a state instead of the fed-back yaw). */
+  get recurrent(): boolean {
+    return this.state !== null;
   }
 
   /**
@@ -62,11 +91,15 @@ export class OrientationModel {
       const what = typeof source === 'string' ? source : `${source.byteLength} bytes`;
       throw new Error(`OrientationModel: cannot load the ONNX model (${what}): ${e instanceof Error ? e.message : String(e)}`);
     }
-    if (session.inputNames.length !== 1 || session.outputNames.length !== 1) {
-      await session.release();
-      throw new Error(`OrientationModel: expected 1 input and 1 output, the model has ${session.inputNames.length} and ${session.outputNames.length}`);
-    }
-    return new OrientationModel(session);
+    const inputs = session.inputNames.length;
+    const outputs = session.outputNames.length;
+    if (inputs === 1 && outputs === 1) return new OrientationModel(session, 0);
+    // Recurrent: the state's size is the second input's second dimension.
+    const meta = session.inputMetadata[1];
+    const size = inputs === 2 && outputs === 2 && meta?.isTensor ? meta.shape[1] : NaN;
+    if (typeof size === 'number' && Number.isInteger(size) && size >= 1 && size <= 4096) return new OrientationModel(session, size);
+    await session.release();
+    throw new Error(`OrientationModel: expected 1 input and 1 output (or features and a fixed-size state in, 6D and the state out), the model has ${inputs} and ${outputs}`);
   }
 
   /** Predicted body yaw, world (local-floor) radians, 0 = facing +Z. */
@@ -97,10 +130,19 @@ export class OrientationModel {
       const f = this.features;
       f.update(positions, quaternions, dt);
       const known = this.hasYaw && Number.isFinite(this._bodyYaw);
-      f.setPrevious(known ? wrapAngle(this._bodyYaw - f.hmdYaw) : 0);
+      if (this.trackerInput) this.trackerInput.set(f.input.subarray(0, TRACKER_INPUTS));
+      else f.setPrevious(known ? wrapAngle(this._bodyYaw - f.hmdYaw) : 0);
       const result = await this.session.run(this.feeds);
       const o = this.output;
       o.set(result[this.outputName].data as Float32Array);
+      const state = this.state;
+      if (state) {
+        const next = result[this.stateOutputName!].data as Float32Array;
+        let finite = next.length === state.length;
+        for (let i = 0; finite && i < next.length; i++) finite = Number.isFinite(next[i]);
+        if (finite) state.set(next);
+        else state.fill(0); // a NaN state would stay NaN: start the memory again
+      }
       const cs = o[0];
       const sn = -o[2];
       if (Number.isFinite(cs) && Number.isFinite(sn) && Math.hypot(cs, sn) > 1e-6) {
@@ -123,6 +165,7 @@ export class OrientationModel {
   /** Starts over (new session, recentred space, long pause): no velocities, previous = HMD forward. */
   reset(): void {
     this.features.reset();
+    this.state?.fill(0);
     this.hasYaw = false;
     this._bodyYaw = 0;
     this._relativeYaw = 0;

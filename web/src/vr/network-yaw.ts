@@ -13,11 +13,18 @@
  * Inputs are the tracker state's output poses (a missing or frozen controller is the hanging
  * hand trackers.ts shows; the network was trained with controllers that stop moving, which a
  * hand hanging at the side resembles more than a pose left floating in the room).
+ *
+ * A model per device set: with `fewer` (the recurrent model, docs/orientation-model.md), both
+ * run every frame — so each is warm whenever the set changes — and the yaw is the main model's
+ * while both hands are tracked (controllers or hands), the `fewer` one's with one controller or
+ * none (held-out people: 23° against 26° with one controller, 25° against 31° headset-only).
+ * The drive springs the yaw it is given, so a switch does not pop.
  */
 import type { OrientationModel } from '../orientation/orientation-model.ts'; // type only: onnxruntime loads on demand
 import { type BodyYawPredictor, type TrackerPose } from './body-yaw.ts';
 import { type FetchOptions, fetchBytes } from '../fetch.ts';
 import { headingYaw } from '../yaw.ts';
+import { TRACKED } from './trackers.ts';
 
 export class NetworkYawPredictor implements BodyYawPredictor {
   readonly name = 'network';
@@ -53,9 +60,24 @@ export class NetworkYawPredictor implements BodyYawPredictor {
     this.lastError = e instanceof Error ? e.message : String(e);
   };
 
-  constructor(readonly model: OrientationModel) {}
+  /** Whether the last update's yaw came from `fewer` (a controller was missing). */
+  usingFewer = false;
+
+  /** `fewer`: the model for one controller or none (optional). */
+  constructor(
+    readonly model: OrientationModel,
+    readonly fewer: NetworkYawPredictor | null = null,
+  ) {}
 
   update(hmd: TrackerPose, left: TrackerPose, right: TrackerPose, dt: number): number {
+    const own = this.updateOwn(hmd, left, right, dt);
+    if (!this.fewer) return own;
+    const other = this.fewer.update(hmd, left, right, dt);
+    this.usingFewer = left.status !== TRACKED || right.status !== TRACKED;
+    return this.usingFewer ? other : own;
+  }
+
+  private updateOwn(hmd: TrackerPose, left: TrackerPose, right: TrackerPose, dt: number): number {
     const q = hmd.rotation;
     if (!this.started) {
       // Until the first run finishes the body faces where the head looks (the model's own
@@ -95,10 +117,12 @@ export class NetworkYawPredictor implements BodyYawPredictor {
 
   /** Resolves when the pending run (if any) has finished: replays call it between frames. */
   settle(): Promise<void> {
-    return this.pending ?? Promise.resolve();
+    const own = this.pending ?? Promise.resolve();
+    return this.fewer ? Promise.all([own, this.fewer.settle()]).then(() => undefined) : own;
   }
 
   reset(): void {
+    this.fewer?.reset();
     this.generation++;
     this.started = false;
     this.pendingDt = 0;
@@ -113,7 +137,19 @@ export class NetworkYawPredictor implements BodyYawPredictor {
  * through the library's fetch (progress, a URL in every message, the cache for a versioned URL).
  * Rejects with a message the page shows when it cannot.
  */
-export async function loadNetworkPredictor(url: string | URL, options: FetchOptions = {}): Promise<NetworkYawPredictor> {
-  const [{ OrientationModel }, bytes] = await Promise.all([import('../orientation/orientation-model.ts'), fetchBytes(url, { stage: 'model', ...options })]);
-  return new NetworkYawPredictor(await OrientationModel.create(bytes));
+export async function loadNetworkPredictor(url: string | URL, options: FetchOptions & { fewerDevices?: string | URL | null } = {}): Promise<NetworkYawPredictor> {
+  const { fewerDevices, ...fetchOptions } = options;
+  const fetchModel = (u: string | URL) => fetchBytes(u, { stage: 'model', ...fetchOptions });
+  // The per-set model is optional: without it (not served, broken) the main model serves every set.
+  const fewer = fewerDevices ? fetchModel(fewerDevices).catch((e: unknown) => (console.warn(`one-controller/headset-only model unavailable (${String(fewerDevices)}): ${String(e)}`), null)) : null;
+  const [{ OrientationModel }, bytes, fewerBytes] = await Promise.all([import('../orientation/orientation-model.ts'), fetchModel(url), fewer]);
+  let fewerModel: NetworkYawPredictor | null = null;
+  if (fewerBytes) {
+    try {
+      fewerModel = new NetworkYawPredictor(await OrientationModel.create(fewerBytes));
+    } catch (e) {
+      console.warn(`one-controller/headset-only model unusable (${String(fewerDevices)}): ${String(e)}`);
+    }
+  }
+  return new NetworkYawPredictor(await OrientationModel.create(bytes), fewerModel);
 }

@@ -14,7 +14,7 @@
 import * as THREE from 'three';
 import { Reflector } from 'three/addons/objects/Reflector.js';
 import {
-  DEFAULT_ALPHA, DEFAULT_AVATAR, DEFAULT_DATABASE, DEFAULT_ORIENTATION_MODEL, EnterVrButton, FollowCamera, HeadingYawPredictor, LEFT, LoadingStatus,
+  DEFAULT_ALPHA, DEFAULT_AVATAR, DEFAULT_DATABASE, DEFAULT_ORIENTATION_MODEL, DEFAULT_ORIENTATION_MODEL_FEWER_DEVICES, EnterVrButton, FollowCamera, HeadingYawPredictor, LEFT, LoadingStatus,
   FIRST_PERSON_LAYER, FirstPerson, deviceSetName, type NetworkYawPredictor, RIGHT, RecordingPlayer, RoomPanel, SpectatorView, Stage, TrackedDrive, TrackerRecorder, TrackerSample, UpdateTimer, assetUrl,
   benchReplay, encodeRecordingJson, errorMessage, loadNetworkPredictor, loadPageCharacter, loadRecording, registerOfflineCache, sampleXRFrame,
   THIRD_PERSON_LAYER, saveTextFile, scriptedSample, setHeadsetView, showError,
@@ -24,7 +24,7 @@ const $ = <T extends HTMLElement>(id: string) => document.getElementById(id) as 
 const hook = {
   ready: false, error: null as string | null, mode: 'idle' as 'idle' | 'xr' | 'replay', inXR: false, frames: 0,
   head: [0, 0], hmd: [0, 0, 0], root: [0, 0, 0], rootYaw: 0, bodyYaw: 0,
-  predictor: '', predictorFallback: null as string | null, networkLoaded: false, predictorRuns: 0, predictorSkipped: 0, predictorFailures: 0,
+  predictor: '', predictorFallback: null as string | null, networkLoaded: false, predictorRuns: 0, predictorSkipped: 0, predictorFailures: 0, yawModel: '',
   alpha: DEFAULT_ALPHA, hipsHeight: NaN, toeHeights: [NaN, NaN], hipsDrop: 0, avatarScale: 1, handErrors: [NaN, NaN], trackerStatus: [0, 0, 0],
   updateMs: { median: NaN, p95: NaN, last: NaN }, replayDone: false, replayDuration: NaN, bench: null as Awaited<ReturnType<typeof benchReplay>> | null,
   eyeHeight: NaN, headTrianglesHidden: 0, deviceSet: '', hands: [0, 0, 0, 0, 0, 0], views: () => ({ headsetWhole: false, headsetHeadless: false, spectatorWhole: false, pageWhole: false }), emulator: null as unknown, beforeFrame: null as ((frame: number) => void) | null,
@@ -103,7 +103,7 @@ async function main(): Promise<void> {
     status.title = hook.predictorFallback ?? `model: ${modelUrl}`;
     status.classList.toggle('fallback', failed);
   };
-  const loadNetwork = () => (networkLoad ??= loadNetworkPredictor(modelUrl).then((n) => {
+  const loadNetwork = () => (networkLoad ??= loadNetworkPredictor(modelUrl, { fewerDevices: params.get('model') ? null : assetUrl(DEFAULT_ORIENTATION_MODEL_FEWER_DEVICES) }).then((n) => {
     [network, hook.networkLoaded] = [n, true];
     choosePredictor(params.get('predictor') === 'heuristic' ? 'heuristic' : 'network');
   }, (e: unknown) => {
@@ -219,7 +219,7 @@ async function main(): Promise<void> {
     [hook.hmd[0], hook.hmd[1], hook.hmd[2]] = tr.head.position;
     [hook.root[0], hook.root[1], hook.root[2], hook.rootYaw, hook.bodyYaw] = [root.x, root.y, root.z, root.yaw, drive.yaw];
     hook.predictor = drive.predictor.name;
-    if (network) [hook.predictorRuns, hook.predictorSkipped, hook.predictorFailures] = [network.runs, network.skipped, network.failures];
+    if (network) [hook.predictorRuns, hook.predictorSkipped, hook.predictorFailures, hook.yawModel] = [network.runs, network.skipped, network.failures + (network.fewer?.failures ?? 0), network.usingFewer ? 'fewer devices' : 'main'];
     hook.hipsHeight = hips ? hips.matrixWorld.elements[13] : NaN;
     const scale = character.object3d.scale.x;
     [hook.toeHeights[0], hook.toeHeights[1]] = character.avatar ? character.avatar.toeHeights.map((h) => h * scale) : [NaN, NaN];
