@@ -20,10 +20,10 @@
  */
 import * as ort from 'onnxruntime-web/wasm';
 import { wrapAngle } from '../yaw.ts';
-import { NUM_INPUTS, OrientationFeatures } from './features.ts';
+import { NUM_INPUTS, OrientationFeatures, PREV_OFFSET } from './features.ts';
 
-/** Inputs 0..35: the three trackers' features (a recurrent model takes only these). */
-const TRACKER_INPUTS = 36;
+/** Inputs before the previous slot: the three trackers' features (a recurrent model takes only these). */
+const TRACKER_INPUTS = PREV_OFFSET;
 
 /** The model the app serves (relative to the page). */
 export const DEFAULT_MODEL_URL = 'models/orientation.onnx';
