@@ -220,7 +220,9 @@ test('replay of a synthetic held-in recording with the benchmark: loose bounds',
   await page.setViewportSize({ width: 480, height: 300 });
   const errors = collectErrors(page);
   await muteHmr(page);
-  await page.goto('/vr.html?replay=recordings/walk.json&bench=1&mirror=0&alpha=0.3');
+  // dt=fixed: the live frames after the bench replay the walk at 1/60 s a frame; at wall-clock
+  // dt (0.1 s frames on a loaded machine) the hands were 1–4 cm off after 30 frames half the time.
+  await page.goto('/vr.html?replay=recordings/walk.json&bench=1&mirror=0&alpha=0.3&dt=fixed');
   await page.waitForFunction(() => window.__vr?.ready || window.__vr?.error, null, { timeout: 90_000 });
   expect(await page.evaluate(() => window.__vr.error)).toBeNull();
   const b = (await page.evaluate(() => window.__vr.bench))!;
