@@ -22,7 +22,7 @@ import numpy as np
 
 import mmdb
 
-from .geometry import quat_from_basis, quat_hemisphere
+from .geometry import quat_conj, quat_from_basis, quat_hemisphere, quat_rotate
 
 TRAINING = Path(__file__).resolve().parent.parent
 REPO = TRAINING.parent
@@ -153,6 +153,50 @@ def rig_of(db: mmdb.Database) -> Rig:
     return Rig(site["head"], (site["left_hand"], site["right_hand"]), hmd_align, np.array(grips), np.array(axes))
 
 
+# The headset's pitch, on average, while walking forward: the gaze a few steps ahead.
+WALKING_GAZE_PITCH = np.radians(-10.0)
+# Forward walking needed to calibrate the headset from the motion (else the rest pose's frame).
+MIN_CALIBRATION_SECONDS = 1.0
+
+
+def calibrate_headset(clips: list["MocapClip"], log=print) -> Rig | None:
+    """The rig with `hmd_align` measured from the motion instead of the rest pose, or None when
+    the clips hold under `MIN_CALIBRATION_SECONDS` of forward walking.
+
+    A mocap head segment's frame is whatever the capture's calibration made it (CMU's head
+    markers sit on a cap): at rest its "forward" is off the face by a constant per skeleton —
+    here from −18° (CMU Daz 12) to +42° (CMU 03) in yaw and down to −50° in pitch, where a
+    worn headset looks where the face does. Walking forward, people look where they go: the
+    viewer's −Z is taken as the mean, in the head's frame, of the direction of travel pitched
+    down by `WALKING_GAZE_PITCH`, with no roll (its +Y the mean world up, made orthogonal).
+    One rig per database and side (a mirrored clip's head frame is mirrored too).
+    """
+    from .motion_classes import CLASSES, travel_of
+
+    forward = CLASSES.index("forward")
+    views, ups, seconds = [], [], 0.0
+    for c in clips:
+        _, travel = travel_of(c.root_pos, c.fps)
+        walk = c.classes == forward
+        if not walk.any():
+            continue
+        seconds += walk.sum() / c.fps
+        g = np.stack([np.sin(travel[walk]) * np.cos(WALKING_GAZE_PITCH), np.full(walk.sum(), np.sin(WALKING_GAZE_PITCH)),
+                      np.cos(travel[walk]) * np.cos(WALKING_GAZE_PITCH)], axis=-1)
+        inv = quat_conj(c.head_rot[walk])
+        views.append(quat_rotate(inv, g))
+        ups.append(quat_rotate(inv, np.broadcast_to([0.0, 1.0, 0.0], g.shape)))
+    if seconds < MIN_CALIBRATION_SECONDS:
+        return None
+    view = np.concatenate(views).mean(axis=0)
+    z = -view / np.linalg.norm(view)
+    up = np.concatenate(ups).mean(axis=0)
+    y = up - np.dot(up, z) * z
+    y /= np.linalg.norm(y)
+    rig = clips[0].rig
+    return Rig(rig.head, rig.hands, quat_from_basis(np.cross(y, z), y, z), rig.grip_align, rig.hand_axis)
+
+
 @dataclass
 class MocapClip:
     """World transforms of one clip at the database rate, float64."""
@@ -208,6 +252,11 @@ def load_clips(path: Path, subject: str, mirrored: bool | None = None) -> list[M
             hand_pos=np.stack([pos[sl, j] for j in rig.hands]),
             hand_rot=np.stack([quat_hemisphere(rot[sl, j]) for j in rig.hands]),
             rig=rig))
+    for side in (False, True):
+        group = [c for c in clips if c.mirrored == side]
+        calibrated = calibrate_headset(group) if group else None
+        for c in group:
+            c.rig = calibrated or rig
     return clips
 
 

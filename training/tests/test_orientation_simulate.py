@@ -6,9 +6,10 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
+import mmdb
 from orientation import data
 from orientation.features import tracker_features
-from orientation.geometry import hmd_yaw, quat_rotate, rotate_y, wrap_angle
+from orientation.geometry import hmd_yaw, quat_mul, quat_rotate, rotate_y, wrap_angle
 from orientation.simulate import EVAL_AUGMENT, TRAIN_AUGMENT, Augment, simulate, spring_process
 
 QUIET = Augment(speed=(1.0, 1.0), dropped_frame_prob=0.0, look_around=False, global_yaw=False,
@@ -33,7 +34,7 @@ def test_split_is_by_subject():
 
 
 def test_rig_follows_the_webxr_frames(clips):
-    rig = clips[0].rig
+    rig = data.rig_of(mmdb.load(data.ensure_database("cmu-daz", "05", log=lambda *_: None)))
     # Rest pose faces +Z: the HMD (looking down its −Z) then looks along +Z, up is +Y.
     assert np.allclose(quat_rotate(rig.hmd_align, [0, 0, -1.0]), [0, 0, 1], atol=1e-6)
     assert np.allclose(quat_rotate(rig.hmd_align, [0, 1.0, 0]), [0, 1, 0], atol=1e-6)
@@ -44,6 +45,33 @@ def test_rig_follows_the_webxr_frames(clips):
         assert np.dot(quat_rotate(rig.grip_align[s], [0, 1.0, 0]), rig.hand_axis[s]) < -0.99
         assert quat_rotate(rig.grip_align[s], [1.0, 0, 0])[1] * sign < -0.9
     assert rig.hand_axis[0][0] > 0.9 and rig.hand_axis[1][0] < -0.9, "left hand on +X (facing +Z)"
+
+
+@pytest.mark.parametrize("folder,subject", [("cmu-asf", "03"), ("cmu-daz", "12"), ("100style", "Angry")])
+def test_headset_is_calibrated_from_the_walk(folder, subject, mocap, mmdb_cli):
+    """Mocap head frames are off the face by a constant (CMU 03: +42° of yaw, 100STYLE: −45° of
+    pitch at rest); the calibrated headset looks where the person walks, 10° down, no roll."""
+    from orientation.motion_classes import CLASSES, travel_of
+
+    path = data.ensure_database(folder, subject, log=lambda *_: None)
+    rest = data.rig_of(mmdb.load(path))
+    for side in (False, True):
+        clips = data.load_clips(path, data.subject_name(folder, subject), mirrored=side)
+        assert not np.allclose(clips[0].rig.hmd_align, rest.hmd_align, atol=1e-3)
+        yaw_off, pitch = [], []
+        for c in clips:
+            walk = c.classes == CLASSES.index("forward")
+            q = quat_mul(c.head_rot[walk], np.broadcast_to(c.rig.hmd_align, (walk.sum(), 4)))
+            view = quat_rotate(q, np.broadcast_to([0, 0, -1.0], (walk.sum(), 3)))
+            yaw_off.append(wrap_angle(hmd_yaw(q) - travel_of(c.root_pos, c.fps)[1][walk]))
+            pitch.append(np.arcsin(view[:, 1]))
+        assert abs(np.degrees(np.median(np.concatenate(yaw_off)))) < 4.0, (folder, subject, side)
+        assert abs(np.degrees(np.median(np.concatenate(pitch))) + 10.0) < 4.0, (folder, subject, side)
+
+
+def test_headset_calibration_needs_a_walk(clips):
+    standing = replace(clips[0], root_pos=np.zeros_like(clips[0].root_pos))
+    assert data.calibrate_headset([standing]) is None
 
 
 def test_devices_sit_on_the_body(clips):
