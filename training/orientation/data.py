@@ -189,9 +189,13 @@ def calibrate_headset(clips: list["MocapClip"], log=print) -> Rig | None:
     if seconds < MIN_CALIBRATION_SECONDS:
         return None
     view = np.concatenate(views).mean(axis=0)
-    z = -view / np.linalg.norm(view)
     up = np.concatenate(ups).mean(axis=0)
-    y = up - np.dot(up, z) * z
+    y = up - np.dot(up, view) * view / max(np.dot(view, view), 1e-12)
+    if not (np.linalg.norm(view) > 0.5 and np.linalg.norm(y) > 0.1):
+        log(f"{clips[0].subject}: the head turns too much while walking to calibrate the headset; "
+            f"the rest pose's frame is kept")
+        return None
+    z = -view / np.linalg.norm(view)
     y /= np.linalg.norm(y)
     rig = clips[0].rig
     return Rig(rig.head, rig.hands, quat_from_basis(np.cross(y, z), y, z), rig.grip_align, rig.hand_axis)
