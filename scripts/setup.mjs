@@ -423,7 +423,10 @@ async function stepRecordings() {
     const script = path.join(ROOT, 'training', 'make_recordings.py');
     if (!fs.existsSync(script)) return 'no training/make_recordings.py';
     const index = path.join(ROOT, 'public', 'recordings', 'index.json');
-    if (mtime(index) > mtime(script) && mtime(index) > mtime(MMDB_BIN)) return `${path.relative(ROOT, index)} is newer than its generator`;
+    // The generator is the script and the tracker simulation it runs (a calibration change there
+    // changes every recording).
+    const sources = [script, MMDB_BIN, ...['data.py', 'simulate.py', 'motion_classes.py', 'geometry.py'].map((f) => path.join(ROOT, 'training', 'orientation', f))];
+    if (sources.every((f) => mtime(index) > mtime(f))) return `${path.relative(ROOT, index)} is newer than its generator`;
     await run(py, [script, '--force'], { cwd: path.join(ROOT, 'training') });
   });
 }
