@@ -34,7 +34,7 @@ import numpy as np
 
 from . import data
 from .motion_classes import CLASSES
-from .predictors import dead_zone, hmd_forward, load_model, run_network, run_recurrent, sequence_features, yaw_error_deg
+from .predictors import dead_zone, hmd_forward, load_model, page_yaw, run_network, run_recurrent, sequence_features, yaw_error_deg
 from .simulate import EVAL_AUGMENT, TrackerSequence, hanging_pose, simulate, without_look_around
 from .train import MODELS_DIR, PUBLIC_MODEL
 
@@ -57,6 +57,7 @@ def with_absent(seq: TrackerSequence, absent: tuple[int, ...]) -> TrackerSequenc
     return replace(seq, pos=pos, rot=rot)
 
 GRU_MODEL = data.REPO / "public" / "models" / "orientation_gru.onnx"
+PREDICTORS_MAIN = "network r=50"
 PREDICTORS = {
     "network r=50": PUBLIC_MODEL,
     "GRU (the one-controller and headset-only model)": GRU_MODEL,
@@ -64,6 +65,9 @@ PREDICTORS = {
     "network r=50, trained without look-around": MODELS_DIR / "orientation_nolook.onnx",
 }
 BASELINES = ("HMD forward", "dead zone 25°")
+# What the VR page does (web/src/vr/network-yaw.ts): with both hands tracked the mean of the two
+# models' yaws, with one controller or none the recurrent model's.
+PAGE = "VR page (both hands: network ⊕ GRU; fewer: GRU)"
 
 
 def held_out_sequences(look_around: bool, seed: int = EVAL_SEED, fps_list=EVAL_FPS, clips=None,
@@ -99,8 +103,10 @@ def stats(err: np.ndarray, times: np.ndarray, lengths: np.ndarray, where: np.nda
     return Result(e, float(v.mean()), float(np.median(v)), float(np.percentile(v, 95)))
 
 
-def evaluate(seqs: list[TrackerSequence], models: dict[str, object]) -> tuple[dict[str, Result], dict]:
-    """Errors of every predictor (name -> Result) on the sequences; also the padded arrays."""
+def evaluate(seqs: list[TrackerSequence], models: dict[str, object], absent: tuple[int, ...] = ()) -> tuple[dict[str, Result], dict]:
+    """Errors of every predictor (name -> Result) on the sequences; also the padded arrays. With
+    the committed network and the recurrent model among `models`, also the VR page's choice
+    (`PAGE`) for the device set that leaves the controllers `absent`."""
     feats, hmd, lengths = sequence_features(seqs)
     B, T = hmd.shape
     truth = np.zeros((B, T))
@@ -114,6 +120,9 @@ def evaluate(seqs: list[TrackerSequence], models: dict[str, object]) -> tuple[di
         if s.classes is not None:
             classes[b, :n] = s.classes
     preds = {name: (run_recurrent if getattr(m, 'recurrent', False) else run_network)(m, feats, hmd) for name, m in models.items()}
+    main, recurrent = PREDICTORS_MAIN, next((n for n, m in models.items() if getattr(m, "recurrent", False)), None)
+    if main in preds and recurrent:
+        preds[PAGE] = page_yaw(preds[main], preds[recurrent], dt, bool(absent))
     preds["HMD forward"] = hmd_forward(hmd)
     preds["dead zone 25°"] = dead_zone(hmd, dt)
     out = {name: stats(yaw_error_deg(p, truth), times, lengths) for name, p in preds.items()}
@@ -180,7 +189,7 @@ def plots(results: dict[str, dict[str, Result]], arrays: dict[str, dict], seqs: 
     res, arr = results[cond], arrays[cond]
     colors = {"network r=50": "#1f77b4", "network r=1": "#ff7f0e",
               "network r=50, trained without look-around": "#9467bd",
-              "GRU (the one-controller and headset-only model)": "#17becf",
+              "GRU (the one-controller and headset-only model)": "#17becf", PAGE: "#000000",
               "HMD forward": "#d62728", "dead zone 25°": "#2ca02c"}
     written = []
 
@@ -246,10 +255,10 @@ def run(quick: bool = False, make_plots: bool = True, models: dict[str, Path] | 
     log(f"held-out subjects {', '.join(data.subject_name(*s) for s in data.TEST_SUBJECTS)}: "
         f"{len(clips)} takes × {len(EVAL_FPS)} frame rates × 2 conditions, {frames} scored frames")
     written = plots(results, arrays, seqs) if make_plots else []
-    nets = [n for n in loaded] + ["HMD forward"]
+    nets = [PAGE] * (PAGE in arrays["with look-around"]["preds"]) + [n for n in loaded] + ["HMD forward"]
     # The page's per-set choice: the feed-back network with two controllers, the GRU with fewer.
     per_set = {n: m for n, m in loaded.items() if n == next(iter(loaded)) or getattr(m, "recurrent", False)}
-    sets = {name: evaluate([with_absent(q, absent) for q in seqs["with look-around"]], per_set)[0]
+    sets = {name: evaluate([with_absent(q, absent) for q in seqs["with look-around"]], per_set, absent)[0]
             for name, absent in DEVICE_SETS.items()}
     return results, written, per_subject(results, seqs), class_table(arrays["with look-around"], nets), sets
 

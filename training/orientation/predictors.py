@@ -147,6 +147,31 @@ def run_recurrent(model, feats: np.ndarray, hmd_yaw: np.ndarray) -> np.ndarray:
     return body
 
 
+RECURRENT_WARMUP = 1.5  # s of input after a reset before the recurrent model's yaw is used (network-yaw.ts)
+BLEND_RATE = 2.0  # per second: how fast the recurrent model's weight moves to its target
+
+
+def page_yaw(main: np.ndarray, recurrent: np.ndarray, dt: np.ndarray, fewer) -> np.ndarray:
+    """The VR page's body yaw (B, T) (`network-yaw.ts`): the recurrent model's weight targets ½
+    (the mean on the circle of both models) with both hands tracked and 1 with fewer devices
+    (`fewer`: a bool or a (B, T) mask), 0 until the recurrent model has had `RECURRENT_WARMUP`
+    s of input (summed dt, the first frame's included), and moves there at `BLEND_RATE` a
+    second; where the weighted vectors cancel, the main model's yaw."""
+    fewer = np.broadcast_to(np.asarray(fewer, dtype=bool), main.shape)
+    age = np.cumsum(dt, axis=1)
+    w = np.zeros(main.shape[0])
+    out = np.empty_like(main)
+    for t in range(main.shape[1]):
+        target = np.where(age[:, t] < RECURRENT_WARMUP, 0.0, np.where(fewer[:, t], 1.0, 0.5))
+        step = BLEND_RATE * np.maximum(dt[:, t], 0.0)
+        w = w + np.clip(target - w, -step, step)
+        s = (1 - w) * np.sin(main[:, t]) + w * np.sin(recurrent[:, t])
+        c = (1 - w) * np.cos(main[:, t]) + w * np.cos(recurrent[:, t])
+        mixed = np.where(np.hypot(s, c) > 1e-6, np.arctan2(s, c), main[:, t])
+        out[:, t] = np.where(w == 0, main[:, t], np.where(w == 1, recurrent[:, t], mixed))
+    return out
+
+
 def hmd_forward(hmd_yaw: np.ndarray) -> np.ndarray:
     """Baseline: the body faces where the head looks."""
     return hmd_yaw.copy()

@@ -25,11 +25,12 @@ from . import data
 from .features import tracker_features
 from .geometry import hmd_yaw, wrap_angle
 from .motion_classes import CLASSES
-from .predictors import OnnxModel, run_network
+from .predictors import OnnxModel, load_model, page_yaw, run_network, run_recurrent
 
 RECORDINGS = data.REPO / "public" / "recordings"
 VR_DATABASE = data.REPO / "public" / "databases" / "vr.mmdb"
 MODEL = data.REPO / "public" / "models" / "orientation.onnx"
+GRU_MODEL = data.REPO / "public" / "models" / "orientation_gru.onnx"
 
 
 def load(path: Path) -> dict:
@@ -42,9 +43,13 @@ def load(path: Path) -> dict:
     return rec
 
 
-def network_yaw(model, rec: dict) -> np.ndarray:
+def network_yaw(model, rec: dict, recurrent=None) -> np.ndarray:
+    """The page's body yaw for a recording whose controllers stay tracked: the network's, or
+    with the recurrent model the mean of both once it has warmed up (`network-yaw.ts`)."""
     feats, yaw = tracker_features(rec["_pos"], rec["_rot"], rec["_dt"])
-    return run_network(model, feats[None].astype(np.float32), yaw[None])[0]
+    x = feats[None].astype(np.float32)
+    body = run_network(model, x, yaw[None])[0]
+    return body if recurrent is None else page_yaw(body[None], run_recurrent(recurrent, x, yaw[None]), rec["_dt"][None], False)[0]
 
 
 def replay(db: Path, rec_path: Path, yaw: np.ndarray | str, alpha: float, cli: Path = data.MMDB_BIN,
@@ -80,10 +85,12 @@ def yaw_errors(pred: np.ndarray, rec: dict) -> dict:
 
 def run(recordings: list[Path], db: Path, alpha: float, model_path: Path, settings: str | None = None, log=print) -> list[dict]:
     model = OnnxModel(model_path)
+    # The committed network is run as the page runs it: with the recurrent model beside it.
+    recurrent = load_model(GRU_MODEL) if Path(model_path) == MODEL and GRU_MODEL.is_file() else None
     rows = []
     for path in recordings:
         rec = load(path)
-        yaw = network_yaw(model, rec)
+        yaw = network_yaw(model, rec, recurrent)
         row = {"recording": path.stem, "heldIn": rec["meta"].get("heldIn"), "seconds": rec["time"][-1] - rec["time"][0]}
         row["network"] = replay(db, path, yaw, alpha, settings=settings)
         row["hmd"] = replay(db, path, "hmd", alpha, settings=settings)

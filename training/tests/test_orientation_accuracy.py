@@ -130,20 +130,28 @@ def test_a_nan_previous_body_yaw_is_a_reset(held_out):
         assert diff[t + 90:].max() < 5.0, (row, diff[t + 90:].max())
 
 
-def test_the_fewer_devices_model_is_the_better_one_without_two_controllers(held_out):
-    """The VR page's per-set choice (network-yaw.ts): the recurrent model with one controller or
-    none, because there it beats the feed-back network (README: 23.0° vs 24.9°, 26.8° vs 28.0°).
-    With the headset alone a calibrated headset's forward is nearly as good (27.8°): there the
-    model has only to beat it; with a controller, by a tenth."""
+def test_the_vr_pages_choice_per_device_set_is_the_better_one(held_out):
+    """The VR page's per-set choice (network-yaw.ts): the mean of both models with both hands
+    (README: 19.4° against 20.9° and 22.1°), the recurrent model with one controller or none,
+    because there it beats the feed-back network (23.0° vs 24.9°, 26.8° vs 28.0°). With the
+    headset alone a calibrated headset's forward is nearly as good (27.8°): there the model has
+    only to beat it; with a controller, by a tenth."""
     seqs = evaluate.held_out_sequences(True, clips=held_out, log=lambda *_: None)
-    models = {"feed-back": OnnxModel(PUBLIC_MODEL), "recurrent": load_model(evaluate.GRU_MODEL)}
+    models = {"network r=50": OnnxModel(PUBLIC_MODEL), "recurrent": load_model(evaluate.GRU_MODEL)}
     for name, absent in evaluate.DEVICE_SETS.items():
+        r = evaluate.evaluate([evaluate.with_absent(q, absent) for q in seqs], models, absent)[0]
+        r["feed-back"] = r["network r=50"]
         if not absent:
+            # Both hands: the mean of the two models beats either.
+            print(f"{name}: page {r[evaluate.PAGE].mean:.1f}°, feed-back {r['feed-back'].mean:.1f}°, recurrent {r['recurrent'].mean:.1f}°")
+            assert r[evaluate.PAGE].mean < min(r["feed-back"].mean, r["recurrent"].mean)
             continue
-        r = evaluate.evaluate([evaluate.with_absent(q, absent) for q in seqs], models)[0]
-        print(f"{name}: recurrent {r['recurrent'].mean:.1f}°, feed-back {r['feed-back'].mean:.1f}°, HMD forward {r['HMD forward'].mean:.1f}°")
-        assert r["recurrent"].mean < r["feed-back"].mean, name
-        assert r["recurrent"].mean < (0.9 if len(absent) == 1 else 1.0) * r["HMD forward"].mean, name
+        # The page's yaw is the recurrent model's once it has warmed up (1.5 s after a reset).
+        page = r[evaluate.PAGE].mean
+        print(f"{name}: page {page:.1f}°, recurrent {r['recurrent'].mean:.1f}°, feed-back {r['feed-back'].mean:.1f}°, HMD forward {r['HMD forward'].mean:.1f}°")
+        assert abs(page - r["recurrent"].mean) < 0.5, name
+        assert page < r["feed-back"].mean, name
+        assert page < (0.9 if len(absent) == 1 else 1.0) * r["HMD forward"].mean, name
 
 
 def test_the_recurrent_loop_forgets_a_nan(held_out):

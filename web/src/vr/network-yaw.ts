@@ -15,16 +15,29 @@
  * hand hanging at the side resembles more than a pose left floating in the room).
  *
  * A model per device set: with `fewer` (the recurrent model, docs/orientation-model.md), both
- * run every frame — so each is warm whenever the set changes — and the yaw is the main model's
- * while both hands are tracked (controllers or hands), the `fewer` one's with one controller or
- * none (held-out people: 23° against 26° with one controller, 25° against 31° headset-only).
- * The drive springs the yaw it is given, so a switch does not pop.
+ * run every frame — so each is warm whenever the set changes. While both hands are tracked
+ * (controllers or hands) the yaw is the mean of the two models' (on the circle: held-out people
+ * 20.1° against the main model's 21.6° and the recurrent one's 23.1° — they err differently);
+ * with one controller or none it is the recurrent model's (23° against 26° with one controller,
+ * 25° against 31° headset-only). The drive springs the yaw it is given, so a switch does not pop.
+ * For its first `RECURRENT_WARMUP` s after a reset the recurrent model is not used (its loss
+ * skipped its first 30 frames in training): blending it in at 0.5–1 s changed a search early in
+ * the short held-in replays and moved the walk's root up to 20 cm (p95 5 → 20 cm); from 1.25 s
+ * on no held-in replay changed (`npm run replay`), so 1.5 s.
+ * The recurrent model's weight (0, ½ or 1) moves to its target at `BLEND_RATE` a second, so the
+ * end of the warm-up and a set change blend over a quarter to half a second: a sudden 20° step
+ * of the yaw made the drive search afresh and moved the root up to 18 cm (held-in walk replay).
  */
 import type { OrientationModel } from '../orientation/orientation-model.ts'; // type only: onnxruntime loads on demand
 import { type BodyYawPredictor, type TrackerPose } from './body-yaw.ts';
 import { type FetchOptions, fetchBytes } from '../fetch.ts';
 import { headingYaw } from '../yaw.ts';
 import { TRACKED } from './trackers.ts';
+
+/** Seconds of input the recurrent model needs after a reset before its yaw is used. */
+export const RECURRENT_WARMUP = 1.5;
+/** How fast (per second) the recurrent model's weight in the yaw moves to its target. */
+export const BLEND_RATE = 2;
 
 export class NetworkYawPredictor implements BodyYawPredictor {
   readonly name = 'network';
@@ -60,8 +73,15 @@ export class NetworkYawPredictor implements BodyYawPredictor {
     this.lastError = e instanceof Error ? e.message : String(e);
   };
 
-  /** Whether the last update's yaw came from `fewer` (a controller was missing). */
-  usingFewer = false;
+  /**
+   * Where the last update's yaw came from: this model alone ('main': no `fewer`, or it is warming
+   * up), the mean of both ('both'), or `fewer` alone ('fewer': a controller was missing).
+   */
+  source: 'main' | 'both' | 'fewer' = 'main';
+  /** Seconds of input since the last reset. */
+  age = 0;
+  /** The weight of `fewer`'s yaw in the one returned (0–1). */
+  weight = 0;
 
   /** `fewer`: the model for one controller or none (optional). */
   constructor(
@@ -70,11 +90,21 @@ export class NetworkYawPredictor implements BodyYawPredictor {
   ) {}
 
   update(hmd: TrackerPose, left: TrackerPose, right: TrackerPose, dt: number): number {
+    this.age += dt > 0 ? dt : 0;
     const own = this.updateOwn(hmd, left, right, dt);
     if (!this.fewer) return own;
     const other = this.fewer.update(hmd, left, right, dt);
-    this.usingFewer = left.status !== TRACKED || right.status !== TRACKED;
-    return this.usingFewer ? other : own;
+    this.source = this.fewer.age < RECURRENT_WARMUP ? 'main' : left.status !== TRACKED || right.status !== TRACKED ? 'fewer' : 'both';
+    const target = this.source === 'main' ? 0 : this.source === 'fewer' ? 1 : 0.5;
+    const step = BLEND_RATE * (dt > 0 ? dt : 0);
+    this.weight += Math.max(-step, Math.min(step, target - this.weight));
+    const w = this.weight;
+    if (w === 0) return own;
+    if (w === 1) return other;
+    // The weighted mean on the circle (`predictors.py::page_yaw`; `own` if they cancel).
+    const s = (1 - w) * Math.sin(own) + w * Math.sin(other);
+    const c = (1 - w) * Math.cos(own) + w * Math.cos(other);
+    return Math.hypot(s, c) > 1e-6 ? Math.atan2(s, c) : own;
   }
 
   private updateOwn(hmd: TrackerPose, left: TrackerPose, right: TrackerPose, dt: number): number {
@@ -122,6 +152,8 @@ export class NetworkYawPredictor implements BodyYawPredictor {
   }
 
   reset(): void {
+    this.age = 0;
+    this.weight = 0;
     this.fewer?.reset();
     this.generation++;
     this.started = false;

@@ -219,7 +219,7 @@ async function main(): Promise<void> {
     [hook.hmd[0], hook.hmd[1], hook.hmd[2]] = tr.head.position;
     [hook.root[0], hook.root[1], hook.root[2], hook.rootYaw, hook.bodyYaw] = [root.x, root.y, root.z, root.yaw, drive.yaw];
     hook.predictor = drive.predictor.name;
-    if (network) [hook.predictorRuns, hook.predictorSkipped, hook.predictorFailures, hook.yawModel] = [network.runs, network.skipped, network.failures + (network.fewer?.failures ?? 0), network.usingFewer ? 'fewer devices' : 'main'];
+    if (network) [hook.predictorRuns, hook.predictorSkipped, hook.predictorFailures, hook.yawModel] = [network.runs, network.skipped, network.failures + (network.fewer?.failures ?? 0), network.source];
     hook.hipsHeight = hips ? hips.matrixWorld.elements[13] : NaN;
     const scale = character.object3d.scale.x;
     [hook.toeHeights[0], hook.toeHeights[1]] = character.avatar ? character.avatar.toeHeights.map((h) => h * scale) : [NaN, NaN];
