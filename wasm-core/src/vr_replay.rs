@@ -185,8 +185,12 @@ pub fn replay(db: &Database, index: &SearchIndex, recording: &Recording, yaw: &[
             body_yaw = yaw[f];
         }
         let floor = head_floor(f);
-        // Crouch: the hips go down as far as the eyes did.
-        let d = eye - recording.head_position[f].y;
+        // Crouch: the hips go down as far as the head centre did — the HMD plus R·(0, 0, d),
+        // whose height is the HMD's plus d·2(yz − wx) — so pitching the head does not crouch
+        // (`TrackedDrive.update` of the page).
+        let q = recording.head_rotation[f];
+        let centre = recording.head_position[f].y + HMD_TO_HEAD_CENTRE * 2.0 * (q.y * q.z - q.w * q.x);
+        let d = eye - centre;
         let b = CROUCH_DEADBAND;
         let drop = if d <= 0.0 { 0.0 } else if d < 2.0 * b { d * d / (4.0 * b) } else { d - b };
         let started = std::time::Instant::now();
