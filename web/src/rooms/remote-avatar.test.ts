@@ -2,7 +2,7 @@ import { describe, expect, it } from 'vitest';
 import { InputStream } from './input-stream.ts';
 import { LocalAvatar } from './local-avatar.ts';
 import { decodeClientMessage, encodeMove, createMoveStep, TICKS_PER_SECOND, type PathMessage, type StateMessage, type StreamMessage, type RoomTrackerPose } from './protocol.ts';
-import { RemoteAvatar } from './remote-avatar.ts';
+import { RemoteAvatar, RUNTIME_WAIT_MS } from './remote-avatar.ts';
 import { seededRandom } from '../bench/queries.ts';
 import { TestCharacter } from './testing.ts';
 
@@ -223,11 +223,15 @@ describe('RemoteAvatar', () => {
     expect(r.maxExcess).toBeLessThanOrEqual(1.5 + 1e-6); // m/s beyond the character's own motion
   });
 
-  it('late join from a snapshot: starts at the sender, converges within 2 s, never pops', () => {
-    const r = simulate({ seconds: 5, joinAt: 2.6, seed: 3 });
+  it('late join from a snapshot, a sender without runtime state: hidden while it may come, then starts at the sender, converges within 2 s, never pops', () => {
+    const r = simulate({ seconds: 7, joinAt: 2.6, seed: 3 });
     expect(r.remote.ready).toBe(true);
     expect(r.b.updates).toBeLessThan(r.a.updates);
     const joinedAt = r.displayTrace[0].t;
+    // Plain STATEs (one a second here) place the copy but do not show it until RUNTIME_WAIT_MS of
+    // sender time has passed since the snapshot (at most a STATE interval older than the join).
+    expect(joinedAt).toBeGreaterThanOrEqual(2600 + RUNTIME_WAIT_MS - 1000);
+    expect(joinedAt).toBeLessThan(2600 + RUNTIME_WAIT_MS + 1500);
     const after2s = r.displayTrace.filter((p) => p.t > joinedAt + 2000);
     expect(after2s.length).toBeGreaterThan(60);
     for (const p of after2s) expect(p.error).toBeLessThan(0.02);

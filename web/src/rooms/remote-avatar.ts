@@ -11,6 +11,7 @@
 import { DriftCorrector, type DriftCorrectorOptions } from './drift-corrector.ts';
 import { type DrivenCharacter, type PathInput } from './driven-character.ts';
 import { JitterBuffer, type JitterBufferOptions, type PushResult } from './jitter-buffer.ts';
+import { RUNTIME_STATE_INTERVAL_MS } from './room-client.ts';
 import {
   angleToI16,
   createMoveStep,
@@ -60,6 +61,16 @@ export interface RemoteAvatarStats {
   underflows: number;
 }
 
+/**
+ * How long (sender time after the snapshot, ms) a copy placed by the server's snapshot stays
+ * unseen waiting for the sender's runtime state. The server asks every member for it when someone
+ * joins; a member answers at once, but with its runtime state only once `RUNTIME_STATE_INTERVAL_MS`
+ * has passed since its last one (another join just before) — the STATE it sends at once then
+ * carries no runtime, and a copy shown from it is close, not exact (the rooms e2e measured up to
+ * 1.2 cm). A sender that never sends one (no `runtimeState` option) is shown after this.
+ */
+export const RUNTIME_WAIT_MS = 2 * RUNTIME_STATE_INTERVAL_MS + 500;
+
 function poseCopy(): RoomTrackerPose {
   return { tracked: false, fromHand: false, position: [0, 0, 0], rotation: [0, 0, 0, 1] };
 }
@@ -81,6 +92,8 @@ export class RemoteAvatar {
    * the copy (no blend: it is not shown yet). See `shown`.
    */
   private provisional = false;
+  /** Sender time (ms) of the snapshot that made the copy provisional. */
+  private provisionalSince = NaN;
   /** The trackers shown this frame (VR members). */
   readonly trackers: [RoomTrackerPose, RoomTrackerPose, RoomTrackerPose] = [poseCopy(), poseCopy(), poseCopy()];
   private readonly o: Required<Omit<RemoteAvatarOptions, 'jitter' | 'drift' | 'onNote' | 'onPlayed'>>;
@@ -165,6 +178,7 @@ export class RemoteAvatar {
     }
     this.resetTo(state);
     this.provisional = true;
+    this.provisionalSince = state.time;
     this.buffer.skipTo(Math.max(state.seq, path?.seq ?? 0));
   }
 
@@ -274,6 +288,11 @@ export class RemoteAvatar {
         if (m.type === 'state') {
           // The sender restarted its runtime: restarting the copy at the same numbers makes it the sender's floats.
           if (this.provisional) {
+            if (!m.runtime && !m.restart && m.time - this.provisionalSince < RUNTIME_WAIT_MS) {
+              // Placed by it but not shown: the sender's runtime state is on its way.
+              this.resetTo(m);
+              continue;
+            }
             this.provisional = false;
             this.ready = false; // placed afresh, not blended from where nobody saw it
           }
