@@ -138,6 +138,8 @@ def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--out", type=Path, default=OUT)
     ap.add_argument("--force", action="store_true", help="rewrite existing files")
+    ap.add_argument("--seed", type=int, default=SEED,
+                    help="simulation seed (another draw of the devices' noise, offsets and looking around: the benches' spread)")
     args = ap.parse_args(argv)
     args.out.mkdir(parents=True, exist_ok=True)
     index = []
@@ -146,7 +148,7 @@ def main(argv=None) -> int:
         index.append(out.name)
         if out.exists() and not args.force:
             continue
-        rec = make(name, folder, subject, take, note, held_in, seconds, classes, SEED + k)
+        rec = make(name, folder, subject, take, note, held_in, seconds, classes, args.seed + k)
         out.write_text(json.dumps(rec, separators=(",", ":")))
         print(f"wrote {out} ({rec['frames']} frames, {rec['frames'] / FPS:.1f} s, {out.stat().st_size // 1024} kB)")
     (args.out / "index.json").write_text(json.dumps(index) + "\n")
