@@ -44,8 +44,10 @@ export class OrientationModel {
   private _relativeYaw = 0;
   private hasYaw = false;
   private busy = false;
-  /** Recurrent models: the tracker inputs (0..35) and the state fed in, filled in place. */
+  /** Recurrent models: the tracker inputs (0..35) and the state fed in, filled in place, and
+   * the features' tracker part as a view made once (a per-frame `subarray` would allocate). */
   private readonly trackerInput: Float32Array | null;
+  private readonly trackerSource: Float32Array | null;
   private readonly state: Float32Array | null;
   private readonly stateOutputName: string | null;
 
@@ -59,11 +61,12 @@ export class OrientationModel {
     const [input, stateInput] = session.inputNames;
     if (stateSize > 0) {
       this.trackerInput = new Float32Array(TRACKER_INPUTS);
+      this.trackerSource = this.features.input.subarray(0, TRACKER_INPUTS);
       this.state = new Float32Array(stateSize);
       this.stateOutputName = session.outputNames[1];
       this.feeds = { [input]: new ort.Tensor('float32', this.trackerInput, [1, TRACKER_INPUTS]), [stateInput]: new ort.Tensor('float32', this.state, [1, stateSize]) };
     } else {
-      this.trackerInput = this.state = this.stateOutputName = null;
+      this.trackerInput = this.trackerSource = this.state = this.stateOutputName = null;
       this.feeds = { [input]: new ort.Tensor('float32', this.features.input, [1, NUM_INPUTS]) };
     }
     this.outputName = session.outputNames[0];
@@ -130,7 +133,7 @@ export class OrientationModel {
       const f = this.features;
       f.update(positions, quaternions, dt);
       const known = this.hasYaw && Number.isFinite(this._bodyYaw);
-      if (this.trackerInput) this.trackerInput.set(f.input.subarray(0, TRACKER_INPUTS));
+      if (this.trackerInput) this.trackerInput.set(this.trackerSource!);
       else f.setPrevious(known ? wrapAngle(this._bodyYaw - f.hmdYaw) : 0);
       const result = await this.session.run(this.feeds);
       const o = this.output;

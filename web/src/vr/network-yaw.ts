@@ -17,9 +17,10 @@
  * A model per device set: with `fewer` (the recurrent model, docs/orientation-model.md), both
  * run every frame — so each is warm whenever the set changes. While both hands are tracked
  * (controllers or hands) the yaw is the mean of the two models' (on the circle: held-out people
- * 20.1° against the main model's 21.6° and the recurrent one's 23.1° — they err differently);
- * with one controller or none it is the recurrent model's (23° against 26° with one controller,
- * 25° against 31° headset-only). The drive springs the yaw it is given, so a switch does not pop.
+ * 19.3° against the main model's 20.9° and the recurrent one's 22.1° — they err differently);
+ * with one controller or none it is the recurrent model's (23.0° against 24.9° with one
+ * controller, 26.8° against 28.0° headset-only). The drive springs the yaw it is given, so a
+ * switch does not pop.
  * For its first `RECURRENT_WARMUP` s after a reset the recurrent model is not used (its loss
  * skipped its first 30 frames in training): blending it in at 0.5–1 s changed a search early in
  * the short held-in replays and moved the walk's root up to 20 cm (p95 5 → 20 cm); from 1.25 s
@@ -90,13 +91,15 @@ export class NetworkYawPredictor implements BodyYawPredictor {
   ) {}
 
   update(hmd: TrackerPose, left: TrackerPose, right: TrackerPose, dt: number): number {
-    this.age += dt > 0 ? dt : 0;
+    const elapsed = dt > 0 ? dt : 0;
+    this.age += elapsed;
     const own = this.updateOwn(hmd, left, right, dt);
     if (!this.fewer) return own;
     const other = this.fewer.update(hmd, left, right, dt);
-    this.source = this.fewer.age < RECURRENT_WARMUP ? 'main' : left.status !== TRACKED || right.status !== TRACKED ? 'fewer' : 'both';
+    // Both were reset together and stepped alike: this age is the recurrent model's too.
+    this.source = this.age < RECURRENT_WARMUP ? 'main' : left.status !== TRACKED || right.status !== TRACKED ? 'fewer' : 'both';
     const target = this.source === 'main' ? 0 : this.source === 'fewer' ? 1 : 0.5;
-    const step = BLEND_RATE * (dt > 0 ? dt : 0);
+    const step = BLEND_RATE * elapsed;
     this.weight += Math.max(-step, Math.min(step, target - this.weight));
     const w = this.weight;
     if (w === 0) return own;
