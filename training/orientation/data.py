@@ -29,6 +29,9 @@ REPO = TRAINING.parent
 DATA_DIR = Path(os.environ.get("ORIENTATION_DATA_DIR", TRAINING / "data"))
 MOCAP_DIR = Path(os.environ.get("MMDB_MOCAP_DIR", REPO.parent / "shared" / "mocap"))
 MMDB_BIN = Path(os.environ.get("MMDB_BIN", REPO / "wasm-core" / "target" / "release" / "mmdb"))
+# The models the site serves: the feed-back network and the recurrent one (fewer devices).
+PUBLIC_MODEL = REPO / "public" / "models" / "orientation.onnx"
+GRU_MODEL = REPO / "public" / "models" / "orientation_gru.onnx"
 
 # (folder, subject): a CMU subject number, or a 100STYLE style (one performer, so a style is the
 # unit held out — not a person). Held out, never trained on:

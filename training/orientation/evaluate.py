@@ -56,7 +56,7 @@ def with_absent(seq: TrackerSequence, absent: tuple[int, ...]) -> TrackerSequenc
         pos[:, t], rot[:, t] = hanging_pose(seq.pos[:, 0], seq.rot[:, 0], t)
     return replace(seq, pos=pos, rot=rot)
 
-GRU_MODEL = data.REPO / "public" / "models" / "orientation_gru.onnx"
+GRU_MODEL = data.GRU_MODEL
 PREDICTORS_MAIN = "network r=50"
 PREDICTORS = {
     "network r=50": PUBLIC_MODEL,

@@ -29,7 +29,8 @@ from .geometry import hmd_yaw, quat_conj, quat_from_yaw, quat_mul, quat_to_matri
 
 NUM_TRACKERS = 3
 TRACKER_FEATURES = 12
-NUM_INPUTS = NUM_TRACKERS * TRACKER_FEATURES + 6  # 42
+TRACKER_INPUTS = NUM_TRACKERS * TRACKER_FEATURES  # 36: what a recurrent model takes
+NUM_INPUTS = TRACKER_INPUTS + 6  # 42
 PREV = slice(36, 42)
 MAX_DT = 0.25  # s; a longer gap (paused session, lost frames) is a discontinuity, not motion
 

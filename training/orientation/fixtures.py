@@ -20,7 +20,7 @@ from pathlib import Path
 import numpy as np
 
 from . import data
-from .features import FeatureBuilder, relative_yaw_of_output, tracker_features, yaw_slot
+from .features import TRACKER_INPUTS, FeatureBuilder, relative_yaw_of_output, tracker_features, yaw_slot
 from .model import net_from_state
 from .predictors import TorchModel
 from .simulate import EVAL_AUGMENT, simulate
@@ -104,7 +104,7 @@ def build_gru_fixture(onnx_path: Path, step) -> dict:
     inputs, outputs, body, hmd = [], [], [], []
     prev = None
     for t in range(len(dt)):
-        x = fb.update(pos[t], rot[t], dt[t])[:36].astype(np.float32)
+        x = fb.update(pos[t], rot[t], dt[t])[:TRACKER_INPUTS].astype(np.float32)
         with torch.no_grad():
             out, h = step(torch.from_numpy(x[None]), h)
         out = out.numpy()[0]

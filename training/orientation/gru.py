@@ -28,7 +28,7 @@ from torch import nn
 
 from . import data
 from .evaluate import DEVICE_SETS, GRU_MODEL, class_table, evaluate, held_out_sequences, stats, with_absent
-from .features import relative_yaw_of_output, yaw_slot
+from .features import TRACKER_INPUTS, relative_yaw_of_output, yaw_slot
 from .fixtures import build_gru_fixture
 from .geometry import wrap_angle
 from .model import export_onnx
@@ -46,7 +46,7 @@ class GruNet(nn.Module):
         self.register_buffer("mean", torch.as_tensor(mean, dtype=torch.float32))
         self.register_buffer("inv_std", torch.as_tensor(1.0 / std, dtype=torch.float32))
         self.hidden = hidden
-        self.inp = nn.Linear(36, hidden)
+        self.inp = nn.Linear(TRACKER_INPUTS, hidden)
         self.gru = nn.GRU(hidden, hidden, batch_first=True)
         self.out = nn.Linear(hidden, 6)
 

@@ -16,7 +16,7 @@ import numpy as np
 import torch
 from torch import nn
 
-from .features import FEATURE_NAMES, NUM_INPUTS
+from .features import FEATURE_NAMES, NUM_INPUTS, TRACKER_INPUTS
 
 HIDDEN = 32
 INPUT_NAME, OUTPUT_NAME = "features", "orientation6d"
@@ -106,7 +106,7 @@ def export_onnx(net: nn.Module, path: Path, metadata: dict[str, str] | None = No
     net = net.eval()
     batch = torch.export.Dim("batch", min=1, max=1 << 20)
     if state_size:
-        example = (torch.zeros(1, 36), torch.zeros(1, state_size))
+        example = (torch.zeros(1, TRACKER_INPUTS), torch.zeros(1, state_size))
         names, outputs, dims = [INPUT_NAME, "state"], [OUTPUT_NAME, "state_out"], ({0: batch}, {0: batch})
     else:
         example, names, outputs, dims = (torch.zeros(1, NUM_INPUTS),), [INPUT_NAME], [OUTPUT_NAME], ({0: batch},)
@@ -128,7 +128,7 @@ def export_onnx(net: nn.Module, path: Path, metadata: dict[str, str] | None = No
                         "Recurrent body-orientation network (docs/orientation-model.md). Inputs: the 36 "
                         "raw tracker features and the state (zeros after a reset); outputs: 6D body "
                         "rotation in the HMD-yaw frame and the next state.")
-    props = {"feature_order": ",".join(FEATURE_NAMES[:36] if state_size else FEATURE_NAMES),
+    props = {"feature_order": ",".join(FEATURE_NAMES[:TRACKER_INPUTS] if state_size else FEATURE_NAMES),
              "units": "m, s, rad; Y up; yaw 0 = +Z", **(metadata or {})}
     del model.metadata_props[:]
     for k, v in props.items():

@@ -29,8 +29,8 @@ from .predictors import OnnxModel, load_model, page_yaw, run_network, run_recurr
 
 RECORDINGS = data.REPO / "public" / "recordings"
 VR_DATABASE = data.REPO / "public" / "databases" / "vr.mmdb"
-MODEL = data.REPO / "public" / "models" / "orientation.onnx"
-GRU_MODEL = data.REPO / "public" / "models" / "orientation_gru.onnx"
+MODEL = data.PUBLIC_MODEL
+GRU_MODEL = data.GRU_MODEL
 
 
 def load(path: Path) -> dict:

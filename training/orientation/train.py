@@ -47,7 +47,7 @@ from .geometry import wrap_angle
 from .model import OrientationNet, export_onnx, state_to_numpy
 from .simulate import TRAIN_AUGMENT, Augment, simulate, without_look_around
 
-PUBLIC_MODEL = data.REPO / "public" / "models" / "orientation.onnx"
+PUBLIC_MODEL = data.PUBLIC_MODEL
 MODELS_DIR = data.TRAINING / "models"
 
 

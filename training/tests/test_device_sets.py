@@ -33,3 +33,14 @@ def test_hanging_pose_matches_the_page():
     np.testing.assert_allclose(quat_rotate(both.rot[0, 2], np.array([0.0, 0.0, -1.0])), [0, 0, 1], atol=1e-12)
     np.testing.assert_allclose(quat_rotate(both.rot[0, 2], np.array([1.0, 0.0, 0.0])), [-1, 0, 0], atol=1e-12)
     assert evaluate.with_absent(seq, ()) is seq
+
+
+def test_page_yaw_blend_matches_the_page():
+    """`predictors.page_yaw` (what eval and replay score) uses the page's warm-up and blend rate
+    (web/src/vr/network-yaw.ts), read from the source."""
+    from orientation import predictors
+
+    ts = (data.REPO / "web" / "src" / "vr" / "network-yaw.ts").read_text()
+    for name, value in (("RECURRENT_WARMUP", predictors.RECURRENT_WARMUP), ("BLEND_RATE", predictors.BLEND_RATE)):
+        m = re.search(rf"^export const {name} = ([0-9.]+);", ts, re.M)
+        assert m and float(m.group(1)) == value, f"{name}: the page says {m and m.group(1)}, Python {value}"
