@@ -44,12 +44,12 @@ function validSamples(): Uint8Array[] {
       scale: 1,
       alpha: 0.2,
       trackers: [0, 1, 2].map(() => ({ tracked: true, fromHand: false, position: [1, 1.6, 1] as [number, number, number], rotation: [0, 0, 0, 1] as [number, number, number, number] })) as never,
-      steps: [quantizeTrackedStep({ ticks: 80, headX: 1, headZ: 1, velocityX: 0.2, velocityZ: 0, yaw: 0, hipsDrop: 0 })],
+      steps: [quantizeTrackedStep({ ticks: 80, headX: 1, headZ: 1, velocityX: 0.2, velocityZ: 0, yaw: 0, hipsDrop: 0, bend: 0 })],
     }),
     encodePath({ seq: 1, time: 0, points: new Float32Array([0, 0, 1, 1, 2, 0]), speeds: new Float32Array([1, 2]), looped: false }),
-    encodeState({ seq: 1, time: 0, frame: 1, rootX: 0, rootZ: 0, rootYaw: 0, drive: 'move', pathTime: 0, scale: 1, alpha: 0.2, move: step, tracked: quantizeTrackedStep({ ticks: 0, headX: 0, headZ: 0, velocityX: 0, velocityZ: 0, yaw: 0, hipsDrop: 0 }) }),
+    encodeState({ seq: 1, time: 0, frame: 1, rootX: 0, rootZ: 0, rootYaw: 0, drive: 'move', pathTime: 0, scale: 1, alpha: 0.2, move: step, tracked: quantizeTrackedStep({ ticks: 0, headX: 0, headZ: 0, velocityX: 0, velocityZ: 0, yaw: 0, hipsDrop: 0, bend: 0 }) }),
     // With a runtime state (opaque to the server: its length is what is checked).
-    encodeState({ seq: 1, time: 0, frame: 1, rootX: 0, rootZ: 0, rootYaw: 0, drive: 'move', pathTime: 0, scale: 1, alpha: 0.2, move: step, tracked: quantizeTrackedStep({ ticks: 0, headX: 0, headZ: 0, velocityX: 0, velocityZ: 0, yaw: 0, hipsDrop: 0 }), runtime: randomBytes(600) }),
+    encodeState({ seq: 1, time: 0, frame: 1, rootX: 0, rootZ: 0, rootYaw: 0, drive: 'move', pathTime: 0, scale: 1, alpha: 0.2, move: step, tracked: quantizeTrackedStep({ ticks: 0, headX: 0, headZ: 0, velocityX: 0, velocityZ: 0, yaw: 0, hipsDrop: 0, bend: 0 }), runtime: randomBytes(600) }),
   ];
 }
 

@@ -167,7 +167,7 @@ async function main() {
           trackers[1].position = [x - 0.3, 1.1, z];
           trackers[2].position = [x + 0.3, 1.1, z];
           c.local.setTrackers(trackers);
-          c.local.setTracked({ headX: x, headZ: z, velocityX: Math.cos(ang), velocityZ: -Math.sin(ang), yaw: ang + Math.PI / 2, hipsDrop: 0 }, 1, 0.2);
+          c.local.setTracked({ headX: x, headZ: z, velocityX: Math.cos(ang), velocityZ: -Math.sin(ang), yaw: ang + Math.PI / 2, hipsDrop: 0, bend: 0 }, 1, 0.2);
         } else c.local.setMove({ moveX: Math.sin(ang), moveZ: Math.cos(ang), faceX: 0, faceZ: 1, run: Math.sin(t + phase) > 0.5, strafe: false });
         c.local.update(dt);
       }

@@ -9,6 +9,7 @@ import {
   encodeState,
   isRoomId,
   MAX_MESSAGE_BYTES,
+  PROTOCOL_VERSION,
   quantizeMoveStep,
   quantizeTrackedStep,
   type StateMessage,
@@ -41,7 +42,7 @@ const state = (seq: number, rootX: number): Omit<StateMessage, 'type'> => ({
   scale: 1,
   alpha: 0.2,
   move: quantizeMoveStep({ ...createMoveStep(), moveX: 0.6, moveZ: 0.8, run: true }),
-  tracked: quantizeTrackedStep({ ticks: 0, headX: rootX, headZ: -2, velocityX: 0, velocityZ: 0, yaw: 1, hipsDrop: 0 }),
+  tracked: quantizeTrackedStep({ ticks: 0, headX: rootX, headZ: -2, velocityX: 0, velocityZ: 0, yaw: 1, hipsDrop: 0, bend: 0 }),
 });
 
 describe('room server', () => {
@@ -247,7 +248,7 @@ describe('room server', () => {
     const listener = await join(room, 'listener');
 
     const garbage = await join(room, 'garbage');
-    garbage.send(new Uint8Array([1, 0x10, 0, 0]));
+    garbage.send(new Uint8Array([PROTOCOL_VERSION, 0x10, 0, 0]));
     let c = await garbage.waitClosed();
     expect(c.code).toBe(CloseCode.malformed);
     expect(c.reason).toMatch(/truncated/);

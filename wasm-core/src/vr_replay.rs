@@ -3,7 +3,7 @@
 //! the VR page's frame recipe does (`web/src/vr/tracked-drive.ts`) — head velocity differentiated
 //! over the real frame time and lightly smoothed, the head centre 0.10 m behind the eyes on the
 //! floor, the body yaw from a given source (the orientation network's output computed by
-//! `training/replay.py`, the recording's truth, or HMD forward), crouch by hips drop, the VR
+//! `training/replay.py`, the recording's truth, or HMD forward), the crouch (`Character::set_crouch`), the VR
 //! settings — and measures what the replay bench measures: user↔avatar root distance (against
 //! the recording's truth), the head gap α clamps, foot skating and the update time.
 //!
@@ -24,8 +24,6 @@ pub const HMD_TO_HEAD_CENTRE: f32 = 0.1;
 const VELOCITY_HALFLIFE: f32 = 0.03;
 const MAX_DT: f32 = 0.1;
 const RESET_AFTER: f32 = 0.5;
-/// Crouch dead band (m), as `CROUCH_DEADBAND` of the page.
-const CROUCH_DEADBAND: f32 = 0.03;
 /// Toe height under which the legacy skating measure counts a toe as on the floor (m).
 pub const LEGACY_SKATING_HEIGHT: f32 = 0.033;
 
@@ -185,17 +183,17 @@ pub fn replay(db: &Database, index: &SearchIndex, recording: &Recording, yaw: &[
             body_yaw = yaw[f];
         }
         let floor = head_floor(f);
-        // Crouch: the hips go down as far as the head centre did — the HMD plus R·(0, 0, d),
-        // whose height is the HMD's plus d·2(yz − wx) — so pitching the head does not crouch
+        // Crouch: the head centre's drop — the HMD plus R·(0, 0, d), whose height is the HMD's
+        // plus d·2(yz − wx), so pitching the head does not move it — split by the headset's
+        // pitch (asin of its view axis's y, −2(yz − wx)) into hips drop and torso bend
         // (`TrackedDrive.update` of the page).
         let q = recording.head_rotation[f];
-        let centre = recording.head_position[f].y + HMD_TO_HEAD_CENTRE * 2.0 * (q.y * q.z - q.w * q.x);
-        let d = eye - centre;
-        let b = CROUCH_DEADBAND;
-        let drop = if d <= 0.0 { 0.0 } else if d < 2.0 * b { d * d / (4.0 * b) } else { d - b };
+        let up = 2.0 * (q.y * q.z - q.w * q.x);
+        let centre = recording.head_position[f].y + HMD_TO_HEAD_CENTRE * up;
+        let pitch = (-up).clamp(-1.0, 1.0).asin();
         let started = std::time::Instant::now();
         c.set_tracked(Tracked { position: Vec3::new(floor.x / scale, 0.0, floor.y / scale), velocity: Vec3::new(velocity.x, 0.0, velocity.z) / scale, yaw: body_yaw });
-        c.set_hips_drop(drop / scale);
+        c.set_crouch((eye - centre) / scale, pitch);
         c.update(db, index, &Input::default(), dt);
         times.push(started.elapsed().as_secs_f32() * 1e3);
         let root = c.root_position() * scale;

@@ -307,6 +307,53 @@ fn a_hips_drop_crouches_with_feet_planted() {
     assert!(max_toe_gap < 0.01, "toes moved {max_toe_gap} m");
 }
 
+/// A tracked user whose head goes 0.36 m down (docs/vr.md, "Crouching and bending over"):
+/// looking ahead, the hips take it (knees bend); looking at the floor, the torso bends instead —
+/// the hips stay up, the head goes down by the drop and forward, and the root moves back so
+/// that the avatar's head stays over the user's.
+#[test]
+fn a_tracked_user_bending_over_bends_the_torso_not_the_knees() {
+    use mmcore::character::Tracked;
+    let db = db();
+    let hips = (0..db.num_joints()).find(|&k| db.skeleton.parents[k] == 0).unwrap();
+    let head = db.skeleton.site("head").unwrap().joint as usize;
+    let settings = CharacterSettings { clamp_distance: 0.3, clamp_angle: 0.35, adjustment_min_speed: 0.15, ..Default::default() };
+    // Standing still at the origin, facing +Z: upright, crouching, bending over.
+    let run = |pitch: Option<f32>| {
+        let mut c = Character::new(db, settings.clone());
+        for step in 0..(72 * 5) {
+            let t = step as f32 / 72.0;
+            c.set_tracked(Tracked { position: Vec3::ZERO, velocity: Vec3::ZERO, yaw: 0.0 });
+            if let (Some(p), true) = (pitch, t > 1.0) {
+                c.set_crouch(0.36, p);
+            }
+            c.update(db, index(), &Input::default(), 1.0 / 72.0);
+            assert!(c.world_positions().iter().all(|p| p.is_finite()), "NaN at step {step}");
+        }
+        let w = c.world_positions();
+        (w[hips], w[head], c.root_position(), c.crouch())
+    };
+    let (hips_up, head_up, root_up, _) = run(None);
+    let (hips_crouched, head_crouched, _, crouched) = run(Some(-5f32.to_radians()));
+    let (hips_bent, head_bent, root_bent, bent) = run(Some(-70f32.to_radians()));
+    println!(
+        "crouched: hips −{:.3} head −{:.3} m | bent {:.0}°: hips −{:.3}, head −{:.3} m, head forward of the root {:.3} m (upright {:.3}), root {:.3} m behind",
+        hips_up.y - hips_crouched.y, head_up.y - head_crouched.y, bent.bend.to_degrees(), hips_up.y - hips_bent.y, head_up.y - head_bent.y,
+        head_bent.z - root_bent.z, head_up.z - root_up.z, root_up.z - root_bent.z
+    );
+    assert_eq!(crouched.bend, 0.0);
+    assert!((hips_up.y - hips_crouched.y - 0.33).abs() < 0.02, "crouching: hips {} m down", hips_up.y - hips_crouched.y);
+    assert!(bent.bend > 30f32.to_radians() && bent.hips_drop < 0.031, "{bent:?}");
+    assert!(hips_up.y - hips_bent.y < 0.05, "bending over: hips {} m down", hips_up.y - hips_bent.y);
+    assert!((head_up.y - head_bent.y - 0.33).abs() < 0.06, "bending over: head {} m down", head_up.y - head_bent.y);
+    // The head went forward of the root; the root went back by about as much, so the avatar's
+    // head is still over the user's (the origin).
+    let forward = (head_bent.z - root_bent.z) - (head_up.z - root_up.z);
+    assert!(forward > 0.2, "the bend moved the head {forward} m forward");
+    assert!(root_up.z - root_bent.z > 0.6 * forward, "the root moved {} m back for a head {forward} m forward", root_up.z - root_bent.z);
+    assert!((head_bent.z - head_up.z).abs() < 0.4 * forward, "the head ended {} m from where the upright one is", head_bent.z - head_up.z);
+}
+
 /// The world pose the runtime hands out is the forward kinematics of its shown local pose on
 /// every frame — the partial FK after the leg touch-ups (foot lock, hips drop) misses nothing.
 #[test]
@@ -321,6 +368,7 @@ fn the_world_pose_is_the_fk_of_the_shown_pose() {
     for step in 0..900 {
         let t = step as f32 / 60.0;
         c.set_hips_drop(if (t % 6.0) > 3.0 { 0.3 } else { 0.0 });
+        c.set_torso_bend(if (t % 4.0) > 2.0 { 0.8 } else { 0.0 });
         c.update(db, index(), &input_at(t), 1.0 / 60.0);
         local_to_model(&db.skeleton.parents, 0..j, None, c.pose_positions(), c.pose_rotations(), &mut p, &mut r);
         for k in 0..j {

@@ -165,7 +165,11 @@ fn an_hour_of_random_input_with_faults_never_nan_recovers_within_a_second_alloca
                 }
                 Fault::FrozenDevice => frozen = 120,
                 Fault::DroppedDevice => tracked_mode = false,
-                Fault::BadHipsDrop => c.set_hips_drop(if rng.uniform(0.0, 1.0) < 0.5 { f32::NAN } else { 1e9 }),
+                Fault::BadHipsDrop => {
+                    c.set_hips_drop(if rng.uniform(0.0, 1.0) < 0.5 { f32::NAN } else { 1e9 });
+                    c.set_torso_bend(if rng.uniform(0.0, 1.0) < 0.5 { f32::NAN } else { -1e9 });
+                    let _ = c.set_crouch(if rng.uniform(0.0, 1.0) < 0.5 { f32::INFINITY } else { 1e9 }, f32::NAN);
+                }
                 Fault::BadPath => assert!(Path::new(&[Vec3::ZERO, Vec3::new(f32::NAN, 0.0, 1.0)], &[1.0], false).is_err()),
             }
             pending = Some((step, fault, c.stats.searches));
@@ -179,6 +183,7 @@ fn an_hour_of_random_input_with_faults_never_nan_recovers_within_a_second_alloca
             allocations += allocations_here() - before;
         }
         c.set_hips_drop(0.0);
+        c.set_torso_bend(0.0);
 
         // Every frame: a finite pose, the root within α of the simulated character.
         assert!(c.world_positions().iter().all(|p| p.is_finite()), "non-finite pose at step {step}");

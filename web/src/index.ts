@@ -65,7 +65,7 @@ export { Playback } from './views/playback.ts';
 export { UpdateTimer } from './views/update-timer.ts';
 
 // VR: tracked devices drive the character.
-export { CROUCH_DEADBAND, DEFAULT_ALPHA, HMD_TO_HEAD_CENTRE, TrackedDrive, VR_SETTINGS } from './vr/tracked-drive.ts';
+export { DEFAULT_ALPHA, HMD_TO_HEAD_CENTRE, TrackedDrive, VR_SETTINGS } from './vr/tracked-drive.ts';
 export { HEAD, LEFT, NUM_TRACKERS, RIGHT, TrackerSample, gripFromHand, sampleXRFrame } from './vr/tracker-sample.ts';
 export { deviceKind, deviceSetName } from './vr/device-set.ts';
 export { TrackerState, TrackerView } from './vr/trackers.ts';

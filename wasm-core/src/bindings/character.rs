@@ -85,6 +85,25 @@ impl RawCharacter {
         self.character.set_hips_drop(drop);
     }
 
+    /// Bends the torso forward `bend` rad (spine joints, about the root's lateral axis).
+    pub fn set_torso_bend(&mut self, bend: f32) {
+        self.character.set_torso_bend(bend);
+    }
+
+    /// VR: a head `head_drop` m below standing, headset pitched `pitch` rad → hips drop and torso
+    /// bend (`crouch::split`); read them back with `hips_drop` and `torso_bend`.
+    pub fn set_crouch(&mut self, head_drop: f32, pitch: f32) {
+        self.character.set_crouch(head_drop, pitch);
+    }
+
+    pub fn hips_drop(&self) -> f32 {
+        self.character.crouch().hips_drop
+    }
+
+    pub fn torso_bend(&self) -> f32 {
+        self.character.crouch().bend
+    }
+
     /// Places the character at (x, z) facing `yaw` (rad, 0 = +Z), searching afresh.
     pub fn teleport(&mut self, x: f32, z: f32, yaw: f32) {
         self.character.teleport(&self.shared.db, Vec3::new(x, 0.0, z), Quat::from_rotation_y(yaw));

@@ -1,12 +1,17 @@
 //! Leg touch-ups of the shown pose (docs/method.md §7, §9): the foot lock holds each toe in
 //! contact where the contact began (blended in and out by [`FootLock`]) and the leg reaches it
 //! by the two-bone IK; a hips drop (VR crouching) lowers the hips with the feet kept where they
-//! are. Only the touched subtrees are recomputed by FK afterwards.
+//! are, and a torso bend (VR bending over, [`super::crouch`]) pitches the spine forward about the
+//! root's lateral axis. Only the touched subtrees are recomputed by FK afterwards.
 
 use super::pose::Pose;
 use super::settings::CharacterSettings;
 use crate::database::Database;
 use crate::ik::{knee_bend_direction, leg_ik, FootLock, LegJoints};
+use super::crouch::MAX_BEND;
+
+/// Most the spine chain bends (rad) to match a torso bend: past this the head would come back up.
+const MAX_CHAIN_BEND: f32 = 100.0 * std::f32::consts::PI / 180.0;
 use crate::kinematics::subtree_range;
 use crate::persist::{Persist, Visitor};
 use glam::{Quat, Vec3};
@@ -25,6 +30,21 @@ pub struct Legs {
     pub hips_drop: f32,
     hips: Option<usize>,
     hips_range: Range<usize>,
+    /// How far the torso bends forward (rad): a torso hinged at the hips, `torso` long, bent by
+    /// it lowers the head by `torso (1 − cos bend)`. The spine joints (spine, chest, upper chest:
+    /// those the skeleton has, `spine_count` of them) share the angle that lowers this skeleton's
+    /// head as much ([`Self::chain_angle`]).
+    pub bend: f32,
+    spine: [usize; 3],
+    spine_count: usize,
+    /// From each spine joint to the next (the last: to the head) at rest: (forward, up), m.
+    segments: [(f32, f32); 3],
+    head: Option<usize>,
+    /// Hips → head at rest (m); 0 when the skeleton has no spine joint to bend or no head.
+    pub torso: f32,
+    /// How far the last update's bend moved the head on the floor (world): the tracked root's
+    /// target is that much behind the user's head, where bent-over people's hips are.
+    pub bend_shift: Vec3,
     /// The drop applied to the pose by the last update, undone before the next one: like the
     /// leg IK it is a touch-up of the output, never a state the animation continues.
     applied_drop: f32,
@@ -39,6 +59,8 @@ impl Persist for Legs {
         self.locks.persist(v, "");
         self.hips_drop.persist(v, "hips drop");
         self.applied_drop.persist(v, "applied hips drop");
+        self.bend.persist(v, "torso bend");
+        self.bend_shift.persist(v, "bend shift");
         self.previous_toes.persist(v, "previous toes");
         self.toes.persist(v, "toes");
     }
@@ -57,6 +79,36 @@ impl Legs {
             }
             (parents[k] == 0).then_some(k)
         });
+        let joint = |role: &str| db.skeleton.site(role).filter(|s| s.joint > 0).map(|s| s.joint as usize);
+        let mut spine = [0; 3];
+        let mut spine_count = 0;
+        for j in ["spine", "chest", "upper_chest"].into_iter().filter_map(joint) {
+            // Only joints under the hips bend the torso (a skeleton whose roles say otherwise
+            // keeps its torso straight rather than folding the legs).
+            if hips.is_some_and(|h| hips_subtree_holds(parents, h, j)) {
+                spine[spine_count] = j;
+                spine_count += 1;
+            }
+        }
+        let head = joint("head");
+        let mut segments = [(0.0, 0.0); 3];
+        let torso = match (hips, head, spine_count) {
+            (Some(h), Some(hd), 1..) => {
+                let rest = db.rest_positions();
+                // Facing at rest: (left hip − right hip) × up, the builder's virtual-root rule.
+                let forward = match &legs {
+                    [Some(l), Some(r)] => (rest[l.upper_leg] - rest[r.upper_leg]).cross(Vec3::Y).with_y(0.0).normalize_or(Vec3::Z),
+                    _ => Vec3::Z,
+                };
+                for k in 0..spine_count {
+                    let next = if k + 1 < spine_count { rest[spine[k + 1]] } else { rest[hd] };
+                    let d = next - rest[spine[k]];
+                    segments[k] = (d.dot(forward), d.y);
+                }
+                rest[hd].distance(rest[h])
+            }
+            _ => 0.0,
+        };
         Legs {
             leg_ranges: [range(&legs[0]), range(&legs[1])],
             legs,
@@ -66,6 +118,13 @@ impl Legs {
             hips_range: hips.map_or(0..0, |h| subtree_range(parents, h)),
             hips,
             applied_drop: 0.0,
+            bend: 0.0,
+            spine,
+            spine_count,
+            segments,
+            head,
+            torso,
+            bend_shift: Vec3::ZERO,
             previous_toes: [Vec3::ZERO; 2],
             toes: [Vec3::ZERO; 2],
         }
@@ -94,6 +153,52 @@ impl Legs {
             pose.positions[h].y += self.applied_drop;
             self.applied_drop = 0.0;
         }
+    }
+
+    /// Pitches the spine joints forward by `bend` in all, about the root's lateral axis (world
+    /// transforms of the shown pose current; the caller re-runs FK). Each local is computed from
+    /// the unbent parents, `P⁻¹·R(wθ)·P·L`, and rotations about one world axis commute, so the
+    /// chain composes to the whole bend. Returns the head's world position before the bend, or
+    /// `None` when nothing bends.
+    fn bend_torso(&self, parents: &[i32], pose: &mut Pose, facing: Quat) -> Option<Vec3> {
+        if !(self.bend > 0.0) || self.spine_count == 0 {
+            return None;
+        }
+        let head = self.head.map_or(Vec3::ZERO, |h| pose.world_positions[h]);
+        // Facing +Z, +X is the left: a positive turn about it takes the head forward and down.
+        let share = Quat::from_axis_angle(facing * Vec3::X, self.chain_angle(self.bend.min(MAX_BEND)) / self.spine_count as f32);
+        for &j in &self.spine[..self.spine_count] {
+            let parent = pose.world_rotations[parents[j] as usize];
+            pose.output_rotations[j] = (parent.inverse() * share * parent * pose.output_rotations[j]).normalize();
+        }
+        Some(head)
+    }
+
+    /// The angle the spine joints share so that this skeleton's head, at rest, goes down as far
+    /// as a hips-hinged torso's bent by `bend`: the spine bends above the hips, with a shorter
+    /// lever, so it takes more (bisection; the drop grows with the angle up to past 90°).
+    fn chain_angle(&self, bend: f32) -> f32 {
+        let target = self.torso * (1.0 - bend.cos());
+        let n = self.spine_count as f32;
+        let drop = |a: f32| {
+            self.segments[..self.spine_count].iter().enumerate().fold(0.0, |sum, (k, &(f, u))| {
+                let (sin, cos) = (a * (k + 1) as f32 / n).sin_cos();
+                sum + u - (u * cos - f * sin)
+            })
+        };
+        let (mut lo, mut hi) = (0.0f32, MAX_CHAIN_BEND);
+        if drop(hi) <= target {
+            return hi;
+        }
+        for _ in 0..24 {
+            let mid = 0.5 * (lo + hi);
+            if drop(mid) < target {
+                lo = mid;
+            } else {
+                hi = mid;
+            }
+        }
+        0.5 * (lo + hi)
     }
 
     /// Whether each foot is locked now.
@@ -132,10 +237,20 @@ impl Legs {
                 let drop = self.hips_drop.min(0.6 * pose.positions[h].y.max(0.0));
                 pose.positions[h].y -= drop;
                 self.applied_drop = drop;
-                pose.forward_kinematics(parents, self.hips_range.clone());
                 drop > 0.0
             }
             _ => false,
+        };
+        let head_before = self.bend_torso(parents, pose, facing);
+        if dropped || head_before.is_some() {
+            pose.forward_kinematics(parents, self.hips_range.clone());
+        }
+        self.bend_shift = match (head_before, self.head) {
+            (Some(before), Some(hd)) => {
+                let s = pose.world_positions[hd] - before;
+                Vec3::new(s.x, 0.0, s.z)
+            }
+            _ => Vec3::ZERO,
         };
         for side in 0..2 {
             let (Some(leg), Some((toe, target))) = (&self.legs[side], targets[side]) else { continue };
@@ -158,4 +273,13 @@ impl Legs {
             }
         }
     }
+}
+
+/// Whether joint `j` is in the subtree of `root` (parents precede children).
+fn hips_subtree_holds(parents: &[i32], root: usize, j: usize) -> bool {
+    let mut k = j;
+    while k > root {
+        k = parents[k].max(0) as usize;
+    }
+    k == root
 }

@@ -5,10 +5,12 @@
 //! 3. **root motion** ([`root`]): the database plays at its own rate, moving the root, which is
 //!    then kept with the simulated character (adjustment, clamping);
 //! 4. **pose** ([`pose`]): the frame playing, inertialized, and its world transforms (the one FK);
-//! 5. **legs** ([`legs`]): foot lock and hips drop by leg IK, touched-up subtrees re-run by FK.
+//! 5. **legs** ([`legs`]): foot lock and hips drop by leg IK, the torso bend ([`crouch`]),
+//!    touched-up subtrees re-run by FK.
 //!
 //! Every buffer is allocated by [`Character::new`]: `update` allocates nothing.
 
+pub mod crouch;
 pub mod drive;
 pub mod legs;
 pub mod pose;
@@ -177,6 +179,24 @@ impl Character {
         self.legs.hips_drop = if drop.is_finite() { drop.max(0.0) } else { 0.0 };
     }
 
+    /// Bends the torso forward `bend` rad (clamped to [0, [`crouch::MAX_BEND`]]), shared by the
+    /// spine joints, about the root's lateral axis: bending over for a VR user. In tracked mode
+    /// the root's target moves back by as much as the bend moves the head forward. A skeleton
+    /// without spine roles does not bend.
+    pub fn set_torso_bend(&mut self, bend: f32) {
+        self.legs.bend = if bend.is_finite() { bend.clamp(0.0, crouch::MAX_BEND) } else { 0.0 };
+    }
+
+    /// A tracked head `head_drop` m below its standing height with the headset pitched `pitch`
+    /// rad (negative: down): the hips drop and the torso bend by [`crouch::split`], for this
+    /// skeleton's torso. Returns the split (what a shared room sends).
+    pub fn set_crouch(&mut self, head_drop: f32, pitch: f32) -> crouch::Crouch {
+        let c = crouch::split(head_drop, pitch, self.legs.torso);
+        self.set_hips_drop(c.hips_drop);
+        self.set_torso_bend(c.bend);
+        c
+    }
+
     /// Follow `path` from its start (or `None` to return to input control).
     pub fn set_path(&mut self, path: Option<Path>) {
         if path.is_none() && matches!(self.drive.mode, Mode::Input) {
@@ -274,6 +294,10 @@ impl Character {
 
     pub fn frame(&self) -> usize {
         self.frame
+    }
+    /// The hips drop (m) and torso bend (rad) asked for ([`Self::set_crouch`] or set directly).
+    pub fn crouch(&self) -> crouch::Crouch {
+        crouch::Crouch { hips_drop: self.legs.hips_drop, bend: self.legs.bend }
     }
     /// The simulated character's position and facing (where the user wants the avatar).
     pub fn simulation_transform(&self) -> (Vec3, Quat) {
@@ -446,6 +470,8 @@ impl Character {
         self.pose.cut();
         self.legs.undo_drop(&mut self.pose);
         self.legs.hips_drop = 0.0;
+        self.legs.bend = 0.0;
+        self.legs.bend_shift = Vec3::ZERO;
         self.pose.play(db, self.frame, false, self.settings.inertialization_halflife, 0.0);
         self.pose.set_root(self.root.position, self.root.rotation);
         self.reset_feet(db);
@@ -453,10 +479,12 @@ impl Character {
     }
 
     /// Tracked mode: the shown head's floor offset from the root (last frame's pose), smoothed in
-    /// the root's frame, handed to the drive in world space.
+    /// the root's frame, handed to the drive in world space — with `tracked_head_offset`, else
+    /// only what the torso bend moved the head.
     fn update_head_offset(&mut self, dt: f32) {
+        let bend_shift = if matches!(self.drive.mode, Mode::Tracked(_)) { self.legs.bend_shift } else { Vec3::ZERO };
         let (Some(head), true, Mode::Tracked(_)) = (self.head, self.settings.tracked_head_offset, &self.drive.mode) else {
-            self.drive.head_offset = Vec3::ZERO;
+            self.drive.head_offset = bend_shift;
             return;
         };
         let world = self.pose.world_positions[head] - self.root.position;

@@ -68,7 +68,7 @@ export interface CharacterDrive {
   /** The path (`followPath`, `walkTo`) in database units; each new path bumps `pathVersion`. */
   readonly path: { readonly points: Float32Array; readonly speeds: Float32Array; readonly looped: boolean } | null;
   readonly pathVersion: number;
-  /** Tracked input (`setTracked`, `setHipsDrop`) in the parent frame, and α (`setAlpha`, m; NaN: never set). */
+  /** Tracked input (`setTracked`, `setCrouch`, `setHipsDrop`) in the parent frame, and α (`setAlpha`, m; NaN: never set). */
   readonly tracked: Readonly<TrackedInput>;
   readonly alpha: number;
 }
@@ -391,7 +391,27 @@ export class Character {
   /** Lowers the hips `drop` metres (parent frame) with the feet kept planted (VR crouching). */
   setHipsDrop(drop: number): void {
     this.drive_.tracked.hipsDrop = drop;
-    if (!this.stepper) this.runtime.setHipsDrop(drop / this.metresPerDatabaseUnit);
+    this.drive_.tracked.bend = 0;
+    if (!this.stepper) {
+      this.runtime.setHipsDrop(drop / this.metresPerDatabaseUnit);
+      this.runtime.setTorsoBend(0);
+    }
+  }
+
+  /**
+   * VR crouching and bending over: the user's head centre is `headDrop` m (parent frame) below
+   * its standing height, the headset pitched `pitch` rad (negative: looking down). The runtime
+   * splits the drop between the hips (knees bend, feet planted) and a forward bend of the torso
+   * by the headset's pitch (docs/vr.md, "Crouching and bending over"); `drive.tracked` holds the
+   * split (`hipsDrop` m, `bend` rad).
+   */
+  setCrouch(headDrop: number, pitch: number): void {
+    const t = this.drive_.tracked;
+    const runtime = this.runtime;
+    // A stepper (a shared room) takes the split from `drive.tracked` and sets it again itself.
+    runtime.setCrouch(headDrop / this.metresPerDatabaseUnit, pitch);
+    t.hipsDrop = runtime.hipsDrop * this.metresPerDatabaseUnit;
+    t.bend = runtime.torsoBend;
   }
 
   /** α: how far (m, parent frame) the character may lag where it is asked to be. */

@@ -30,9 +30,10 @@ export function createMoveInput(): MoveInput {
 
 /**
  * What a tracked user (VR) asks of the character this frame, on the floor of the caller's frame:
- * the head centre's floor position (m), its ground velocity (m/s), the body yaw (rad, 0 = +Z)
- * and how far the hips go down (m, crouching). `Character.setTracked`/`setHipsDrop` write it;
- * shared rooms send it quantized (web/src/rooms).
+ * the head centre's floor position (m), its ground velocity (m/s), the body yaw (rad, 0 = +Z),
+ * how far the hips go down (m, crouching) and how far the torso bends forward (rad, bending
+ * over). `Character.setTracked`/`setCrouch`/`setHipsDrop` write it; shared rooms send it
+ * quantized (web/src/rooms).
  */
 export interface TrackedInput {
   headX: number;
@@ -41,10 +42,11 @@ export interface TrackedInput {
   velocityZ: number;
   yaw: number;
   hipsDrop: number;
+  bend: number;
 }
 
 export function createTrackedInput(): TrackedInput {
-  return { headX: 0, headZ: 0, velocityX: 0, velocityZ: 0, yaw: 0, hipsDrop: 0 };
+  return { headX: 0, headZ: 0, velocityX: 0, velocityZ: 0, yaw: 0, hipsDrop: 0, bend: 0 };
 }
 
 /** The runtime settings (docs/runtime.md lists them; `CharacterSettings` in Rust). */
@@ -117,6 +119,29 @@ export class CharacterRuntime {
 
   setHipsDrop(drop: number): void {
     this.raw.set_hips_drop(drop);
+  }
+
+  /** Bends the torso forward `bend` rad (the spine joints, about the root's lateral axis). */
+  setTorsoBend(bend: number): void {
+    this.raw.set_torso_bend(bend);
+  }
+
+  /**
+   * VR: the head centre `headDrop` below its standing height (database units) with the headset
+   * pitched `pitch` rad (negative: down) → hips drop and torso bend (docs/vr.md, "Crouching and
+   * bending over"); read them back with `hipsDrop` and `torsoBend`.
+   */
+  setCrouch(headDrop: number, pitch: number): void {
+    this.raw.set_crouch(headDrop, pitch);
+  }
+
+  /** The hips drop (database units) and torso bend (rad) asked for. */
+  get hipsDrop(): number {
+    return this.raw.hips_drop();
+  }
+
+  get torsoBend(): number {
+    return this.raw.torso_bend();
   }
 
   teleport(x: number, z: number, yaw: number): void {

@@ -24,6 +24,7 @@ import {
   MAX_RUNTIME_STATE_BYTES,
   MOVE_HEADER_BYTES,
   packQuat,
+  PROTOCOL_VERSION,
   ProtocolError,
   quantizeMoveStep,
   quantizeTrackedStep,
@@ -83,7 +84,7 @@ const state: Omit<StateMessage, 'type'> = {
   scale: 1.05,
   alpha: 0.2,
   move: moveStep(0, 0.6, 0.8, 0, 1, true),
-  tracked: quantizeTrackedStep({ ticks: 0, headX: 10.6, headZ: -3.2, velocityX: 1.2, velocityZ: -0.3, yaw: 2.4, hipsDrop: 0.12 }),
+  tracked: quantizeTrackedStep({ ticks: 0, headX: 10.6, headZ: -3.2, velocityX: 1.2, velocityZ: -0.3, yaw: 2.4, hipsDrop: 0.12, bend: 0.7 }),
 };
 
 describe('room ids', () => {
@@ -191,11 +192,11 @@ describe('client messages round trip', () => {
     expect(m).toEqual({ type: 'move', seq: 7, time: 99_000, rootX: -1.235, rootZ: 1000.5, rootYaw: i16ToAngle(angleToI16(-1)), steps });
   });
 
-  it('tracked: positions within 0.5 mm, steps exact after quantizeTrackedStep, 14 bytes a step', () => {
+  it('tracked: positions within 0.5 mm, steps exact after quantizeTrackedStep, 15 bytes a step', () => {
     const rand = seeded(3);
     const steps: TrackedStep[] = [];
     for (let i = 0; i < 5; i++) {
-      steps.push(quantizeTrackedStep({ ticks: 80, headX: 1 + rand(), headZ: -3 + rand(), velocityX: rand() * 2 - 1, velocityZ: rand(), yaw: rand() * 6 - 3, hipsDrop: rand() * 0.3 }));
+      steps.push(quantizeTrackedStep({ ticks: 80, headX: 1 + rand(), headZ: -3 + rand(), velocityX: rand() * 2 - 1, velocityZ: rand(), yaw: rand() * 6 - 3, hipsDrop: rand() * 0.3, bend: rand() * 1.4 }));
     }
     const t = trackers();
     const bytes = encodeTracked({ seq: 3, time: 5, rootX: 1.3, rootZ: -3.3, rootYaw: 0.5, scale: 0.97, alpha: 0.3, trackers: t, steps });
@@ -273,7 +274,7 @@ describe('malformed messages are rejected, never half-decoded', () => {
   const valid = () => [
     encodeJoin(join),
     encodeMove({ seq: 1, time: 0, rootX: 0, rootZ: 0, rootYaw: 0, steps: [moveStep(120, 0, 1, 0, 1), moveStep(120, 1, 0, 0, 1)] }),
-    encodeTracked({ seq: 1, time: 0, rootX: 1, rootZ: 1, rootYaw: 0, scale: 1, alpha: 0.2, trackers: trackers(), steps: [quantizeTrackedStep({ ticks: 100, headX: 1, headZ: 1, velocityX: 0, velocityZ: 0, yaw: 0, hipsDrop: 0 })] }),
+    encodeTracked({ seq: 1, time: 0, rootX: 1, rootZ: 1, rootYaw: 0, scale: 1, alpha: 0.2, trackers: trackers(), steps: [quantizeTrackedStep({ ticks: 100, headX: 1, headZ: 1, velocityX: 0, velocityZ: 0, yaw: 0, hipsDrop: 0, bend: 0 })] }),
     encodePath({ seq: 1, time: 0, points: new Float32Array([0, 0, 1, 1]), speeds: new Float32Array([2]), looped: false }),
     encodeState(state),
   ];
@@ -303,7 +304,7 @@ describe('malformed messages are rejected, never half-decoded', () => {
       else v.setUint32(at, value, true);
       return c;
     };
-    expect(() => decodeClientMessage(patch(move, 0, 2))).toThrow(/version/);
+    expect(() => decodeClientMessage(patch(move, 0, 1))).toThrow(/version/);
     expect(() => decodeClientMessage(patch(move, 1, 0x7f))).toThrow(/unknown/);
     expect(() => decodeClientMessage(patch(move, 1, 0x80))).toThrow(/unknown/); // a server type from a client
     expect(() => decodeClientMessage(patch(move, 2, 0, 4))).toThrow(/seq 0/);
@@ -323,7 +324,7 @@ describe('malformed messages are rejected, never half-decoded', () => {
     const longMove = new Uint8Array(MAX_CLIENT_MESSAGE_BYTES + 1);
     longMove.set(move);
     expect(() => decodeClientMessage(longMove)).toThrow(/at most 1024 but a STATE/);
-    expect(() => decodeServerMessage(new Uint8Array([1, 0x82, 0, 0]))).toThrow(/member id/);
+    expect(() => decodeServerMessage(new Uint8Array([PROTOCOL_VERSION, 0x82, 0, 0]))).toThrow(/member id/);
   });
 });
 

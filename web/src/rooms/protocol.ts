@@ -16,7 +16,7 @@ import { type MoveInput, type TrackedInput } from '../core/character.ts';
 
 // ------------------------------------------------------------------ constants
 
-export const PROTOCOL_VERSION = 1;
+export const PROTOCOL_VERSION = 2;
 
 /** Client → server message types. */
 export const MsgType = {
@@ -84,8 +84,8 @@ export const MAX_HEIGHT_MM = 2600;
 export const STREAM_HEADER_BYTES = 10;
 export const MOVE_HEADER_BYTES = 21;
 export const TRACKED_HEADER_BYTES = 57;
-export const TRACKED_STEP_BYTES = 14;
-export const STATE_BYTES = 51;
+export const TRACKED_STEP_BYTES = 15;
+export const STATE_BYTES = 52;
 /** The largest message of all: a STATE with the largest runtime state (the server's frame limit). */
 export const MAX_MESSAGE_BYTES = STATE_BYTES + 2 + MAX_RUNTIME_STATE_BYTES;
 
@@ -630,7 +630,7 @@ export function createMoveStep(): MoveStep {
 }
 
 export function createTrackedStep(): TrackedStep {
-  return { ticks: 0, headX: 0, headZ: 0, velocityX: 0, velocityZ: 0, yaw: 0, hipsDrop: 0 };
+  return { ticks: 0, headX: 0, headZ: 0, velocityX: 0, velocityZ: 0, yaw: 0, hipsDrop: 0, bend: 0 };
 }
 
 /**
@@ -660,7 +660,15 @@ export function quantizeMoveStep(s: MoveStep): MoveStep {
   return s;
 }
 
-/** Quantizes a tracked step in place (positions to absolute mm, velocity mm/s, yaw int16, drop mm). */
+/** Torso bend on the wire: u8 in half degrees (0–127.5°; the runtime bends at most 80°). */
+function bendToU8(bend: number): number {
+  return Number.isFinite(bend) ? Math.max(0, Math.min(255, Math.round((bend * 360) / Math.PI))) : 0;
+}
+function u8ToBend(q: number): number {
+  return (q * Math.PI) / 360;
+}
+
+/** Quantizes a tracked step in place (positions to absolute mm, velocity mm/s, yaw int16, drop mm, bend ½°). */
 export function quantizeTrackedStep(s: TrackedStep): TrackedStep {
   s.headX = fromMm(toMm(s.headX));
   s.headZ = fromMm(toMm(s.headZ));
@@ -668,6 +676,7 @@ export function quantizeTrackedStep(s: TrackedStep): TrackedStep {
   s.velocityZ = fromMm(clampI16(toMm(s.velocityZ)));
   s.yaw = i16ToAngle(angleToI16(s.yaw));
   s.hipsDrop = fromMm(Math.max(0, Math.min(65535, toMm(s.hipsDrop))));
+  s.bend = u8ToBend(bendToU8(s.bend));
   return s;
 }
 
@@ -799,6 +808,7 @@ export function encodeTracked(m: Omit<TrackedMessage, 'type'>): Uint8Array {
     w.i16(clampI16(toMm(s.velocityZ)));
     w.i16(angleToI16(s.yaw));
     w.u16(Math.max(0, Math.min(65535, toMm(s.hipsDrop))));
+    w.u8(bendToU8(s.bend));
   }
   return w.finish();
 }
@@ -842,6 +852,7 @@ function decodeTrackedBody(r: Reader, h: StreamHeader): TrackedMessage {
       velocityZ: fromMm(r.i16('velocity z')),
       yaw: i16ToAngle(r.i16('yaw')),
       hipsDrop: fromMm(r.u16('hips drop')),
+      bend: u8ToBend(r.u8('torso bend')),
     });
   }
   r.end('tracked');
@@ -909,6 +920,7 @@ export function encodeState(m: Omit<StateMessage, 'type'>): Uint8Array {
   w.i16(clampI16(toMm(t.velocityZ)));
   w.i16(angleToI16(t.yaw));
   w.u16(Math.max(0, Math.min(65535, toMm(t.hipsDrop))));
+  w.u8(bendToU8(t.bend));
   if (runtime) {
     if (runtime.length < 1 || runtime.length > MAX_RUNTIME_STATE_BYTES) fail(`runtime state of ${runtime.length} bytes (1–${MAX_RUNTIME_STATE_BYTES})`);
     w.u16(runtime.length);
@@ -942,6 +954,7 @@ function decodeStateBody(r: Reader, h: StreamHeader): StateMessage {
     velocityZ: fromMm(r.i16('velocity z')),
     yaw: i16ToAngle(r.i16('yaw')),
     hipsDrop: fromMm(r.u16('hips drop')),
+    bend: u8ToBend(r.u8('torso bend')),
   };
   let runtime: Uint8Array | null = null;
   if (driveByte & STATE_RUNTIME) {

@@ -71,6 +71,7 @@ export class RoomCharacter implements DrivenCharacter {
     const runtime = this.character.runtime;
     runtime.setTracked(step.headX / s, step.headZ / s, step.velocityX / s, step.velocityZ / s, step.yaw);
     runtime.setHipsDrop(step.hipsDrop / s);
+    runtime.setTorsoBend(step.bend);
     const clamp = alpha / s;
     if (clamp !== this.clamp) {
       this.clamp = clamp; // settings go through JSON: only when α or the scale changed

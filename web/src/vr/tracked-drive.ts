@@ -3,15 +3,18 @@
  * sample → tracker state (velocities, missing/frozen controllers) → body yaw → the character's
  * tracked drive (`Character.setTracked`: the runtime spring-smooths the head's ground velocity
  * and the body yaw into the trajectory query; the root is clamped within α of the head) and the
- * crouch (`Character.setHipsDrop`) → the character's update (runtime, world pose, retarget) →
+ * crouch (`Character.setCrouch`) → the character's update (runtime, world pose, retarget) →
  * upper body (spine twist, head, arm IK). Allocates nothing per frame; `lastUpdateMs` times it.
  *
  * Units: the room's metres everywhere — the character converts to its database (one place,
  * `Character.toDatabase`). Calibration scales the character (`object3d.scale`) so the avatar's
  * eyes are at the user's.
  *
- * Height (docs/vr.md): crouching lowers the hips by (reference height − head-centre height) with
- * leg IK in the runtime (feet planted). The head centre is the point the head turns about,
+ * Height (docs/vr.md): the head centre's drop below the reference height goes to the runtime
+ * with the headset's pitch, which splits it (`Character.setCrouch`): looking ahead, the hips go
+ * down by leg IK (feet planted); looking at the floor, the torso bends forward instead, as
+ * bent-over people's do, and the root's target moves back under the hips. The head centre is
+ * the point the head turns about,
  * `HMD_TO_HEAD_CENTRE` behind the headset along its view axis: the headset itself sits in front of
  * it, so looking down 35° lowers the headset by 0.10·sin 35° = 5.7 cm while the head centre stays
  * put — measuring the headset made looking down crouch the avatar. Before a calibration the
@@ -48,12 +51,6 @@ export const VR_SETTINGS = {
   adjustment_max_ratio: 1.0,
 } as const;
 
-/**
- * Crouch dead band, m: the hips drop d − b once the eyes are d > 2b below the reference, easing in
- * quadratically (d²/4b) below that, so a walk's head bob (±2 cm) does not bob the hips twice.
- */
-export const CROUCH_DEADBAND = 0.03;
-
 /** Default α (m): the avatar root stays within it of the head's floor projection. */
 export const DEFAULT_ALPHA = 0.2;
 
@@ -72,9 +69,11 @@ export class TrackedDrive {
   /** The user's calibrated eye height (NaN before `calibrate`), and the reference used now. */
   calibratedEyeHeight = NaN;
   referenceEyeHeight = NaN;
-  /** Hips drop of the last frame (room m), and the head centre's height it came from. */
+  /** Hips drop (room m) and torso bend (rad) of the last frame; the head centre's height and the headset's pitch (rad) they came from. */
   hipsDrop = 0;
+  torsoBend = 0;
   headCentreHeight = NaN;
+  headsetPitch = 0;
   /** The avatar's hips height in its rest pose at scale 1, m (NaN without an avatar or hips). */
   readonly avatarHipsHeight: number;
   /** α in room metres. */
@@ -161,18 +160,21 @@ export class TrackedDrive {
     this.headFloor[0] = head.position[0] - HMD_TO_HEAD_CENTRE * Math.sin(heading);
     this.headFloor[1] = head.position[2] - HMD_TO_HEAD_CENTRE * Math.cos(heading);
 
-    // Crouch: the hips go down as far as the head centre did (tip-toe: no drop). The head centre
-    // is HMD + R·(0, 0, d) (+Z is backward in the headset's frame); its height is the HMD's plus
-    // d·(R·ẑ)_y = d·2(yz − wx), so pitching the head does not move it.
-    const eye = (this.headCentreHeight = head.position[1] + HMD_TO_HEAD_CENTRE * 2 * (q[1] * q[2] - q[3] * q[0]));
+    // Crouch: the head centre's drop (tip-toe: none) and the headset's pitch. The head centre is
+    // HMD + R·(0, 0, d) (+Z is backward in the headset's frame); its height is the HMD's plus
+    // d·(R·ẑ)_y = d·2(yz − wx), so pitching the head does not move it; the view axis is −R·ẑ,
+    // so the pitch is asin(−2(yz − wx)).
+    const up = 2 * (q[1] * q[2] - q[3] * q[0]);
+    const eye = (this.headCentreHeight = head.position[1] + HMD_TO_HEAD_CENTRE * up);
+    this.headsetPitch = Math.asin(Math.max(-1, Math.min(1, -up)));
     if (!(this.calibratedEyeHeight > 0) && tr.status[0] === 0 && !(eye <= this.referenceEyeHeight)) this.referenceEyeHeight = eye;
     const d = this.referenceEyeHeight > 0 ? this.referenceEyeHeight - eye : 0;
-    const b = CROUCH_DEADBAND;
-    this.hipsDrop = d <= 0 ? 0 : d < 2 * b ? (d * d) / (4 * b) : d - b;
 
     const character = this.character;
     character.setTracked(this.headFloor[0], this.headFloor[1], head.velocity[0], head.velocity[2], this.yaw);
-    character.setHipsDrop(this.hipsDrop);
+    character.setCrouch(d, this.headsetPitch);
+    this.hipsDrop = character.drive.tracked.hipsDrop;
+    this.torsoBend = character.drive.tracked.bend;
     character.update(step);
     this.upperBody?.apply(head, tr.left, tr.right, character.root.yaw);
     this.lastUpdateMs = performance.now() - t0;
