@@ -310,7 +310,8 @@ async function vrBenchmark(log) {
       const r = await page.evaluate(() => ({ error: window.__vr.error, bench: window.__vr.bench, isolated: crossOriginIsolated }));
       await page.close();
       if (r.error || errors.length) throw new Error(`vr.html replay ${name}: ${[r.error, ...errors].filter(Boolean).join('\n')}`);
-      rows.push({ name, isolated: r.isolated, ...r.bench });
+      const meta = JSON.parse(fs.readFileSync(path.join(dir, name), 'utf8')).meta ?? {};
+      rows.push({ name, heldIn: meta.heldIn !== false, isolated: r.isolated, ...r.bench });
     }
     return { alpha, chromium: browser.version(), load_average_1min: os.loadavg()[0], recordings: rows };
   } finally {
@@ -339,11 +340,23 @@ function printVrBenchmark(vr) {
     console.log(`${r.name.padEnd(11)} ${String(p.uprightFrames).padStart(14)}  ${String(p.hipsLowFrames).padStart(8)}  ${`${f(p.hipsMinRatio, 3)} / ${f(p.hipsMeanRatio, 3)}`.padStart(19)}  ${f(100 * p.hipsDropMax).padStart(15)}  ${String(p.elbowBehindFrames).padStart(23)}  ${f(100 * p.elbowBehindMax).padStart(14)}`);
   }
   const all = vr.recordings.filter((r) => r.rootDistance);
+  // Frame-weighted over a group of recordings (all at the same rate, so frames weigh time).
+  const weighted = (rows, value) => rows.reduce((a, r) => a + r.frames * value(r), 0) / rows.reduce((a, r) => a + r.frames, 0);
+  const met = (v, limit) => (v <= limit ? 'met' : 'MISSED');
+  const heldIn = all.filter((r) => r.heldIn);
+  const heldOut = all.filter((r) => !r.heldIn);
+  if (heldIn.length) {
+    const root = weighted(heldIn, (r) => r.rootDistance.mean);
+    console.log(`target (issue 6): held-in recordings (${heldIn.length}), mean user↔avatar root distance ≤ 12 cm at α = 0.3 → ${f(100 * root)} cm frame-weighted, ${met(root, 0.12)} (thesis: 19 cm)`);
+  }
+  if (heldOut.length) {
+    const root = weighted(heldOut, (r) => r.rootDistance.mean);
+    const skating = weighted(heldOut, (r) => r.skatingCmPerS);
+    console.log(`target (issue 14): held-out recordings (${heldOut.length}), frame-weighted: root distance ≤ 8 cm → ${f(100 * root)} cm, ${met(root, 0.08)}; skating ≤ 20 cm/s → ${f(skating)} cm/s, ${met(skating, 20)}`);
+  }
   if (all.length) {
-    const mean = all.reduce((a, r) => a + r.rootDistance.mean, 0) / all.length;
     const upd = all.map((r) => r.median).sort((a, b) => a - b)[all.length >> 1];
-    console.log(`target: mean user↔avatar root distance ≤ 12 cm at α = 0.3 → ${f(100 * mean)} cm over ${all.length} recordings, ${mean <= 0.12 ? 'met' : 'MISSED'} (thesis: 19 cm)`);
-    console.log(`target: VR update ≤ 1 ms median → ${f(upd, 3)} ms (median of the recordings' medians; timer ${all[0].isolated ? '5 µs' : '100 µs'}), ${upd <= 1 ? 'met' : 'MISSED'}`);
+    console.log(`target: VR update ≤ 0.2 ms median → ${f(upd, 3)} ms (median of the recordings' medians; timer ${all[0].isolated ? '5 µs' : '100 µs'}), ${met(upd, 0.2)}`);
   }
 }
 
