@@ -75,7 +75,15 @@ pub fn check_character(data: &[u8]) {
                 false
             }
             3 => {
-                c.set_hips_drop(r.f32());
+                // The crouch: a hips drop, a torso bend, or a head drop and pitch to split.
+                let (a, b) = (r.f32(), r.f32());
+                match r.byte() % 3 {
+                    0 => c.set_hips_drop(a),
+                    1 => c.set_torso_bend(a),
+                    _ => {
+                        let _ = c.set_crouch(a, b);
+                    }
+                }
                 false
             }
             4 => {
