@@ -332,12 +332,12 @@ function printVrBenchmark(vr) {
         `${deg(r.yawError.network).padStart(16)} | ${deg(r.yawError.heuristic).padStart(16)} | ${deg(r.yawError.hmdForward).padStart(16)}  ${f(r.skatingCmPerS).padStart(12)}  ${`${f(r.median, 3)} / ${f(r.p95, 3)}`.padStart(17)}  ${f(r.modelMedian, 3).padStart(12)}`,
     );
   }
-  console.log('\nPose checks (docs/vr.md): upright = headset within 5 cm of the calibrated height; hips ≥ 95 % of standing there; no elbow > 5 cm behind the torso unless its controller is');
-  console.log('recording   upright frames  hips low  hips ratio min/mean  largest drop cm  elbow-behind arm-frames  worst elbow cm');
+  console.log('\nPose checks (docs/vr.md): upright = headset within 5 cm of the calibrated height; hips ≥ 95 % of standing there; bent over = head centre > 10 cm down looking > 45° down, the hips take at most half of that drop there; no elbow > 5 cm behind the torso unless its controller is');
+  console.log('recording   upright frames  hips low  hips ratio min/mean  largest drop cm  bent-over frames  kneeling  largest drop cm  elbow-behind arm-frames  worst elbow cm');
   for (const r of vr.recordings) {
     const p = r.pose;
     if (!p) continue;
-    console.log(`${r.name.padEnd(11)} ${String(p.uprightFrames).padStart(14)}  ${String(p.hipsLowFrames).padStart(8)}  ${`${f(p.hipsMinRatio, 3)} / ${f(p.hipsMeanRatio, 3)}`.padStart(19)}  ${f(100 * p.hipsDropMax).padStart(15)}  ${String(p.elbowBehindFrames).padStart(23)}  ${f(100 * p.elbowBehindMax).padStart(14)}`);
+    console.log(`${r.name.padEnd(11)} ${String(p.uprightFrames).padStart(14)}  ${String(p.hipsLowFrames).padStart(8)}  ${`${f(p.hipsMinRatio, 3)} / ${f(p.hipsMeanRatio, 3)}`.padStart(19)}  ${f(100 * p.hipsDropMax).padStart(15)}  ${String(p.bentFrames).padStart(16)}  ${String(p.bentKneelFrames).padStart(8)}  ${f(100 * p.bentDropMax).padStart(15)}  ${String(p.elbowBehindFrames).padStart(23)}  ${f(100 * p.elbowBehindMax).padStart(14)}`);
   }
   const all = vr.recordings.filter((r) => r.rootDistance);
   // Frame-weighted over a group of recordings (all at the same rate, so frames weigh time).

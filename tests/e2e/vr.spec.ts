@@ -241,7 +241,7 @@ test('replay of a synthetic held-in recording with the benchmark: loose bounds',
   expect(errors).toEqual([]);
 });
 
-test('VR pose checks over every shipped recording and the scripted motion: the crouch leaves upright users standing, no elbow bent behind the torso', async ({ page }) => {
+test('VR pose checks over every shipped recording and the scripted motion: the crouch leaves upright users standing and bent-over ones on their feet, no elbow bent behind the torso', async ({ page }) => {
   const names = [...(JSON.parse(fs.readFileSync(path.join(ROOT, 'public/recordings/index.json'), 'utf8')) as string[]).map((n) => `recordings/${n}`), 'scripted'];
   test.setTimeout(120_000 * names.length);
   await page.setViewportSize({ width: 320, height: 200 });
@@ -249,18 +249,22 @@ test('VR pose checks over every shipped recording and the scripted motion: the c
   await muteHmr(page);
   const rows: string[] = [];
   let upright = 0;
+  let bent = 0;
   for (const name of names) {
     await page.goto(`/vr.html?replay=${name}&bench=1&mirror=0&spectator=0&alpha=0.3`);
     await page.waitForFunction(() => window.__vr?.ready || window.__vr?.error, null, { timeout: 110_000 });
     expect(await page.evaluate(() => window.__vr.error)).toBeNull();
     const p = (await page.evaluate(() => window.__vr.bench!.pose))!;
-    rows.push(`${name}: upright ${p.uprightFrames}, hips low ${p.hipsLowFrames} (largest drop ${(100 * p.hipsDropMax).toFixed(1)} cm; hips/rest min ${p.hipsMinRatio.toFixed(3)}), elbows behind ${p.elbowBehindFrames} (worst ${(100 * p.elbowBehindMax).toFixed(1)} cm)`);
+    rows.push(`${name}: upright ${p.uprightFrames}, hips low ${p.hipsLowFrames} (largest drop ${(100 * p.hipsDropMax).toFixed(1)} cm; hips/rest min ${p.hipsMinRatio.toFixed(3)}), bent over ${p.bentFrames}, kneeling ${p.bentKneelFrames} (largest drop ${(100 * p.bentDropMax).toFixed(1)} cm), elbows behind ${p.elbowBehindFrames} (worst ${(100 * p.elbowBehindMax).toFixed(1)} cm)`);
     upright += p.uprightFrames;
+    bent += p.bentFrames;
     expect(p.hipsLowFrames, name).toBe(0);
+    expect(p.bentKneelFrames, name).toBe(0);
     expect(p.elbowBehindFrames, name).toBe(0);
   }
   console.log(rows.join('\n'));
   expect(upright).toBeGreaterThan(1000);
+  expect(bent).toBeGreaterThan(100); // moving-about (CMU 14 bending over laughing)
   expect(errors).toEqual([]);
 });
 

@@ -57,8 +57,12 @@ export interface ReplayBenchResult {
 /**
  * The VR pose checks: upright frames are those whose headset is within `UPRIGHT_BAND` of the
  * reference (calibrated) eye height; on them the crouch should keep the hips ≥ 95 % of their
- * standing height. An elbow more than `ELBOW_LIMIT` behind the torso's frontal plane while its controller
- * is not is an arm bent the wrong way.
+ * standing height. Bent-over frames are those whose head centre is more than `BENT_DROP` below
+ * the reference with the headset looking down more than `BENT_PITCH`: the user bends at the
+ * waist (in the mocap, with the headset looking down past 45°, the hips take 9–18 % of the
+ * head's drop), so the crouch should give the hips at most half of it — not kneel. An elbow more than
+ * `ELBOW_LIMIT` behind the torso's frontal plane while its controller is not is an arm bent the
+ * wrong way.
  */
 export interface PoseCheck {
   uprightFrames: number;
@@ -73,6 +77,10 @@ export interface PoseCheck {
   /** Hips height over the rest pose's, lowest and mean, on upright frames (information). */
   hipsMinRatio: number;
   hipsMeanRatio: number;
+  /** Bent-over frames, those whose hips the crouch lowered by more than half the head's drop, and the largest hips drop there (m). */
+  bentFrames: number;
+  bentKneelFrames: number;
+  bentDropMax: number;
   /** Arm-frames (two per frame) with an elbow behind the torso while its controller is not, and the worst such elbow (m). */
   elbowBehindFrames: number;
   elbowBehindMax: number;
@@ -81,6 +89,9 @@ export interface PoseCheck {
 export const UPRIGHT_BAND = 0.05;
 export const HIPS_MIN_RATIO = 0.95;
 export const ELBOW_LIMIT = 0.05;
+export const BENT_DROP = 0.1;
+export const BENT_PITCH = (-45 * Math.PI) / 180;
+export const BENT_HIPS_SHARE = 0.5;
 
 /** Mean, median, p95 and max of the first `count` values; null when empty. */
 export function stats(values: Float64Array, count: number): Stats | null {
@@ -109,7 +120,7 @@ export async function benchReplay(drive: TrackedDrive, player: RecordingPlayer, 
   const last = new Float64Array(4);
   const hips = character.avatar?.bone('hips') ?? null;
   const body = drive.upperBody;
-  const pose: PoseCheck | null = hips && body && drive.avatarHipsHeight > 0 ? { uprightFrames: 0, hipsLowFrames: 0, hipsMinRatio: Infinity, hipsMeanRatio: 0, hipsDropMax: 0, elbowBehindFrames: 0, elbowBehindMax: 0 } : null;
+  const pose: PoseCheck | null = hips && body && drive.avatarHipsHeight > 0 ? { uprightFrames: 0, hipsLowFrames: 0, hipsMinRatio: Infinity, hipsMeanRatio: 0, hipsDropMax: 0, bentFrames: 0, bentKneelFrames: 0, bentDropMax: 0, elbowBehindFrames: 0, elbowBehindMax: 0 } : null;
 
   const pass = async (predictor: BodyYawPredictor, timed: boolean) => {
     drive.setPredictor(predictor);
@@ -139,6 +150,12 @@ export async function benchReplay(drive: TrackedDrive, player: RecordingPlayer, 
           pose.hipsMinRatio = Math.min(pose.hipsMinRatio, ratio);
           pose.hipsMeanRatio += ratio;
           pose.hipsDropMax = Math.max(pose.hipsDropMax, drive.hipsDrop);
+        }
+        const headDrop = drive.referenceEyeHeight - drive.headCentreHeight;
+        if (headDrop > BENT_DROP && drive.headsetPitch < BENT_PITCH) {
+          pose.bentFrames++;
+          if (drive.hipsDrop > BENT_HIPS_SHARE * headDrop) pose.bentKneelFrames++;
+          pose.bentDropMax = Math.max(pose.bentDropMax, drive.hipsDrop);
         }
         for (let k = 0; k < 2; k++) {
           if (body!.elbowBehind[k] > ELBOW_LIMIT && !(body!.targetBehind[k] > ELBOW_LIMIT)) {
