@@ -69,6 +69,10 @@ pub struct BuildConfig {
     /// Tag what the body does from the virtual root: `idle`, `turn_in_place`, `sidestep`,
     /// `backward` (`builder::tags`).
     pub motion_tags: bool,
+    /// Frames whose head is lower than this share of the skeleton's standing (rest) head height
+    /// are never searched — played only on the way from a frame that was: a tracked (VR) avatar
+    /// takes its crouch and bend from its user's head (`character::crouch`), not from the data.
+    pub min_head_height: Option<f64>,
     /// A 100STYLE `Frame_Cuts.csv` (path relative to the config): each `<Style>_<TYPE>.bvh`
     /// without its own `frames` uses the usable window the CSV gives (read by the CLI into
     /// [`BuildConfig::cuts`]).
@@ -96,6 +100,7 @@ impl Default for BuildConfig {
             clips: Vec::new(),
             reverse: false,
             motion_tags: false,
+            min_head_height: None,
             frame_cuts: None,
             cuts: HashMap::new(),
         }
@@ -189,6 +194,11 @@ impl BuildConfig {
         ] {
             if !(0.0..=max).contains(&v) {
                 return Err(Error::config(format!("{key} must be 0 to {max}, found {}", num(v))));
+            }
+        }
+        if let Some(r) = self.min_head_height {
+            if !(r > 0.0 && r <= 1.0) {
+                return Err(Error::config(format!("min_head_height must be above 0 and at most 1 (a share of the standing head height), found {}", num(r))));
             }
         }
         for f in self.features.iter().flatten() {
@@ -292,6 +302,8 @@ mod tests {
             (r#"{"scale": 1e-300}"#, "scale must be between"),
             (r#"{"root_facing_window": 1e300}"#, "root_facing_window must be 0 to 60"),
             (r#"{"contact_speed": -1}"#, "contact_speed must be 0 to"),
+            (r#"{"min_head_height": 0}"#, "min_head_height must be above 0 and at most 1"),
+            (r#"{"min_head_height": 1.5}"#, "min_head_height must be above 0 and at most 1"),
             (r#"{"features": [{"name": "a", "kind": "position", "joint": "root", "weight": 1e30}]}"#, "feature 'a': weight must be"),
             (r#"{"features": [{"name": "a", "kind": "position", "joint": "root", "offsets": []}]}"#, "offsets must not be empty"),
             (r#"{"features": [{"name": "a", "kind": "position", "joint": "root", "offsets": [2147483647]}]}"#, "beyond ±10000"),

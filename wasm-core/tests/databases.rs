@@ -2,7 +2,7 @@
 //! the character plays them (the quality harness's skating targets), and the VR tracked drive
 //! following a straight walk at every speed from 0.3 to 2.0 m/s.
 
-use glam::{Vec2, Vec3};
+use glam::{Quat, Vec2, Vec3};
 use mmcore::character::{Character, CharacterSettings, Tracked};
 use mmcore::config::BuildConfig;
 use mmcore::controller::Input;
@@ -70,6 +70,35 @@ fn the_default_databases_hold_every_way_of_moving() {
         println!("  .mmdb: {:.1} MB", bytes.len() as f64 / 1e6);
         format::check_round_trip(db, &format::from_bytes(&bytes).unwrap()).unwrap_or_else(|e| panic!("{name}: {e}"));
     }
+}
+
+/// The VR database (`min_head_height` 0.9) never searches a frame whose head is below 90 % of its
+/// standing height: the avatar's crouch and bend are its user's (`character::crouch`), so CMU
+/// 02's washing, 14's laughing bent over and boxing crouches are only played on the way.
+#[test]
+fn the_vr_database_searches_only_upright_frames() {
+    let db = &vr().0;
+    let head = db.skeleton.site("head").unwrap().joint as usize;
+    let rest = db.rest_positions();
+    let floor = rest.iter().map(|p| p.y).fold(f32::INFINITY, f32::min);
+    let limit = 0.9 * (rest[head].y - floor);
+    let j = db.num_joints();
+    let (mut p, mut r) = (vec![Vec3::ZERO; j], vec![Quat::IDENTITY; j]);
+    let (mut low, mut searchable, mut low_invalid) = (0, 0, 0);
+    for f in 0..db.num_frames {
+        db.forward_kinematics(f, &mut p, &mut r);
+        let is_low = p[head].y < limit;
+        if db.valid[f] != 0 {
+            searchable += 1;
+            low += is_low as usize;
+        } else {
+            low_invalid += is_low as usize;
+        }
+    }
+    println!("vr: {searchable} searchable frames, {low_invalid} with the head below 90 % left out");
+    assert_eq!(low, 0, "{low} searchable frames with the head below 90 %");
+    assert!(low_invalid > 500, "only {low_invalid} low frames: the data should hold bending (CMU 02, 14)");
+    assert!(searchable > 20_000);
 }
 
 /// The quality harness on the desktop database (issue 14): the foot lock removes at least half

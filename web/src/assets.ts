@@ -59,6 +59,8 @@ export function assetBytes(url: string | URL): number {
 
 /** The shipped defaults. */
 export const DEFAULT_DATABASE = 'databases/locomotion.mmdb';
+/** The VR page's database (docs/database.md, `vr.json`): slow walks, steps, gestures, idle. */
+export const DEFAULT_VR_DATABASE = 'databases/vr.mmdb';
 export const DEFAULT_AVATAR = 'avatars/ubc_male.glb';
 export const DEFAULT_ORIENTATION_MODEL = 'models/orientation.onnx';
 /** The orientation model for one controller or none (recurrent; docs/orientation-model.md). */

@@ -30,7 +30,7 @@ export type { ClipInfo, DatabaseEntry, FeatureGroupInfo, TagInfo } from './core/
 export { DatabaseBuilder } from './core/builder.ts';
 export { initWasm, initWasmSync, liveObjects } from './core/wasm.ts';
 export type { LiveObjects, WasmExports } from './core/wasm.ts';
-export { DEFAULT_AVATAR, DEFAULT_DATABASE, DEFAULT_ORIENTATION_MODEL, DEFAULT_ORIENTATION_MODEL_FEWER_DEVICES, assetBytes, assetUrl, hasAssetVersions, setAssetBase } from './assets.ts';
+export { DEFAULT_AVATAR, DEFAULT_DATABASE, DEFAULT_VR_DATABASE, DEFAULT_ORIENTATION_MODEL, DEFAULT_ORIENTATION_MODEL_FEWER_DEVICES, assetBytes, assetUrl, hasAssetVersions, setAssetBase } from './assets.ts';
 export { errorMessage, fetchBytes } from './fetch.ts';
 export { ASSET_CACHE, isVersioned } from './cache.ts';
 export { registerOfflineCache } from './offline.ts';

@@ -30,6 +30,7 @@ mod tags;
 mod take;
 
 use crate::bvh::Bvh;
+use glam::{Quat, Vec3};
 use crate::config::BuildConfig;
 use crate::database::{Clip, Database, Tag};
 use crate::error::{Error, Result};
@@ -349,6 +350,13 @@ pub fn build(config: &BuildConfig, sources: &[Source]) -> Result<BuildOutput> {
     // Velocities are derived per clip from positions and rotations (as on load), reversed and
     // mirrored copies included.
     database.compute_velocities();
+    if let Some(ratio) = config.min_head_height {
+        let (excluded, searchable) = exclude_low_heads(&mut database, ratio as f32);
+        if searchable == 0 {
+            return Err(Error::config(format!("min_head_height {ratio}: no frame has its head that high (the head role is missing or the data never stands)")));
+        }
+        warnings.push(format!("min_head_height {ratio}: {excluded} frames with the head lower are not searched ({searchable} are)"));
+    }
     Ok(BuildOutput { database, warnings, retargeted })
 }
 
@@ -375,4 +383,29 @@ fn ensure_unique_names(clips: &mut [Clip]) {
             c.name = format!("{} #{}", c.name, n);
         }
     }
+}
+
+/// Marks every valid frame whose head is below `ratio` × the rest pose's head height above its
+/// floor as invalid (never searched). Returns (frames excluded, frames still valid); without a
+/// head role nothing is searchable.
+fn exclude_low_heads(db: &mut Database, ratio: f32) -> (usize, usize) {
+    let Some(head) = db.skeleton.site("head").filter(|s| s.joint > 0).map(|s| s.joint as usize) else { return (0, 0) };
+    let rest = db.rest_positions();
+    let floor = rest.iter().map(|p| p.y).fold(f32::INFINITY, f32::min);
+    let limit = ratio * (rest[head].y - floor);
+    let j = db.num_joints();
+    let (mut p, mut r) = (vec![Vec3::ZERO; j], vec![Quat::IDENTITY; j]);
+    let mut excluded = 0;
+    for f in 0..db.num_frames {
+        if db.valid[f] == 0 {
+            continue;
+        }
+        db.forward_kinematics(f, &mut p, &mut r);
+        // The virtual root stands on the floor: world height is height above it.
+        if p[head].y < limit {
+            db.valid[f] = 0;
+            excluded += 1;
+        }
+    }
+    (excluded, db.valid.iter().filter(|&&v| v != 0).count())
 }

@@ -16,6 +16,7 @@ import { clone as cloneSkinned } from 'three/addons/utils/SkeletonUtils.js';
 import { DEFAULT_AVATAR, assetUrl } from '../assets.ts';
 import { Avatar } from '../avatar/avatar.ts';
 import { Character, type CharacterStepper } from '../character/character.ts';
+import { Database } from '../core/database.ts';
 import { errorMessage } from '../fetch.ts';
 import { MISSING, TRACKED } from '../vr/trackers.ts';
 import { VR_SETTINGS, DEFAULT_ALPHA } from '../vr/tracked-drive.ts';
@@ -118,6 +119,12 @@ export class RoomSession {
   private pathVersion = -1;
   /** One loaded avatar per URL, cloned for each member who uses it (no second download, parse or texture decode). */
   private readonly templates = new Map<string, Promise<Avatar>>();
+  /**
+   * Other members' databases (a VR member plays `vr`, a desktop one `locomotion`), by id, each
+   * fetched once from the asset folder: a copy replays its sender's inputs on the sender's
+   * database, or it would not be the sender's motion.
+   */
+  private readonly databases = new Map<string, Promise<Database>>();
   private now = 0;
   private closed = false;
   /** Leaving the page leaves the room at once (a closed socket may otherwise linger until the server's idle timeout). */
@@ -213,6 +220,8 @@ export class RoomSession {
     for (const id of [...this.members.keys()]) this.remove(id);
     for (const t of this.templates.values()) void t.then((a) => a.dispose(), () => undefined);
     this.templates.clear();
+    for (const d of this.databases.values()) void d.then((db) => db.release(), () => undefined);
+    this.databases.clear();
     if (this.o.character.stepper === this.stepper) this.o.character.stepper = null;
   }
 
@@ -316,8 +325,19 @@ export class RoomSession {
       avatar?.dispose();
       return;
     }
-    if (m.join.database !== this.databaseId) note(`uses database "${m.join.database}", which this page does not have; replaying on "${this.databaseId}"`);
-    const character = new Character(this.o.character.database, avatar, { settings: m.join.mode === 'vr' ? { ...VR_SETTINGS } : undefined });
+    let database = this.o.character.database;
+    if (m.join.database !== this.databaseId) {
+      try {
+        database = await this.databaseFor(m.join.database);
+      } catch (e) {
+        note(`database "${m.join.database}" unavailable, replaying on "${this.databaseId}" (${errorMessage(e)})`);
+      }
+      if (m.gone || this.closed) {
+        avatar?.dispose();
+        return;
+      }
+    }
+    const character = new Character(database, avatar, { settings: m.join.mode === 'vr' ? { ...VR_SETTINGS } : undefined });
     const rc = new RoomCharacter(character, true);
     // A VR member's arms reach for its controllers as on its own page (built at rest, before the first pose).
     if (m.join.mode === 'vr' && avatar) {
@@ -336,6 +356,17 @@ export class RoomSession {
     m.pending = [];
     for (const f of pending) f();
     this.o.onMembers?.();
+  }
+
+  /** A member's database by id (`[A-Za-z0-9._-]{1,64}`, checked by the protocol): `databases/<id>.mmdb` beside the default assets. */
+  private databaseFor(id: string): Promise<Database> {
+    let db = this.databases.get(id);
+    if (!db) {
+      db = Database.fetch(assetUrl(`databases/${id}.mmdb`));
+      this.databases.set(id, db);
+      db.catch(() => this.databases.delete(id));
+    }
+    return db;
   }
 
   private async avatarFor(url: string): Promise<Avatar> {

@@ -14,7 +14,7 @@
 import * as THREE from 'three';
 import { Reflector } from 'three/addons/objects/Reflector.js';
 import {
-  DEFAULT_ALPHA, DEFAULT_AVATAR, DEFAULT_DATABASE, DEFAULT_ORIENTATION_MODEL, DEFAULT_ORIENTATION_MODEL_FEWER_DEVICES, EnterVrButton, FollowCamera, HeadingYawPredictor, LEFT, LoadingStatus,
+  DEFAULT_ALPHA, DEFAULT_AVATAR, DEFAULT_VR_DATABASE, DEFAULT_ORIENTATION_MODEL, DEFAULT_ORIENTATION_MODEL_FEWER_DEVICES, EnterVrButton, FollowCamera, HeadingYawPredictor, LEFT, LoadingStatus,
   FIRST_PERSON_LAYER, FirstPerson, deviceSetName, type NetworkYawPredictor, RIGHT, RecordingPlayer, RoomPanel, SpectatorView, Stage, TrackedDrive, TrackerRecorder, TrackerSample, UpdateTimer, assetUrl,
   benchReplay, encodeRecordingJson, errorMessage, loadNetworkPredictor, loadPageCharacter, loadRecording, registerOfflineCache, sampleXRFrame,
   THIRD_PERSON_LAYER, saveTextFile, scriptedSample, setHeadsetView, showError,
@@ -62,7 +62,7 @@ async function main(): Promise<void> {
 
   const avatarParam = params.get('avatar');
   const loading = LoadingStatus.attach($('hud'));
-  const loaded = await loadPageCharacter({ database: params.get('db') ?? assetUrl(DEFAULT_DATABASE), avatar: avatarParam === 'none' ? null : (avatarParam ?? assetUrl(DEFAULT_AVATAR)), status: loading });
+  const loaded = await loadPageCharacter({ database: params.get('db') ?? assetUrl(DEFAULT_VR_DATABASE), avatar: avatarParam === 'none' ? null : (avatarParam ?? assetUrl(DEFAULT_AVATAR)), status: loading });
   if (!loaded) return void (hook.error = $('hud').textContent);
   const { character, avatarNote } = loaded;
   loading.finish(avatarNote ? (showError(avatarNote), 'skeleton: the avatar did not load') : null);
