@@ -4,18 +4,18 @@
 //! are, and a torso bend (VR bending over, [`super::crouch`]) pitches the spine forward about the
 //! root's lateral axis. Only the touched subtrees are recomputed by FK afterwards.
 
+use super::crouch::MAX_BEND;
 use super::pose::Pose;
 use super::settings::CharacterSettings;
 use crate::database::Database;
 use crate::ik::{knee_bend_direction, leg_ik, FootLock, LegJoints};
-use super::crouch::MAX_BEND;
-
-/// Most the spine chain bends (rad) to match a torso bend: past this the head would come back up.
-const MAX_CHAIN_BEND: f32 = 100.0 * std::f32::consts::PI / 180.0;
 use crate::kinematics::subtree_range;
 use crate::persist::{Persist, Visitor};
 use glam::{Quat, Vec3};
 use std::ops::Range;
+
+/// Most the spine chain bends (rad) to match a torso bend: past this the head would come back up.
+const MAX_CHAIN_BEND: f32 = 100.0 * std::f32::consts::PI / 180.0;
 
 #[derive(Clone, Debug)]
 pub struct Legs {
