@@ -42,6 +42,11 @@ impl Skeleton {
     pub fn site(&self, name: &str) -> Option<&Site> {
         self.sites.iter().find(|s| s.name == name && s.joint >= 0)
     }
+
+    /// The joint of the site with this name, if its part was found on a joint below the root.
+    pub fn site_joint(&self, name: &str) -> Option<usize> {
+        self.site(name).filter(|s| s.joint > 0).map(|s| s.joint as usize)
+    }
 }
 
 /// A contiguous range of frames from one source take.
@@ -215,6 +220,15 @@ impl Database {
         let identity = vec![Quat::IDENTITY; j];
         local_to_model(&self.skeleton.parents, 0..j, None, &self.skeleton.offsets, &identity, &mut p, &mut r);
         p
+    }
+
+    /// The head joint's height in the rest pose above its lowest joint (database units): the
+    /// skeleton's standing eye height. `None` without a head role.
+    pub fn rest_head_height(&self) -> Option<f32> {
+        let head = self.skeleton.site_joint("head")?;
+        let rest = self.rest_positions();
+        let floor = rest.iter().map(|p| p.y).fold(f32::INFINITY, f32::min);
+        Some(rest[head].y - floor)
     }
 
     /// Median height above the floor of the toe sites in frames where that foot is in contact

@@ -146,9 +146,7 @@ pub fn replay(db: &Database, index: &SearchIndex, recording: &Recording, yaw: &[
     assert_eq!(yaw.len(), n, "one yaw per frame");
     // Calibration: the avatar's eyes at the user's (the database skeleton's head joint height at
     // rest stands for the avatar's eye height, as the page does without an avatar).
-    let rest = db.rest_positions();
-    let floor = rest.iter().map(|p| p.y).fold(f32::INFINITY, f32::min);
-    let db_eye = db.skeleton.site("head").filter(|s| s.joint >= 0).map_or(1.6, |s| rest[s.joint as usize].y - floor);
+    let db_eye = db.rest_head_height().unwrap_or(1.6);
     let eye = recording.eye_height.unwrap_or(db_eye);
     let scale = eye / db_eye;
     let settings = CharacterSettings { clamp_distance: alpha / scale, ..settings.clone() };

@@ -389,10 +389,8 @@ fn ensure_unique_names(clips: &mut [Clip]) {
 /// floor as invalid (never searched). Returns (frames excluded, frames still valid); without a
 /// head role nothing is searchable.
 fn exclude_low_heads(db: &mut Database, ratio: f32) -> (usize, usize) {
-    let Some(head) = db.skeleton.site("head").filter(|s| s.joint > 0).map(|s| s.joint as usize) else { return (0, 0) };
-    let rest = db.rest_positions();
-    let floor = rest.iter().map(|p| p.y).fold(f32::INFINITY, f32::min);
-    let limit = ratio * (rest[head].y - floor);
+    let (Some(head), Some(standing)) = (db.skeleton.site_joint("head"), db.rest_head_height()) else { return (0, 0) };
+    let limit = ratio * standing;
     let j = db.num_joints();
     let (mut p, mut r) = (vec![Vec3::ZERO; j], vec![Quat::IDENTITY; j]);
     let mut excluded = 0;

@@ -79,10 +79,9 @@ impl Legs {
             }
             (parents[k] == 0).then_some(k)
         });
-        let joint = |role: &str| db.skeleton.site(role).filter(|s| s.joint > 0).map(|s| s.joint as usize);
         let mut spine = [0; 3];
         let mut spine_count = 0;
-        for j in ["spine", "chest", "upper_chest"].into_iter().filter_map(joint) {
+        for j in ["spine", "chest", "upper_chest"].into_iter().filter_map(|role| db.skeleton.site_joint(role)) {
             // Only joints under the hips bend the torso (a skeleton whose roles say otherwise
             // keeps its torso straight rather than folding the legs).
             if hips.is_some_and(|h| hips_subtree_holds(parents, h, j)) {
@@ -90,7 +89,7 @@ impl Legs {
                 spine_count += 1;
             }
         }
-        let head = joint("head");
+        let head = db.skeleton.site_joint("head");
         let mut segments = [(0.0, 0.0); 3];
         let torso = match (hips, head, spine_count) {
             (Some(h), Some(hd), 1..) => {

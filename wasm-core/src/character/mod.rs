@@ -107,7 +107,7 @@ impl Character {
             pose: Pose::new(db.num_joints()),
             legs: Legs::new(db),
             skating: SkatingMeter::default(),
-            head: db.skeleton.site("head").filter(|s| s.joint > 0).map(|s| s.joint as usize),
+            head: db.skeleton.site_joint("head"),
             head_offset: Vec3::ZERO,
             input: Input::default(),
             tracked: Tracked::default(),
