@@ -361,13 +361,15 @@ function printVrBenchmark(vr) {
 }
 
 /**
- * `npm run bench -- --vr-shots [--recordings a,b]`: screenshots of each recording's replay (and
- * the scripted motion) at 0, 3 and 10 s of replay time (the end for shorter ones), fixed steps
+ * `npm run bench -- --vr-shots [--recordings a,b] [--times 0,3,10]`: screenshots of each
+ * recording's replay (and the scripted motion) at 0, 3 and 10 s of replay time (or `--times`;
+ * the end for shorter ones), fixed steps
  * of 1/60 s, mirror on, 960×540, into test-results/vr-shots/ — the VR body looked at by eye.
  */
 async function vrShots(log) {
   const names = [...JSON.parse(fs.readFileSync(path.join(ROOT, 'public', 'recordings', 'index.json'), 'utf8')).map((n) => `recordings/${n}`), 'scripted']
     .filter((n) => !args.includes('--recordings') || args[args.indexOf('--recordings') + 1].split(',').some((o) => n.includes(o)));
+  const times = args.includes('--times') ? args[args.indexOf('--times') + 1].split(',').map(Number) : [0, 3, 10];
   const out = path.join(ROOT, 'test-results', 'vr-shots');
   fs.mkdirSync(out, { recursive: true });
   const server = await startVite();
@@ -379,7 +381,7 @@ async function vrShots(log) {
       await page.goto(`${server.resolvedUrls.local[0]}vr.html?replay=${name}&dt=fixed&mirror=256&alpha=0.3`);
       await page.waitForFunction(() => window.__vr?.ready || window.__vr?.error, null, { timeout: 120_000 });
       const duration = await page.evaluate(() => window.__vr.replayDuration);
-      for (const t of [0, 3, 10]) {
+      for (const t of times) {
         const at = Math.min(t, Math.max(0, duration - 0.05));
         await page.waitForFunction((f) => window.__vr.frames >= f, Math.round(at * 60), { timeout: 600_000, polling: 100 });
         const file = path.join(out, `${path.basename(name, '.json')}-${t}s.png`);

@@ -19,6 +19,10 @@ use glam::{Mat3, Quat, Vec3};
 /// Below this length a direction is treated as undefined (metres, or unit-vector length).
 const TINY: f32 = 1e-6;
 
+/// Peak lift of a foot lock's corrective step over its length (a 0.3 m step lifts the toe 9 cm
+/// at its middle; a walking step lifts it 5–15 cm).
+const STEP_LIFT: f32 = 0.3;
+
 /// Weight of the pole in the *current* bend plane's normal, relative to the sine of the knee
 /// angle: the bones decide once the knee is bent more than ~0.6°, the pole decides for a straight
 /// leg, and the normal changes continuously in between (no pop when a leg straightens).
@@ -293,9 +297,17 @@ pub fn leg_ik(
 /// - The lock is released when the contact ends or the animated toe drifts more than
 ///   `unlock_radius` from the lock point; the target then returns to the animated toe by
 ///   inertialization (offset decayed by the critically damped spring, docs/method.md §4–5), with no
-///   jump in position or velocity. A new lock needs a new contact start.
+///   jump in position or velocity. A new lock needs a new contact start, or the end of a drift
+///   release's blend.
+/// - A drift release happens while the animation still stands on that foot (a dragged body), so
+///   the way back is a **step**, not a slide: the target is lifted by `STEP_LIFT · span · 4s(1 − s)`,
+///   with `s` the share of the way travelled (from the release point to the animated toe) and
+///   `span` the whole way — 9 cm at the middle of a 0.3 m step, nothing at either end. It starts
+///   from rest (the target was locked) and lands as the blend ends. A contact end needs none:
+///   the animation lifts the foot itself.
 ///
-/// All positions are in world space (the lock must not move with the character). No allocation.
+/// All positions are in world space (the lock must not move with the character), Y up. No
+/// allocation.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct FootLock {
     initialized: bool,
@@ -307,6 +319,11 @@ pub struct FootLock {
     offset_velocity: Vec3,
     position: Vec3,
     velocity: Vec3,
+    /// A drift release's step under way: where the target was released (its lift is added on
+    /// top of the blend) and the lift now.
+    stepping: bool,
+    step_from: Vec3,
+    lift: f32,
     /// Height of a planted toe on a flat floor (m): locks are made at this height, so a toe
     /// that touches down while an inertialization offset still holds it in the air (or below
     /// the floor) is brought to the floor over the lock's blend. `None`: lock where it is.
@@ -324,6 +341,9 @@ impl Persist for FootLock {
         self.offset_velocity.persist(v, "foot lock offset velocity");
         self.position.persist(v, "foot lock target");
         self.velocity.persist(v, "foot lock target velocity");
+        self.stepping.persist(v, "foot lock stepping");
+        self.step_from.persist(v, "foot lock step start");
+        self.lift.persist(v, "foot lock step lift");
     }
 }
 
@@ -345,6 +365,9 @@ impl FootLock {
             offset_velocity: Vec3::ZERO,
             position: Vec3::ZERO,
             velocity: Vec3::ZERO,
+            stepping: false,
+            step_from: Vec3::ZERO,
+            lift: 0.0,
             floor: None,
         }
     }
@@ -373,6 +396,16 @@ impl FootLock {
         self.velocity
     }
 
+    /// Whether a drift release's step is under way (the target lifted on its way back).
+    pub fn is_stepping(&self) -> bool {
+        self.stepping
+    }
+
+    /// How high the step lifts the target now (m; 0 when not stepping).
+    pub fn lift(&self) -> f32 {
+        self.lift
+    }
+
     /// Advances by `dt` and returns the toe target. `contact` is the database's contact flag for
     /// this foot at the frame now playing; `animated_toe_pos`/`animated_toe_vel` are the toe of the
     /// inertialized pose in world space. Defaults: `unlock_radius` 0.2 m, `halflife` 0.12 s (exact half-life; Holden's 0.1 s).
@@ -398,6 +431,8 @@ impl FootLock {
             // Lock where the target is now (on the floor, if known); the offset from there to the
             // target decays, so the target never jumps (see type docs).
             self.locked = true;
+            // The lift is part of the target: the offset takes it and lands it (no drop).
+            (self.stepping, self.lift) = (false, 0.0);
             self.lock_position = self.position;
             if let Some(h) = self.floor {
                 self.lock_position.y = h;
@@ -410,6 +445,9 @@ impl FootLock {
             self.locked = false;
             self.offset = self.position - animated_toe_pos;
             self.offset_velocity = self.velocity - animated_toe_vel;
+            // Released by drift while still in contact: step back (see type docs).
+            self.stepping = contact;
+            self.step_from = self.position;
         }
         self.contact = contact;
 
@@ -418,7 +456,30 @@ impl FootLock {
         (self.offset, self.offset_velocity) = decay_spring_vec3(self.offset, self.offset_velocity, halflife, dt);
         self.position = input + self.offset;
         self.velocity = input_velocity + self.offset_velocity;
+        if self.stepping {
+            // Landed: under 0.1 mm to go, the lift is under 0.1 mm too. (In contact the foot
+            // re-locks before, at 1 cm, and the lock's offset lands the rest of the lift.)
+            self.stepping = self.offset.length_squared() >= 1e-8;
+            let lift = if self.stepping { self.step_lift() } else { 0.0 };
+            let speed = if dt > 0.0 { (lift - self.lift) / dt } else { 0.0 };
+            self.lift = lift;
+            self.position.y += lift;
+            self.velocity.y += speed;
+        }
         self.position
+    }
+
+    /// The lift of a drift release's step now (see type docs): from the floor-plane distances
+    /// travelled since the release and still to go.
+    fn step_lift(&self) -> f32 {
+        let flat = |v: Vec3| Vec3::new(v.x, 0.0, v.z).length();
+        let (done, left) = (flat(self.position - self.step_from), flat(self.offset));
+        let span = done + left;
+        if !(span > TINY) {
+            return 0.0;
+        }
+        let s = (done / span).clamp(0.0, 1.0);
+        STEP_LIFT * span * 4.0 * s * (1.0 - s)
     }
 }
 
@@ -687,13 +748,14 @@ mod tests {
             assert!((target - prev).length() < 0.02);
             prev = target;
         }
-        // Contact ends: back to the animated toe within ~0.5 s, with bounded per-frame steps.
+        // Contact ends: back to the animated toe within ~0.5 s, with bounded per-frame steps —
+        // and no corrective step: the animation lifts the foot itself.
         let lift = Vec3::new(0.3, 0.5, 1.0);
         let mut max_step = 0.0f32;
         for frame in 1..=60 {
             toe += lift * DT;
             let target = lock.update(false, toe, lift, DT, 0.2, 0.12);
-            assert!(!lock.is_locked());
+            assert!(!lock.is_locked() && !lock.is_stepping() && lock.lift() == 0.0);
             max_step = max_step.max((target - prev).length());
             if frame == 30 {
                 assert!((target - toe).length() < 0.005, "0.5 s after release: {}", (target - toe).length());
@@ -703,6 +765,39 @@ mod tests {
         assert!((prev - toe).length() < 1e-4);
         // The animated toe itself moves 1.16 m/s · dt ≈ 19 mm per frame; the blend adds a little.
         assert!(max_step < 0.03, "per-frame step {max_step}");
+    }
+
+    #[test]
+    fn a_drift_release_steps_back_through_the_air_and_lands() {
+        // A standing foot under a body dragged at 0.5 m/s: the lock holds, releases at 0.3 m,
+        // and the foot goes back under the body lifted — not sliding — then plants again.
+        let mut lock = FootLock::new();
+        lock.floor = Some(0.0);
+        let drag = Vec3::new(0.5, 0.0, 0.0);
+        let mut toe = Vec3::ZERO;
+        lock.update(false, toe, Vec3::ZERO, DT, 0.3, 0.12);
+        let mut prev = lock.position();
+        let (mut steps, mut peak, mut on_floor, mut in_air, mut max_step) = (0, 0.0f32, 0.0f32, 0.0f32, 0.0f32);
+        let mut was_stepping = false;
+        for _ in 0..240 {
+            toe += drag * DT;
+            let target = lock.update(true, toe, drag, DT, 0.3, 0.12);
+            assert!(target.is_finite());
+            assert!(target.y >= -1e-6, "below the floor: {}", target.y);
+            steps += (lock.is_stepping() && !was_stepping) as usize;
+            was_stepping = lock.is_stepping();
+            let moved = Vec3::new(target.x - prev.x, 0.0, target.z - prev.z).length();
+            if target.y < 0.033 { on_floor += moved } else { in_air += moved }
+            peak = peak.max(target.y);
+            max_step = max_step.max((target - prev).length());
+            prev = target;
+        }
+        // 2 m of drag in 4 s: a step every ~0.3 m, each lifting the toe ~9 cm (0.3 × span at mid-way).
+        assert!((4..=8).contains(&steps), "{steps} steps");
+        assert!(peak > 0.06 && peak < 0.15, "peak lift {peak}");
+        // Most of the way back is in the air; what slides is the take-off and the landing.
+        assert!(on_floor < 0.35 * (on_floor + in_air), "on the floor {on_floor} m of {} m", on_floor + in_air);
+        assert!(max_step < 0.05, "per-frame step {max_step}");
     }
 
     #[test]

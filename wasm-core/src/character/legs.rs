@@ -17,6 +17,11 @@ use std::ops::Range;
 /// Most the spine chain bends (rad) to match a torso bend: past this the head would come back up.
 const MAX_CHAIN_BEND: f32 = 100.0 * std::f32::consts::PI / 180.0;
 
+/// A foot lifted more than this by its corrective step (m) is in the air.
+const STEP_AIRBORNE: f32 = 0.01;
+/// How much farther than the unlock radius a lock holds while the other foot is in the air.
+const HOLD_WHILE_STEPPING: f32 = 1.5;
+
 #[derive(Clone, Debug)]
 pub struct Legs {
     legs: [Option<LegJoints>; 2],
@@ -205,6 +210,11 @@ impl Legs {
         [self.locks[0].is_locked(), self.locks[1].is_locked()]
     }
 
+    /// Whether each foot is stepping back under the body after a drift release.
+    pub fn stepping(&self) -> [bool; 2] {
+        [self.locks[0].is_stepping(), self.locks[1].is_stepping()]
+    }
+
     /// Touches up the shown pose, whose world transforms must be current; they are current
     /// again afterwards. `facing` breaks a tie for a straight leg's bend direction.
     pub fn apply(&mut self, db: &Database, pose: &mut Pose, settings: &CharacterSettings, facing: Quat, dt: f32) {
@@ -227,6 +237,10 @@ impl Legs {
             // unlock radius is at least α (VR's α = 0.3 m: held-out replays skate 48 → 31 cm/s).
             let alpha = if settings.clamping { settings.clamp_distance } else { 0.0 };
             let radius = settings.foot_lock_unlock_radius.max(alpha);
+            // One foot steps at a time: while the other is off the floor stepping, this one
+            // holds on — up to half the radius more — instead of hopping.
+            let other = &self.locks[1 - side];
+            let radius = if other.lift() > STEP_AIRBORNE { HOLD_WHILE_STEPPING * radius } else { radius };
             let target = self.locks[side].update(contact, toe, velocity, dt, radius, settings.foot_lock_halflife);
             targets[side] = Some((toe, target));
         }

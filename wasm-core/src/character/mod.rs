@@ -338,6 +338,11 @@ impl Character {
     pub fn foot_locked(&self) -> [bool; 2] {
         self.legs.locked()
     }
+    /// Whether each foot (left, right) is stepping back under a dragged body (a foot lock's
+    /// drift release, `ik::FootLock`).
+    pub fn foot_stepping(&self) -> [bool; 2] {
+        self.legs.stepping()
+    }
     /// Foot contacts of the current frame (left, right).
     pub fn contacts(&self) -> [u8; 2] {
         self.pose.contacts
@@ -431,7 +436,7 @@ impl Character {
         self.legs.apply(db, &mut self.pose, &self.settings, self.root.rotation, dt);
         if self.is_finite() {
             self.last_good = LastGood { position: self.root.position, rotation: self.root.rotation, simulation: self.simulation };
-            self.skating.update(self.legs.toes, self.pose.contacts);
+            self.skating.update(self.legs.toes, self.pose.contacts, self.legs.toe_floor);
         } else {
             self.recover(db);
         }
