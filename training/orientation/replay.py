@@ -103,9 +103,9 @@ def run(recordings: list[Path], db: Path, alpha: float, model_path: Path, settin
 
 
 def table(rows: list[dict]) -> str:
-    out = ["| recording | s | root distance cm mean / p95 (HMD-forward yaw) | clamped | skating cm/s (legacy toe-height) | "
+    out = ["| recording | s | root distance cm mean / p95 (HMD-forward yaw) | clamped | skating cm/s (legacy toe-height) | corrective steps/s | "
            "update ms median / p95 | yaw error ° network · HMD forward | network per class °  |",
-           "|---|---|---|---|---|---|---|---|"]
+           "|---|---|---|---|---|---|---|---|---|"]
     for r in rows:
         n, h = r["network"], r["hmd"]
         d = n["root_distance"]
@@ -114,7 +114,7 @@ def table(rows: list[dict]) -> str:
         out.append(
             f"| {r['recording']}{'' if not r['heldIn'] else ' (held in)'} | {r['seconds']:.1f} | "
             f"{100 * d['mean']:.1f} / {100 * d['p95']:.1f} ({100 * dh['mean']:.1f}) | {100 * n['clamped_share']:.0f}% | "
-            f"{n['skating']:.1f} ({n['skating_toe_height']:.1f}) | {n['update_ms']['median']:.4f} / {n['update_ms']['p95']:.4f} | "
+            f"{n['skating']:.1f} ({n['skating_toe_height']:.1f}) | {n['steps_per_second']:.2f} | {n['update_ms']['median']:.4f} / {n['update_ms']['p95']:.4f} | "
             f"{r['yaw_network']['mean']:.1f} · {r['yaw_hmd']['mean']:.1f} | {classes} |")
     held_out = [r for r in rows if not r["heldIn"]]
     if held_out:
@@ -122,6 +122,7 @@ def table(rows: list[dict]) -> str:
         mean = lambda key: float(np.average([key(r) for r in held_out], weights=w))  # noqa: E731
         out.append(f"\nheld-out recordings (frame-weighted): root distance {100 * mean(lambda r: r['network']['root_distance']['mean']):.1f} cm, "
                    f"skating {mean(lambda r: r['network']['skating']):.1f} cm/s (legacy {mean(lambda r: r['network']['skating_toe_height']):.1f}), "
+                   f"{mean(lambda r: r['network']['steps_per_second']):.2f} corrective steps/s, "
                    f"update median {np.median([r['network']['update_ms']['median'] for r in held_out]):.4f} ms (native), "
                    f"yaw error network {mean(lambda r: r['yaw_network']['mean']):.1f}° vs HMD forward {mean(lambda r: r['yaw_hmd']['mean']):.1f}°")
     return "\n".join(out)

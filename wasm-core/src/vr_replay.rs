@@ -27,9 +27,13 @@ const RESET_AFTER: f32 = 0.5;
 /// Toe height under which the legacy skating measure counts a toe as on the floor (m).
 pub const LEGACY_SKATING_HEIGHT: f32 = 0.033;
 
-/// The VR page's runtime settings (`VR_SETTINGS` in `web/src/vr/tracked-drive.ts`), α apart.
+/// The VR page's runtime settings: the one file the page reads too (`VR_SETTINGS` in
+/// `web/src/vr/tracked-drive.ts`, whose comment says why each value).
+const VR_SETTINGS_JSON: &str = include_str!("../../web/src/vr/vr-settings.json");
+
+/// The VR page's runtime settings, α apart.
 pub fn vr_settings() -> CharacterSettings {
-    CharacterSettings { clamping: true, adjustment_min_speed: 0.15, clamp_angle: 0.35, beta_trajectory: 2.0, adjustment_max_ratio: 1.0, ..CharacterSettings::default() }
+    CharacterSettings::default().patched(VR_SETTINGS_JSON).expect("web/src/vr/vr-settings.json is valid settings (tested)")
 }
 
 /// The parts of a recording the replay uses.
@@ -127,8 +131,11 @@ pub struct ReplayReport {
     pub head_gap: Stats,
     /// Share of frames with the root clamped at α (head gap ≥ 0.98 α).
     pub clamped_share: f32,
-    /// Planted-toe sliding by contact flag (`quality::SkatingMeter`), cm/s.
+    /// Planted-toe sliding on the floor (`quality::SkatingMeter`), cm/s.
     pub skating: f32,
+    /// Corrective steps (a foot the drag pulled out of its lock stepping back, `ik::FootLock`)
+    /// per second, both feet.
+    pub steps_per_second: f32,
     /// The legacy measure the VR bench published before the contact-flag one (55–62 cm/s on the
     /// held-in recordings): `d_xz·(2 − 2^(h/H))` per toe while its height h above the database's
     /// planted toe height is under H = 3.3 cm, cm/s.
@@ -168,6 +175,7 @@ pub fn replay(db: &Database, index: &SearchIndex, recording: &Recording, yaw: &[
     let (mut distances, mut gaps, mut times) = (Vec::with_capacity(n), Vec::with_capacity(n), Vec::with_capacity(n));
     let (mut clamped, mut legacy) = (0usize, 0.0f32);
     let mut previous_toes: Option<[Vec3; 2]> = None;
+    let (mut steps, mut stepping) = (0usize, [false; 2]);
     for f in 0..n {
         let raw_dt = if f == 0 { 0.0 } else { (recording.time[f] - recording.time[f - 1]) as f32 };
         let dt = raw_dt.clamp(0.0, MAX_DT);
@@ -194,6 +202,9 @@ pub fn replay(db: &Database, index: &SearchIndex, recording: &Recording, yaw: &[
         c.set_crouch((eye - centre) / scale, pitch);
         c.update(db, index, &Input::default(), dt);
         times.push(started.elapsed().as_secs_f32() * 1e3);
+        let now = c.foot_stepping();
+        steps += (0..2).filter(|&k| now[k] && !stepping[k]).count();
+        stepping = now;
         let root = c.root_position() * scale;
         let gap = Vec2::new(root.x - floor.x, root.z - floor.y).length();
         gaps.push(gap);
@@ -235,8 +246,18 @@ pub fn replay(db: &Database, index: &SearchIndex, recording: &Recording, yaw: &[
         head_gap: Stats::of(&gaps),
         clamped_share: clamped as f32 / n as f32,
         skating: 100.0 * c.skating().distance * scale / seconds,
+        steps_per_second: steps as f32 / seconds,
         skating_toe_height: 100.0 * legacy / seconds,
         update_ms: Stats::of(&times),
         scale,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    #[test]
+    fn the_vr_settings_file_is_valid_settings() {
+        let s = super::vr_settings();
+        assert!(s.clamping && s.adjustment_max_ratio > 0.0);
     }
 }

@@ -22,11 +22,13 @@
  * (tip-toe) leaves the avatar standing.
  */
 import { type Character } from '../character/character.ts';
+import { type RuntimeSettings } from '../core/character.ts';
 import { headingYaw } from '../yaw.ts';
 import { type BodyYawPredictor } from './body-yaw.ts';
 import { type TrackerSample } from './tracker-sample.ts';
 import { TrackerState } from './trackers.ts';
 import { UpperBody } from './upper-body.ts';
+import vrSettings from './vr-settings.json';
 
 /**
  * HMD (eyes) → head centre, m backward along the headset's view axis (MMVR: HMD = head + 0.10 m
@@ -34,22 +36,22 @@ import { UpperBody } from './upper-body.ts';
  */
 export const HMD_TO_HEAD_CENTRE = 0.1;
 
-/** The runtime settings of the VR mode (docs/runtime.md); α is set separately (`setAlpha`). */
-export const VR_SETTINGS = {
-  clamping: true,
-  // A standing avatar walks back under its user instead of staying up to α away.
-  adjustment_min_speed: 0.15,
-  // Turning on the spot: the root may lag the predicted body yaw by at most ~20°.
-  clamp_angle: 0.35,
-  // The trajectory comes from a real person, the pose part from the frame playing: trusting the
-  // trajectory twice as much keeps a dragged avatar from staying in standing frames while its
-  // user walks (replay bench, docs/vr.md: walk root distance 15 → 5 cm).
-  beta_trajectory: 2,
-  // The avatar may catch up at its own speed (Holden's 0.5× is for a game character, whose
-  // player does not stand inside it): replay bench, mean root distance 12.6 → 9.4 cm for ~3%
-  // more skating.
-  adjustment_max_ratio: 1.0,
-} as const;
+/**
+ * The runtime settings of the VR mode (docs/runtime.md); α is set separately (`setAlpha`). One
+ * file, `vr-settings.json`, read by this page and by the native replay (`vr_replay.rs`):
+ * - `clamping`; `adjustment_min_speed` 0.15 m/s: a standing avatar walks back under its user
+ *   instead of staying up to α away;
+ * - `clamp_angle` 0.35: turning on the spot, the root lags the predicted body yaw by ~20° at most;
+ * - `beta_trajectory` 2: the trajectory comes from a real person, the pose part from the frame
+ *   playing; trusting the trajectory twice as much keeps a dragged avatar from staying in
+ *   standing frames while its user walks (replay bench, docs/vr.md: walk root distance 15 → 5 cm);
+ * - `adjustment_position_halflife` 0.05 s, `adjustment_max_ratio` 2: the avatar follows its
+ *   user twice as fast and may catch up at twice its own speed (Holden's 0.1 s and 0.5× suit a
+ *   game character, whose player does not stand inside it). Feet the faster drag pulls out of
+ *   their locks step back under the body (docs/method.md §7), so it costs no sliding: held-out
+ *   replays, root distance 17.6 → 13.9 cm at 5.6 → 5.9 cm/s of skating (docs/vr.md).
+ */
+export const VR_SETTINGS: Readonly<RuntimeSettings> = vrSettings;
 
 /** Default α (m): the avatar root stays within it of the head's floor projection. */
 export const DEFAULT_ALPHA = 0.2;
