@@ -65,7 +65,8 @@ test('the character walks, turns and strafes under the keyboard', async ({ page 
   expect(along).toBeGreaterThan(1.5);
   expect(b.steps[0] - a.steps[0]).toBeGreaterThan(0);
   expect(b.steps[1] - a.steps[1]).toBeGreaterThan(0);
-  // The avatar's feet are on the floor while in contact: toe height within 3 cm of standing.
+  // The avatar's feet are on the floor while in contact (and not stepping back under the body,
+  // docs/method.md §7): toe height within 3 cm of standing.
   const toeErrors = await page.evaluate(() => window.__mm.toeErrors.map(Math.abs).sort((x, y) => x - y));
   expect(toeErrors.length).toBeGreaterThan(60);
   const p90 = toeErrors[Math.floor(toeErrors.length * 0.9)];

@@ -304,7 +304,8 @@ pub fn leg_ik(
 ///   with `s` the share of the way travelled (from the release point to the animated toe) and
 ///   `span` the whole way — 9 cm at the middle of a 0.3 m step, nothing at either end. It starts
 ///   from rest (the target was locked) and lands as the blend ends. A contact end needs none:
-///   the animation lifts the foot itself.
+///   the animation lifts the foot itself; nor one whose caller sets `may_step` false (the
+///   other foot is off the ground): it slides back.
 ///
 /// All positions are in world space (the lock must not move with the character), Y up. No
 /// allocation.
@@ -324,13 +325,16 @@ pub struct FootLock {
     stepping: bool,
     step_from: Vec3,
     lift: f32,
+    /// Whether a drift release may step (lift the foot): the caller says no while the other
+    /// foot is off the ground, and the foot slides back instead.
+    pub may_step: bool,
     /// Height of a planted toe on a flat floor (m): locks are made at this height, so a toe
     /// that touches down while an inertialization offset still holds it in the air (or below
     /// the floor) is brought to the floor over the lock's blend. `None`: lock where it is.
     pub floor: Option<f32>,
 }
 
-/// Everything but `floor` (a setting the legs give it every update).
+/// Everything but `floor` and `may_step` (the legs set them every update).
 impl Persist for FootLock {
     fn persist(&mut self, v: &mut dyn Visitor, _: &'static str) {
         self.initialized.persist(v, "foot lock initialized");
@@ -368,6 +372,7 @@ impl FootLock {
             stepping: false,
             step_from: Vec3::ZERO,
             lift: 0.0,
+            may_step: true,
             floor: None,
         }
     }
@@ -375,7 +380,7 @@ impl FootLock {
     /// Unlocks and puts the target on the animated toe `(position, velocity)` (e.g. when foot
     /// locking is switched on or the character teleports). A contact in the next `update` locks.
     pub fn reset(&mut self, position: Vec3, velocity: Vec3) {
-        *self = FootLock { initialized: true, position, velocity, floor: self.floor, ..FootLock::new() };
+        *self = FootLock { initialized: true, position, velocity, floor: self.floor, may_step: self.may_step, ..FootLock::new() };
     }
 
     pub fn is_locked(&self) -> bool {
@@ -446,7 +451,7 @@ impl FootLock {
             self.offset = self.position - animated_toe_pos;
             self.offset_velocity = self.velocity - animated_toe_vel;
             // Released by drift while still in contact: step back (see type docs).
-            self.stepping = contact;
+            self.stepping = contact && self.may_step;
             self.step_from = self.position;
         }
         self.contact = contact;
@@ -798,6 +803,24 @@ mod tests {
         // Most of the way back is in the air; what slides is the take-off and the landing.
         assert!(on_floor < 0.35 * (on_floor + in_air), "on the floor {on_floor} m of {} m", on_floor + in_air);
         assert!(max_step < 0.05, "per-frame step {max_step}");
+    }
+
+    #[test]
+    fn a_foot_that_may_not_step_slides_back_on_the_floor() {
+        // The other foot is in the air (the legs say so): no hop, the old slide.
+        let mut lock = FootLock::new();
+        lock.floor = Some(0.0);
+        lock.may_step = false;
+        let drag = Vec3::new(0.5, 0.0, 0.0);
+        let mut toe = Vec3::ZERO;
+        let mut released = false;
+        for _ in 0..120 {
+            toe += drag * DT;
+            let target = lock.update(true, toe, drag, DT, 0.3, 0.12);
+            released |= !lock.is_locked();
+            assert!(!lock.is_stepping() && target.y.abs() < 1e-6);
+        }
+        assert!(released);
     }
 
     #[test]

@@ -235,6 +235,12 @@ impl RawCharacter {
         let [l, r] = self.character.foot_locked();
         l as u32 | (r as u32) << 1
     }
+    /// Feet stepping back under a dragged body (a foot lock's drift release) as bits: 1 left,
+    /// 2 right. Such a foot is lifted on purpose, whatever the contact flag says.
+    pub fn foot_steps(&self) -> u32 {
+        let [l, r] = self.character.foot_stepping();
+        l as u32 | (r as u32) << 1
+    }
     pub fn searches(&self) -> f64 {
         self.character.stats.searches as f64
     }

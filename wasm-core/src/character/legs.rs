@@ -10,6 +10,7 @@ use super::settings::CharacterSettings;
 use crate::database::Database;
 use crate::ik::{knee_bend_direction, leg_ik, FootLock, LegJoints};
 use crate::kinematics::subtree_range;
+use crate::quality::ON_FLOOR;
 use crate::persist::{Persist, Visitor};
 use glam::{Quat, Vec3};
 use std::ops::Range;
@@ -19,7 +20,8 @@ const MAX_CHAIN_BEND: f32 = 100.0 * std::f32::consts::PI / 180.0;
 
 /// A foot lifted more than this by its corrective step (m) is in the air.
 const STEP_AIRBORNE: f32 = 0.01;
-/// How much farther than the unlock radius a lock holds while the other foot is in the air.
+/// How much farther than the unlock radius a lock holds while the other foot is in the air on a
+/// corrective step.
 const HOLD_WHILE_STEPPING: f32 = 1.5;
 
 #[derive(Clone, Debug)]
@@ -237,10 +239,15 @@ impl Legs {
             // unlock radius is at least α (VR's α = 0.3 m: held-out replays skate 48 → 31 cm/s).
             let alpha = if settings.clamping { settings.clamp_distance } else { 0.0 };
             let radius = settings.foot_lock_unlock_radius.max(alpha);
-            // One foot steps at a time: while the other is off the floor stepping, this one
-            // holds on — up to half the radius more — instead of hopping.
+            // A corrective step needs the other foot on the ground (planted in the animation or
+            // locked, and not lifted by a step of its own); otherwise the foot slides back rather
+            // than making the body hop. While the other foot is in the air on a step, this one
+            // holds on up to half the radius more, so the steps take turns.
             let other = &self.locks[1 - side];
-            let radius = if other.lift() > STEP_AIRBORNE { HOLD_WHILE_STEPPING * radius } else { radius };
+            let stepping = other.lift() > STEP_AIRBORNE;
+            let radius = if stepping { HOLD_WHILE_STEPPING * radius } else { radius };
+            let near_floor = self.toe_floor.is_some_and(|h| self.toes[1 - side].y - h < ON_FLOOR);
+            self.locks[side].may_step = !stepping && (pose.contacts[1 - side] != 0 || other.is_locked() || near_floor);
             let target = self.locks[side].update(contact, toe, velocity, dt, radius, settings.foot_lock_halflife);
             targets[side] = Some((toe, target));
         }

@@ -230,6 +230,10 @@ export class CharacterRuntime {
   get footLocks(): number {
     return this.raw.foot_locks();
   }
+  /** Feet stepping back under a dragged body (lifted on purpose, contact or not). Bits: 1 left foot, 2 right foot. */
+  get footSteps(): number {
+    return this.raw.foot_steps();
+  }
   get searches(): number {
     return this.raw.searches();
   }

@@ -48,8 +48,8 @@ export const HMD_TO_HEAD_CENTRE = 0.1;
  * - `adjustment_position_halflife` 0.05 s, `adjustment_max_ratio` 2: the avatar follows its
  *   user twice as fast and may catch up at twice its own speed (Holden's 0.1 s and 0.5× suit a
  *   game character, whose player does not stand inside it). Feet the faster drag pulls out of
- *   their locks step back under the body (docs/method.md §7), so it costs no sliding: held-out
- *   replays, root distance 17.6 → 13.9 cm at 5.6 → 5.9 cm/s of skating (docs/vr.md).
+ *   their locks step back under the body (docs/method.md §7), so it costs little sliding:
+ *   held-out replays, root distance 17.6 → 13.9 cm at 10.7 → 12.4 cm/s of skating (docs/vr.md).
  */
 export const VR_SETTINGS: Readonly<RuntimeSettings> = vrSettings;
 

@@ -227,7 +227,7 @@ el.addEventListener('load', async () => {
     const avatar = character.avatar;
     if (avatar && avatar.object.visible) {
       [hook.avatarToes[0], hook.avatarToes[1]] = avatar.toeHeights;
-      for (let side = 0; side < 2; side++) if (contacts & (1 << side)) hook.toeErrors.push(avatar.toeHeights[side] - avatar.standingToeHeight);
+      for (let side = 0; side < 2; side++) if (contacts & ~rt.footSteps & (1 << side)) hook.toeErrors.push(avatar.toeHeights[side] - avatar.standingToeHeight); // planted, not stepping
       if (hook.toeErrors.length >= 4096) hook.toeErrors.splice(0, 2048);
       const hips = avatar.bone('hips')?.getWorldPosition(v);
       [hook.hips[0], hook.hips[1]] = hips ? [hips.x, hips.z] : [NaN, NaN];
