@@ -14,6 +14,7 @@
 
 use crate::character::{Character, CharacterSettings, Tracked};
 use crate::controller::Input;
+use crate::quality::ON_FLOOR;
 use crate::database::Database;
 use crate::search::SearchIndex;
 use glam::{Quat, Vec2, Vec3};
@@ -24,8 +25,6 @@ pub const HMD_TO_HEAD_CENTRE: f32 = 0.1;
 const VELOCITY_HALFLIFE: f32 = 0.03;
 const MAX_DT: f32 = 0.1;
 const RESET_AFTER: f32 = 0.5;
-/// Toe height under which the legacy skating measure counts a toe as on the floor (m).
-pub const LEGACY_SKATING_HEIGHT: f32 = 0.033;
 
 /// The VR page's runtime settings: the one file the page reads too (`VR_SETTINGS` in
 /// `web/src/vr/tracked-drive.ts`, whose comment says why each value).
@@ -223,15 +222,15 @@ pub fn replay(db: &Database, index: &SearchIndex, recording: &Recording, yaw: &[
                 );
             }
         }
-        // Legacy skating: toes under 3.3 cm (room units) above the planted toe height slide,
+        // Legacy skating: toes under `ON_FLOOR` (3.3 cm, room units) above the planted toe height slide,
         // weighted by their height.
         let (p, r) = (c.world_positions(), c.world_rotations());
         let now = [0, 1].map(|k| toes.get(k).map_or(Vec3::ZERO, |&(j, o)| (p[j] + r[j] * o) * scale));
         if let Some(before) = previous_toes {
             for k in 0..2 {
                 let h = (now[k].y - toe_floor * scale).max(0.0);
-                if h < LEGACY_SKATING_HEIGHT {
-                    legacy += Vec2::new(now[k].x - before[k].x, now[k].z - before[k].z).length() * (2.0 - (h / LEGACY_SKATING_HEIGHT).exp2());
+                if h < ON_FLOOR {
+                    legacy += Vec2::new(now[k].x - before[k].x, now[k].z - before[k].z).length() * (2.0 - (h / ON_FLOOR).exp2());
                 }
             }
         }

@@ -239,9 +239,10 @@ impl Legs {
             // unlock radius is at least α (VR's α = 0.3 m: held-out replays skate 48 → 31 cm/s).
             let alpha = if settings.clamping { settings.clamp_distance } else { 0.0 };
             let radius = settings.foot_lock_unlock_radius.max(alpha);
-            // A corrective step needs the other foot on the ground (planted in the animation or
-            // locked, and not lifted by a step of its own); otherwise the foot slides back rather
-            // than making the body hop. While the other foot is in the air on a step, this one
+            // A corrective step needs the other foot on the ground (planted in the animation,
+            // locked, or its shown toe of the last update within `ON_FLOOR` of the floor, and not
+            // lifted by a step of its own); otherwise the foot slides back rather than making the
+            // body hop. While the other foot is in the air on a step, this one
             // holds on up to half the radius more, so the steps take turns.
             let other = &self.locks[1 - side];
             let stepping = other.lift() > STEP_AIRBORNE;
