@@ -157,6 +157,13 @@ pub struct ClipSpec {
     pub reverse: Option<bool>,
     /// Whole-clip tags of the reversed copy (default: `tags`), e.g. `["backward"]`.
     pub reverse_tags: Option<Vec<String>>,
+    /// The clip's motion style (`angry`, `akimbo`, …): tagged `style:<style>`. Once any clip
+    /// of a database has one, every clip without one is `style:neutral` (`crate::tag_query`).
+    pub style: Option<String>,
+    /// This clip's virtual-root smoothing window (s; default the configuration's
+    /// `root_position_window`): step-together side-steps move the hips in bursts, and a longer
+    /// window gives their root the steady velocity a user's stick asks for.
+    pub root_position_window: Option<f64>,
 }
 
 #[derive(Clone, Debug, Deserialize)]
@@ -225,8 +232,28 @@ impl BuildConfig {
                     return Err(Error::config(format!("clip '{}': frames [{s}, {e}] is empty", quote(&c.file))));
                 }
             }
+            if let Some(w) = c.root_position_window {
+                if !(0.0..=MAX_WINDOW_SECONDS).contains(&w) {
+                    return Err(Error::config(format!("clip '{}': root_position_window must be 0 to {MAX_WINDOW_SECONDS}, found {}", quote(&c.file), num(w))));
+                }
+            }
+            if let Some(style) = &c.style {
+                let ok = (1..=64).contains(&style.len()) && style.bytes().all(|b| b.is_ascii_lowercase() || b.is_ascii_digit() || b == b'_' || b == b'-');
+                if !ok {
+                    return Err(Error::config(format!("clip '{}': style '{}' must be 1 to 64 of a-z, 0-9, '_' and '-'", quote(&c.file), quote(style))));
+                }
+            }
         }
         Ok(())
+    }
+
+    /// The style tag of a source's clips (`style:<name>`), or `None` when no clip of the
+    /// configuration has a style.
+    pub fn style_tag(&self, file_name: &str) -> Option<String> {
+        self.clips.iter().any(|c| c.style.is_some()).then(|| {
+            let style = self.clip_spec(file_name).and_then(|c| c.style.as_deref()).unwrap_or(crate::tag_query::NEUTRAL_STYLE);
+            format!("{}{style}", crate::tag_query::STYLE_PREFIX)
+        })
     }
 
     /// The frame window `frame_cuts` gives a source file, if any.

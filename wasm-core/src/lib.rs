@@ -19,6 +19,7 @@ pub mod inertialize;
 pub mod inspect;
 pub mod kinematics;
 pub mod limits;
+pub mod naturalness;
 pub mod lanes;
 pub mod parallel;
 pub mod persist;
@@ -29,6 +30,7 @@ pub mod roles;
 pub mod search;
 pub mod smoothing;
 pub mod spring;
+pub mod tag_query;
 pub mod vr_replay;
 
 #[cfg(target_arch = "wasm32")]

@@ -5,9 +5,10 @@
 use crate::aabb::{BoxBounds, LARGE_BOX, SMALL_BOX};
 use crate::database::Database;
 use crate::lanes::{as_f32_slice, F32x4};
+use crate::tag_query::{frame_tag_bits, RunBias, TagQuery, TagSummary};
 use crate::{Error, Result};
 
-/// Per-search options. `Default` is β_q = β_r = 1, no exclusion, no tag mask.
+/// Per-search options. `Default` is β_q = β_r = 1, no exclusion, no mask, no tag query.
 #[derive(Clone, Debug)]
 pub struct SearchOptions<'a> {
     /// Multiplies the pose groups' cost (quality).
@@ -18,11 +19,14 @@ pub struct SearchOptions<'a> {
     pub exclude: Option<(usize, usize)>,
     /// Only frames where the mask is true may be returned.
     pub mask: Option<&'a [bool]>,
+    /// Tags a frame must carry or lack, and the bias of frames lacking the preferred ones
+    /// ([`crate::tag_query`]): cost = Σ w·(q − f)² + bias.
+    pub tags: TagQuery,
 }
 
 impl Default for SearchOptions<'_> {
     fn default() -> Self {
-        SearchOptions { beta_pose: 1.0, beta_trajectory: 1.0, exclude: None, mask: None }
+        SearchOptions { beta_pose: 1.0, beta_trajectory: 1.0, exclude: None, mask: None, tags: TagQuery::default() }
     }
 }
 
@@ -45,15 +49,18 @@ pub fn brute_force(db: &Database, query: &[f32], options: &SearchOptions, k: usi
     let d = db.num_features();
     assert_eq!(query.len(), d, "query has {} dims, the database {d}", query.len());
     let weights = dimension_weights(db, options.beta_pose, options.beta_trajectory);
+    let bits = frame_tag_bits(db);
     let mut best: Vec<(usize, f32)> = Vec::with_capacity(k + 1);
     for (frame, row) in db.features.chunks_exact(d).enumerate() {
         if db.valid[frame] == 0
             || options.exclude.is_some_and(|(a, b)| (a..b).contains(&frame))
             || options.mask.is_some_and(|m| !m[frame])
+            || !options.tags.allows(bits[frame])
         {
             continue;
         }
-        let cost: f32 = row.iter().zip(query).zip(&weights).map(|((f, q), w)| w * (q - f) * (q - f)).sum();
+        let sum: f32 = row.iter().zip(query).zip(&weights).map(|((f, q), w)| w * (q - f) * (q - f)).sum();
+        let cost = sum + options.tags.bias(bits[frame]);
         if best.len() < k || cost < best[best.len() - 1].1 {
             let at = best.partition_point(|&(_, c)| c <= cost);
             best.insert(at, (frame, cost));
@@ -134,6 +141,11 @@ pub struct SearchIndex {
     /// `[block·D + d]`, lane `l` = frame `4·block + l`.
     lanes: Vec<F32x4>,
     bounds: BoxBounds,
+    /// Per padded frame, its tag bits ([`crate::tag_query`]; 0 for the padding), and per
+    /// 16- and 64-frame box the OR and AND of its valid frames' bits.
+    tag_bits: Vec<u64>,
+    small_tags: Vec<TagSummary>,
+    large_tags: Vec<TagSummary>,
 }
 
 /// A query and its per-dimension weights splatted across lanes, on the stack.
@@ -183,7 +195,13 @@ impl SearchIndex {
         }
         lanes.resize(padded / 4 * d, F32x4::ZERO);
         let bounds = BoxBounds::from_lanes(&lanes, &valid, d);
-        Ok(SearchIndex { num_frames: db.num_frames, num_dims: d, dim_weights, valid, lanes, bounds })
+        let mut tag_bits = frame_tag_bits(db);
+        tag_bits.resize(padded, 0);
+        let summarize = |size: usize| -> Vec<TagSummary> {
+            (0..padded / size).map(|b| (b * size..(b + 1) * size).filter(|&f| valid[f]).fold(TagSummary::EMPTY, |s, f| s.add(tag_bits[f]))).collect()
+        };
+        let (small_tags, large_tags) = (summarize(SMALL_BOX), summarize(LARGE_BOX));
+        Ok(SearchIndex { num_frames: db.num_frames, num_dims: d, dim_weights, valid, lanes, bounds, tag_bits, small_tags, large_tags })
     }
 
     pub fn num_frames(&self) -> usize {
@@ -197,6 +215,11 @@ impl SearchIndex {
     /// Whether a search may return `frame` (the database's validity; false out of range).
     pub fn is_valid(&self, frame: usize) -> bool {
         frame < self.num_frames && self.valid[frame]
+    }
+
+    /// Whether `frame`'s tags satisfy `tags` (false out of range).
+    pub fn tags_allow(&self, frame: usize, tags: &TagQuery) -> bool {
+        frame < self.num_frames && tags.allows(self.tag_bits[frame])
     }
 
     /// The bounding boxes (for inspection and tests).
@@ -264,9 +287,20 @@ impl SearchIndex {
         let q = self.lane_query(query, options);
         let (qs, ws) = (&q.query[..self.num_dims], &q.weights[..self.num_dims]);
         let mut best = (usize::MAX, bar);
+        let tags = options.tags;
+        // A box none of whose frames the tags allow is out (+∞); the others' bounds add the least
+        // bias of their frames. Both are exact: the added bound never exceeds a frame's
+        // `fl(Σ + bias)` since rounding is monotone.
+        let tag_bounds = |summaries: &[TagSummary]| {
+            F32x4::from_array(std::array::from_fn(|l| if tags.may_allow(summaries[l]) { tags.min_bias(summaries[l]) } else { f32::INFINITY }))
+        };
+        let tagged = !tags.is_trivial();
         // Boxes in frame order, like the scalar loop, so ties resolve to the earliest frame.
         for group in 0..self.bounds.num_large_boxes() / 4 {
-            let large_bounds = self.bounds.large_lower_bounds(group, qs, ws);
+            let mut large_bounds = self.bounds.large_lower_bounds(group, qs, ws);
+            if tagged {
+                large_bounds += tag_bounds(&self.large_tags[4 * group..4 * group + 4]);
+            }
             let mut candidates = large_bounds.cmplt(F32x4::splat(best.1)).bitmask();
             let large_bounds = large_bounds.to_array();
             while candidates != 0 {
@@ -277,7 +311,10 @@ impl SearchIndex {
                     continue;
                 }
                 let large = 4 * group + l;
-                let small_bounds = self.bounds.small_lower_bounds(large, qs, ws);
+                let mut small_bounds = self.bounds.small_lower_bounds(large, qs, ws);
+                if tagged {
+                    small_bounds += tag_bounds(&self.small_tags[4 * large..4 * large + 4]);
+                }
                 let mut smalls = small_bounds.cmplt(F32x4::splat(best.1)).bitmask();
                 let small_bounds = small_bounds.to_array();
                 while smalls != 0 {
@@ -305,6 +342,7 @@ impl SearchIndex {
         self.valid[frame]
             && !options.exclude.is_some_and(|(a, b)| (a..b).contains(&frame))
             && options.mask.is_none_or(|m| m[frame])
+            && options.tags.allows(self.tag_bits[frame])
     }
 
     #[inline(always)]
@@ -327,7 +365,7 @@ impl SearchIndex {
             let f = column[4 * dim];
             cost += self.weight(dim, options) * (q - f) * (q - f);
         }
-        cost
+        cost + options.tags.bias(self.tag_bits[frame])
     }
 
     fn lane_query(&self, query: &[f32], options: &SearchOptions) -> LaneQuery {
@@ -344,6 +382,12 @@ impl SearchIndex {
     /// dependency chain.
     #[inline(always)]
     fn search_span(&self, first_block: usize, q: &LaneQuery, options: &SearchOptions, best: &mut (usize, f32)) {
+        let tags = &options.tags;
+        // The span is one 16-frame box.
+        let summary = self.small_tags[first_block / 4];
+        if !tags.is_trivial() && !tags.may_allow(summary) {
+            return;
+        }
         let d = self.num_dims;
         let rows = &self.lanes[first_block * d..(first_block + 4) * d];
         let (r0, r1, r2, r3) = (&rows[..d], &rows[d..2 * d], &rows[2 * d..3 * d], &rows[3 * d..]);
@@ -355,6 +399,17 @@ impl SearchIndex {
             let diff = [qd - r0[i], qd - r1[i], qd - r2[i], qd - r3[i]];
             for k in 0..4 {
                 acc[k] += wd * diff[k] * diff[k];
+            }
+        }
+        // The bias last, as in the scalar cost (adding a 0 bias changes no bit).
+        match tags.run_bias(summary) {
+            RunBias::None => {}
+            RunBias::All(bias) => acc.iter_mut().for_each(|a| *a += F32x4::splat(bias)),
+            RunBias::Mixed => {
+                for (k, a) in acc.iter_mut().enumerate() {
+                    let frame = 4 * (first_block + k);
+                    *a += F32x4::from_array(std::array::from_fn(|l| tags.bias(self.tag_bits[frame + l])));
+                }
             }
         }
         for (k, costs) in acc.into_iter().enumerate() {
@@ -385,7 +440,7 @@ impl SearchIndex {
 mod tests {
     use super::*;
     use crate::rng::Rng;
-    use crate::database::{Axes, FeatureGroup, FeatureKind, Skeleton};
+    use crate::database::{Axes, FeatureGroup, FeatureKind, Skeleton, Tag};
     use glam::Vec3;
 
     fn group(name: &str, is_trajectory: bool, first_dim: usize, num_dims: usize) -> FeatureGroup {
@@ -393,15 +448,27 @@ mod tests {
     }
 
     /// Only what the search reads: features (on a coarse grid, so exact ties are common),
-    /// validity, and groups (dims 0..3 pose, 3..5 trajectory, 5 in no group).
+    /// validity, groups (dims 0..3 pose, 3..5 trajectory, 5 in no group) and three tags over
+    /// random runs of frames (runs of 1–40 frames, so boxes are uniform, mixed and empty).
     fn synthetic(num_frames: usize, rng: &mut Rng) -> Database {
         let d = 6;
+        let tags = (0..3)
+            .map(|i| {
+                let (mut ranges, mut f) = (vec![], rng.below(30));
+                while f < num_frames {
+                    let e = (f + 1 + rng.below(40)).min(num_frames);
+                    ranges.push((f as u32, e as u32));
+                    f = e + 1 + rng.below(40);
+                }
+                Tag { name: format!("t{i}"), ranges }
+            })
+            .collect();
         Database {
             skeleton: Skeleton { names: vec!["root".into()], parents: vec![-1], offsets: vec![Vec3::ZERO], sites: vec![] },
             fps: 60.0,
             num_frames,
             clips: vec![],
-            tags: vec![],
+            tags,
             local_positions: vec![],
             local_rotations: vec![],
             local_velocities: vec![],
@@ -436,6 +503,13 @@ mod tests {
                     beta_trajectory: [0.0, 1.0, 3.0][rng.below(3)],
                     exclude: (round % 2 == 0).then(|| (a, a + rng.below(40))),
                     mask: (round % 3 == 0).then_some(mask.as_slice()),
+                    // Bits 0..3 are the tags; bit 3 is no tag (a required one allows nothing).
+                    tags: TagQuery {
+                        require: [0, 0, 1, 2, 8][rng.below(5)],
+                        exclude: [0, 0, 2, 4][rng.below(4)],
+                        prefer: [0, 1, 4, 5][rng.below(4)],
+                        bias: [0.0, 0.25, 1.0, 100.0][rng.below(4)],
+                    },
                 };
                 let best = reference(&db, &query, &options, f32::INFINITY);
                 let bars = [f32::INFINITY, best.map_or(1.0, |b| b.1), best.map_or(1.0, |b| b.1 + 0.25), 0.0];

@@ -218,7 +218,7 @@ fn search_weights_and_masks() {
             .sum()
     };
     for (bq, br) in [(1.0, 1.0), (0.0, 1.0), (1.0, 0.0), (2.5, 0.5)] {
-        let options = SearchOptions { beta_pose: bq, beta_trajectory: br, exclude: Some((20, 61)), mask: None };
+        let options = SearchOptions { beta_pose: bq, beta_trajectory: br, exclude: Some((20, 61)), ..Default::default() };
         let best = brute_force(&db, &query, &options, 10);
         assert_eq!(best.len(), 10);
         let expected = (0..db.num_frames)

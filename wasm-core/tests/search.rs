@@ -8,6 +8,7 @@ use mmcore::search::{self, SearchIndex, SearchMethod, SearchOptions};
 use mmcore::{build, format, Bvh, Database, Source};
 use std::path::Path;
 use mmcore::rng::Rng;
+use mmcore::tag_query::TagQuery;
 use std::time::Instant;
 
 fn database() -> (Database, &'static str) {
@@ -92,7 +93,15 @@ fn aabb_and_simd_equal_brute_force_on_10000_random_queries() {
             _ => Some((source.saturating_sub(20), source + 21)),
         };
         let mask = (!masks.is_empty() && rng.below(5) == 0).then(|| masks[rng.below(masks.len())].as_slice());
-        let options = SearchOptions { beta_pose, beta_trajectory, exclude, mask };
+        // A tag query over the database's tags (the runtime's idle exclusion and styles): a
+        // random tag required, excluded or preferred with a random bias, or none.
+        let mut tags = TagQuery::default();
+        let num_tags = db.tags.len().min(64);
+        if num_tags > 0 {
+            let mut bit = |rng: &mut Rng| if rng.below(2) == 0 { 1u64 << rng.below(num_tags) } else { 0 };
+            tags = TagQuery { require: bit(&mut rng), exclude: bit(&mut rng), prefer: bit(&mut rng), bias: [0.0, 0.5, 2.0, 20.0][rng.below(4)] };
+        }
+        let options = SearchOptions { beta_pose, beta_trajectory, exclude, mask, tags };
         let best = reference(&db, &query, &options, f32::INFINITY);
         let bar = match rng.below(10) {
             // The runtime's bar: the cost of the frame playing now.

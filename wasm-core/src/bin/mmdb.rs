@@ -18,6 +18,7 @@ const USAGE: &str = "usage:
   mmdb bench FILE.bvh... [--json] [--seconds S]
   mmdb bench-runtime DB.mmdb [--json]   (per-character update time, characters per 4 ms)
   mmdb quality DB.mmdb [--json] [--seconds S] [--settings JSON]   (scripted inputs: distance, skating, pops)
+  mmdb naturalness DB.mmdb [--json] [--seconds S] [--settings JSON]   (idle/walk/strafe/backward: style share, head pitch, hands)
   mmdb replay DB.mmdb REC.json [--alpha A] [--yaw truth|hmd|YAW.json] [--settings JSON] [--json]
               (a VR recording through the tracked drive: root distance, skating, update time)
   mmdb coverage DB.mmdb OTHER.mmdb [--tag TAG] [--json]   (how well DB matches OTHER's frames: best search cost)";
@@ -32,6 +33,7 @@ fn main() -> ExitCode {
         Some("bench") => bench(&args[1..]),
         Some("bench-runtime") => bench_runtime(&args[1..]),
         Some("quality") => quality(&args[1..]),
+        Some("naturalness") => naturalness(&args[1..]),
         Some("coverage") => coverage(&args[1..]),
         Some("replay") => replay(&args[1..]),
         Some("-h" | "--help" | "help") => {
@@ -302,6 +304,7 @@ fn search_cmd(args: &[String]) -> CliResult {
         beta_trajectory: beta("--beta-trajectory")?,
         exclude,
         mask: mask.as_deref(),
+        ..Default::default()
     };
     let k = a.number::<usize>("-k")?.unwrap_or(1).clamp(1, db.num_frames);
     let method = match a.get("--method").unwrap_or("aabb") {
@@ -486,6 +489,32 @@ fn quality(args: &[String]) -> CliResult {
         println!("{}", serde_json::to_string_pretty(&reports).unwrap());
     } else {
         print!("{path}: {seconds} s per script at 60 Hz, α = {} m\n{}", settings.clamp_distance, quality::table(&reports));
+    }
+    Ok(())
+}
+
+fn naturalness(args: &[String]) -> CliResult {
+    use mmcore::naturalness;
+    let a = Args::parse(args, &["--seconds", "--settings"], &["--json"])?;
+    let [path] = a.positional.as_slice() else { return Err(Usage("naturalness needs one .mmdb file".into()).into()) };
+    let (db, _) = load(path)?;
+    let seconds = a.number::<f32>("--seconds")?.unwrap_or(60.0);
+    if !(seconds > 0.0 && seconds <= 3600.0) {
+        return Err(Usage(format!("--seconds: must be more than 0 and at most 3600, found {seconds}")).into());
+    }
+    let settings = match a.get("--settings") {
+        Some(json) => mmcore::character::CharacterSettings::default().patched(json).map_err(Usage)?,
+        None => mmcore::character::CharacterSettings::default(),
+    };
+    let reports = naturalness::Motion::ALL
+        .iter()
+        .map(|&m| naturalness::measure(&db, &settings, m, seconds, 1.0 / 60.0))
+        .collect::<Result<Vec<_>, String>>()
+        .map_err(|e| CliError::Failed(Error::config(e)))?;
+    if a.has("--json") {
+        println!("{}", serde_json::to_string_pretty(&reports).unwrap());
+    } else {
+        print!("{path}: {seconds} s per motion at 60 Hz, style '{}' (bias {})\n{}", settings.style, settings.style_bias, naturalness::table(&reports));
     }
     Ok(())
 }

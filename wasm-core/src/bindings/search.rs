@@ -126,6 +126,7 @@ impl RawSearchIndex {
             beta_trajectory: beta_trajectory.max(0.0),
             exclude: (exclude_to > exclude_from).then(|| (exclude_from.max(0) as usize, exclude_to.max(0) as usize)),
             mask: self.mask_active.then_some(self.mask.as_slice()),
+            ..Default::default()
         }
     }
 }

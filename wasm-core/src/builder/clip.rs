@@ -84,7 +84,8 @@ impl ClipGeometry for Geometry<'_> {
 }
 
 impl ClipBuilder<'_> {
-    pub fn append(&self, locals: &Poses, out: Rows, scratch: &mut Scratch) {
+    /// Appends one clip; `root_window` is its virtual-root smoothing window (s).
+    pub fn append(&self, locals: &Poses, out: Rows, scratch: &mut Scratch, root_window: f64) {
         let (n, nj) = (locals.num_frames(), locals.num_joints);
 
         // World transforms of the source joints.
@@ -99,7 +100,7 @@ impl ClipBuilder<'_> {
 
         let (c, hips) = (self.config, self.hips);
         let world = &scratch.world;
-        virtual_root(n, |f| world.at(f, hips), self.forward_rest, self.fps, c.root_position_window, c.root_facing_window, &mut scratch.root_xz, &mut scratch.facing, &mut scratch.root);
+        virtual_root(n, |f| world.at(f, hips), self.forward_rest, self.fps, root_window, c.root_facing_window, &mut scratch.root_xz, &mut scratch.facing, &mut scratch.root);
         let root = &scratch.root;
 
         // Local pose rows: joint 0 = root (world), source root re-expressed under it.

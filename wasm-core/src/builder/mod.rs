@@ -249,9 +249,9 @@ pub fn build(config: &BuildConfig, sources: &[Source]) -> Result<BuildOutput> {
             };
             if plan.mirrored {
                 mirror::mirror(base, &reference.pairs, &reference.animated_translation, &mut mirrored);
-                clip_builder.append(&mirrored, rows, &mut scratch);
+                clip_builder.append(&mirrored, rows, &mut scratch, take.root_position_window);
             } else {
-                clip_builder.append(base, rows, &mut scratch);
+                clip_builder.append(base, rows, &mut scratch, take.root_position_window);
             }
         }
         (scratch.locals, scratch.mirrored, scratch.reversed) = (locals, mirrored, reversed);

@@ -26,6 +26,8 @@ pub struct Take {
     /// Whole-clip tags of the reversed copy (default: `tags`).
     pub reverse_tags: Option<Vec<String>>,
     pub ranges: Vec<RangeSpec>,
+    /// Virtual-root smoothing window (s): the clip's own or the configuration's.
+    pub root_position_window: f64,
     /// Rest offsets in metres, Y up.
     pub offsets: Vec<DVec3>,
     /// End-site offsets in metres, Y up.
@@ -143,9 +145,11 @@ impl Take {
             frames,
             mirror: spec.and_then(|s| s.mirror).unwrap_or(config.mirror),
             reverse: spec.and_then(|s| s.reverse).unwrap_or(config.reverse),
-            tags: spec.map(|s| s.tags.clone()).unwrap_or_default(),
-            reverse_tags: spec.and_then(|s| s.reverse_tags.clone()),
+            // The style is a whole-clip tag of every copy (mirrored, reversed).
+            tags: spec.map(|s| s.tags.clone()).unwrap_or_default().into_iter().chain(config.style_tag(&source.name)).collect(),
+            reverse_tags: spec.and_then(|s| s.reverse_tags.clone()).map(|t| t.into_iter().chain(config.style_tag(&source.name)).collect()),
             ranges: spec.map(|s| s.ranges.clone()).unwrap_or_default(),
+            root_position_window: spec.and_then(|s| s.root_position_window).unwrap_or(config.root_position_window),
             offsets: raw_offsets.iter().map(|&o| up * o * scale).collect(),
             end_sites: bvh.joints.iter().map(|j| j.end_site.map(|e| up * e * scale)).collect(),
         })

@@ -264,7 +264,6 @@ impl Character {
             }
         }
         self.schedule.mask = mask;
-        self.schedule.mask_changed();
         self.schedule.force = true;
         Ok(())
     }
@@ -287,7 +286,6 @@ impl Character {
             self.query.set_pose(from.feature(self.frame));
         }
         self.schedule.mask = None;
-        self.schedule.mask_changed();
         self.schedule.switching = true;
         self.schedule.force = true;
     }
@@ -516,9 +514,9 @@ impl Character {
         }
         self.query.set_trajectory(db, &self.drive, &self.simulation, &self.settings.controller, self.root.position, self.root.rotation);
         let speed = self.settings.idle_exclude_speed;
-        let moving = speed > 0.0 && self.simulation.velocity.length() > speed;
-        self.schedule.refresh_idle(db);
-        if let Outcome::Jump(frame) = self.schedule.search(index, &self.settings, self.frame, &self.query, &mut self.stats, moving) {
+        let moving = speed > 0.0 && self.simulation.velocity.length() > speed && !self.schedule.switching;
+        let tags = Schedule::tag_query(db, &self.settings, moving);
+        if let Outcome::Jump(frame) = self.schedule.search(index, &self.settings, self.frame, &self.query, &mut self.stats, tags) {
             self.transition(db, frame);
         }
     }

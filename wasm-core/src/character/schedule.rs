@@ -7,6 +7,7 @@ use super::settings::CharacterSettings;
 use crate::database::Database;
 use crate::persist::{Persist, Visitor};
 use crate::search::{SearchIndex, SearchOptions};
+use crate::tag_query::{tag_bit, TagQuery};
 
 /// Counters and the last search, for debug views and the quality harness.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
@@ -34,20 +35,6 @@ pub struct Schedule {
     pub switching: bool,
     /// Frames a search may return (`None`: all valid ones).
     pub mask: Option<Vec<bool>>,
-    idle: IdleMask,
-}
-
-/// The database's frames *not* tagged `idle`, and their intersection with the user's mask: the
-/// frames a search may return while the character is asked to move
-/// (`CharacterSettings::idle_exclude_speed`). Rebuilt when the database changes (allocation at
-/// a switch only).
-#[derive(Clone, Debug, Default)]
-struct IdleMask {
-    /// Address and frame count of the database it was made for.
-    key: (usize, usize),
-    not_idle: Option<Vec<bool>>,
-    combined: Vec<bool>,
-    combined_current: bool,
 }
 
 /// What a search decided.
@@ -58,7 +45,7 @@ pub enum Outcome {
     Jump(usize),
 }
 
-/// The timer and the pending flags; the mask is the caller's setting and the idle mask a cache.
+/// The timer and the pending flags; the mask is the caller's setting.
 impl Persist for Schedule {
     fn persist(&mut self, v: &mut dyn Visitor, _: &'static str) {
         self.frames_since_search.persist(v, "frames since search");
@@ -79,26 +66,23 @@ impl Schedule {
         self.force || self.frames_since_search >= settings.search_interval || at_clip_end
     }
 
-    /// The user's search mask changed: the idle-excluding mask follows.
-    pub fn mask_changed(&mut self) {
-        self.idle.combined_current = false;
-    }
-
-    /// Makes the idle mask current for `db`.
-    pub fn refresh_idle(&mut self, db: &Database) {
-        let key = (db as *const Database as usize, db.num_frames);
-        if self.idle.key != key {
-            self.idle = IdleMask { key, not_idle: db.tag_mask("idle").map(|m| m.into_iter().map(|i| !i).collect()), ..IdleMask::default() };
+    /// The settings' tag query resolved against `db` (names it lacks are left out), with the
+    /// frames tagged `idle` excluded while the character is asked to move (`moving`: faster
+    /// than `idle_exclude_speed`) so a walking user is never matched with standing frames.
+    /// Resolved per search, by name, so it follows a database switch; allocates nothing.
+    pub fn tag_query(db: &Database, settings: &CharacterSettings, moving: bool) -> TagQuery {
+        let mut query = TagQuery::resolve(
+            db,
+            settings.require_tags.iter().map(String::as_str),
+            settings.exclude_tags.iter().map(String::as_str),
+            settings.prefer_tags.iter().map(String::as_str),
+            &settings.style,
+            settings.style_bias,
+        );
+        if moving {
+            query.exclude |= tag_bit(db, "idle").unwrap_or(0);
         }
-        if !self.idle.combined_current {
-            if let (Some(user), Some(not_idle)) = (&self.mask, &self.idle.not_idle) {
-                if user.len() == not_idle.len() {
-                    self.idle.combined.clear();
-                    self.idle.combined.extend(user.iter().zip(not_idle).map(|(a, b)| *a && *b));
-                }
-            }
-            self.idle.combined_current = true;
-        }
+        query
     }
 
     /// One database frame was played.
@@ -107,21 +91,14 @@ impl Schedule {
     }
 
     /// Searches `index` for `query` (whose pose part must be filled, see [`Query`]) from the
-    /// frame playing.
-    ///
-    /// `moving`: the character is asked to move (faster than `idle_exclude_speed`), so frames
-    /// tagged `idle` are not returned (see [`Schedule::refresh_idle`], called before).
-    pub fn search(&mut self, index: &SearchIndex, settings: &CharacterSettings, frame: usize, query: &Query, stats: &mut CharacterStats, moving: bool) -> Outcome {
+    /// frame playing, among the frames `tags` allows ([`Schedule::tag_query`]).
+    pub fn search(&mut self, index: &SearchIndex, settings: &CharacterSettings, frame: usize, query: &Query, stats: &mut CharacterStats, tags: TagQuery) -> Outcome {
         self.force = false;
         self.frames_since_search = 0;
         let switching = std::mem::take(&mut self.switching);
         let r = settings.exclude_radius;
-        let mask = match (moving && !switching, &self.mask, &self.idle.not_idle) {
-            (true, Some(_), Some(_)) if self.idle.combined_current && !self.idle.combined.is_empty() => Some(self.idle.combined.as_slice()),
-            (true, None, Some(not_idle)) => Some(not_idle.as_slice()),
-            (_, user, _) if !switching => user.as_deref(),
-            _ => None,
-        };
+        // The user's mask belongs to the database it was made for: not across a switch.
+        let mask = if switching { None } else { self.mask.as_deref() };
         // A mask made for another database (a character updated with a database it was not
         // switched to) would be read out of range: search unmasked until a new one is set.
         let mask = mask.filter(|m| m.len() == index.num_frames());
@@ -130,10 +107,11 @@ impl Schedule {
             beta_trajectory: settings.beta_trajectory,
             exclude: (!switching).then(|| (frame.saturating_sub(r), frame + r + 1)),
             mask,
+            tags,
         };
         // The current frame is the bar: jump only to something strictly better. After a
         // switch every frame is new: no bar.
-        let valid_now = !switching && index.is_valid(frame) && mask.is_none_or(|m| m[frame]);
+        let valid_now = !switching && index.is_valid(frame) && mask.is_none_or(|m| m[frame]) && index.tags_allow(frame, &tags);
         let bar = if valid_now { index.cost(frame, &query.values, &options) } else { f32::INFINITY };
         let best = index.search(settings.search_method, &query.values, &options, bar);
         stats.searches += 1;

@@ -5,6 +5,9 @@
 use crate::controller::ControllerSettings;
 use crate::search::SearchMethod;
 
+/// [`CharacterSettings::style_bias`]'s default.
+pub const DEFAULT_STYLE_BIAS: f32 = 10.0;
+
 #[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct CharacterSettings {
@@ -66,6 +69,19 @@ pub struct CharacterSettings {
     /// hips while walking backward or side-stepping; on, side-steps and backward walking follow
     /// better but gestures and stepping about worse (docs/vr.md, "Where the root goes").
     pub tracked_head_offset: bool,
+    /// The motion style searches prefer: a frame not tagged `style:<style>` costs `style_bias`
+    /// more ([`crate::tag_query`]). The default `neutral` plays stylized clips (`angry`,
+    /// `akimbo`, …) only where nothing neutral comes close; a database without styles ignores it.
+    pub style: String,
+    /// The cost a frame of another style pays (normalized feature units: the default features'
+    /// best match costs ~0.5–3; docs/method.md §3 has the measurements). 0 = styles are equal.
+    pub style_bias: f32,
+    /// Tag queries: searches return only frames carrying every `require_tags` tag and none of
+    /// the `exclude_tags`; a frame lacking any of the `prefer_tags` pays `style_bias` like a
+    /// frame of another style. Names the database lacks are left out.
+    pub require_tags: Vec<String>,
+    pub exclude_tags: Vec<String>,
+    pub prefer_tags: Vec<String>,
 }
 
 impl Default for CharacterSettings {
@@ -97,6 +113,11 @@ impl Default for CharacterSettings {
             query_drag: false,
             idle_exclude_speed: 0.0,
             tracked_head_offset: false,
+            style: crate::tag_query::NEUTRAL_STYLE.to_string(),
+            style_bias: DEFAULT_STYLE_BIAS,
+            require_tags: Vec::new(),
+            exclude_tags: Vec::new(),
+            prefer_tags: Vec::new(),
         }
     }
 }
@@ -127,7 +148,7 @@ impl CharacterSettings {
     pub fn validate(&self) -> Result<(), String> {
         let c = &self.controller;
         let half = (1e-3, 10.0);
-        let checks: [(&str, f32, (f32, f32)); 25] = [
+        let checks: [(&str, f32, (f32, f32)); 26] = [
             ("controller.walk.forward", c.walk.forward, (0.0, 20.0)),
             ("controller.walk.side", c.walk.side, (0.0, 20.0)),
             ("controller.walk.backward", c.walk.backward, (0.0, 20.0)),
@@ -153,10 +174,24 @@ impl CharacterSettings {
             ("foot_lock_unlock_radius", self.foot_lock_unlock_radius, (0.0, 10.0)),
             ("foot_lock_halflife", self.foot_lock_halflife, half),
             ("idle_exclude_speed", self.idle_exclude_speed, (0.0, 100.0)),
+            ("style_bias", self.style_bias, (0.0, 1.0e6)),
         ];
         for (name, value, (lo, hi)) in checks {
             if !(value >= lo && value <= hi) {
                 return Err(format!("settings: {name} is {value}, expected a number in [{lo}, {hi}]"));
+            }
+        }
+        // Tag names are compared on every search: keep them few and short.
+        let lists = [("require_tags", &self.require_tags), ("exclude_tags", &self.exclude_tags), ("prefer_tags", &self.prefer_tags)];
+        for (name, list) in lists {
+            if list.len() > crate::tag_query::MAX_QUERY_TAGS {
+                return Err(format!("settings: {name} has {} tags, at most {}", list.len(), crate::tag_query::MAX_QUERY_TAGS));
+            }
+        }
+        let names = lists.iter().flat_map(|(n, l)| l.iter().map(move |t| (*n, t))).chain([("style", &self.style)]);
+        for (field, tag) in names {
+            if tag.len() > crate::limits::MAX_NAME_BYTES {
+                return Err(format!("settings: {field} has a name of {} bytes, at most {}", tag.len(), crate::limits::MAX_NAME_BYTES));
             }
         }
         Ok(())
