@@ -167,6 +167,37 @@ describe('Character (the public API)', () => {
     }
   });
 
+  it('styles: neutral by default, another on request, unknown names refused with the list', () => {
+    expect(db.styles).toEqual(expect.arrayContaining(['neutral', 'angry', 'akimbo']));
+    const c = new Character(db, null);
+    try {
+      expect(c.style).toBe('neutral');
+      // A calm first view: the character starts standing, in the neutral style.
+      expect(c.tags).toEqual(expect.arrayContaining(['idle', 'style:neutral']));
+      const styleShare = (style: string) => {
+        let inStyle = 0;
+        for (let step = 0; step < 600; step++) {
+          c.update(1 / 60);
+          if (c.tags.includes(`style:${style}`)) inStyle++;
+        }
+        return inStyle / 600;
+      };
+      expect(styleShare('neutral')).toBe(1);
+      c.setStyle('angry');
+      expect(c.style).toBe('angry');
+      c.setMove(0, 1);
+      expect(styleShare('angry')).toBeGreaterThan(0.8);
+      expect(() => c.setStyle('grumpy')).toThrow(/unknown style "grumpy" .*neutral, angry, akimbo|unknown style "grumpy" .*akimbo/);
+      expect(c.style).toBe('angry');
+      c.setTagQuery({ exclude: ['run'] });
+      expect(c.settings['exclude_tags']).toEqual(['run']);
+      expect(() => c.setTagQuery({ require: ['walk', 'flying'] })).toThrow(/require: no tag "flying"/);
+      expect(c.settings['require_tags']).toEqual([]);
+    } finally {
+      c.dispose();
+    }
+  });
+
   it('a crowd on the same database moves hundreds of characters in one call', () => {
     const crowd = new Crowd(db, 64);
     try {

@@ -17,6 +17,9 @@ pub struct SearchOptions<'a> {
     pub beta_trajectory: f32,
     /// Frames `[from, to)` that may not be returned (e.g. ±20 around the current frame).
     pub exclude: Option<(usize, usize)>,
+    /// A second such window (the runtime's: around the frame it last jumped away from, so two
+    /// frames cannot trade places every search).
+    pub exclude_recent: Option<(usize, usize)>,
     /// Only frames where the mask is true may be returned.
     pub mask: Option<&'a [bool]>,
     /// Tags a frame must carry or lack, and the bias of frames lacking the preferred ones
@@ -26,7 +29,7 @@ pub struct SearchOptions<'a> {
 
 impl Default for SearchOptions<'_> {
     fn default() -> Self {
-        SearchOptions { beta_pose: 1.0, beta_trajectory: 1.0, exclude: None, mask: None, tags: TagQuery::default() }
+        SearchOptions { beta_pose: 1.0, beta_trajectory: 1.0, exclude: None, exclude_recent: None, mask: None, tags: TagQuery::default() }
     }
 }
 
@@ -54,6 +57,7 @@ pub fn brute_force(db: &Database, query: &[f32], options: &SearchOptions, k: usi
     for (frame, row) in db.features.chunks_exact(d).enumerate() {
         if db.valid[frame] == 0
             || options.exclude.is_some_and(|(a, b)| (a..b).contains(&frame))
+            || options.exclude_recent.is_some_and(|(a, b)| (a..b).contains(&frame))
             || options.mask.is_some_and(|m| !m[frame])
             || !options.tags.allows(bits[frame])
         {
@@ -341,6 +345,7 @@ impl SearchIndex {
     fn is_allowed(&self, frame: usize, options: &SearchOptions) -> bool {
         self.valid[frame]
             && !options.exclude.is_some_and(|(a, b)| (a..b).contains(&frame))
+            && !options.exclude_recent.is_some_and(|(a, b)| (a..b).contains(&frame))
             && options.mask.is_none_or(|m| m[frame])
             && options.tags.allows(self.tag_bits[frame])
     }
@@ -502,6 +507,7 @@ mod tests {
                     beta_pose: [0.0, 0.5, 1.0, 2.0][rng.below(4)],
                     beta_trajectory: [0.0, 1.0, 3.0][rng.below(3)],
                     exclude: (round % 2 == 0).then(|| (a, a + rng.below(40))),
+                    exclude_recent: (round % 5 < 2).then(|| (a / 2, a / 2 + rng.below(40))),
                     mask: (round % 3 == 0).then_some(mask.as_slice()),
                     // Bits 0..3 are the tags; bit 3 is no tag (a required one allows nothing).
                     tags: TagQuery {

@@ -101,7 +101,11 @@ fn aabb_and_simd_equal_brute_force_on_10000_random_queries() {
             let mut bit = |rng: &mut Rng| if rng.below(2) == 0 { 1u64 << rng.below(num_tags) } else { 0 };
             tags = TagQuery { require: bit(&mut rng), exclude: bit(&mut rng), prefer: bit(&mut rng), bias: [0.0, 0.5, 2.0, 20.0][rng.below(4)] };
         }
-        let options = SearchOptions { beta_pose, beta_trajectory, exclude, mask, tags };
+        let exclude_recent = (rng.below(3) == 0).then(|| {
+            let a = rng.below(f);
+            (a, (a + 41).min(f))
+        });
+        let options = SearchOptions { beta_pose, beta_trajectory, exclude, exclude_recent, mask, tags };
         let best = reference(&db, &query, &options, f32::INFINITY);
         let bar = match rng.below(10) {
             // The runtime's bar: the cost of the frame playing now.

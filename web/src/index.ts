@@ -16,7 +16,7 @@
 
 // Characters: a database and an avatar → a three.js object; the per-frame recipe.
 export { Character, RUN_SPEED, WALK_SPEED } from './character/character.ts';
-export type { CharacterDrive, CharacterOptions, CharacterStepper, CreateOptions, MoveOptions, PathOptions, Root } from './character/character.ts';
+export type { CharacterDrive, CharacterOptions, CharacterStepper, CreateOptions, MoveOptions, PathOptions, Root, TagQuery } from './character/character.ts';
 export { Avatar } from './avatar/avatar.ts';
 export type { AvatarOptions } from './avatar/avatar.ts';
 

@@ -90,10 +90,28 @@ pub struct Character {
     last_good: LastGood,
 }
 
+/// Where a new character starts: the first searchable frame tagged `idle` of its preferred
+/// style (what a visitor sees first is a person standing calmly, not the first frame of a run),
+/// else the first searchable `idle` frame, else the first searchable frame.
+pub fn start_frame(db: &Database, settings: &CharacterSettings) -> usize {
+    let tag = |name: &str| db.tags.iter().find(|t| t.name == name);
+    let within = |ranges: &[(u32, u32)], f: usize| ranges.iter().any(|&(s, e)| (s as usize..e as usize).contains(&f));
+    let style = db.tags.iter().find(|t| t.name.strip_prefix(crate::tag_query::STYLE_PREFIX) == Some(settings.style.as_str()));
+    let searchable = |f: usize| f < db.num_frames && db.valid[f] != 0;
+    if let Some(idle) = tag("idle") {
+        let frames = || idle.ranges.iter().flat_map(|&(s, e)| s as usize..e as usize).filter(|&f| searchable(f));
+        if let Some(f) = frames().find(|&f| style.is_none_or(|t| within(&t.ranges, f))).or_else(|| frames().next()) {
+            return f;
+        }
+    }
+    db.valid.iter().position(|&v| v != 0).unwrap_or(0)
+}
+
 impl Character {
-    /// A character standing at the origin facing +Z, playing from the first valid frame.
+    /// A character standing at the origin facing +Z, playing from [`start_frame`]: standing
+    /// still in its style where the database has that.
     pub fn new(db: &Database, settings: CharacterSettings) -> Character {
-        let frame = db.valid.iter().position(|&v| v != 0).unwrap_or(0);
+        let frame = start_frame(db, &settings);
         let mut c = Character {
             settings,
             simulation: Simulation::default(),

@@ -35,6 +35,11 @@ pub struct Schedule {
     pub switching: bool,
     /// Frames a search may return (`None`: all valid ones).
     pub mask: Option<Vec<bool>>,
+    /// The frame the last jump left (+1; 0: none): searches do not return to within
+    /// `exclude_radius` of it. A character dragged at the clamp (the data has no move like the
+    /// user's) otherwise traded two standing frames every search — a clip's and its mirror's —
+    /// with both feet sliding, for as long as the input lasted.
+    left: u32,
 }
 
 /// What a search decided.
@@ -51,6 +56,7 @@ impl Persist for Schedule {
         self.frames_since_search.persist(v, "frames since search");
         self.force.persist(v, "search forced");
         self.switching.persist(v, "database switch pending");
+        self.left.persist(v, "frame last left");
     }
 }
 
@@ -85,6 +91,11 @@ impl Schedule {
         query
     }
 
+    /// Whether the frame the last jump left is one of `num_frames` (a loaded state's check).
+    pub fn left_is_within(&self, num_frames: usize) -> bool {
+        self.left as usize <= num_frames
+    }
+
     /// One database frame was played.
     pub fn count_frame(&mut self) {
         self.frames_since_search += 1;
@@ -106,6 +117,10 @@ impl Schedule {
             beta_pose: settings.beta_pose,
             beta_trajectory: settings.beta_trajectory,
             exclude: (!switching).then(|| (frame.saturating_sub(r), frame + r + 1)),
+            exclude_recent: (!switching && self.left > 0).then(|| {
+                let left = self.left as usize - 1;
+                (left.saturating_sub(r), left.saturating_add(r).saturating_add(1))
+            }),
             mask,
             tags,
         };
@@ -117,9 +132,10 @@ impl Schedule {
         stats.searches += 1;
         stats.current_cost = bar;
         match best {
-            Some((frame, cost)) => {
+            Some((best, cost)) => {
                 stats.best_cost = cost;
-                Outcome::Jump(frame)
+                self.left = if switching { 0 } else { frame as u32 + 1 };
+                Outcome::Jump(best)
             }
             // Nothing searchable in the new database: cut to its first frame.
             None if switching => Outcome::Jump(0),

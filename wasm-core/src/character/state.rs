@@ -14,7 +14,7 @@ use crate::persist::{Persist, StateReader, StateWriter, Visitor};
 
 const STATE_MAGIC: u32 = u32::from_le_bytes(*b"MMRS");
 /// Bumped whenever a field is added, removed or reordered.
-pub const STATE_VERSION: u32 = 3;
+pub const STATE_VERSION: u32 = 4;
 
 impl Persist for LastGood {
     fn persist(&mut self, v: &mut dyn Visitor, _: &'static str) {
@@ -75,6 +75,9 @@ impl Character {
         r.finish()?;
         if next.frame >= db.num_frames {
             return Err(format!("runtime state frame {} is beyond the database's {} frames", next.frame, db.num_frames));
+        }
+        if !next.schedule.left_is_within(db.num_frames) {
+            return Err(format!("runtime state's last jump left a frame beyond the database's {} frames", db.num_frames));
         }
         if !(0.0..=MAX_FRAMES_PER_UPDATE as f32).contains(&next.frame_fraction) || next.legs.hips_drop < 0.0 {
             return Err("runtime state frame fraction or hips drop out of range".into());

@@ -80,6 +80,17 @@ export interface CharacterDrive {
  * needs this: its local member quantizes and sends every step before taking it, and a remote
  * member replays the steps its sender sent (web/src/rooms).
  */
+/**
+ * Boolean tag queries over the database's tags (`database.tags`): searches return only frames
+ * carrying every `require` tag and none of the `exclude` ones; a frame lacking any `prefer` tag
+ * costs `style_bias` more, like a frame of another style (docs/runtime.md, "Styles and tags").
+ */
+export interface TagQuery {
+  require?: readonly string[];
+  exclude?: readonly string[];
+  prefer?: readonly string[];
+}
+
 export interface CharacterStepper {
   step(character: Character, dt: number): void;
 }
@@ -418,6 +429,53 @@ export class Character {
   setAlpha(alpha: number): void {
     this.drive_.alpha = alpha;
     if (!this.stepper) this.runtime.setSettings({ clamp_distance: alpha / this.metresPerDatabaseUnit });
+  }
+
+  // ---- style and tags
+
+  /** The motion styles the database offers (`database.styles`; empty without styles). */
+  get styles(): readonly string[] {
+    return this.database.styles;
+  }
+
+  /** The style searches prefer: `neutral` unless `setStyle` chose another. */
+  get style(): string {
+    const style = this.runtime.settings().style;
+    return typeof style === 'string' ? style : 'neutral';
+  }
+
+  /**
+   * Prefers `style`'s clips (one of `styles`): a frame of another style costs `style_bias`
+   * (default 10) more in every search, so the character moves in that style wherever the
+   * database has the move and falls back to the others where it does not. `neutral` (the
+   * default) plays stylized clips only where nothing neutral fits.
+   *
+   * @throws Error naming the style and the database's styles when it has no such style.
+   */
+  setStyle(style: string): void {
+    const styles = this.database.styles;
+    if (!styles.includes(style)) {
+      const have = styles.length ? `it has ${styles.join(', ')}` : 'it was built without styles';
+      throw new Error(`unknown style ${JSON.stringify(style)} for the database ${this.database.name}: ${have}`);
+    }
+    this.runtime.setSettings({ style });
+  }
+
+  /**
+   * Restricts and biases the searches by tags (see {@link TagQuery}); `{}` lifts it.
+   *
+   * @throws Error naming any tag the database does not have (nothing changes).
+   */
+  setTagQuery(query: TagQuery): void {
+    const known = new Set(this.database.tags.map((t) => t.name));
+    const lists = { require: query.require ?? [], exclude: query.exclude ?? [], prefer: query.prefer ?? [] };
+    for (const [field, names] of Object.entries(lists)) {
+      const unknown = names.filter((n) => !known.has(n));
+      if (unknown.length) {
+        throw new Error(`${field}: no tag ${unknown.map((n) => JSON.stringify(n)).join(', ')} in the database ${this.database.name} (it has ${[...known].join(', ')})`);
+      }
+    }
+    this.runtime.setSettings({ require_tags: lists.require, exclude_tags: lists.exclude, prefer_tags: lists.prefer });
   }
 
   // ---- the frame

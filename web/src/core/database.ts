@@ -52,6 +52,9 @@ interface Summary {
   toe_height_in_contact: number | null;
 }
 
+/** Prefix of a style's tag (`style:angry`; the Rust `tag_query::STYLE_PREFIX`). */
+export const STYLE_PREFIX = 'style:';
+
 export class Database {
   /** Where it came from (a URL or a file name), for messages. */
   readonly name: string;
@@ -65,6 +68,11 @@ export class Database {
   readonly jointParents: Int32Array;
   readonly clips: readonly ClipInfo[];
   readonly tags: readonly TagInfo[];
+  /**
+   * Motion styles of its clips (`neutral`, `angry`, `akimbo`…: the `style:<name>` tags), in tag
+   * order; empty when the database was built without styles. `Character.setStyle` picks one.
+   */
+  readonly styles: readonly string[];
   readonly features: readonly FeatureGroupInfo[];
   /** Joint of each role present in the skeleton (`left_toe` may be a foot's end point). */
   readonly roles: ReadonlyMap<RoleName, number>;
@@ -94,6 +102,7 @@ export class Database {
     this.jointParents = Int32Array.from(s.joints.map((j) => j.parent));
     this.clips = s.clips.map((c) => ({ name: c.name, start: c.start, end: c.end, mirrored: c.mirrored }));
     this.tags = s.tags.map((t) => ({ name: t.name, ranges: t.ranges }));
+    this.styles = this.tags.filter((t) => t.name.startsWith(STYLE_PREFIX)).map((t) => t.name.slice(STYLE_PREFIX.length));
     this.features = s.features;
     this.roles = new Map(s.sites.filter((x) => x.joint >= 0).map((x) => [x.name as RoleName, x.joint]));
     this.toeHeight = s.toe_height_in_contact ?? undefined;

@@ -7,7 +7,8 @@
  *   (space-separated `keyboard gamepad path none`; default `keyboard gamepad`; the keyboard
  *   acts only while the element has focus), `camera` (`follow`: moves with the character;
  *   `fixed`: stays put and turns to keep it in view), `loading`
- *   (`eager` | `lazy`: wait until near the viewport), `debug`, `alt`;
+ *   (`eager` | `lazy`: wait until near the viewport), `motion-style` (one of the database's
+ *   styles, e.g. `angry`; default `neutral`), `debug`, `alt`;
  * - properties and methods: `character`, `root` ({x, y, z, yaw}, m / rad, the element's floor
  *   frame), `walkTo(x, z, {run})`, `setMove(x, z, {run})`, `stop()`, `ready` (a promise), and
  *   `timeStep` (null: real time; a number: fixed seconds per frame, for tests and recordings);
@@ -15,8 +16,9 @@
  *   (first animated frame), `error` (`detail: {message, url}`), and a visible status inside the
  *   element: each stage with its URL and bytes, a stalled download after 5 s, a failed database
  *   with a Retry button (`retry()`), a failed avatar's note over the skeleton;
- * - a value it does not understand (a typo in `controls`, `camera` or `loading`, a refused
- *   `timeStep`) is a console warning kept in `warnings`, and the default is used; a
+ * - a value it does not understand (a typo in `controls`, `camera`, `loading` or
+ *   `motion-style`, a refused `timeStep`) is a console warning kept in `warnings`, and the
+ *   default is used; a
  *   `database`/`avatar` that is not a fetchable URL is an error shown in the element;
  * - removing the element frees its WASM memory and GPU objects; adding it again rebuilds it.
  */
@@ -25,7 +27,7 @@ import { DEFAULT_AVATAR, DEFAULT_DATABASE, assetUrl } from '../assets.ts';
 import { Avatar } from '../avatar/avatar.ts';
 import { Character, type MoveOptions, type PathOptions, type Root } from '../character/character.ts';
 import { type Database, loadDatabase } from '../core/database.ts';
-import { checkTimeStep, parseChoice, parseControls, parseUrl } from './attributes.ts';
+import { checkTimeStep, parseChoice, parseControls, parseUrl, quote } from './attributes.ts';
 import { type FetchProgress, errorMessage } from '../fetch.ts';
 import { MoveControls } from '../input/move-controls.ts';
 import { LoadingStatus } from '../ui/loading-status.ts';
@@ -63,7 +65,7 @@ const _hit = new THREE.Vector3();
 const ElementBase = (typeof HTMLElement === 'undefined' ? class {} : HTMLElement) as typeof HTMLElement;
 
 export class MMAvatarElement extends ElementBase {
-  static readonly observedAttributes = ['avatar', 'database', 'controls', 'camera', 'debug', 'alt'];
+  static readonly observedAttributes = ['avatar', 'database', 'controls', 'camera', 'debug', 'alt', 'motion-style'];
 
   /** The character, once loaded (null before `load` and after removal). */
   character: Character | null = null;
@@ -164,6 +166,7 @@ export class MMAvatarElement extends ElementBase {
     else if (name === 'camera') this.applyCamera();
     else if (name === 'alt') this.updateAlt();
     else if (name === 'debug' && this.character) this.character.debug = this.hasAttribute('debug');
+    else if (name === 'motion-style') this.applyStyle();
     else if (name === 'avatar' && this.character) void this.swapAvatar();
     else if (name === 'database' && this.loadedOnce) {
       this.teardown();
@@ -296,6 +299,7 @@ export class MMAvatarElement extends ElementBase {
       const character = new Character(database, avatar, { debug: this.hasAttribute('debug') });
       database.release(); // the character holds its own reference
       this.character = character;
+      this.applyStyle();
       stage.scene.add(character.object3d);
       stage.camera.position.set(2.2, 1.8, 4.2);
       this.orbit = new FollowCamera(stage.camera, stage.renderer.domElement);
@@ -387,6 +391,23 @@ export class MMAvatarElement extends ElementBase {
     this.controls.keyboardEnabled = controls.has('keyboard');
     this.controls.gamepadEnabled = controls.has('gamepad');
     this.pathControl = controls.has('path');
+  }
+
+  /**
+   * `motion-style`: one of the database's styles (`neutral` when unset); anything else is a
+   * warning naming the styles it has, and the current style stays.
+   */
+  private applyStyle(): void {
+    const character = this.character;
+    if (!character) return;
+    const value = this.getAttribute('motion-style')?.trim() || null;
+    const style = value ?? (character.styles.includes('neutral') ? 'neutral' : null);
+    if (style === null) return; // a database without styles, and none asked for
+    try {
+      character.setStyle(style);
+    } catch (e) {
+      this.warn(`motion-style=${quote(value ?? '')}: ${errorMessage(e)}; keeping ${character.style}`);
+    }
   }
 
   private applyCamera(): void {

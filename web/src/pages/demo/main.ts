@@ -1,13 +1,13 @@
 /**
  * The desktop demo (index.html): `<mm-avatar>` full page, plus a panel with every runtime knob,
- * path editing, view toggles and the database choice; files dropped on the page (BVH → a
+ * path editing, view toggles, the database and style choice; files dropped on the page (BVH → a
  * database built here, `.mmdb`, `.glb`/`.vrm`); a HUD. Only the library's public entry is used.
  *
  * URL parameters: `db=<url>`, `avatar=<url>|none`, `roles=<JSON role → bone name>` (manual
  * joint map), `skeleton=1`, `shadows=0`, `dt=fixed` (exactly 1/60 s per frame, for tests; `dt=0.05`: that many s),
  * `room=<id>` and `name=` (a shared room: `RoomPanel`). State for tests is on `window.__mm`.
  */
-import GUI from 'lil-gui';
+import GUI, { type Controller } from 'lil-gui';
 import * as THREE from 'three';
 import {
   Avatar, Database, DatabaseBuilder, type DroppedFiles, PathEditor, RUNTIME_SETTINGS, type RoleOverrides, RoomPanel, UpdateTimer,
@@ -19,15 +19,9 @@ const hook = {
   error: null as string | null,
   /** The last message for a file that could not be used (the page keeps working). */
   fileError: null as string | null,
-  updates: 0,
-  frame: 0,
-  root: [0, 0, 0],
-  yaw: 0,
-  contacts: 0,
+  ...{ updates: 0, frame: 0, root: [0, 0, 0], yaw: 0, contacts: 0, searches: 0, transitions: 0 },
   /** Contact onsets per foot (left, right): feet alternate. */
   steps: [0, 0],
-  searches: 0,
-  transitions: 0,
   /** Avatar toe heights (m) and its standing toe height; toe height − standing for each foot in contact. */
   avatarToes: [NaN, NaN],
   avatarStandingToe: NaN,
@@ -36,10 +30,7 @@ const hook = {
   hips: [NaN, NaN],
   lockRings: [NaN, NaN, NaN, NaN],
   toes: [NaN, NaN, NaN, NaN],
-  database: '',
-  databaseFrames: 0,
-  avatar: '',
-  databaseLoads: 0,
+  ...{ database: '', style: '', databaseFrames: 0, avatar: '', databaseLoads: 0 },
   path: { points: [] as number[], following: false },
   screenOf: (x: number, z: number) => ({ x: x * 0, y: z * 0 }), room: null as RoomPanel | null,
 };
@@ -88,10 +79,7 @@ el.addEventListener('load', async () => {
     if (character.avatar) character.avatar.object.visible = view.mesh;
     character.showSkeleton = view.skeleton || !character.avatar || !view.mesh;
     const d = character.debugViews!;
-    d.simulation.visible = view.simulation;
-    d.requested.object.visible = view.trajectory;
-    d.matched.object.visible = view.matched;
-    d.locks.visible = view.locks;
+    [d.simulation.visible, d.requested.object.visible, d.matched.object.visible, d.locks.visible] = [view.simulation, view.trajectory, view.matched, view.locks];
     stage.enableShadows(view.shadows);
   };
   const useAvatar = (avatar: Avatar | null) => {
@@ -101,11 +89,12 @@ el.addEventListener('load', async () => {
     apply();
   };
   const databases: Record<string, Database | string> = { [character.database.name.split('?')[0].split('/').pop()!.replace(/\.mmdb$/, '')]: character.database };
+  let refreshStyles = () => {};
   const useDatabase = (db: Database, name: string) => {
     character.setDatabase(db);
-    hook.database = name;
-    hook.databaseFrames = db.numFrames;
+    [hook.database, hook.databaseFrames] = [name, db.numFrames];
     hook.databaseLoads++;
+    refreshStyles();
     apply();
   };
   hook.database = Object.keys(databases)[0];
@@ -141,8 +130,10 @@ el.addEventListener('load', async () => {
 
   // ---- panel
   const gui = new GUI({ title: 'Motion matching' });
-  const choice = { database: hook.database };
-  const databaseSelect = gui.add(choice, 'database', Object.keys(databases)).onChange(async (name: string) => {
+  // lil-gui's options() makes a new controller without the old one's callback: set it again.
+  const menu = (c: Controller, values: string[], value: string, onChange: (v: string) => void) => c.options(values).setValue(value).onChange(onChange);
+  const choice = { database: hook.database, style: character.style };
+  const onDatabase = async (name: string) => {
     const entry = databases[name];
     if (!entry || name === hook.database) return;
     try {
@@ -150,9 +141,17 @@ el.addEventListener('load', async () => {
     } catch (e) {
       fileError(errorMessage(e));
     }
-  });
+  };
+  let databaseSelect = gui.add(choice, 'database', Object.keys(databases)).onChange(onDatabase);
+  const onStyle = (style: string) => (character.setStyle(style), (hook.style = style));
+  // The styles the database's tags name (neutral, angry, akimbo…); hidden for a database without.
+  let styleSelect = gui.add(choice, 'style', ['neutral']);
+  refreshStyles = () => {
+    styleSelect = menu(styleSelect, [...character.styles], (hook.style = character.style), onStyle).show(character.styles.length > 0);
+  };
+  refreshStyles();
   // Only databases the site serves (its generated databases/index.json), besides the one loaded.
-  void listDatabases().then((list) => (list.forEach((d) => (databases[d.name] ??= d.url)), databaseSelect.options(Object.keys(databases)).setValue(hook.database)), () => undefined);
+  void listDatabases().then((list) => (list.forEach((d) => (databases[d.name] ??= d.url)), (databaseSelect = menu(databaseSelect, Object.keys(databases), hook.database, onDatabase))), () => undefined);
   void registerOfflineCache(); // after the first frame: repeat visits and offline from Cache Storage
   const folder = (title: string) => gui.addFolder(title).close();
   const viewFolder = folder('View');
@@ -198,7 +197,7 @@ el.addEventListener('load', async () => {
         const db = Database.fromBytes(bytes, name);
         databases[name] = db;
         useDatabase(db, name);
-        databaseSelect.options(Object.keys(databases)).setValue(name);
+        databaseSelect = menu(databaseSelect, Object.keys(databases), name, onDatabase);
       }
       if (files.avatars.length) useAvatar(await Avatar.load(await read(files.avatars[0]), { name: files.avatars[0].name }));
     } catch (e) {

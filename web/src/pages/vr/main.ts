@@ -194,12 +194,13 @@ async function main(): Promise<void> {
       replayTime += fixedDt || realDt;
       hook.replayDone = replayTime > player.duration;
     } else {
-      // Desktop, no XR: a user standing still at the origin (or where the last session ended).
+      // Desktop, no XR: a user standing still at the origin, no controllers (the arms hang).
       hook.mode = 'idle';
-      if (hook.frames === 0) scriptedSample(0, sample);
+      if (hook.frames === 0) scriptedSample(0, sample), (sample.tracked[LEFT] = sample.tracked[RIGHT] = 0);
       sample.time = hook.frames / 60;
     }
     hook.inXR = renderer.xr.isPresenting;
+    $('try-hint').hidden = hook.mode !== 'idle' || emulated;
     if (recording) recorder.add(sample);
     drive.update(sample, fixedDt || undefined);
     room.update(fixedDt || realDt);
