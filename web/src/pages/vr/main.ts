@@ -206,7 +206,7 @@ async function main(): Promise<void> {
     room.update(fixedDt || realDt);
     timer.add(drive.lastUpdateMs);
     const tr = drive.trackers;
-    [tr.left, tr.right].forEach((view, k) => (markers[k].position.fromArray(view.position), markers[k].quaternion.fromArray(view.rotation)));
+    [tr.left, tr.right].forEach((view, k) => (markers[k].position.fromArray(view.position), markers[k].quaternion.fromArray(view.rotation), (markers[k].visible = tr.status[k ? RIGHT : LEFT] === 0)));
     const root = character.root;
     if (!hook.inXR) spectator.follow(root.x, root.z, fixedDt || realDt);
     stage.grid.follow(root.x, root.z);
