@@ -58,8 +58,11 @@ test('the character walks, turns and strafes under the keyboard', async ({ page 
   await page.waitForFunction((n) => window.__mm.updates >= n, a.updates + 30, { timeout: 60_000, polling: 50 });
   await page.evaluate(() => (window.__mm.toeErrors.length = 0));
   await page.waitForFunction((n) => window.__mm.updates >= n, a.updates + 120, { timeout: 60_000, polling: 50 });
-  await page.keyboard.up('KeyW');
   const b = await hook(page);
+  // Half a second more for the toe heights: starting from standing (the first view is idle), 2 s
+  // gave 59 planted foot-frames, one short of the sample this check wants.
+  await page.waitForFunction((n) => window.__mm.updates >= n, a.updates + 150, { timeout: 60_000, polling: 50 });
+  await page.keyboard.up('KeyW');
   const forward = [Math.sin(b.yaw), Math.cos(b.yaw)];
   const along = (b.root[0] - a.root[0]) * forward[0] + (b.root[2] - a.root[2]) * forward[1];
   expect(along).toBeGreaterThan(1.5);
