@@ -243,7 +243,8 @@ describe('room server', () => {
   });
 
   it('protocol violations close with a code and reason: malformed, text, before JOIN, seq going back, no JOIN in time', async () => {
-    server = await startServer({ joinTimeoutMs: 500 });
+    // A socket that answers pings may wait up to joinDeadlineMs for its JOIN (a page busy loading); this one is short.
+    server = await startServer({ joinTimeoutMs: 500, joinDeadlineMs: 500 });
     const room = createRoomId();
     const listener = await join(room, 'listener');
 

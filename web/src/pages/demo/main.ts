@@ -5,7 +5,8 @@
  *
  * URL parameters: `db=<url>`, `avatar=<url>|none`, `roles=<JSON role → bone name>` (manual
  * joint map), `skeleton=1`, `shadows=0`, `dt=fixed` (exactly 1/60 s per frame, for tests; `dt=0.05`: that many s),
- * `room=<id>` and `name=` (a shared room: `RoomPanel`). State for tests is on `window.__mm`.
+ * `room=<id>` and `name=` (a shared room: `RoomPanel`; the HUD names the nearest member through
+ * the element's public `room.list()`). State for tests is on `window.__mm`.
  */
 import GUI from 'lil-gui';
 import * as THREE from 'three';
@@ -41,7 +42,7 @@ const hook = {
   avatar: '',
   databaseLoads: 0,
   path: { points: [] as number[], following: false },
-  screenOf: (x: number, z: number) => ({ x: x * 0, y: z * 0 }), room: null as RoomPanel | null,
+  screenOf: (x: number, z: number) => ({ x: x * 0, y: z * 0 }),
 };
 declare global {
   interface Window {
@@ -81,7 +82,7 @@ el.addEventListener('load', async () => {
   const stage = el.stage!;
   el.orbit!.controls.enableZoom = true; // a full page: the wheel zooms
   stage.camera.position.set(2.2, 1.7, 3.8);
-  const room = (hook.room = new RoomPanel({ character, scene: stage.scene, parent: document.getElementById('toolbar')!, mode: 'desktop', onNote: fileError, trace: el.timeStep !== null, avatar: avatarParam && avatarParam !== 'none' ? { kind: 'url', url: avatarParam } : undefined }));
+  const room = new RoomPanel({ character, scene: stage.scene, parent: document.getElementById('toolbar')!, mode: 'desktop', onNote: fileError, trace: el.timeStep !== null, avatar: avatarParam && avatarParam !== 'none' ? { kind: 'url', url: avatarParam } : undefined });
   const view = { mesh: true, skeleton: params.get('skeleton') === '1', shadows: params.get('shadows') !== '0', simulation: true, trajectory: true, matched: true, locks: true };
   character.debug = true;
   const apply = () => {
@@ -206,6 +207,17 @@ el.addEventListener('load', async () => {
     }
   };
 
+  // ---- the room, read through the element's public API: the nearest member in the HUD
+  const nearest = () => {
+    let best = '';
+    let bestD = Infinity;
+    for (const m of el.room?.list() ?? []) {
+      const d = Math.hypot(m.x - character.root.x, m.z - character.root.z);
+      if (m.shown && d < bestD) [best, bestD] = [m.name, d];
+    }
+    return best ? ` · nearest: ${best} ${bestD.toFixed(1)} m` : '';
+  };
+
   // ---- per update: the hook and the HUD
   const hud = document.getElementById('hud')!;
   const timer = new UpdateTimer(64);
@@ -242,7 +254,7 @@ el.addEventListener('load', async () => {
     });
     timer.add(el.lastUpdateMs);
     if (hook.updates % 15 === 1) { // from the first update on: "loading…" never outlives the load
-      hud.textContent = `${character.clip} · frame ${rt.frame} · ${character.tags.join(' ') || '—'} · cost ${rt.searchCost.toFixed(2)} → ${rt.bestCost.toFixed(2)} · update ${timer.median().toFixed(3)} ms (median of 64)`;
+      hud.textContent = `${character.clip} · frame ${rt.frame} · ${character.tags.join(' ') || '—'} · cost ${rt.searchCost.toFixed(2)} → ${rt.bestCost.toFixed(2)} · update ${timer.median().toFixed(3)} ms (median of 64)${nearest()}`;
     }
     hook.ready = true;
   };
