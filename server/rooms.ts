@@ -424,9 +424,6 @@ export function attachRooms(server: HttpServer | HttpsServer, options: RoomsOpti
     for (const m of room.members.values()) if (m !== from && !m.gone) send(m, bytes);
   };
 
-  /** Whether another process may want this room's messages (it said so by presence, a join or a reply). */
-  const shared = (room: Room) => bus !== null && room.peers.size > 0;
-
   const publishPresence = (room: Room) => {
     if (!bus || room.members.size === 0) return;
     const ids = [...room.members.keys()];
@@ -618,7 +615,9 @@ export function attachRooms(server: HttpServer | HttpsServer, options: RoomsOpti
     if (m.type === 'state') c.state = Buffer.from(bytes);
     else if (m.type === 'path') c.path = Buffer.from(bytes);
     broadcast(room, c, encodeRelay(c.id, bytes));
-    if (shared(room)) bus!.publish(room.id, BusKind.stream, c.id, bytes);
+    // Published even when no other process is known in the room yet: one may be joining right
+    // now, and its copies must get this member's STATEs (NATS drops what nobody subscribed to).
+    bus?.publish(room.id, BusKind.stream, c.id, bytes);
   };
 
   // ---- messages from the other processes
