@@ -7,7 +7,7 @@
  *     "--banner:js=import { createRequire as __cr } from 'node:module'; const require = __cr(import.meta.url);"
  *   node /tmp/rooms.mjs --port 8787 [--host 127.0.0.1] [--max-members 16]
  *        [--allow-origin https://example.com]… [--allow-no-origin] [--stats-ms 1000]
- *        [--nats nats://127.0.0.1:4222[,nats://…]] [--nats-prefix mmrooms] [--workers N]
+ *        [--nats nats://127.0.0.1:4222[,nats://…]] [--nats-prefix mmrooms] [--workers N] [--idle-timeout-ms 5000]
  *
  * `--nats` (or the environment's `ROOMS_NATS_URL`): share rooms with the other processes on that
  * NATS (docs/rooms.md, "Several processes"). `--workers N`: N processes behind this one port
@@ -32,6 +32,7 @@ function parseArgs(argv: string[]) {
     nats: process.env.ROOMS_NATS_URL ?? '',
     natsPrefix: process.env.ROOMS_NATS_PREFIX ?? 'mmrooms',
     workers: 0,
+    idleTimeoutMs: 5000,
   };
   for (let i = 0; i < argv.length; i++) {
     const a = argv[i];
@@ -49,6 +50,7 @@ function parseArgs(argv: string[]) {
     else if (a === '--nats') args.nats = value();
     else if (a === '--nats-prefix') args.natsPrefix = value();
     else if (a === '--workers') args.workers = Number(value());
+    else if (a === '--idle-timeout-ms') args.idleTimeoutMs = Number(value());
     else throw new Error(`unknown argument ${a}`);
   }
   if (!(args.workers >= 0 && args.workers <= 64 && Number.isInteger(args.workers))) throw new Error('--workers: 0–64');
@@ -88,6 +90,7 @@ if (args.workers > 0 && cluster.isPrimary) {
     maxMembers: args.maxMembers,
     allowedOrigins: args.allowedOrigins,
     allowNoOrigin: args.allowNoOrigin,
+    idleTimeoutMs: args.idleTimeoutMs,
     rejectOtherUpgrades: true,
     nats: args.nats ? { servers: args.nats, prefix: args.natsPrefix } : undefined,
     log: (e) => {
