@@ -7,9 +7,17 @@
  *
  *   node scripts/rooms-load.mjs [--clients 100] [--rooms 10] [--seconds 60] [--vr-every 3] [--json out.json]
  *   node scripts/rooms-load.mjs --seconds 8        # the short variant (CI)
+ *   node scripts/rooms-load.mjs --processes 3 [--nats nats://127.0.0.1:4222] --clients 300 --rooms 30
+ *
+ * `--processes N` (N > 1): N room server processes sharing rooms over NATS (`--nats URL`, or a
+ * nats-server started here on a loopback port and stopped after); client i joins room i mod
+ * rooms on process (i + ⌊i / rooms⌋) mod N, so every room has members on different processes. Each
+ * process's CPU, messages and relayed copies are reported, and every message sent in the
+ * window must reach every other member of its room.
  */
 import { spawn } from 'node:child_process';
-import { mkdtempSync, rmSync, writeFileSync } from 'node:fs';
+import { existsSync, mkdtempSync, rmSync, writeFileSync } from 'node:fs';
+import { createServer as netServer } from 'node:net';
 import { cpus, loadavg, tmpdir } from 'node:os';
 import { join, dirname } from 'node:path';
 import { fileURLToPath } from 'node:url';
@@ -26,6 +34,9 @@ const rooms = Number(opt('rooms', 10));
 const seconds = Number(opt('seconds', 60));
 const vrEvery = Number(opt('vr-every', 3));
 const jsonOut = opt('json', null);
+const processes = Number(opt('processes', 1));
+let natsUrl = opt('nats', null);
+if (!(processes >= 1 && processes <= 16)) throw new Error('processes 1–16');
 if (!(clients > 0 && clients <= 2000 && rooms > 0 && seconds > 0 && seconds <= 600)) throw new Error('clients 1–2000, seconds 1–600');
 
 const loadBefore = loadavg()[0];
@@ -53,18 +64,48 @@ const lines = (child, onLine) => createInterface({ input: child.stdout }).on('li
   }
 });
 
-const server = spawn(process.execPath, [join(dir, 'main.mjs'), '--port', '0', '--host', '127.0.0.1', '--stats-ms', '1000', '--max-members', '16'], { stdio: ['ignore', 'pipe', 'inherit'] });
-const stats = [];
-const port = await new Promise((resolve, reject) => {
-  lines(server, (m) => {
-    if (m.type === 'listening') resolve(m.port);
-    else if (m.type === 'stats') stats.push(m);
+// NATS for several processes: the one given, or a nats-server of our own on a loopback port.
+let nats = null;
+if (processes > 1 && !natsUrl) {
+  const bin = ['/usr/sbin/nats-server', '/usr/bin/nats-server', '/usr/local/bin/nats-server'].find((p) => existsSync(p));
+  if (!bin) throw new Error('--processes > 1 needs NATS: pass --nats URL or install nats-server (apt-get install nats-server)');
+  const natsPort = await new Promise((resolve) => {
+    const s = netServer();
+    s.listen(0, '127.0.0.1', () => {
+      const p = s.address().port;
+      s.close(() => resolve(p));
+    });
   });
-  server.once('exit', (code) => reject(new Error(`server exited ${code}`)));
-});
+  nats = spawn(bin, ['-a', '127.0.0.1', '-p', String(natsPort), '-js', '-sd', join(dir, 'nats')], { stdio: ['ignore', 'ignore', 'pipe'] });
+  await new Promise((resolve, reject) => {
+    createInterface({ input: nats.stderr }).on('line', (l) => /Server is ready/.test(l) && resolve());
+    nats.once('exit', (code) => reject(new Error(`nats-server exited ${code}`)));
+  });
+  natsUrl = `nats://127.0.0.1:${natsPort}`;
+}
+
+const servers = [];
+const stats = new Map(); // pid → stats lines
+for (let k = 0; k < processes; k++) {
+  const args = [join(dir, 'main.mjs'), '--port', '0', '--host', '127.0.0.1', '--stats-ms', '1000', '--max-members', '16'];
+  if (processes > 1) args.push('--nats', natsUrl);
+  const server = spawn(process.execPath, args, { stdio: ['ignore', 'pipe', 'inherit'], env: { ...process.env, ROOMS_NATS_URL: '' } });
+  const port = await new Promise((resolve, reject) => {
+    lines(server, (m) => {
+      if (m.type === 'listening') resolve(m.port);
+      else if (m.type === 'stats') {
+        if (!stats.has(server.pid)) stats.set(server.pid, []);
+        stats.get(server.pid).push(m);
+      }
+    });
+    server.once('exit', (code) => reject(new Error(`server exited ${code}`)));
+  });
+  servers.push({ server, port });
+}
 const killTimer = setTimeout(() => {
   console.error('load test overran its time; stopping');
-  server.kill('SIGKILL');
+  for (const { server } of servers) server.kill('SIGKILL');
+  nats?.kill('SIGKILL');
   process.exit(2);
 }, (seconds + 60) * 1000);
 
@@ -73,7 +114,7 @@ let measuredAt = 0;
 let result = null;
 const client = spawn(
   process.execPath,
-  [join(dir, 'load-client.mjs'), '--url', `ws://127.0.0.1:${port}`, '--origin', `http://127.0.0.1:${port}`, '--clients', String(clients), '--rooms', String(rooms), '--seconds', String(seconds), '--vr-every', String(vrEvery)],
+  [join(dir, 'load-client.mjs'), '--url', servers.map((x) => `ws://127.0.0.1:${x.port}`).join(','), '--origin', servers.map((x) => `http://127.0.0.1:${x.port}`).join(','), '--clients', String(clients), '--rooms', String(rooms), '--seconds', String(seconds), '--vr-every', String(vrEvery)],
   { stdio: ['ignore', 'pipe', 'inherit'] },
 );
 lines(client, (m) => {
@@ -83,35 +124,52 @@ lines(client, (m) => {
 });
 const clientCode = await new Promise((resolve) => client.once('exit', resolve));
 await new Promise((r) => setTimeout(r, 1100)); // one more stats line
-server.kill('SIGTERM');
-await new Promise((resolve) => server.once('exit', resolve));
+for (const { server } of servers) server.kill('SIGTERM');
+await Promise.all(servers.map(({ server }) => new Promise((resolve) => (server.exitCode !== null ? resolve() : server.once('exit', resolve)))));
+if (nats) {
+  nats.kill('SIGTERM');
+  await new Promise((resolve) => nats.once('exit', resolve));
+}
 clearTimeout(killTimer);
 rmSync(dir, { recursive: true, force: true });
 if (clientCode !== 0 || !result) throw new Error(`load client failed (exit ${clientCode})`);
 
-// Server numbers over the measured window: the stats lines inside it.
-const inWindow = stats.filter((s, i) => i > 0 && s.members === clients);
-const first = inWindow[Math.min(2, inWindow.length - 1)];
-const last = inWindow[inWindow.length - 1];
-const wall = (last.t - first.t) / 1000;
-const cpuMs = last.cpuUserMs + last.cpuSystemMs - (first.cpuUserMs + first.cpuSystemMs);
-const msgsIn = last.messagesIn - first.messagesIn;
-const msgsOut = last.messagesOut - first.messagesOut;
-const serverSummary = {
-  windowSeconds: Math.round(wall * 10) / 10,
-  cpuPercentOfOneCore: Math.round((cpuMs / (wall * 1000)) * 1000) / 10,
-  rssMiBMax: Math.round(Math.max(...inWindow.map((s) => s.rss)) / 1048576 * 10) / 10,
-  heapMiBMax: Math.round(Math.max(...inWindow.map((s) => s.heapUsed)) / 1048576 * 10) / 10,
-  messagesInPerSecond: Math.round(msgsIn / wall),
-  messagesOutPerSecond: Math.round(msgsOut / wall),
-  bytesOutPerSecond: Math.round((last.bytesOut - first.bytesOut) / wall),
-  cpuMicrosecondsPerMessageIn: Math.round((cpuMs * 1000) / msgsIn * 10) / 10,
-  cpuMicrosecondsPerRelayedCopy: Math.round((cpuMs * 1000) / msgsOut * 100) / 100,
-  skippedSlow: last.skippedSlow,
-  dropped: last.dropped,
-  internalErrors: last.internalErrors,
+// Server numbers over the measured window: the stats lines inside it (all members joined).
+const summarize = (lines) => {
+  const total = clients / processes;
+  const most = Math.max(...lines.map((s) => s.members));
+  const inWindow = lines.filter((s, i) => i > 0 && s.members === most);
+  if (most < Math.floor(total) || inWindow.length < 2) throw new Error(`a process never held its ${total} members (at most ${most}): ${lines.map((s) => s.members).join(',')}`);
+  const first = inWindow[Math.min(2, inWindow.length - 1)];
+  const last = inWindow[inWindow.length - 1];
+  const wall = (last.t - first.t) / 1000;
+  const cpuMs = last.cpuUserMs + last.cpuSystemMs - (first.cpuUserMs + first.cpuSystemMs);
+  const msgsIn = last.messagesIn - first.messagesIn;
+  const msgsOut = last.messagesOut - first.messagesOut;
+  return {
+    members: last.members,
+    remoteMembers: last.remoteMembers,
+    windowSeconds: Math.round(wall * 10) / 10,
+    cpuPercentOfOneCore: Math.round((cpuMs / (wall * 1000)) * 1000) / 10,
+    rssMiBMax: Math.round(Math.max(...inWindow.map((s) => s.rss)) / 1048576 * 10) / 10,
+    heapMiBMax: Math.round(Math.max(...inWindow.map((s) => s.heapUsed)) / 1048576 * 10) / 10,
+    messagesInPerSecond: Math.round(msgsIn / wall),
+    messagesOutPerSecond: Math.round(msgsOut / wall),
+    busOutPerSecond: Math.round((last.busOut - first.busOut) / wall),
+    busInPerSecond: Math.round((last.busIn - first.busIn) / wall),
+    bytesOutPerSecond: Math.round((last.bytesOut - first.bytesOut) / wall),
+    cpuMicrosecondsPerMessageIn: Math.round((cpuMs * 1000) / msgsIn * 10) / 10,
+    cpuMicrosecondsPerRelayedCopy: Math.round((cpuMs * 1000) / msgsOut * 100) / 100,
+    skippedSlow: last.skippedSlow,
+    dropped: last.dropped,
+    refused: last.refused,
+    internalErrors: last.internalErrors,
+  };
 };
-const report = { clients, rooms, seconds: result.seconds, vrEvery, latencyMs: result.latencyMs, latencySamples: result.latencySamples, server: serverSummary, desktop: result.desktop, vr: result.vr, clientErrors: result.clientErrors, closedEarly: result.closedEarly, clientProcessCpuPercent: result.clientCpuPercent,
+if (process.env.LOAD_DEBUG) for (const l of stats.values()) console.error(l.map((s) => s.members).join(","));
+const perProcess = [...stats.values()].map(summarize);
+const serverSummary = perProcess[0];
+const report = { clients, rooms, processes, nats: processes > 1 ? natsUrl : null, perProcess, delivery: result.delivery, seconds: result.seconds, vrEvery, latencyMs: result.latencyMs, latencySamples: result.latencySamples, server: serverSummary, desktop: result.desktop, vr: result.vr, clientErrors: result.clientErrors, closedEarly: result.closedEarly, clientProcessCpuPercent: result.clientCpuPercent,
   machine: { cores: cpus().length, loadAverage1mBefore: Math.round(loadBefore * 100) / 100, loadAverage1mAfter: Math.round(loadavg()[0] * 100) / 100 } };
 
 const row = (k, v) => `| ${k} | ${v} |`;
@@ -121,14 +179,17 @@ console.log(
     '|---|---|',
     row('relay latency p50 / p90 / p99 / max (ms)', `${result.latencyMs.p50.toFixed(2)} / ${result.latencyMs.p90.toFixed(2)} / ${result.latencyMs.p99.toFixed(2)} / ${result.latencyMs.max}`),
     row('latency samples; client process CPU (% of one core)', `${result.latencySamples}; ${result.clientCpuPercent}`),
-    row('server CPU (% of one core)', serverSummary.cpuPercentOfOneCore),
-    row('server RSS / heap max (MiB)', `${serverSummary.rssMiBMax} / ${serverSummary.heapMiBMax}`),
-    row('messages in / relayed copies out per s', `${serverSummary.messagesInPerSecond} / ${serverSummary.messagesOutPerSecond}`),
-    row('server CPU µs per message in / per copy out', `${serverSummary.cpuMicrosecondsPerMessageIn} / ${serverSummary.cpuMicrosecondsPerRelayedCopy}`),
+    row('delivered / expected (messages sent in the window × other members of the room)', `${result.delivery.delivered} / ${result.delivery.expected}`),
+    ...perProcess.flatMap((p, k) => [
+      row(`${processes > 1 ? `process ${k + 1}: ` : ''}server CPU (% of one core)`, p.cpuPercentOfOneCore),
+      row(`${processes > 1 ? `process ${k + 1}: ` : ''}server RSS / heap max (MiB)`, `${p.rssMiBMax} / ${p.heapMiBMax}`),
+      row(`${processes > 1 ? `process ${k + 1}: ` : ''}messages in / relayed copies out per s${processes > 1 ? ' / bus out / bus in' : ''}`, `${p.messagesInPerSecond} / ${p.messagesOutPerSecond}${processes > 1 ? ` / ${p.busOutPerSecond} / ${p.busInPerSecond}` : ''}`),
+      row(`${processes > 1 ? `process ${k + 1}: ` : ''}server CPU µs per message in / per copy out`, `${p.cpuMicrosecondsPerMessageIn} / ${p.cpuMicrosecondsPerRelayedCopy}`),
+    ]),
     row(`desktop avatars (${result.desktop.avatars}): up / down per receiver (B/s)`, `${result.desktop.upBytesPerSecond} / ${result.desktop.downBytesPerSecondPerReceiver}`),
     row(`VR avatars (${result.vr.avatars}): up / down per receiver (B/s)`, `${result.vr.upBytesPerSecond} / ${result.vr.downBytesPerSecondPerReceiver}`),
     row('machine: cores; 1-min load average before / after (other work on the machine)', `${report.machine.cores}; ${report.machine.loadAverage1mBefore} / ${report.machine.loadAverage1mAfter}`),
-    row('dropped / skipped slow / internal errors / client errors', `${JSON.stringify(serverSummary.dropped)} / ${serverSummary.skippedSlow} / ${serverSummary.internalErrors} / ${result.clientErrors}`),
+    row('dropped / refused / skipped slow / internal errors / client errors', perProcess.map((p) => `${JSON.stringify(p.dropped)} / ${JSON.stringify(p.refused)} / ${p.skippedSlow} / ${p.internalErrors}`).join('; ') + ` / ${result.clientErrors}`),
   ].join('\n'),
 );
 console.log(JSON.stringify(report));

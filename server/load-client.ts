@@ -19,8 +19,10 @@ function arg(name: string, fallback: number | string): number | string {
   return typeof fallback === 'number' ? Number(process.argv[i + 1]) : process.argv[i + 1];
 }
 
-const base = arg('url', 'ws://127.0.0.1:8787');
-const origin = arg('origin', 'http://127.0.0.1:8787');
+// Several servers (comma-separated): client i goes to server (i + ⌊i / rooms⌋) mod n, so the members
+// of every room are spread over the servers, evenly (the multi-process load test).
+const bases = arg('url', 'ws://127.0.0.1:8787').split(',');
+const origins = arg('origin', 'http://127.0.0.1:8787').split(',');
 const numClients = arg('clients', 100);
 const numRooms = arg('rooms', 10);
 const seconds = arg('seconds', 60);
@@ -52,6 +54,11 @@ interface Client {
   joined: boolean;
   closed: boolean;
   errors: number;
+  /** First seq sent while measuring (messages from then on must all arrive), and how many were sent. */
+  firstSeq: number;
+  sentMeasured: number;
+  /** Relays received from each sender (by index) with seq ≥ that sender's firstSeq. */
+  received: Uint32Array;
 }
 
 const roomIds = Array.from({ length: numRooms }, () => createRoomId());
@@ -62,7 +69,8 @@ const trackers: RoomTrackerPose[] = [0, 1, 2].map(() => ({ tracked: true, fromHa
 function open(index: number): Promise<void> {
   const room = index % numRooms;
   const vr = index % vrEvery === vrEvery - 1;
-  const ws = new WebSocket(`${base}/rooms/${roomIds[room]}`, { origin });
+  const server = (index + Math.floor(index / numRooms)) % bases.length;
+  const ws = new WebSocket(`${bases[server]}/rooms/${roomIds[room]}`, { origin: origins[server % origins.length] });
   const stream = new InputStream();
   const character = new TestCharacter();
   const c: Client = {
@@ -82,6 +90,9 @@ function open(index: number): Promise<void> {
     joined: false,
     closed: false,
     errors: 0,
+    firstSeq: Infinity,
+    sentMeasured: 0,
+    received: new Uint32Array(numClients),
   };
   clients.push(c);
   ws.binaryType = 'nodebuffer';
@@ -96,6 +107,7 @@ function open(index: number): Promise<void> {
         const from = data[2];
         const seq = data.readUInt32LE(5);
         const sender = byRoomAndId.get(`${room}:${from}`);
+        if (sender && seq >= sender.firstSeq) c.received[sender.index]++;
         if (measuring && sender) {
           const sent = sender.sentAt[seq % RING];
           if (sent > 0) {
@@ -136,6 +148,10 @@ function send(c: Client, now: number): void {
   for (const bytes of c.stream.flush()) {
     const seq = new DataView(bytes.buffer, bytes.byteOffset).getUint32(2, true);
     c.sentAt[seq % RING] = now;
+    if (measuring) {
+      if (c.firstSeq === Infinity) c.firstSeq = seq;
+      c.sentMeasured++;
+    }
     c.ws.send(bytes);
     if (measuring) c.upBytes += bytes.length + websocketFrameOverhead(bytes.length, true);
   }
@@ -198,13 +214,32 @@ async function main() {
   const m0 = performance.now();
   const cpu0 = process.cpuUsage();
   await new Promise((r) => setTimeout(r, seconds * 1000));
+  // Sending stops with the window: every relay counted from here on was sent inside it.
+  clearInterval(frame);
+  for (const t of timers) clearInterval(t);
   measuring = false;
   const measured = (performance.now() - m0) / 1000;
   const cpu = process.cpuUsage(cpu0);
   const clientCpuPercent = Math.round(((cpu.user + cpu.system) / 1000 / (measured * 1000)) * 1000) / 10;
   console.log(JSON.stringify({ type: 'measured', at: Date.now() }));
-  clearInterval(frame);
-  for (const t of timers) clearInterval(t);
+  // Every message sent while measuring must reach every other member of its room: wait for the last ones.
+  let expected = 0;
+  let delivered = 0;
+  const count = () => {
+    expected = 0;
+    delivered = 0;
+    for (const r of clients)
+      for (const s of clients) {
+        if (s === r || s.room !== r.room) continue;
+        expected += s.sentMeasured;
+        delivered += Math.min(r.received[s.index], s.sentMeasured);
+      }
+  };
+  for (let k = 0; k < 30; k++) {
+    count();
+    if (delivered >= expected) break;
+    await new Promise((r) => setTimeout(r, 100));
+  }
 
   const pct = (p: number) => {
     const target = p * latencySamples;
@@ -239,6 +274,7 @@ async function main() {
     latencyMs: { p50: pct(0.5), p90: pct(0.9), p99: pct(0.99), p999: pct(0.999), max: latencyOverflow ? '>2000' : (maxBucket + 1) * HIST_BUCKET_MS },
     desktop: perMode(false),
     vr: perMode(true),
+    delivery: { expected, delivered, missing: expected - delivered },
     clientErrors: clients.reduce((s, c) => s + c.errors, 0),
     closedEarly: clients.filter((c) => c.closed).length,
     clientCpuPercent,
