@@ -23,6 +23,10 @@ import { join, dirname } from 'node:path';
 import { fileURLToPath } from 'node:url';
 import { createInterface } from 'node:readline';
 import { build } from 'esbuild';
+import { randomBytes } from 'node:crypto';
+
+/** A fresh room id: 16 random bytes as 22 base64url characters (protocol.ts's createRoomId). */
+const createRoomId = () => randomBytes(16).toString('base64url');
 
 const root = join(dirname(fileURLToPath(import.meta.url)), '..');
 const opt = (name, fallback) => {
@@ -109,20 +113,63 @@ const killTimer = setTimeout(() => {
   process.exit(2);
 }, (seconds + 60) * 1000);
 
-let measuringAt = 0;
-let measuredAt = 0;
+// The clients, in processes of their own: one Node process cannot receive much more than ~30 000
+// relays a second, so K = ⌈clients / 100⌉ processes, each with whole rooms (latency on one clock).
+const clientParts = Math.max(1, Number(opt('client-processes', Math.ceil(clients / 100))));
+const roomIdList = Array.from({ length: rooms }, () => createRoomId()).join(',');
+const parts = [];
+for (let part = 0; part < clientParts; part++) {
+  const child = spawn(
+    process.execPath,
+    [join(dir, 'load-client.mjs'), '--url', servers.map((x) => `ws://127.0.0.1:${x.port}`).join(','), '--origin', servers.map((x) => `http://127.0.0.1:${x.port}`).join(','), '--clients', String(clients), '--rooms', String(rooms), '--seconds', String(seconds), '--vr-every', String(vrEvery), '--room-ids', roomIdList, '--parts', String(clientParts), '--part', String(part)],
+    { stdio: ['ignore', 'pipe', 'inherit'] },
+  );
+  const entry = { child, result: null };
+  lines(child, (m) => {
+    if (m.type === 'result') entry.result = m;
+  });
+  parts.push(entry);
+}
+const codes = await Promise.all(parts.map(({ child }) => new Promise((resolve) => child.once('exit', resolve))));
+const clientCode = codes.find((c) => c !== 0) ?? 0;
+// One result from the parts: histograms and byte counts added up.
 let result = null;
-const client = spawn(
-  process.execPath,
-  [join(dir, 'load-client.mjs'), '--url', servers.map((x) => `ws://127.0.0.1:${x.port}`).join(','), '--origin', servers.map((x) => `http://127.0.0.1:${x.port}`).join(','), '--clients', String(clients), '--rooms', String(rooms), '--seconds', String(seconds), '--vr-every', String(vrEvery)],
-  { stdio: ['ignore', 'pipe', 'inherit'] },
-);
-lines(client, (m) => {
-  if (m.type === 'measuring') measuringAt = performance.now();
-  else if (m.type === 'measured') measuredAt = performance.now();
-  else if (m.type === 'result') result = m;
-});
-const clientCode = await new Promise((resolve) => client.once('exit', resolve));
+if (parts.every((p) => p.result)) {
+  const rs = parts.map((p) => p.result);
+  const bucket = rs[0].histogramBucketMs;
+  const hist = new Map();
+  for (const r of rs) for (const [b, n] of r.histogram) hist.set(b, (hist.get(b) ?? 0) + n);
+  const samples = rs.reduce((s, r) => s + r.latencySamples, 0);
+  const sorted = [...hist.entries()].sort((a, b) => a[0] - b[0]);
+  const pct = (p) => {
+    let acc = 0;
+    for (const [b, n] of sorted) {
+      acc += n;
+      if (acc >= p * samples) return (b + 0.5) * bucket;
+    }
+    return Infinity;
+  };
+  const overflow = rs.reduce((s, r) => s + r.latencyOverflow, 0);
+  const measured = Math.max(...rs.map((r) => r.measuredSeconds));
+  const mode = (k) => {
+    const avatars = rs.reduce((s, r) => s + r[k].avatars, 0);
+    const up = rs.reduce((s, r) => s + r[k].upBytes, 0);
+    const down = rs.reduce((s, r) => s + r[k].downBytes, 0);
+    const pairs = rs.reduce((s, r) => s + r[k].pairs, 0);
+    return { avatars, upBytesPerSecond: Math.round(up / avatars / measured), downBytesPerSecondPerReceiver: Math.round(down / pairs / measured) };
+  };
+  result = {
+    seconds: Math.round(measured * 10) / 10,
+    latencySamples: samples,
+    latencyMs: { p50: pct(0.5), p90: pct(0.9), p99: pct(0.99), p999: pct(0.999), max: overflow ? '>2000' : (sorted[sorted.length - 1][0] + 1) * bucket },
+    desktop: mode('desktop'),
+    vr: mode('vr'),
+    delivery: { expected: rs.reduce((s, r) => s + r.delivery.expected, 0), delivered: rs.reduce((s, r) => s + r.delivery.delivered, 0), missing: rs.reduce((s, r) => s + r.delivery.missing, 0) },
+    clientErrors: rs.reduce((s, r) => s + r.clientErrors, 0),
+    closedEarly: rs.reduce((s, r) => s + r.closedEarly, 0),
+    clientCpuPercent: Math.round(rs.reduce((s, r) => s + r.clientCpuMs, 0) / (measured * 1000) * 1000) / 10,
+  };
+}
 await new Promise((r) => setTimeout(r, 1100)); // one more stats line
 for (const { server } of servers) server.kill('SIGTERM');
 await Promise.all(servers.map(({ server }) => new Promise((resolve) => (server.exitCode !== null ? resolve() : server.once('exit', resolve)))));
@@ -178,7 +225,7 @@ console.log(
     `| rooms load test: ${clients} clients in ${rooms} rooms, ${result.seconds} s measured | |`,
     '|---|---|',
     row('relay latency p50 / p90 / p99 / max (ms)', `${result.latencyMs.p50.toFixed(2)} / ${result.latencyMs.p90.toFixed(2)} / ${result.latencyMs.p99.toFixed(2)} / ${result.latencyMs.max}`),
-    row('latency samples; client process CPU (% of one core)', `${result.latencySamples}; ${result.clientCpuPercent}`),
+    row(`latency samples; load client processes (${clientParts}) CPU (% of one core, together)`, `${result.latencySamples}; ${result.clientCpuPercent}`),
     row('delivered / expected (messages sent in the window × other members of the room)', `${result.delivery.delivered} / ${result.delivery.expected}`),
     ...perProcess.flatMap((p, k) => [
       row(`${processes > 1 ? `process ${k + 1}: ` : ''}server CPU (% of one core)`, p.cpuPercentOfOneCore),
@@ -194,5 +241,3 @@ console.log(
 );
 console.log(JSON.stringify(report));
 if (jsonOut) writeFileSync(jsonOut, `${JSON.stringify(report, null, 2)}\n`);
-void measuringAt;
-void measuredAt;

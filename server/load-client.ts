@@ -61,7 +61,12 @@ interface Client {
   received: Uint32Array;
 }
 
-const roomIds = Array.from({ length: numRooms }, () => createRoomId());
+// Several client processes (`--parts K --part j`): this one runs the clients of the rooms r with
+// r mod K = j, so every room's members are in one process and latency is measured on one clock.
+const roomIds = arg('room-ids', '') ? arg('room-ids', '').split(',') : Array.from({ length: numRooms }, () => createRoomId());
+const parts = arg('parts', 1);
+const part = arg('part', 0);
+const mine = (index: number) => (index % numRooms) % parts === part;
 const clients: Client[] = [];
 const byRoomAndId = new Map<string, Client>();
 const trackers: RoomTrackerPose[] = [0, 1, 2].map(() => ({ tracked: true, fromHand: false, position: [0, 1.6, 0], rotation: [0, 0, 0, 1] }));
@@ -159,7 +164,8 @@ function send(c: Client, now: number): void {
 
 async function main() {
   // Connect in batches so the server is not asked for 100 handshakes in one tick.
-  for (let i = 0; i < numClients; i += 10) await Promise.all(Array.from({ length: Math.min(10, numClients - i) }, (_, k) => open(i + k)));
+  const indices = Array.from({ length: numClients }, (_, i) => i).filter(mine);
+  for (let i = 0; i < indices.length; i += 10) await Promise.all(indices.slice(i, i + 10).map((k) => open(k)));
   const t0 = performance.now();
   let simNow = t0;
   let vrSteps = 0;
@@ -263,14 +269,20 @@ async function main() {
       bytes += r.downBytes[vr ? 'vr' : 'desktop'];
       pairs += inRoom;
     }
-    return { avatars: senders.length, upBytesPerSecond: Math.round(up), downBytesPerSecondPerReceiver: Math.round(bytes / pairs / measured) };
+    return { avatars: senders.length, upBytesPerSecond: Math.round(up), downBytesPerSecondPerReceiver: Math.round(bytes / pairs / measured), upBytes: senders.reduce((s, c) => s + c.upBytes, 0), downBytes: bytes, pairs };
   };
+  const sparse: [number, number][] = [];
+  for (let b = 0; b < histogram.length; b++) if (histogram[b]) sparse.push([b, histogram[b]]);
   const result = {
     type: 'result',
     clients: numClients,
     rooms: numRooms,
     seconds: Math.round(measured * 10) / 10,
     latencySamples,
+    latencyOverflow,
+    histogram: sparse,
+    histogramBucketMs: HIST_BUCKET_MS,
+    measuredSeconds: measured,
     latencyMs: { p50: pct(0.5), p90: pct(0.9), p99: pct(0.99), p999: pct(0.999), max: latencyOverflow ? '>2000' : (maxBucket + 1) * HIST_BUCKET_MS },
     desktop: perMode(false),
     vr: perMode(true),
@@ -278,6 +290,7 @@ async function main() {
     clientErrors: clients.reduce((s, c) => s + c.errors, 0),
     closedEarly: clients.filter((c) => c.closed).length,
     clientCpuPercent,
+    clientCpuMs: (cpu.user + cpu.system) / 1000,
   };
   console.log(JSON.stringify(result));
   for (const c of clients) c.ws.close();
