@@ -186,7 +186,7 @@ const summarize = (lines) => {
   const total = clients / processes;
   const most = Math.max(...lines.map((s) => s.members));
   const inWindow = lines.filter((s, i) => i > 0 && s.members === most);
-  if (most < Math.floor(total) || inWindow.length < 2) throw new Error(`a process never held its ${total} members (at most ${most}): ${lines.map((s) => s.members).join(',')}`);
+  if (most < Math.floor(total) || inWindow.length < 2) throw new Error(`a process never held its ${total} members (at most ${most}): ${lines.map((s) => s.members).join(',')}; dropped ${JSON.stringify(lines[lines.length - 1].dropped)}, refused ${JSON.stringify(lines[lines.length - 1].refused)}, skipped slow ${lines[lines.length - 1].skippedSlow}`);
   const first = inWindow[Math.min(2, inWindow.length - 1)];
   const last = inWindow[inWindow.length - 1];
   const wall = (last.t - first.t) / 1000;

@@ -115,6 +115,7 @@ export function roomsBundle(): Promise<string> {
 export interface StatsLine {
   pid: number;
   members: number;
+  rooms: number;
   remoteMembers: number;
   internalErrors: number;
   messagesIn: number;

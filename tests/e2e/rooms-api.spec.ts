@@ -11,7 +11,7 @@
 //   busy loading): it is not dropped (the server's join timeout watches the socket's pings, which
 //   the browser answers off the main thread) and it shows the two others within 2 s of resuming.
 import { expect, test, type Browser, type BrowserContext, type Page } from '@playwright/test';
-import { WebSocket } from 'ws';
+import { WebSocket as NodeWebSocket } from 'ws';
 import { createMoveStep, createRoomId, CloseCode, encodeJoin, encodeMove, encodePath, encodeState, quantizeMoveStep, quantizeTrackedStep } from '../../web/src/rooms/protocol.ts';
 
 const contexts: BrowserContext[] = [];
@@ -50,7 +50,7 @@ async function open(browser: Browser, name: string, roomId: string, blockMs = 0)
           clearInterval(watch);
         }
       }, 10);
-      window.WebSocket = class extends Real {
+      (window as unknown as { WebSocket: unknown }).WebSocket = class extends Real {
         constructor(url: string | URL, protocols?: string | string[]) {
           super(url, protocols);
           if (!String(url).includes('/rooms/')) return;
@@ -62,7 +62,7 @@ async function open(browser: Browser, name: string, roomId: string, blockMs = 0)
           }
           w.__resumedAt = performance.now();
         }
-      } as typeof WebSocket;
+      };
     }, blockMs);
   }
   await page.goto(`/?shadows=0&dt=0.05&room=${roomId}&name=${name}`);
@@ -123,7 +123,7 @@ test('room API lists the others where they are in two browsers; a flood shows at
   // A hostile member floods absurd but well-formed messages.
   const linesBefore = await Promise.all([ada, bo].map(errorLines));
   const origin = baseURL!;
-  const ws = new WebSocket(`${origin.replace(/^http/, 'ws')}/rooms/${roomId}`, { origin });
+  const ws = new NodeWebSocket(`${origin.replace(/^http/, 'ws')}/rooms/${roomId}`, { origin });
   await new Promise((resolve, reject) => (ws.once('open', resolve), ws.once('error', reject)));
   const closed = new Promise<number>((resolve) => ws.once('close', (code) => resolve(code)));
   const welcomed = new Promise((resolve) => ws.once('message', resolve));
