@@ -7,7 +7,7 @@
  */
 import { afterAll, afterEach, beforeAll, describe, expect, it } from 'vitest';
 import { encodeJoin } from '../web/src/rooms/protocol.ts';
-import { startNats, startRooms, type NatsServer, type RoomsProcess } from './nats-helpers.ts';
+import { freePort, startNats, startRooms, type NatsServer, type RoomsProcess } from './nats-helpers.ts';
 import { createRoomId, moveBytes, settle, sleep, TestClient, testJoin } from './test-helpers.ts';
 
 let nats: NatsServer;
@@ -100,4 +100,35 @@ describe('rooms across processes (NATS)', () => {
       expect(known.size).toBe(9);
     }
   }, 60_000);
+
+  it('on a three-node NATS cluster (the docs\' commands): members on processes attached to different nodes relay to each other and get distinct ids', async () => {
+    const ports = await Promise.all([0, 1, 2].map(() => freePort()));
+    const routes = (k: number) => ports.filter((_, j) => j !== k).map((p) => `nats://127.0.0.1:${p}`).join(',');
+    const cluster = await Promise.all(
+      [0, 1, 2].map((k) => startNats({ extra: ['-n', `n${k + 1}`, '--cluster_name', 'rooms', '--cluster', `nats://127.0.0.1:${ports[k]}`, '--routes', routes(k)] })),
+    );
+    try {
+      // Each process lists the three nodes, its own first (the client tries them in order).
+      const urls = cluster.map((n) => n.url);
+      const ps = await Promise.all([0, 1].map((k) => startRooms({ nats: [urls[k], ...urls.filter((_, j) => j !== k)].join(',') })));
+      procs.push(...ps);
+      const room = createRoomId();
+      const a = await join(ps[0], room, 'a');
+      const b = await join(ps[1], room, 'b');
+      expect(a.memberId).not.toBe(b.memberId);
+      await a.waitFor((m) => m.type === 'memberJoined' && m.member.id === b.memberId, 5000);
+      for (let seq = 1; seq <= 10; seq++) {
+        a.send(moveBytes(seq, 1));
+        b.send(moveBytes(seq, 2));
+        await sleep(20);
+      }
+      await settle(() => a.relays(b.memberId).length === 10 && b.relays(a.memberId).length === 10, 5000);
+      expect(b.relays(a.memberId).map((r) => r.message.seq)).toEqual(Array.from({ length: 10 }, (_, i) => i + 1));
+      expect(a.relays(b.memberId).map((r) => r.message.seq)).toEqual(Array.from({ length: 10 }, (_, i) => i + 1));
+    } finally {
+      for (const c of clients.splice(0)) c.ws.terminate();
+      await Promise.all(procs.splice(0).map((p) => p.stop()));
+      await Promise.all(cluster.map((n) => n.close()));
+    }
+  }, 90_000);
 });

@@ -243,8 +243,7 @@ describe('room server', () => {
   });
 
   it('protocol violations close with a code and reason: malformed, text, before JOIN, seq going back, no JOIN in time', async () => {
-    // A socket that answers pings may wait up to joinDeadlineMs for its JOIN (a page busy loading); this one is short.
-    server = await startServer({ joinTimeoutMs: 500, joinDeadlineMs: 500 });
+    server = await startServer({ joinTimeoutMs: 500 });
     const room = createRoomId();
     const listener = await join(room, 'listener');
 

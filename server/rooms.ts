@@ -54,13 +54,12 @@ export interface RoomsOptions {
   /** Silence (ms) after which a member is dropped and announced as left. Default 5000. */
   idleTimeoutMs?: number;
   /**
-   * Before its JOIN a connection is pinged every second; it is closed when its socket has not
-   * answered for this long (ms). Default 5000. It measures the socket, not the page: a browser
-   * answers pings off the page's main thread, so a page busy loading is not dropped.
+   * Time (ms) an open connection has to send its JOIN. Default 30 000. The socket is what is
+   * watched, not the page: a connection whose TCP socket closes is gone at once, but a page busy
+   * loading (its main thread blocked, so it neither sends its JOIN nor — in Chromium — reads
+   * pings) keeps its connection for this long.
    */
   joinTimeoutMs?: number;
-  /** A connection whose socket answers but that sends no JOIN is closed after this long (ms). Default 30 000. */
-  joinDeadlineMs?: number;
   /**
    * Content checks (server/content.ts): messages a receiver would refuse are dropped and counted
    * against the sender, warned and then closed (4007). Partial limits, or false to relay
@@ -159,8 +158,6 @@ interface Connection {
   joins: TokenBucket;
   /** Set once the server decided to drop it (left already announced). */
   gone: boolean;
-  /** Last pong (ms): before its JOIN a connection is judged by its socket. */
-  lastPongAt: number;
   /** Its JOIN waits for the room's members from the bus or an id claim: messages meanwhile wait here. */
   joining: boolean;
   backlog: { data: RawData; isBinary: boolean }[];
@@ -203,8 +200,7 @@ export function attachRooms(server: HttpServer | HttpsServer, options: RoomsOpti
     allowedOrigins: [...(options.allowedOrigins ?? [])],
     allowNoOrigin: options.allowNoOrigin ?? false,
     idleTimeoutMs: options.idleTimeoutMs ?? 5000,
-    joinTimeoutMs: options.joinTimeoutMs ?? 5000,
-    joinDeadlineMs: options.joinDeadlineMs ?? 30_000,
+    joinTimeoutMs: options.joinTimeoutMs ?? 30_000,
     softBufferBytes: options.softBufferBytes ?? 256 * 1024,
     hardBufferBytes: options.hardBufferBytes ?? 1024 * 1024,
     rejectOtherUpgrades: options.rejectOtherUpgrades ?? false,
@@ -310,6 +306,8 @@ export function attachRooms(server: HttpServer | HttpsServer, options: RoomsOpti
       if (connections.size >= o.maxConnections) return refuse(socket, 503, 'Server full');
       const existing = rooms.get(id);
       if (existing && existing.connections.size >= o.maxMembers * ROOMS_LIMIT_PER_ROOM_FACTOR) return refuse(socket, 503, 'Room busy');
+      // TCP keepalive: a peer that vanished without closing is found by the kernel, not by the page.
+      (socket as { setKeepAlive?: (on: boolean, ms: number) => void }).setKeepAlive?.(true, 5000);
       wss.handleUpgrade(req, socket, head, (ws) => {
         try {
           accept(ws, id);
@@ -370,7 +368,6 @@ export function attachRooms(server: HttpServer | HttpsServer, options: RoomsOpti
       simTime: new TokenBucket(l.simSecondsPerSecond, l.simSecondBurst, t),
       joins: new TokenBucket(l.joinsPerSecond, l.joinBurst, t),
       gone: false,
-      lastPongAt: t,
       joining: false,
       backlog: [],
       content: o.content ? new ContentJudge(o.content, t) : null,
@@ -386,9 +383,6 @@ export function attachRooms(server: HttpServer | HttpsServer, options: RoomsOpti
         internal('message', e, c);
         drop(c, CloseCode.malformed, 'internal error', 'dropped');
       }
-    });
-    ws.on('pong', () => {
-      c.lastPongAt = now();
     });
     ws.on('close', () => {
       try {
@@ -510,7 +504,7 @@ export function attachRooms(server: HttpServer | HttpsServer, options: RoomsOpti
     c.joining = true;
     try {
       await room.synced;
-      const deadline = now() + o.joinTimeoutMs;
+      const deadline = now() + 5000;
       let id = 0;
       for (let k = 0; !c.gone && id === 0; ) {
         if (room.members.size + room.remote.size >= o.maxMembers) return drop(c, CloseCode.roomFull, `room full (${o.maxMembers} members)`, 'dropped');
@@ -709,18 +703,22 @@ export function attachRooms(server: HttpServer | HttpsServer, options: RoomsOpti
     }
   };
 
+  let lastSweep = now();
   const sweep = () => {
     try {
       const t = now();
+      // A sweep that comes late means this process was stalled (a busy machine): what the
+      // members sent meanwhile may still be unread in the sockets (timers run before I/O), so
+      // nobody is judged silent this time.
+      const late = t - lastSweep > 1000;
+      lastSweep = t;
       for (const c of connections) {
-        if (c.gone) continue;
+        if (c.gone || late) continue;
         if (c.id === 0 && !c.joining) {
-          // Before its JOIN a connection is judged by its socket (pings), with an outer deadline.
-          if (t - c.lastPongAt > o.joinTimeoutMs) drop(c, CloseCode.timeout, `no JOIN and no answer to pings for ${o.joinTimeoutMs} ms`, 'timeout');
-          else if (t - c.connectedAt > o.joinDeadlineMs) drop(c, CloseCode.timeout, `no JOIN in ${o.joinDeadlineMs} ms`, 'timeout');
+          if (t - c.connectedAt > o.joinTimeoutMs) drop(c, CloseCode.timeout, `no JOIN in ${o.joinTimeoutMs} ms`, 'timeout');
         } else if (c.id !== 0 && t - c.lastMessageAt > o.idleTimeoutMs) drop(c, CloseCode.timeout, `silent for ${o.idleTimeoutMs} ms`, 'timeout');
       }
-      if (bus) {
+      if (bus && !late) {
         for (const room of rooms.values()) {
           for (const [proc, seen] of room.peers) {
             if (t - seen <= o.peerTimeoutMs) continue;
@@ -736,18 +734,6 @@ export function attachRooms(server: HttpServer | HttpsServer, options: RoomsOpti
   };
   const timer = setInterval(sweep, 250);
   timer.unref();
-  // Pings for connections waiting to JOIN (a browser answers them while its page is busy).
-  const pinger = setInterval(() => {
-    for (const c of connections) {
-      if (c.id !== 0 || c.gone || c.ws.readyState !== c.ws.OPEN) continue;
-      try {
-        c.ws.ping();
-      } catch {
-        /* closing */
-      }
-    }
-  }, Math.max(50, Math.min(1000, o.joinTimeoutMs / 4)));
-  pinger.unref();
   let presenceTimer: ReturnType<typeof setInterval> | null = null;
   let refreshTimer: ReturnType<typeof setInterval> | null = null;
   if (bus) {
@@ -793,7 +779,6 @@ export function attachRooms(server: HttpServer | HttpsServer, options: RoomsOpti
     remoteMembersOf: (roomId) => [...(rooms.get(roomId)?.remote.keys() ?? [])],
     close: async () => {
       clearInterval(timer);
-      clearInterval(pinger);
       if (presenceTimer) clearInterval(presenceTimer);
       if (refreshTimer) clearInterval(refreshTimer);
       server.off('upgrade', onUpgrade);

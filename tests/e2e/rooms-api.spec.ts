@@ -169,7 +169,13 @@ test('room API lists the others where they are in two browsers; a flood shows at
     const w = window as unknown as { __roomSockets: number; __resumedAt: number };
     return { sockets: w.__roomSockets, resumedAt: w.__resumedAt };
   });
-  await cy.waitForFunction(() => (window as unknown as { __seenAt: number }).__seenAt > 0, null, { timeout: 60_000, polling: 100 });
+  await cy.waitForFunction(() => (window as unknown as { __seenAt: number }).__seenAt > 0, null, { timeout: 60_000, polling: 100 }).catch(async (e) => {
+    const state = await cy.evaluate(() => {
+      const room = (document.getElementById('avatar') as unknown as { room: any }).room;
+      return JSON.stringify({ status: room?.status, id: room?.memberId, list: room?.list(), members: [...(room?.members.values() ?? [])].map((m: any) => ({ id: m.id, ready: m.remote?.ready, shown: m.remote?.shown, exact: m.remote?.exact, stats: m.remote?.stats })), notes: [...(room?.notes.values() ?? [])], sockets: (window as any).__roomSockets, box: document.getElementById('error-box')?.textContent });
+    });
+    throw new Error(`${e}\nCy: ${state}`);
+  });
   const seenAfter = (await cy.evaluate(() => (window as unknown as { __seenAt: number }).__seenAt)) - t.resumedAt;
   const sockets = await cy.evaluate(() => (window as unknown as { __roomSockets: number }).__roomSockets);
   console.log(`Cy: blocked 8 s after opening its socket; ${sockets} room socket(s) in all; shows Ada and Bo ${seenAfter.toFixed(0)} ms after resuming (the page's own clock, checked every 10 ms)`);
