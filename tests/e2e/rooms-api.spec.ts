@@ -8,10 +8,10 @@
 //   5 km jumps, forged runtime states, huge frames): the server relays none, warns and closes it
 //   (4007); each page's error box shows at most one line about it.
 // - A third page's main thread is blocked for 8 s right after it opens its room socket (a page
-//   busy loading): it is not dropped (the server's join timeout watches the socket — 30 s while it is
-//   open — not the page; Chromium
-//   it does not hear pings while blocked) and it shows the two others after resuming (the time is
-//   logged with the page's own steps: software WebGL makes this page slow, not the room).
+//   busy loading): it is not dropped (the server's join timeout gives an open socket 30 s, however
+//   busy its page; Chromium does not even read pings while the page is blocked) and it shows the
+//   two others after resuming (the time is logged with the page's own steps: software WebGL makes
+//   this page slow after resuming, not the room).
 import { expect, test, type Browser, type BrowserContext, type Page } from '@playwright/test';
 import { WebSocket as NodeWebSocket } from 'ws';
 import { createMoveStep, createRoomId, CloseCode, encodeJoin, encodeMove, encodePath, encodeState, quantizeMoveStep, quantizeTrackedStep } from '../../web/src/rooms/protocol.ts';
