@@ -71,6 +71,28 @@ const clients: Client[] = [];
 const byRoomAndId = new Map<string, Client>();
 const trackers: RoomTrackerPose[] = [0, 1, 2].map(() => ({ tracked: true, fromHand: false, position: [0, 1.6, 0], rotation: [0, 0, 0, 1] }));
 
+// Sends: 20 Hz desktop, 30 Hz VR, phases spread; a STATE every second — from the client's welcome
+// on (a member silent while the others still connect would be dropped after the idle timeout).
+const timers: ReturnType<typeof setInterval>[] = [];
+function startSending(c: Client): void {
+  const period = 1000 / (c.vr ? 30 : 20);
+  let lastState = performance.now();
+  timers.push(
+    setTimeout(() => {
+      timers.push(
+        setInterval(() => {
+          const now = performance.now();
+          if (now - lastState >= 1000) {
+            c.stream.queueState();
+            lastState = now;
+          }
+          send(c, now);
+        }, period),
+      );
+    }, Math.random() * period),
+  );
+}
+
 function open(index: number): Promise<void> {
   const room = index % numRooms;
   const vr = index % vrEvery === vrEvery - 1;
@@ -134,6 +156,7 @@ function open(index: number): Promise<void> {
           c.joined = true;
           byRoomAndId.set(`${room}:${m.memberId}`, c);
           c.stream.queueState();
+          startSending(c);
           resolve();
         } else if (m.type === 'stateRequest') c.stream.queueState();
       } catch {
@@ -164,8 +187,6 @@ function send(c: Client, now: number): void {
 
 async function main() {
   // Connect in batches so the server is not asked for 100 handshakes in one tick.
-  const indices = Array.from({ length: numClients }, (_, i) => i).filter(mine);
-  for (let i = 0; i < indices.length; i += 10) await Promise.all(indices.slice(i, i + 10).map((k) => open(k)));
   const t0 = performance.now();
   let simNow = t0;
   let vrSteps = 0;
@@ -180,6 +201,7 @@ async function main() {
     const vrNow = Math.floor(vrSteps);
     vrSteps -= vrNow;
     for (const c of clients) {
+      if (!c.joined) continue; // its stream starts with its welcome
       const phase = c.index * 0.7;
       const steps = c.vr ? vrNow : 1;
       const dt = c.vr ? 1 / 90 : (now - simNow) / 1000;
@@ -199,24 +221,8 @@ async function main() {
     }
     simNow = now;
   }, 1000 / 60);
-  // Sends: 20 Hz desktop, 30 Hz VR, phases spread; a STATE every second.
-  const timers: ReturnType<typeof setInterval>[] = [];
-  for (const c of clients) {
-    const period = 1000 / (c.vr ? 30 : 20);
-    let lastState = performance.now();
-    setTimeout(() => {
-      timers.push(
-        setInterval(() => {
-          const now = performance.now();
-          if (now - lastState >= 1000) {
-            c.stream.queueState();
-            lastState = now;
-          }
-          send(c, now);
-        }, period),
-      );
-    }, Math.random() * period);
-  }
+  const indices = Array.from({ length: numClients }, (_, i) => i).filter(mine);
+  for (let i = 0; i < indices.length; i += 10) await Promise.all(indices.slice(i, i + 10).map((k) => open(k)));
   await new Promise((r) => setTimeout(r, warmup * 1000));
   console.log(JSON.stringify({ type: 'measuring', at: Date.now() }));
   measuring = true;

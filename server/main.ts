@@ -94,7 +94,7 @@ if (args.workers > 0 && cluster.isPrimary) {
     rejectOtherUpgrades: true,
     nats: args.nats ? { servers: args.nats, prefix: args.natsPrefix } : undefined,
     log: (e) => {
-      if (e.kind === 'error' || e.kind === 'bus') console.error(JSON.stringify({ type: 'log', pid: process.pid, ...e }));
+      if (e.kind === 'error' || e.kind === 'bus' || (e.kind === 'drop' && process.env.ROOMS_LOG_DROPS)) console.error(JSON.stringify({ type: 'log', pid: process.pid, ...e }));
     },
   });
 
