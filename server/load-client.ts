@@ -93,7 +93,24 @@ function startSending(c: Client): void {
   );
 }
 
-function open(index: number): Promise<void> {
+let joinRetries = 0;
+
+/** Opens client `index`; a connection closed before its welcome (the server busy: 1013) tries again, as `RoomClient` does. */
+async function open(index: number): Promise<void> {
+  for (let attempt = 0; ; attempt++) {
+    try {
+      return await openOnce(index);
+    } catch (e) {
+      if (attempt >= 5) throw e;
+      joinRetries++;
+      const i = clients.findIndex((c) => c.index === index);
+      if (i >= 0) clients.splice(i, 1);
+      await new Promise((r) => setTimeout(r, 500 * 2 ** attempt * (0.5 + Math.random() / 2)));
+    }
+  }
+}
+
+function openOnce(index: number): Promise<void> {
   const room = index % numRooms;
   const vr = index % vrEvery === vrEvery - 1;
   const server = (index + Math.floor(index / numRooms)) % bases.length;
@@ -303,6 +320,7 @@ async function main() {
     vr: perMode(true),
     delivery: { expected, delivered, missing: expected - delivered },
     clientErrors: clients.reduce((s, c) => s + c.errors, 0),
+    joinRetries,
     closedEarly: clients.filter((c) => c.closed).length,
     clientCpuPercent,
     clientCpuMs: (cpu.user + cpu.system) / 1000,

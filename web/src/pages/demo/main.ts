@@ -5,8 +5,7 @@
  *
  * URL parameters: `db=<url>`, `avatar=<url>|none`, `roles=<JSON role → bone name>` (manual
  * joint map), `skeleton=1`, `shadows=0`, `dt=fixed` (exactly 1/60 s per frame, for tests; `dt=0.05`: that many s),
- * `room=<id>` and `name=` (a shared room: `RoomPanel`; the HUD names the nearest member through
- * the element's public `room.list()`). State for tests is on `window.__mm`.
+ * `room=<id>` and `name=` (a shared room: `RoomPanel`; the HUD reads `el.room.list()`). Tests: `window.__mm`.
  */
 import GUI from 'lil-gui';
 import * as THREE from 'three';
@@ -207,21 +206,11 @@ el.addEventListener('load', async () => {
     }
   };
 
-  // ---- the room, read through the element's public API: the nearest member in the HUD
-  const nearest = () => {
-    let best = '';
-    let bestD = Infinity;
-    for (const m of el.room?.list() ?? []) {
-      const d = Math.hypot(m.x - character.root.x, m.z - character.root.z);
-      if (m.shown && d < bestD) [best, bestD] = [m.name, d];
-    }
-    return best ? ` · nearest: ${best} ${bestD.toFixed(1)} m` : '';
-  };
-
   // ---- per update: the hook and the HUD
   const hud = document.getElementById('hud')!;
   const timer = new UpdateTimer(64);
   const v = new THREE.Vector3();
+  const near = () => (el.room?.list() ?? []).filter((m) => m.shown).map((m) => [Math.hypot(m.x - character.root.x, m.z - character.root.z), m.name] as const).sort((a, b) => a[0] - b[0]).map(([d, n]) => ` · nearest: ${n} ${d.toFixed(1)} m`)[0] ?? ''; // the room's public API
   let previousContacts = 0;
   el.afterUpdate = (dt) => {
     room.update(dt);
@@ -254,7 +243,7 @@ el.addEventListener('load', async () => {
     });
     timer.add(el.lastUpdateMs);
     if (hook.updates % 15 === 1) { // from the first update on: "loading…" never outlives the load
-      hud.textContent = `${character.clip} · frame ${rt.frame} · ${character.tags.join(' ') || '—'} · cost ${rt.searchCost.toFixed(2)} → ${rt.bestCost.toFixed(2)} · update ${timer.median().toFixed(3)} ms (median of 64)${nearest()}`;
+      hud.textContent = `${character.clip} · frame ${rt.frame} · ${character.tags.join(' ') || '—'} · cost ${rt.searchCost.toFixed(2)} → ${rt.bestCost.toFixed(2)} · update ${timer.median().toFixed(3)} ms (median of 64)${near()}`;
     }
     hook.ready = true;
   };
