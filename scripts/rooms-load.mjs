@@ -16,7 +16,7 @@
  * window must reach every other member of its room.
  */
 import { spawn } from 'node:child_process';
-import { existsSync, mkdtempSync, rmSync, writeFileSync } from 'node:fs';
+import { existsSync, mkdtempSync, readFileSync, rmSync, writeFileSync } from 'node:fs';
 import { createServer as netServer } from 'node:net';
 import { cpus, loadavg, tmpdir } from 'node:os';
 import { join, dirname } from 'node:path';
@@ -115,6 +115,20 @@ const killTimer = setTimeout(() => {
 
 // The clients, in processes of their own: one Node process cannot receive much more than ~30 000
 // relays a second, so K = ⌈clients / 100⌉ processes, each with whole rooms (latency on one clock).
+/** nats-server's CPU (user + system clock ticks, /proc) over the window, when we started it. */
+const natsCpu = { start: NaN, end: NaN, t0: 0, t1: 0 };
+const natsTicks = () => {
+  if (!nats) return NaN;
+  const now = performance.now();
+  if (Number.isNaN(natsCpu.start)) natsCpu.t0 = now;
+  else natsCpu.t1 = now;
+  try {
+    const f = readFileSync(`/proc/${nats.pid}/stat`, 'utf8').split(') ')[1].split(' ');
+    return Number(f[11]) + Number(f[12]); // utime, stime (fields 14, 15)
+  } catch {
+    return NaN;
+  }
+};
 const clientParts = Math.max(1, Number(opt('client-processes', Math.ceil(clients / 100))));
 const roomIdList = Array.from({ length: rooms }, () => createRoomId()).join(',');
 const parts = [];
@@ -127,6 +141,8 @@ for (let part = 0; part < clientParts; part++) {
   const entry = { child, result: null };
   lines(child, (m) => {
     if (m.type === 'result') entry.result = m;
+    else if (m.type === 'measuring' && part === 0) natsCpu.start = natsTicks();
+    else if (m.type === 'measured' && part === 0) natsCpu.end = natsTicks();
   });
   parts.push(entry);
 }
@@ -188,7 +204,7 @@ const summarize = (lines) => {
   const most = Math.max(...lines.map((s) => s.members));
   // The lines with (nearly) every member in: the measured window (a member or two may be between a drop and its rejoin).
   const inWindow = lines.filter((s, i) => i > 0 && s.members >= most - 2 && s.members > 0);
-  if (most < Math.floor(total) || inWindow.length < 2) throw new Error(`a process never held its ${total} members (at most ${most}): ${lines.map((s) => s.members).join(',')}; dropped ${JSON.stringify(lines[lines.length - 1].dropped)}, refused ${JSON.stringify(lines[lines.length - 1].refused)}, skipped slow ${lines[lines.length - 1].skippedSlow}`);
+  if (inWindow.length < 2) throw new Error(`no measured window: members ${lines.map((s) => s.members).join(',')}`);
   const first = inWindow[Math.min(2, inWindow.length - 1)];
   const last = inWindow[inWindow.length - 1];
   const wall = (last.t - first.t) / 1000;
@@ -197,6 +213,7 @@ const summarize = (lines) => {
   const msgsOut = last.messagesOut - first.messagesOut;
   return {
     members: last.members,
+    membersExpected: total,
     remoteMembers: last.remoteMembers,
     windowSeconds: Math.round(wall * 10) / 10,
     cpuPercentOfOneCore: Math.round((cpuMs / (wall * 1000)) * 1000) / 10,
@@ -206,6 +223,7 @@ const summarize = (lines) => {
     messagesOutPerSecond: Math.round(msgsOut / wall),
     busOutPerSecond: Math.round((last.busOut - first.busOut) / wall),
     busInPerSecond: Math.round((last.busIn - first.busIn) / wall),
+    busUnknown: last.busUnknown,
     bytesOutPerSecond: Math.round((last.bytesOut - first.bytesOut) / wall),
     cpuMicrosecondsPerMessageIn: Math.round((cpuMs * 1000) / msgsIn * 10) / 10,
     cpuMicrosecondsPerRelayedCopy: Math.round((cpuMs * 1000) / msgsOut * 100) / 100,
@@ -218,7 +236,8 @@ const summarize = (lines) => {
 if (process.env.LOAD_DEBUG) for (const l of stats.values()) console.error(l.map((s) => s.members).join(","));
 const perProcess = [...stats.values()].map(summarize);
 const serverSummary = perProcess[0];
-const report = { clients, rooms, processes, nats: processes > 1 ? natsUrl : null, perProcess, delivery: result.delivery, seconds: result.seconds, vrEvery, latencyMs: result.latencyMs, latencySamples: result.latencySamples, server: serverSummary, desktop: result.desktop, vr: result.vr, clientErrors: result.clientErrors, closedEarly: result.closedEarly, clientProcessCpuPercent: result.clientCpuPercent,
+const natsCpuPercent = Math.round(((natsCpu.end - natsCpu.start) * 10) / (natsCpu.t1 - natsCpu.t0) * 1000) / 10; // ticks of 10 ms
+const report = { clients, rooms, processes, nats: processes > 1 ? natsUrl : null, natsCpuPercent, perProcess, delivery: result.delivery, seconds: result.seconds, vrEvery, latencyMs: result.latencyMs, latencySamples: result.latencySamples, server: serverSummary, desktop: result.desktop, vr: result.vr, clientErrors: result.clientErrors, closedEarly: result.closedEarly, clientProcessCpuPercent: result.clientCpuPercent,
   machine: { cores: cpus().length, loadAverage1mBefore: Math.round(loadBefore * 100) / 100, loadAverage1mAfter: Math.round(loadavg()[0] * 100) / 100 } };
 
 const row = (k, v) => `| ${k} | ${v} |`;
@@ -239,7 +258,8 @@ console.log(
     row(`VR avatars (${result.vr.avatars}): up / down per receiver (B/s)`, `${result.vr.upBytesPerSecond} / ${result.vr.downBytesPerSecondPerReceiver}`),
     row('machine: cores; 1-min load average before / after (other work on the machine)', `${report.machine.cores}; ${report.machine.loadAverage1mBefore} / ${report.machine.loadAverage1mAfter}`),
     row('joins tried again (closed before the welcome)', result.joinRetries),
-    row('dropped / refused / skipped slow / internal errors / client errors', perProcess.map((p) => `${JSON.stringify(p.dropped)} / ${JSON.stringify(p.refused)} / ${p.skippedSlow} / ${p.internalErrors}`).join('; ') + ` / ${result.clientErrors}`),
+    ...(processes > 1 ? [row('nats-server CPU (% of one core; NaN: not ours)', natsCpuPercent)] : []),
+    row('dropped / refused / skipped slow / internal errors (/ bus messages from members not known yet) / client errors', perProcess.map((p) => `${JSON.stringify(p.dropped)} / ${JSON.stringify(p.refused)} / ${p.skippedSlow} / ${p.internalErrors}${processes > 1 ? ` / ${p.busUnknown}` : ''}`).join('; ') + ` / ${result.clientErrors}`),
   ].join('\n'),
 );
 console.log(JSON.stringify(report));

@@ -121,6 +121,8 @@ export interface RoomsStats {
   remoteMembers: number;
   busOut: number;
   busIn: number;
+  /** Stream messages from another process's member this process does not know (yet): not relayed. */
+  busUnknown: number;
   busConnected: boolean;
 }
 
@@ -230,6 +232,7 @@ export function attachRooms(server: HttpServer | HttpsServer, options: RoomsOpti
     remoteMembers: 0,
     busOut: 0,
     busIn: 0,
+    busUnknown: 0,
     busConnected: false,
   };
   const wss = new WebSocketServer({ noServer: true, maxPayload: MAX_MESSAGE_BYTES, perMessageDeflate: false, clientTracking: false });
@@ -676,7 +679,10 @@ export function attachRooms(server: HttpServer | HttpsServer, options: RoomsOpti
       }
       case BusKind.stream: {
         const m = room.remote.get(member);
-        if (!m || m.proc !== proc || body.length < 2) break; // not announced yet: the next presence repairs it
+        if (!m || m.proc !== proc || body.length < 2) {
+          stats.busUnknown++; // not announced here yet: the next presence repairs it
+          break;
+        }
         const bytes = Buffer.from(body);
         if (body[1] === MsgType.state) m.state = bytes;
         else if (body[1] === MsgType.path) m.path = bytes;
