@@ -19,7 +19,7 @@ import {
 } from '../web/src/rooms/protocol.ts';
 import { seededRandom } from '../web/src/bench/queries.ts';
 import { startNats, startRooms, type RoomsProcess } from './nats-helpers.ts';
-import { createRoomId, moveBytes, settle, sleep, startServer, TestClient, testJoin, type TestServer } from './test-helpers.ts';
+import { createRoomId, moveBytes, settle, sleep, startServer, stateBytes, TestClient, testJoin, type TestServer } from './test-helpers.ts';
 
 let server: TestServer | null = null;
 afterEach(async () => {
@@ -204,7 +204,11 @@ it('across three processes sharing rooms over NATS: hostile messages at every pr
     const g3 = await open(ps[0], roomB, 'g3');
     all.push(listener, g1, g2, listenerB, g3);
     await settle(() => listener.messages.filter((m) => m.type === 'memberJoined').length >= 2 && listenerB.messages.some((m) => m.type === 'memberJoined'));
-    let seq = 0;
+    // The good members start as clients do: a STATE first (across processes, steps follow a STATE).
+    g1.send(stateBytes(1, 100 + g1.memberId));
+    g2.send(stateBytes(1, 100 + g2.memberId));
+    g3.send(stateBytes(1, 300 + g3.memberId));
+    let seq = 1;
     const good = setInterval(() => {
       seq++;
       g1.send(moveBytes(seq, 100 + g1.memberId));

@@ -18,7 +18,7 @@ import { type WebSocketLike } from '../web/src/rooms/room-client.ts';
 import { RoomSession } from '../web/src/rooms/room-session.ts';
 import { DEFAULT_ALPHA, VR_SETTINGS } from '../web/src/vr/tracked-drive.ts';
 import { startNats, startRooms, type NatsServer, type RoomsProcess } from './nats-helpers.ts';
-import { moveBytes, settle, sleep, TestClient, testJoin } from './test-helpers.ts';
+import { moveBytes, settle, sleep, stateBytes, TestClient, testJoin } from './test-helpers.ts';
 
 const ROOT = path.resolve(import.meta.dirname, '..');
 let db: Database;
@@ -238,7 +238,10 @@ describe('RoomSession across room server processes (real WASM, real NATS)', () =
       await m1.waitFor((m) => m.type === 'welcome');
       m2.send(encodeJoin(testJoin('m2')));
       await m2.waitFor((m) => m.type === 'welcome');
-      let seq = 0;
+      await m1.waitFor((m) => m.type === 'memberJoined');
+      m1.send(stateBytes(1, 1));
+      m2.send(stateBytes(1, 2));
+      let seq = 1;
       const talk = setInterval(() => {
         seq++;
         m1.send(moveBytes(seq, 1));

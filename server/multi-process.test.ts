@@ -8,7 +8,7 @@
 import { afterAll, afterEach, beforeAll, describe, expect, it } from 'vitest';
 import { encodeJoin } from '../web/src/rooms/protocol.ts';
 import { freePort, startNats, startRooms, type NatsServer, type RoomsProcess } from './nats-helpers.ts';
-import { createRoomId, moveBytes, settle, sleep, TestClient, testJoin } from './test-helpers.ts';
+import { createRoomId, moveBytes, settle, sleep, stateBytes, TestClient, testJoin } from './test-helpers.ts';
 
 let nats: NatsServer;
 const procs: RoomsProcess[] = [];
@@ -38,6 +38,9 @@ async function join(p: RoomsProcess, roomId: string, name: string): Promise<Test
   return c;
 }
 
+/** Relayed MOVEs from `from` (the STATE each member starts with left out). */
+const moves = (c: TestClient, from?: number) => c.relays(from).filter((r) => r.message.type === 'move');
+
 describe('rooms across processes (NATS)', () => {
   it('relays between members on three processes, in order; late joiner snapshot; unique ids; leave seen within 2 s', async () => {
     const [a, b, c] = await rooms(3);
@@ -53,21 +56,25 @@ describe('rooms across processes (NATS)', () => {
     expect(m2.memberId).not.toBe(m1.memberId);
     const welcome2 = m2.messages.find((m) => m.type === 'welcome');
     expect(welcome2?.type === 'welcome' && welcome2.members.map((x) => x.id)).toEqual([m1.memberId]);
+    await o1.waitFor((m) => m.type === 'memberJoined' && m.member.id === o2.memberId);
+    // Each starts as a client does, with a STATE where it stands.
+    for (const [c, x] of [[m1, 100], [m2, 100], [o1, 300], [o2, 300]] as const) c.send(stateBytes(1, x + c.memberId));
     const N = 30;
-    for (let seq = 1; seq <= N; seq++) {
+    for (let seq = 2; seq <= N + 1; seq++) {
       m1.send(moveBytes(seq, 100 + m1.memberId));
       m2.send(moveBytes(seq, 100 + m2.memberId));
       o1.send(moveBytes(seq, 300 + o1.memberId));
       o2.send(moveBytes(seq, 300 + o2.memberId));
       await sleep(10);
     }
-    await settle(() => m1.relays().length >= N && m2.relays().length >= N && o1.relays().length >= N && o2.relays().length >= N, 5000);
-    expect(m1.relays(m2.memberId).map((r) => r.message.seq)).toEqual(Array.from({ length: N }, (_, i) => i + 1));
-    expect(m2.relays(m1.memberId).map((r) => r.message.seq)).toEqual(Array.from({ length: N }, (_, i) => i + 1));
-    for (const x of [m1, m2]) for (const r of x.relays()) if (r.message.type === 'move') expect(r.message.rootX).toBe(100 + r.from);
-    for (const x of [o1, o2]) for (const r of x.relays()) if (r.message.type === 'move') expect(r.message.rootX).toBe(300 + r.from);
-    expect(m1.relays()).toHaveLength(N);
-    expect(o1.relays()).toHaveLength(N);
+    await settle(() => moves(m1).length >= N && moves(m2).length >= N && moves(o1).length >= N && moves(o2).length >= N, 5000);
+    const seqs = Array.from({ length: N + 1 }, (_, i) => i + 1);
+    expect(m1.relays(m2.memberId).map((r) => r.message.seq)).toEqual(seqs);
+    expect(m2.relays(m1.memberId).map((r) => r.message.seq)).toEqual(seqs);
+    for (const x of [m1, m2]) for (const r of x.relays()) if (r.message.type !== 'path') expect(r.message.rootX).toBe(100 + r.from);
+    for (const x of [o1, o2]) for (const r of x.relays()) if (r.message.type !== 'path') expect(r.message.rootX).toBe(300 + r.from);
+    expect(m1.relays()).toHaveLength(N + 1);
+    expect(o1.relays()).toHaveLength(N + 1);
 
     // A late joiner on the third process: welcome lists both, ids unique.
     const m3 = await join(c, room, 'm3');
@@ -117,14 +124,16 @@ describe('rooms across processes (NATS)', () => {
       const b = await join(ps[1], room, 'b');
       expect(a.memberId).not.toBe(b.memberId);
       await a.waitFor((m) => m.type === 'memberJoined' && m.member.id === b.memberId, 5000);
-      for (let seq = 1; seq <= 10; seq++) {
+      a.send(stateBytes(1, 1));
+      b.send(stateBytes(1, 2));
+      for (let seq = 2; seq <= 11; seq++) {
         a.send(moveBytes(seq, 1));
         b.send(moveBytes(seq, 2));
         await sleep(20);
       }
-      await settle(() => a.relays(b.memberId).length === 10 && b.relays(a.memberId).length === 10, 5000);
-      expect(b.relays(a.memberId).map((r) => r.message.seq)).toEqual(Array.from({ length: 10 }, (_, i) => i + 1));
-      expect(a.relays(b.memberId).map((r) => r.message.seq)).toEqual(Array.from({ length: 10 }, (_, i) => i + 1));
+      await settle(() => a.relays(b.memberId).length === 11 && b.relays(a.memberId).length === 11, 5000);
+      expect(b.relays(a.memberId).map((r) => r.message.seq)).toEqual(Array.from({ length: 11 }, (_, i) => i + 1));
+      expect(a.relays(b.memberId).map((r) => r.message.seq)).toEqual(Array.from({ length: 11 }, (_, i) => i + 1));
     } finally {
       for (const c of clients.splice(0)) c.ws.terminate();
       await Promise.all(procs.splice(0).map((p) => p.stop()));

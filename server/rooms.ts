@@ -686,6 +686,14 @@ export function attachRooms(server: HttpServer | HttpsServer, options: RoomsOpti
         const bytes = Buffer.from(body);
         if (body[1] === MsgType.state) m.state = bytes;
         else if (body[1] === MsgType.path) m.path = bytes;
+        else if (!m.state) {
+          // No STATE of this member has reached this process yet (it entered the room after the
+          // member's restart STATE went by): its steps would start copies here from nowhere,
+          // close but not exact. One process keeps "a member's first message is a STATE"; so do
+          // we — the STATE its join asked for comes within a second.
+          stats.busUnknown++;
+          break;
+        }
         broadcast(room, null, encodeRelay(member, bytes));
         break;
       }
