@@ -210,7 +210,6 @@ el.addEventListener('load', async () => {
   const hud = document.getElementById('hud')!;
   const timer = new UpdateTimer(64);
   const v = new THREE.Vector3();
-  const near = () => (el.room?.list() ?? []).filter((m) => m.shown).map((m) => [Math.hypot(m.x - character.root.x, m.z - character.root.z), m.name] as const).sort((a, b) => a[0] - b[0]).map(([d, n]) => ` · nearest: ${n} ${d.toFixed(1)} m`)[0] ?? ''; // the room's public API
   let previousContacts = 0;
   el.afterUpdate = (dt) => {
     room.update(dt);
@@ -243,7 +242,7 @@ el.addEventListener('load', async () => {
     });
     timer.add(el.lastUpdateMs);
     if (hook.updates % 15 === 1) { // from the first update on: "loading…" never outlives the load
-      hud.textContent = `${character.clip} · frame ${rt.frame} · ${character.tags.join(' ') || '—'} · cost ${rt.searchCost.toFixed(2)} → ${rt.bestCost.toFixed(2)} · update ${timer.median().toFixed(3)} ms (median of 64)${near()}`;
+      hud.textContent = `${character.clip} · frame ${rt.frame} · ${character.tags.join(' ') || '—'} · cost ${rt.searchCost.toFixed(2)} → ${rt.bestCost.toFixed(2)} · update ${timer.median().toFixed(3)} ms (median of 64)${/* the room's public API */ (el.room?.list() ?? []).filter((m) => m.shown).map((m) => [Math.hypot(m.x - character.root.x, m.z - character.root.z), m.name] as const).sort((a, b) => a[0] - b[0]).map(([d, n]) => ` · nearest: ${n} ${d.toFixed(1)} m`)[0] ?? ''}`;
     }
     hook.ready = true;
   };
