@@ -141,12 +141,22 @@ describe('RoomSession across room server processes (real WASM, real NATS)', () =
     const vr = person(b, roomId, 'vr', 'Headset');
     for (let k = 0; k < 600 && !allSeen([desk, vr]); k++) await run([desk, vr], 1);
     expect(allSeen([desk, vr])).toBe(true);
+    // Both copies are the senders' own floats once placed by a restart or a runtime state. On a
+    // loaded machine the two joins can interleave so that a copy first plays steps whose restart
+    // STATE went by before its viewer was admitted (close, not exact) until the runtime state its
+    // join asked for arrives: measured from when both say exact (logged).
+    const exact = () => [desk, vr].every((p) => [...p.session.members.values()].every((m) => m.remote?.exact));
+    const tShown = performance.now();
+    for (let k = 0; k < 600 && !exact(); k++) await run([desk, vr], 1);
+    console.log(`both copies exact ${(performance.now() - tShown).toFixed(0)} ms after both were shown`);
+    expect(exact()).toBe(true);
+    const from = new Map([desk, vr].map((p) => [p, p.session.trace.shown.length]));
     await run([desk, vr], 300);
     for (const [viewer, sender] of [
       [desk, vr],
       [vr, desk],
     ]) {
-      const e = errors(viewer, sender);
+      const e = errors(viewer, sender, from.get(viewer));
       console.log(`${sender.name} (process ${sender === desk ? 'A' : 'B'}) seen on ${viewer === desk ? 'A' : 'B'}: ${e.n} messages, root error max ${(e.d * 1000).toFixed(3)} mm, yaw max ${((e.yaw * 180) / Math.PI).toFixed(4)}°`);
       expect(e.n).toBeGreaterThan(50);
       expect(e.d).toBeLessThan(0.001);
