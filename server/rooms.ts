@@ -152,6 +152,8 @@ interface Connection {
   lastSeq: number;
   lastTime: number;
   connectedAt: number;
+  /** When its WELCOME went out (ms). */
+  joinedAt: number;
   lastMessageAt: number;
   messages: TokenBucket;
   bytes: TokenBucket;
@@ -364,6 +366,7 @@ export function attachRooms(server: HttpServer | HttpsServer, options: RoomsOpti
       lastSeq: 0,
       lastTime: 0,
       connectedAt: t,
+      joinedAt: t,
       lastMessageAt: t,
       messages: new TokenBucket(l.messagesPerSecond, l.messageBurst, t),
       bytes: new TokenBucket(l.bytesPerSecond, l.byteBurst, t),
@@ -486,6 +489,7 @@ export function attachRooms(server: HttpServer | HttpsServer, options: RoomsOpti
     const room = c.room;
     room.nextId = (id % 255) + 1;
     c.id = id;
+    c.joinedAt = now();
     c.join = join;
     const others = [...room.members.values()];
     const remote = [...room.remote.values()];
@@ -730,7 +734,12 @@ export function attachRooms(server: HttpServer | HttpsServer, options: RoomsOpti
         if (c.gone || late) continue;
         if (c.id === 0 && !c.joining) {
           if (t - c.connectedAt > o.joinTimeoutMs) drop(c, CloseCode.timeout, `no JOIN in ${o.joinTimeoutMs} ms`, 'timeout');
-        } else if (c.id !== 0 && t - c.lastMessageAt > o.idleTimeoutMs) drop(c, CloseCode.timeout, `silent for ${o.idleTimeoutMs} ms`, 'timeout');
+        } else if (c.id !== 0) {
+          // A newcomer whose stream has started may go quiet while its page loads the others'
+          // avatars (long tasks starve its timers): within its first joinTimeoutMs it has that long.
+          const limit = c.lastSeq > 0 && t - c.joinedAt < o.joinTimeoutMs ? o.joinTimeoutMs : o.idleTimeoutMs;
+          if (t - c.lastMessageAt > limit) drop(c, CloseCode.timeout, `silent for ${limit} ms`, 'timeout');
+        }
       }
       if (bus && !late) {
         for (const room of rooms.values()) {
