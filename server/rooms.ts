@@ -152,8 +152,9 @@ interface Connection {
   lastSeq: number;
   lastTime: number;
   connectedAt: number;
-  /** When its WELCOME went out (ms). */
+  /** When its WELCOME went out, and when its page had read it (the pong to a ping sent after it; 0 before). */
   joinedAt: number;
+  welcomeReadAt: number;
   lastMessageAt: number;
   messages: TokenBucket;
   bytes: TokenBucket;
@@ -367,6 +368,7 @@ export function attachRooms(server: HttpServer | HttpsServer, options: RoomsOpti
       lastTime: 0,
       connectedAt: t,
       joinedAt: t,
+      welcomeReadAt: 0,
       lastMessageAt: t,
       messages: new TokenBucket(l.messagesPerSecond, l.messageBurst, t),
       bytes: new TokenBucket(l.bytesPerSecond, l.byteBurst, t),
@@ -389,6 +391,9 @@ export function attachRooms(server: HttpServer | HttpsServer, options: RoomsOpti
         internal('message', e, c);
         drop(c, CloseCode.malformed, 'internal error', 'dropped');
       }
+    });
+    ws.on('pong', () => {
+      if (c.id !== 0 && c.welcomeReadAt === 0) c.welcomeReadAt = now();
     });
     ws.on('close', () => {
       try {
@@ -495,6 +500,11 @@ export function attachRooms(server: HttpServer | HttpsServer, options: RoomsOpti
     const remote = [...room.remote.values()];
     room.members.set(id, c);
     send(c, encodeWelcome(id, o.maxMembers, [...others.map((m) => ({ id: m.id, join: m.join! })), ...remote.map((m) => ({ id: m.id, join: m.join }))]));
+    try {
+      c.ws.ping(); // answered once the member's side has read the WELCOME (frames are read in order)
+    } catch {
+      /* closing */
+    }
     for (const m of [...others, ...remote]) if (m.state || m.path) send(c, encodeSnapshot(m.id, m.state, m.path));
     const joined = encodeMemberJoined(id, join);
     const request = encodeStateRequest();
@@ -735,10 +745,16 @@ export function attachRooms(server: HttpServer | HttpsServer, options: RoomsOpti
         if (c.id === 0 && !c.joining) {
           if (t - c.connectedAt > o.joinTimeoutMs) drop(c, CloseCode.timeout, `no JOIN in ${o.joinTimeoutMs} ms`, 'timeout');
         } else if (c.id !== 0) {
+          if (c.welcomeReadAt === 0) {
+            // Its page has not read its WELCOME yet (no answer to the ping sent after it: a busy
+            // page's browser reads nothing): the join timeout, not the idle one.
+            if (t - c.joinedAt > o.joinTimeoutMs) drop(c, CloseCode.timeout, `welcome not read in ${o.joinTimeoutMs} ms`, 'timeout');
+            continue;
+          }
           // A newcomer whose stream has started may go quiet while its page loads the others'
           // avatars (long tasks starve its timers): within its first joinTimeoutMs it has that long.
-          const limit = c.lastSeq > 0 && t - c.joinedAt < o.joinTimeoutMs ? o.joinTimeoutMs : o.idleTimeoutMs;
-          if (t - c.lastMessageAt > limit) drop(c, CloseCode.timeout, `silent for ${limit} ms`, 'timeout');
+          const limit = c.lastSeq > 0 && t - c.welcomeReadAt < o.joinTimeoutMs ? o.joinTimeoutMs : o.idleTimeoutMs;
+          if (t - Math.max(c.lastMessageAt, c.welcomeReadAt) > limit) drop(c, CloseCode.timeout, `silent for ${limit} ms`, 'timeout');
         }
       }
       if (bus && !late) {

@@ -191,6 +191,8 @@ test('room API lists the others where they are in two browsers; a flood shows at
   const seenAfter = (await cy.evaluate(() => (window as unknown as { __seenAt: number }).__seenAt)) - t.resumedAt;
   const sockets = await cy.evaluate(() => (window as unknown as { __roomSockets: number }).__roomSockets);
   const steps = await cy.evaluate(() => (window as unknown as { __steps: Record<string, number> }).__steps);
+  const cyNotes = await cy.evaluate(() => [...((document.getElementById('avatar') as unknown as { room: { notes: Map<string, { text: string; count: number }> } | null }).room?.notes.values() ?? [])].map((n) => `${n.text} ×${n.count}`));
+  if (cyNotes.length) console.log(`Cy's notes: ${cyNotes.join(' | ')}`);
   console.log(`Cy: blocked 8 s after opening its socket; ${sockets} room socket(s) in all; shows Ada and Bo ${seenAfter.toFixed(0)} ms after resuming (the page's own clock, checked every 10 ms; ms after resuming: ${JSON.stringify(steps)})`);
   expect(t.resumedAt).toBeGreaterThan(0);
   expect(sockets).toBe(1); // never dropped: no reconnect
