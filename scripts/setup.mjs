@@ -16,7 +16,7 @@
 //
 // Environment:
 //   SETUP_SKIP=step,step   skip named steps: npm, rust-target, wasm-bindgen, wasm, cli, databases,
-//                          avatars, dist, server, chromium, venv, recordings (for working on one part while another is broken)
+//                          avatars, dist, server, chromium, nats, venv, recordings (for working on one part while another is broken)
 //   TEST_SUITES=a,b        run only these suites: cargo, vitest, pytest, playwright
 //
 // Node builtins only: this runs before node_modules exists.
@@ -400,6 +400,18 @@ async function stepChromium() {
   });
 }
 
+/** nats-server for the multi-process room tests (server/multi-process*.test.ts start it on loopback). */
+async function stepNats() {
+  await step('nats', 'NATS server (Debian package nats-server)', async () => {
+    for (const p of ['/usr/sbin/nats-server', '/usr/bin/nats-server', '/usr/local/bin/nats-server']) if (fs.existsSync(p)) return `${p} exists`;
+    const sudo = process.getuid?.() === 0 ? [] : ['sudo'];
+    const env = { ...process.env, DEBIAN_FRONTEND: 'noninteractive' };
+    const apt = (args) => (sudo.length ? run('sudo', ['apt-get', ...args], { env }) : run('apt-get', args, { env }));
+    await apt(['update']);
+    await apt(['install', '-y', '--no-install-recommends', 'nats-server']);
+  });
+}
+
 async function stepVenv() {
   await step('venv', 'Python venv (training/.venv)', async () => {
     const req = path.join(ROOT, 'training', 'requirements.txt');
@@ -546,6 +558,7 @@ async function main() {
   await stepAvatars();
   if (mode === 'test') {
     await stepChromium();
+    await stepNats();
     await stepVenv();
   }
   if (mode !== 'build') await stepRecordings();

@@ -19,8 +19,10 @@ function arg(name: string, fallback: number | string): number | string {
   return typeof fallback === 'number' ? Number(process.argv[i + 1]) : process.argv[i + 1];
 }
 
-const base = arg('url', 'ws://127.0.0.1:8787');
-const origin = arg('origin', 'http://127.0.0.1:8787');
+// Several servers (comma-separated): client i goes to server (i + ⌊i / rooms⌋) mod n, so the members
+// of every room are spread over the servers, evenly (the multi-process load test).
+const bases = arg('url', 'ws://127.0.0.1:8787').split(',');
+const origins = arg('origin', 'http://127.0.0.1:8787').split(',');
 const numClients = arg('clients', 100);
 const numRooms = arg('rooms', 10);
 const seconds = arg('seconds', 60);
@@ -52,17 +54,67 @@ interface Client {
   joined: boolean;
   closed: boolean;
   errors: number;
+  /** First seq sent while measuring (messages from then on must all arrive), and how many were sent. */
+  firstSeq: number;
+  sentMeasured: number;
+  /** Relays received from each sender (by index) with seq ≥ that sender's firstSeq. */
+  received: Uint32Array;
 }
 
-const roomIds = Array.from({ length: numRooms }, () => createRoomId());
+// Several client processes (`--parts K --part j`): this one runs the clients of the rooms r with
+// r mod K = j, so every room's members are in one process and latency is measured on one clock.
+const roomIds = arg('room-ids', '') ? arg('room-ids', '').split(',') : Array.from({ length: numRooms }, () => createRoomId());
+const parts = arg('parts', 1);
+const part = arg('part', 0);
+const mine = (index: number) => (index % numRooms) % parts === part;
 const clients: Client[] = [];
 const byRoomAndId = new Map<string, Client>();
 const trackers: RoomTrackerPose[] = [0, 1, 2].map(() => ({ tracked: true, fromHand: false, position: [0, 1.6, 0], rotation: [0, 0, 0, 1] }));
 
-function open(index: number): Promise<void> {
+// Sends: 20 Hz desktop, 30 Hz VR, phases spread; a STATE every second — from the client's welcome
+// on (a member silent while the others still connect would be dropped after the idle timeout).
+const timers: ReturnType<typeof setInterval>[] = [];
+function startSending(c: Client): void {
+  const period = 1000 / (c.vr ? 30 : 20);
+  let lastState = performance.now();
+  timers.push(
+    setTimeout(() => {
+      timers.push(
+        setInterval(() => {
+          const now = performance.now();
+          if (now - lastState >= 1000) {
+            c.stream.queueState();
+            lastState = now;
+          }
+          send(c, now);
+        }, period),
+      );
+    }, Math.random() * period),
+  );
+}
+
+let joinRetries = 0;
+
+/** Opens client `index`; a connection closed before its welcome (the server busy: 1013) tries again, as `RoomClient` does. */
+async function open(index: number): Promise<void> {
+  for (let attempt = 0; ; attempt++) {
+    try {
+      return await openOnce(index);
+    } catch (e) {
+      if (attempt >= 5) throw e;
+      joinRetries++;
+      const i = clients.findIndex((c) => c.index === index);
+      if (i >= 0) clients.splice(i, 1);
+      await new Promise((r) => setTimeout(r, 500 * 2 ** attempt * (0.5 + Math.random() / 2)));
+    }
+  }
+}
+
+function openOnce(index: number): Promise<void> {
   const room = index % numRooms;
   const vr = index % vrEvery === vrEvery - 1;
-  const ws = new WebSocket(`${base}/rooms/${roomIds[room]}`, { origin });
+  const server = (index + Math.floor(index / numRooms)) % bases.length;
+  const ws = new WebSocket(`${bases[server]}/rooms/${roomIds[room]}`, { origin: origins[server % origins.length] });
   const stream = new InputStream();
   const character = new TestCharacter();
   const c: Client = {
@@ -82,6 +134,9 @@ function open(index: number): Promise<void> {
     joined: false,
     closed: false,
     errors: 0,
+    firstSeq: Infinity,
+    sentMeasured: 0,
+    received: new Uint32Array(numClients),
   };
   clients.push(c);
   ws.binaryType = 'nodebuffer';
@@ -96,6 +151,7 @@ function open(index: number): Promise<void> {
         const from = data[2];
         const seq = data.readUInt32LE(5);
         const sender = byRoomAndId.get(`${room}:${from}`);
+        if (sender && seq >= sender.firstSeq) c.received[sender.index]++;
         if (measuring && sender) {
           const sent = sender.sentAt[seq % RING];
           if (sent > 0) {
@@ -117,6 +173,7 @@ function open(index: number): Promise<void> {
           c.joined = true;
           byRoomAndId.set(`${room}:${m.memberId}`, c);
           c.stream.queueState();
+          startSending(c);
           resolve();
         } else if (m.type === 'stateRequest') c.stream.queueState();
       } catch {
@@ -136,6 +193,10 @@ function send(c: Client, now: number): void {
   for (const bytes of c.stream.flush()) {
     const seq = new DataView(bytes.buffer, bytes.byteOffset).getUint32(2, true);
     c.sentAt[seq % RING] = now;
+    if (measuring) {
+      if (c.firstSeq === Infinity) c.firstSeq = seq;
+      c.sentMeasured++;
+    }
     c.ws.send(bytes);
     if (measuring) c.upBytes += bytes.length + websocketFrameOverhead(bytes.length, true);
   }
@@ -143,18 +204,21 @@ function send(c: Client, now: number): void {
 
 async function main() {
   // Connect in batches so the server is not asked for 100 handshakes in one tick.
-  for (let i = 0; i < numClients; i += 10) await Promise.all(Array.from({ length: Math.min(10, numClients - i) }, (_, k) => open(i + k)));
   const t0 = performance.now();
   let simNow = t0;
   let vrSteps = 0;
-  // Frames: desktop 60 Hz, VR 90 Hz (catching up from the one timer).
+  // Frames: desktop 60 Hz, VR 90 Hz (catching up from the one timer). A frame late by more than
+  // 0.1 s takes 0.1 s, as a page does (`<mm-avatar>` clamps its dt): a load client starved by a
+  // busy machine must not send seconds of steps at once (the server's simulated-time limit).
   const frame = setInterval(() => {
     const now = performance.now();
     const t = (now - t0) / 1000;
+    simNow = Math.max(simNow, now - 100);
     vrSteps += ((now - simNow) / 1000) * 90;
     const vrNow = Math.floor(vrSteps);
     vrSteps -= vrNow;
     for (const c of clients) {
+      if (!c.joined) continue; // its stream starts with its welcome
       const phase = c.index * 0.7;
       const steps = c.vr ? vrNow : 1;
       const dt = c.vr ? 1 / 90 : (now - simNow) / 1000;
@@ -174,37 +238,46 @@ async function main() {
     }
     simNow = now;
   }, 1000 / 60);
-  // Sends: 20 Hz desktop, 30 Hz VR, phases spread; a STATE every second.
-  const timers: ReturnType<typeof setInterval>[] = [];
-  for (const c of clients) {
-    const period = 1000 / (c.vr ? 30 : 20);
-    let lastState = performance.now();
-    setTimeout(() => {
-      timers.push(
-        setInterval(() => {
-          const now = performance.now();
-          if (now - lastState >= 1000) {
-            c.stream.queueState();
-            lastState = now;
-          }
-          send(c, now);
-        }, period),
-      );
-    }, Math.random() * period);
-  }
+  const indices = Array.from({ length: numClients }, (_, i) => i).filter(mine);
+  for (let i = 0; i < indices.length; i += 10) await Promise.all(indices.slice(i, i + 10).map((k) => open(k)));
   await new Promise((r) => setTimeout(r, warmup * 1000));
   console.log(JSON.stringify({ type: 'measuring', at: Date.now() }));
   measuring = true;
   const m0 = performance.now();
   const cpu0 = process.cpuUsage();
   await new Promise((r) => setTimeout(r, seconds * 1000));
+  // Sending stops with the window: every relay counted from here on was sent inside it.
+  clearInterval(frame);
+  for (const t of timers) clearInterval(t);
   measuring = false;
   const measured = (performance.now() - m0) / 1000;
   const cpu = process.cpuUsage(cpu0);
   const clientCpuPercent = Math.round(((cpu.user + cpu.system) / 1000 / (measured * 1000)) * 1000) / 10;
   console.log(JSON.stringify({ type: 'measured', at: Date.now() }));
-  clearInterval(frame);
-  for (const t of timers) clearInterval(t);
+  // Every message sent while measuring must reach every other member of its room: wait for the last ones.
+  let expected = 0;
+  let delivered = 0;
+  const count = () => {
+    expected = 0;
+    delivered = 0;
+    for (const r of clients)
+      for (const s of clients) {
+        if (s === r || s.room !== r.room) continue;
+        expected += s.sentMeasured;
+        delivered += Math.min(r.received[s.index], s.sentMeasured);
+      }
+  };
+  // (Until all arrived, or nothing more came for 2 s: at most 20 s.)
+  let last = -1;
+  let still = 0;
+  for (let k = 0; k < 200; k++) {
+    count();
+    if (delivered >= expected) break;
+    still = delivered === last ? still + 1 : 0;
+    if (still >= 20) break;
+    last = delivered;
+    await new Promise((r) => setTimeout(r, 100));
+  }
 
   const pct = (p: number) => {
     const target = p * latencySamples;
@@ -228,20 +301,29 @@ async function main() {
       bytes += r.downBytes[vr ? 'vr' : 'desktop'];
       pairs += inRoom;
     }
-    return { avatars: senders.length, upBytesPerSecond: Math.round(up), downBytesPerSecondPerReceiver: Math.round(bytes / pairs / measured) };
+    return { avatars: senders.length, upBytesPerSecond: Math.round(up), downBytesPerSecondPerReceiver: Math.round(bytes / pairs / measured), upBytes: senders.reduce((s, c) => s + c.upBytes, 0), downBytes: bytes, pairs };
   };
+  const sparse: [number, number][] = [];
+  for (let b = 0; b < histogram.length; b++) if (histogram[b]) sparse.push([b, histogram[b]]);
   const result = {
     type: 'result',
     clients: numClients,
     rooms: numRooms,
     seconds: Math.round(measured * 10) / 10,
     latencySamples,
+    latencyOverflow,
+    histogram: sparse,
+    histogramBucketMs: HIST_BUCKET_MS,
+    measuredSeconds: measured,
     latencyMs: { p50: pct(0.5), p90: pct(0.9), p99: pct(0.99), p999: pct(0.999), max: latencyOverflow ? '>2000' : (maxBucket + 1) * HIST_BUCKET_MS },
     desktop: perMode(false),
     vr: perMode(true),
+    delivery: { expected, delivered, missing: expected - delivered },
     clientErrors: clients.reduce((s, c) => s + c.errors, 0),
+    joinRetries,
     closedEarly: clients.filter((c) => c.closed).length,
     clientCpuPercent,
+    clientCpuMs: (cpu.user + cpu.system) / 1000,
   };
   console.log(JSON.stringify(result));
   for (const c of clients) c.ws.close();

@@ -314,4 +314,60 @@ describe('room server', () => {
     });
     expect(status).toBe(418);
   });
+
+  it('flood of 2,000 well-formed but absurd messages: none reaches the others; the sender is warned, then closed 4007', async () => {
+    server = await startServer();
+    const room = createRoomId();
+    const listener = await join(room, 'listener');
+    const good = await join(room, 'good');
+    const flood = await join(room, 'flood');
+    const step = quantizeMoveStep({ ...createMoveStep(), ticks: 120, moveX: 0, moveZ: 1 });
+    // A forged runtime state: the right header, then values no runtime would write.
+    const forged = new Uint8Array(4716);
+    const v = new DataView(forged.buffer);
+    [0x53524d4d, 3, 32, 50_000, 27].forEach((x, i) => v.setUint32(4 * i, x, true));
+    for (let o = 20; o < forged.length; o += 4) v.setFloat32(o, 1e30, true);
+    const absurd = (seq: number): Uint8Array => {
+      switch (seq % 5) {
+        case 0: // 2,000 km away
+          return encodeMove({ seq, time: seq * 50, rootX: 2_000_000, rootZ: -1_500_000, rootYaw: 0, steps: [step] });
+        case 1: // a path 90 km away
+          return encodePath({ seq, time: seq * 50, points: new Float32Array([90_000, 0, 90_001, 0]), speeds: new Float32Array([1]), looped: false });
+        case 2: // a forged runtime state and a huge frame
+          return encodeState({ ...state(seq, 0), frame: 16_000_000, runtime: forged });
+        case 3: // 5 km jumps in one step
+          return encodeMove({ seq, time: seq * 50, rootX: (seq % 2) * 5000, rootZ: 0, rootYaw: 0, steps: [step] });
+        default: // a restart in the middle of the stream
+          return encodeState({ ...state(seq, 0), restart: true });
+      }
+    };
+    // It starts as a client does (a restart STATE where it stands), then floods.
+    flood.send(encodeState({ ...state(1, 0), restart: true }));
+    await listener.waitFor((m) => m.type === 'relay' && m.from === flood.memberId);
+    const t0 = performance.now();
+    let sent = 0;
+    for (let seq = 2; seq <= 2001 && flood.ws.readyState === flood.ws.OPEN; seq++) {
+      flood.send(absurd(seq));
+      sent++;
+      if (seq % 20 === 0) await sleep(5); // within the rate limits: the content checks must catch it
+    }
+    const closed = await flood.waitClosed(5000);
+    console.log(`flood: ${sent} sent before the close after ${(performance.now() - t0).toFixed(0)} ms; refused ${JSON.stringify(server.rooms.stats().refused)}`);
+    expect(closed.code).toBe(CloseCode.contentRefused);
+    const warnings = flood.messages.filter((m) => m.type === 'error');
+    expect(warnings.length).toBeGreaterThanOrEqual(2); // a warning per cause, then the reason of the close
+    expect(warnings[0]).toMatchObject({ code: CloseCode.contentRefused });
+    for (let seq = 1; seq <= 5; seq++) good.send(moveBytes(seq, 1));
+    await listener.waitFor(() => listener.relays(good.memberId).length === 5);
+    await listener.waitFor((m) => m.type === 'memberLeft' && m.id === flood.memberId && m.reason === 'dropped');
+    expect(listener.relays(flood.memberId).map((r) => r.message.seq)).toEqual([1]);
+    expect(good.relays(flood.memberId).map((r) => r.message.seq)).toEqual([1]);
+    // The late-join snapshot has none of it either (the flooder is gone; the good member sent no STATE).
+    const late = await join(room, 'late');
+    expect(late.messages.filter((m) => m.type === 'snapshot')).toEqual([]);
+    const s = server.rooms.stats();
+    expect(s.dropped[CloseCode.contentRefused]).toBe(1);
+    expect(s.internalErrors).toBe(0);
+    expect(Object.keys(s.refused).sort()).toEqual(['bounds', 'restart', 'runtime', 'speed'].filter((k) => s.refused[k as keyof typeof s.refused]));
+  });
 });

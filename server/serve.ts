@@ -26,6 +26,8 @@ export interface SiteServerOptions {
   certificate?: string;
   /** Extra headers on every file (tests: a Content-Security-Policy). */
   headers?: Record<string, string>;
+  /** Share rooms with other processes over NATS (docs/rooms.md, "Several processes"); default the environment's ROOMS_NATS_URL. */
+  nats?: string;
   /** Called when each response has been sent (load benchmarks count the bytes). */
   onResponse?: (r: { t: number; method: string; path: string; status: number; bytes: number }) => void;
 }
@@ -57,7 +59,7 @@ export async function startSiteServer(options: SiteServerOptions): Promise<SiteS
     }
   };
   const server = options.certificate ? https.createServer({ key: options.certificate, cert: options.certificate }, handle) : http.createServer(handle);
-  const rooms = attachRooms(server, { rejectOtherUpgrades: true });
+  const rooms = attachRooms(server, { rejectOtherUpgrades: true, nats: options.nats ?? process.env.ROOMS_NATS_URL });
   await new Promise<void>((resolve, reject) => {
     server.once('error', reject);
     server.listen(options.port ?? 5173, options.host ?? '127.0.0.1', () => resolve());

@@ -5,6 +5,8 @@ import { WebSocket } from 'ws';
 import {
   createMoveStep,
   createRoomId,
+  encodeState,
+  quantizeTrackedStep,
   decodeServerMessage,
   encodeJoin,
   encodeMove,
@@ -63,6 +65,17 @@ export function moveBytes(seq: number, rootX: number, steps = 3): Uint8Array {
   const s: MoveStep[] = [];
   for (let i = 0; i < steps; i++) s.push(quantizeMoveStep({ ...createMoveStep(), ticks: 120, moveX: 0, moveZ: 1 }));
   return encodeMove({ seq, time: seq * 50, rootX, rootZ: 0, rootYaw: 0, steps: s });
+}
+
+/**
+ * A member's first message as `RoomClient` sends it (the protocol's contract: a restart STATE
+ * first, so receivers never start blind). Across processes a member's steps are relayed only
+ * after a STATE of it (docs/rooms.md, "Several processes").
+ */
+export function stateBytes(seq: number, rootX: number, restart = true): Uint8Array {
+  const move = quantizeMoveStep({ ...createMoveStep(), moveX: 0, moveZ: 1 });
+  const tracked = quantizeTrackedStep({ ticks: 0, headX: rootX, headZ: 0, velocityX: 0, velocityZ: 0, yaw: 0, hipsDrop: 0, bend: 0 });
+  return encodeState({ seq, time: seq * 50, frame: 1, rootX, rootZ: 0, rootYaw: 0, drive: 'move', pathTime: 0, scale: 1, alpha: 0.2, move, tracked, restart });
 }
 
 /** A raw client: every server message decoded (undecodable ones recorded as errors). */

@@ -15,7 +15,8 @@ export function roomsPlugin(options: RoomsOptions = {}): Plugin {
   let handle: RoomsHandle | null = null;
   const attach = (server: { httpServer: Parameters<typeof attachRooms>[0] | null; middlewares: { use: (fn: ReturnType<typeof roomsRequestHandler>) => unknown } }) => {
     if (!server.httpServer) return; // middleware mode: the host server attaches rooms itself
-    handle = attachRooms(server.httpServer, options);
+    // ROOMS_NATS_URL: this dev server shares its rooms with other room servers (docs/rooms.md).
+    handle = attachRooms(server.httpServer, { nats: process.env.ROOMS_NATS_URL, ...options });
     server.middlewares.use(roomsRequestHandler(options));
     server.httpServer.once('close', () => void handle?.close());
   };

@@ -5,8 +5,7 @@ import { expect, test, type Page } from '@playwright/test';
 const ROOT = path.resolve(import.meta.dirname, '../..');
 const hook = (page: Page) =>
   page.evaluate(() => {
-    // Not `room`: the RoomPanel holds the scene and the character (megabytes to serialize).
-    const { screenOf: _, toeErrors: __, room: ___, ...h } = window.__mm;
+    const { screenOf: _, toeErrors: __, ...h } = window.__mm;
     return { ...h, root: [...h.root], steps: [...h.steps], path: { points: [...h.path.points], following: h.path.following } };
   });
 

@@ -71,13 +71,13 @@ const frames = (p: Person) => p.page.evaluate((h) => (h === '__vr' ? window.__vr
 /** Names of the remote members the page shows (placed by the stream). */
 const seen = (p: Person) =>
   p.page.evaluate((h) => {
-    const s = (window as any)[h].room?.session;
+    const s = (h === '__vr' ? (window as any).__vr.room?.session : (document.getElementById('avatar') as any)?.room);
     return s ? [...s.members.values()].filter((m: any) => m.remote?.ready).map((m: any) => m.join.name).sort() : [];
   }, hookName(p));
 
 const trace = (p: Person): Promise<Trace> =>
   p.page.evaluate((h) => {
-    const s = (window as any)[h].room.session;
+    const s = (h === '__vr' ? (window as any).__vr.room?.session : (document.getElementById('avatar') as any)?.room);
     return { id: s.client.memberId, sent: s.trace.sent, shown: s.trace.shown };
   }, hookName(p));
 
@@ -202,7 +202,7 @@ test('three people in one room (two desktop, one VR under iwer): each sees the o
   for (const p of people) {
     const others = people.filter((q) => q !== p).map((q) => q.name).sort().join();
     await p.page.waitForFunction(
-      ([h, others]) => [...((window as any)[h].room?.session?.members.values() ?? [])].filter((m: any) => m.remote?.ready).map((m: any) => m.join.name).sort().join() === others,
+      ([h, others]) => [...((h === '__vr' ? (window as any).__vr.room?.session : (document.getElementById('avatar') as any)?.room)?.members.values() ?? [])].filter((m: any) => m.remote?.ready).map((m: any) => m.join.name).sort().join() === others,
       [hookName(p), others] as const,
       { timeout: 120_000, polling: 250 },
     );
@@ -217,10 +217,10 @@ test('three people in one room (two desktop, one VR under iwer): each sees the o
 
   // Every copy computes its sender's own floats: copies of a newcomer from its restart, copies of
   // someone who was there before from the runtime state that person sent when the viewer came.
-  for (const p of people) await p.page.waitForFunction((h) => [...(window as any)[h].room.session.members.values()].every((m: any) => m.remote?.exact), hookName(p), { timeout: 120_000, polling: 250 });
+  for (const p of people) await p.page.waitForFunction((h) => [...(h === '__vr' ? (window as any).__vr.room?.session : (document.getElementById('avatar') as any)?.room).members.values()].every((m: any) => m.remote?.exact), hookName(p), { timeout: 120_000, polling: 250 });
 
   // The script: from each sender's stream time at its start.
-  const startTimes = await Promise.all(people.map((p) => p.page.evaluate((h) => (window as any)[h].room.session.client.stream.lastStepTime as number, hookName(p))));
+  const startTimes = await Promise.all(people.map((p) => p.page.evaluate((h) => (h === '__vr' ? (window as any).__vr.room?.session : (document.getElementById('avatar') as any)?.room).client.stream.lastStepTime as number, hookName(p))));
   await Promise.all(people.map((p, k) => script(p, SCRIPT_SECONDS, k)));
   const t0 = Date.now();
   await runFrames(people, Math.ceil(SCRIPT_SECONDS / STEP) + 10, 30 * 60_000);
@@ -248,7 +248,7 @@ test('three people in one room (two desktop, one VR under iwer): each sees the o
   // Vera's copy on the desktop pages reaches for her replayed controllers (head and arms as on
   // her own page): each copy's wrists within 2 cm of where her grips put them.
   for (const p of [ada, bo]) {
-    const errors = await p.page.evaluate(() => [...(window.__mm.room?.session?.members.values() ?? [])].flatMap((m: any) => (m.upperBody ? [...m.upperBody.body.handError] : [])));
+    const errors = await p.page.evaluate(() => [...((document.getElementById('avatar') as any)?.room?.members.values() ?? [])].flatMap((m: any) => (m.upperBody ? [...m.upperBody.body.handError] : [])));
     console.log(`${p.name}'s copy of Vera: wrist ↔ controller ${errors.map((e) => `${(e * 100).toFixed(2)} cm`).join(', ')}`);
     expect.soft(errors.length, `${p.name} shows Vera's arms`).toBe(2);
     for (const e of errors) expect.soft(e).toBeLessThan(0.02);
@@ -258,7 +258,7 @@ test('three people in one room (two desktop, one VR under iwer): each sees the o
   // room told it, on the wall clock; polling a page that draws a frame a second would add its own delay).
   const boId = traces[1].id;
   for (const p of [ada, vera]) {
-    await p.page.evaluate(([h, id]) => (window as any)[h].room.session.client.on('memberLeft', (left: number) => left === id && ((window as any).__leftAt = performance.timeOrigin + performance.now())), [hookName(p), boId] as const);
+    await p.page.evaluate(([h, id]) => (h === '__vr' ? (window as any).__vr.room?.session : (document.getElementById('avatar') as any)?.room).client.on('memberLeft', (left: number) => left === id && ((window as any).__leftAt = performance.timeOrigin + performance.now())), [hookName(p), boId] as const);
   }
   const closedAt = Date.now();
   await bo.page.context().close();
@@ -267,7 +267,7 @@ test('three people in one room (two desktop, one VR under iwer): each sees the o
   const closeTook = Date.now() - closedAt;
   const goneAfter = await Promise.all(
     [ada, vera].map(async (p) => {
-      await p.page.waitForFunction(([h, id]) => !(window as any)[h].room.session.members.has(id), [hookName(p), boId] as const, { timeout: 15_000, polling: 20 });
+      await p.page.waitForFunction(([h, id]) => !(h === '__vr' ? (window as any).__vr.room?.session : (document.getElementById('avatar') as any)?.room).members.has(id), [hookName(p), boId] as const, { timeout: 15_000, polling: 20 });
       return (await p.page.evaluate(() => (window as any).__leftAt as number)) - closedAt;
     }),
   );
@@ -279,7 +279,7 @@ test('three people in one room (two desktop, one VR under iwer): each sees the o
   // A late joiner while Ada and Vera keep moving: placed by the snapshot, then by their runtime states.
   await Promise.all([ada, vera].map((p, k) => script(p, 30, k)));
   const cy = await open(browser, false, 'Cy', roomId);
-  await cy.page.waitForFunction(() => [...(window.__mm.room?.session?.members.values() ?? [])].filter((m: any) => m.remote?.ready).length === 2, null, { timeout: 120_000, polling: 100 });
+  await cy.page.waitForFunction(() => [...((document.getElementById('avatar') as any)?.room?.members.values() ?? [])].filter((m: any) => m.remote?.ready).length === 2, null, { timeout: 120_000, polling: 100 });
   await runFrames([ada, vera, cy], 50, 10 * 60_000);
   const cyTrace = await trace(cy);
   for (const [sender, senderTrace] of [[ada, await trace(ada)], [vera, await trace(vera)]] as const) {

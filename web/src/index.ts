@@ -87,10 +87,10 @@ export { UpperBody } from './vr/upper-body.ts';
 export type { UpperBodyOptions, UpperBodyRig } from './vr/upper-body.ts';
 
 // Shared rooms: people see each other's avatars over the network (docs/rooms.md).
-export { RoomCharacter, RoomClient, RoomPanel, RoomSession, NameLabel, qrCodeImage, roomIdFromUrl, roomUrl } from './rooms/index.ts';
+export { RoomCharacter, RoomClient, RoomPanel, RoomSession, NameLabel, qrCodeImage, roomIdFromUrl, roomOf, roomUrl } from './rooms/index.ts';
 export { DriftCorrector, InputStream, JitterBuffer, LocalAvatar, RemoteAvatar, measureBandwidth } from './rooms/index.ts';
 export { CloseCode, PROTOCOL_VERSION, ProtocolError, TICKS_PER_SECOND, createRoomId, decodeClientMessage, decodeServerMessage, isRoomId } from './rooms/index.ts';
-export type { RoomMember, RoomPanelOptions, RoomSessionOptions, RoomClientEvents, RoomClientOptions, RoomStatus, DrivenCharacter, PathInput } from './rooms/index.ts';
+export type { RoomMember, RoomMemberView, RoomNote, RoomPanelOptions, RoomSessionOptions, RoomClientEvents, RoomClientOptions, RoomStatus, DrivenCharacter, PathInput } from './rooms/index.ts';
 export type { AvatarChoice, DeviceSet, JoinInfo, LeaveReasonName, MemberInfo, MoveStep, PathMessage, RoomTrackerPose, StateMessage, StreamMessage, TrackedStep } from './rooms/index.ts';
 export { LeaveReason, TickClock } from './rooms/index.ts';
 export type { BandwidthOptions, BandwidthResult, DriftCorrectorOptions, JitterBufferOptions, JitterStats, PushResult, Released, RemoteAvatarOptions, RemoteAvatarStats, WebSocketLike } from './rooms/index.ts';

@@ -10,7 +10,8 @@
  *   (`eager` | `lazy`: wait until near the viewport), `motion-style` (one of the database's
  *   styles, e.g. `angry`; default `neutral`), `debug`, `alt`;
  * - properties and methods: `character`, `root` ({x, y, z, yaw}, m / rad, the element's floor
- *   frame), `walkTo(x, z, {run})`, `setMove(x, z, {run})`, `stop()`, `ready` (a promise), and
+ *   frame), `walkTo(x, z, {run})`, `setMove(x, z, {run})`, `stop()`, `ready` (a promise), `room`
+ *   (the shared room its character is in, or null: `room.list()` — docs/rooms.md), and
  *   `timeStep` (null: real time; a number: fixed seconds per frame, for tests and recordings);
  * - events: `progress` (`detail: {stage, loaded, total, url, stalled, done, cached}`), `load`
  *   (first animated frame), `error` (`detail: {message, url}`), and a visible status inside the
@@ -30,6 +31,8 @@ import { type Database, loadDatabase } from '../core/database.ts';
 import { checkTimeStep, parseChoice, parseControls, parseUrl, quote } from './attributes.ts';
 import { type FetchProgress, errorMessage } from '../fetch.ts';
 import { MoveControls } from '../input/move-controls.ts';
+import { roomOf } from '../rooms/room-of.ts';
+import type { RoomSession } from '../rooms/room-session.ts';
 import { LoadingStatus } from '../ui/loading-status.ts';
 import { FollowCamera } from '../views/follow-camera.ts';
 import { Stage } from '../views/stage.ts';
@@ -189,6 +192,14 @@ export class MMAvatarElement extends ElementBase {
   get root(): Root {
     const r = this.character?.root;
     return r ? { x: r.x, y: r.y, z: r.z, yaw: r.yaw } : { x: 0, y: 0, z: 0, yaw: 0 };
+  }
+
+  /**
+   * The shared room this element's character is in (a `RoomSession` or `RoomPanel` made for it),
+   * or null: `room.list()` gives the other members' names and where their avatars are drawn.
+   */
+  get room(): RoomSession | null {
+    return roomOf(this.character);
   }
 
   /** Walks (or runs) to floor point (x, z) and stops there. */

@@ -14,6 +14,7 @@ export { LocalAvatar } from './local-avatar.ts';
 export { RemoteAvatar, type RemoteAvatarOptions, type RemoteAvatarStats } from './remote-avatar.ts';
 export { measureBandwidth, type BandwidthOptions, type BandwidthResult } from './bandwidth.ts';
 export { RoomCharacter } from './room-character.ts';
-export { RoomSession, type RoomMember, type RoomSessionOptions } from './room-session.ts';
+export { RoomSession, type RoomMember, type RoomMemberView, type RoomNote, type RoomSessionOptions } from './room-session.ts';
+export { roomOf } from './room-of.ts';
 export { RoomPanel, qrCodeImage, roomIdFromUrl, roomUrl, type RoomPanelOptions } from './room-panel.ts';
 export { NameLabel } from './name-label.ts';

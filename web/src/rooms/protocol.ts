@@ -48,6 +48,10 @@ export const CloseCode = {
   timeout: 4004,
   notJoined: 4005,
   tooSlow: 4006,
+  /** Kept sending values no receiver would take (positions beyond the room, impossible speeds, frames out of range, runtime states that do not parse). */
+  contentRefused: 4007,
+  /** The rooms bus (NATS between server processes) is unavailable: try again later. */
+  tryAgain: 1013,
 } as const;
 
 /** Why a member left (`memberLeft`). */
@@ -67,6 +71,12 @@ export const MAX_DATABASE_BYTES = 64;
 export const MAX_CLIENT_MESSAGE_BYTES = 1024;
 /** The largest runtime state a STATE carries (a 32-joint character's is 4.7 KB; ~136 B a joint). */
 export const MAX_RUNTIME_STATE_BYTES = 16_000;
+/**
+ * The runtime state's version (`STATE_VERSION` in wasm-core/src/character/state.rs, the second
+ * u32 of its header): the room server checks it (server/content.ts); a test compares it with
+ * what the runtime writes.
+ */
+export const RUNTIME_STATE_VERSION = 3;
 export const MAX_MEMBERS_LIMIT = 64;
 /** Positions relative to a message origin are int16 mm: ±32.767 m. */
 export const MAX_RELATIVE_MM = 32767;

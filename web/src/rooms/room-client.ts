@@ -93,7 +93,7 @@ export const RUNTIME_STATE_INTERVAL_MS = 1000;
 type Listeners = { [K in keyof RoomClientEvents]: Set<RoomClientEvents[K]> };
 
 /** Close codes after which reconnecting cannot help (a bug or an incompatible build). */
-const FINAL_CODES = new Set<number>([CloseCode.malformed, CloseCode.badVersion, CloseCode.notJoined]);
+const FINAL_CODES = new Set<number>([CloseCode.malformed, CloseCode.badVersion, CloseCode.notJoined, CloseCode.contentRefused]);
 
 export class RoomClient {
   /** The local member's outgoing stream (kept across reconnects; `LocalAvatar` records into it). */

@@ -28,6 +28,7 @@ import { angleToI16, fromMm, i16ToAngle, toMm, type AvatarChoice, type DeviceSet
 import { RemoteAvatar } from './remote-avatar.ts';
 import { RoomCharacter } from './room-character.ts';
 import { RoomClient, type RoomClientOptions } from './room-client.ts';
+import { setRoomOf } from './room-of.ts';
 
 export interface RoomSessionOptions {
   roomId: string;
@@ -51,12 +52,36 @@ export interface RoomSessionOptions {
   builtinAvatars?: readonly (string | null)[];
   /** Passed to the `RoomClient` (url, reconnect, avatarAllowList…). */
   client?: Partial<Omit<RoomClientOptions, 'roomId' | 'join'>>;
-  /** Refused or patched remote data, connection trouble: shown to the person. */
+  /**
+   * Refused or patched remote data, connection trouble: shown to the person. Called once per
+   * cause and member (the text with its numbers taken out); repeats only count up in `notes`.
+   */
   onNote?: (text: string) => void;
   /** Members came, went or changed. */
   onMembers?: () => void;
   /** Records sent and shown roots (tests: `trace`). */
   trace?: boolean;
+}
+
+/** One member as a page reads it (`RoomSession.list()`): a copy, made when asked. */
+export interface RoomMemberView {
+  /** Member id in the room (1–255; a reconnect gets a new one). */
+  id: number;
+  /** The name the member chose (plain text: never markup). */
+  name: string;
+  mode: 'desktop' | 'vr';
+  /** Whether its avatar is drawn now (false while it loads or waits for its first state). */
+  shown: boolean;
+  /** Where its avatar is drawn (the scene's floor frame, m) and which way it faces (rad, 0 = +z); NaN before it is shown. */
+  x: number;
+  z: number;
+  yaw: number;
+}
+
+/** A note as the page shows it: once per cause and member, with how many times it came. */
+export interface RoomNote {
+  text: string;
+  count: number;
 }
 
 /** One other person in the room. */
@@ -110,6 +135,12 @@ export class RoomSession {
    * message's last step has played. Matching the two by id and time gives the replay error.
    */
   readonly trace = { sent: [] as number[][], shown: [] as number[][] };
+  /**
+   * Notes by cause and member (the text with its numbers replaced by #): the first text and how
+   * many came. `onNote` hears only the first of each, so a member sending garbage cannot fill
+   * the page with lines.
+   */
+  readonly notes = new Map<string, RoomNote>();
   private readonly o: RoomSessionOptions;
   /** The database id this page replays on. */
   private readonly databaseId: string;
@@ -157,7 +188,7 @@ export class RoomSession {
     this.stepper = { step: (_c, dt) => this.stepLocal(dt) };
     character.stepper = this.stepper;
 
-    const note = (text: string) => options.onNote?.(text);
+    const note = (text: string) => this.note(text);
     this.client.on('note', note);
     this.client.on('error', (code, reason) => note(`room: ${reason || 'closed'} (${code})`));
     this.client.on('welcome', (_id, members) => {
@@ -175,6 +206,7 @@ export class RoomSession {
     });
     this.client.on('memberLeft', (id) => (this.remove(id), options.onMembers?.()));
     globalThis.addEventListener?.('pagehide', this.onPageHide);
+    setRoomOf(character, this);
     this.client.on('stream', (from, message, arrival) => this.feed(from, (m) => m.remote!.receive(message, arrival)));
     this.client.on('snapshot', (from, state, path) => this.feed(from, (m) => m.remote!.applySnapshot(state, path)));
     this.client.connect();
@@ -183,6 +215,39 @@ export class RoomSession {
   /** Connection state: connecting, open, reconnecting or closed. */
   get status(): string {
     return this.client.status;
+  }
+
+  /** This person's member id in the room (0 while not joined). */
+  get memberId(): number {
+    return this.client.memberId;
+  }
+
+  /**
+   * The other members as the page shows them: id, name, mode, whether drawn, and where (x, z, yaw
+   * of the drawn avatar's root in the scene, updated by `update`). Allocates: call it when needed,
+   * not for every member every frame. Also reachable as `roomOf(character)?.list()` and
+   * `<mm-avatar>`'s `room.list()`.
+   */
+  list(): RoomMemberView[] {
+    const out: RoomMemberView[] = [];
+    for (const m of this.members.values()) {
+      const shown = !!m.remote?.shown && Number.isFinite(m.shown.x);
+      out.push({ id: m.id, name: m.join.name, mode: m.join.mode, shown, x: shown ? m.shown.x : NaN, z: shown ? m.shown.z : NaN, yaw: shown ? m.shown.yaw : NaN });
+    }
+    return out;
+  }
+
+  /** Counts a note and passes the first of its cause and member on to `onNote`. */
+  private note(text: string, member = 0): void {
+    const key = member + text.replace(/-?\d+(\.\d+)?(e[-+]?\d+)?/gi, '#');
+    const known = this.notes.get(key);
+    if (known) {
+      known.count++;
+      return;
+    }
+    if (this.notes.size >= 256) return; // a bounded record: causes beyond are only dropped
+    this.notes.set(key, { text, count: 1 });
+    this.o.onNote?.(text);
   }
 
   /** Once a frame, after the local character's update: replays and poses the other members. */
@@ -216,6 +281,7 @@ export class RoomSession {
     if (this.closed) return;
     this.closed = true;
     globalThis.removeEventListener?.('pagehide', this.onPageHide);
+    setRoomOf(this.o.character, null);
     this.client.close();
     for (const id of [...this.members.keys()]) this.remove(id);
     for (const t of this.templates.values()) void t.then((a) => a.dispose(), () => undefined);
@@ -273,7 +339,7 @@ export class RoomSession {
     const c = this.o.character;
     if (c.followingPath) {
       c.stop();
-      this.o.onNote?.('joined the room: the path was stopped');
+      this.note('joined the room: the path was stopped');
     }
     this.local.setScale(c.metresPerDatabaseUnit);
     const own = this.own;
@@ -304,7 +370,7 @@ export class RoomSession {
   }
 
   private async load(m: Member): Promise<void> {
-    const note = (text: string) => this.o.onNote?.(`${m.join.name}: ${text}`);
+    const note = (text: string) => this.note(`${m.join.name}: ${text}`, m.id);
     // Lost messages are the network's weather (and a late joiner never gets those before its
     // snapshot): the jitter buffer and the drift correction deal with them; not a note for people.
     const replayNote = (text: string) => (/message\(s\) lost/.test(text) ? undefined : note(text));

@@ -5,7 +5,7 @@
  *
  * URL parameters: `db=<url>`, `avatar=<url>|none`, `roles=<JSON role → bone name>` (manual
  * joint map), `skeleton=1`, `shadows=0`, `dt=fixed` (exactly 1/60 s per frame, for tests; `dt=0.05`: that many s),
- * `room=<id>` and `name=` (a shared room: `RoomPanel`). State for tests is on `window.__mm`.
+ * `room=<id>` and `name=` (a shared room: `RoomPanel`; the HUD reads `el.room.list()`). Tests: `window.__mm`.
  */
 import GUI, { type Controller } from 'lil-gui';
 import * as THREE from 'three';
@@ -32,7 +32,7 @@ const hook = {
   toes: [NaN, NaN, NaN, NaN],
   ...{ database: '', style: '', databaseFrames: 0, avatar: '', databaseLoads: 0 },
   path: { points: [] as number[], following: false },
-  screenOf: (x: number, z: number) => ({ x: x * 0, y: z * 0 }), room: null as RoomPanel | null,
+  screenOf: (x: number, z: number) => ({ x: x * 0, y: z * 0 }),
 };
 declare global {
   interface Window {
@@ -72,7 +72,7 @@ el.addEventListener('load', async () => {
   const stage = el.stage!;
   el.orbit!.controls.enableZoom = true; // a full page: the wheel zooms
   stage.camera.position.set(2.2, 1.7, 3.8);
-  const room = (hook.room = new RoomPanel({ character, scene: stage.scene, parent: document.getElementById('toolbar')!, mode: 'desktop', onNote: fileError, trace: el.timeStep !== null, avatar: avatarParam && avatarParam !== 'none' ? { kind: 'url', url: avatarParam } : undefined }));
+  const room = new RoomPanel({ character, scene: stage.scene, parent: document.getElementById('toolbar')!, mode: 'desktop', onNote: fileError, trace: el.timeStep !== null, avatar: avatarParam && avatarParam !== 'none' ? { kind: 'url', url: avatarParam } : undefined });
   const view = { mesh: true, skeleton: params.get('skeleton') === '1', shadows: params.get('shadows') !== '0', simulation: true, trajectory: true, matched: true, locks: true };
   character.debug = true;
   const apply = () => {
@@ -241,7 +241,7 @@ el.addEventListener('load', async () => {
     });
     timer.add(el.lastUpdateMs);
     if (hook.updates % 15 === 1) { // from the first update on: "loading…" never outlives the load
-      hud.textContent = `${character.clip} · frame ${rt.frame} · ${character.tags.join(' ') || '—'} · cost ${rt.searchCost.toFixed(2)} → ${rt.bestCost.toFixed(2)} · update ${timer.median().toFixed(3)} ms (median of 64)`;
+      hud.textContent = `${character.clip} · frame ${rt.frame} · ${character.tags.join(' ') || '—'} · cost ${rt.searchCost.toFixed(2)} → ${rt.bestCost.toFixed(2)} · update ${timer.median().toFixed(3)} ms (median of 64)${/* the room's public API */ (el.room?.list() ?? []).filter((m) => m.shown).map((m) => [Math.hypot(m.x - character.root.x, m.z - character.root.z), m.name] as const).sort((a, b) => a[0] - b[0]).map(([d, n]) => ` · nearest: ${n} ${d.toFixed(1)} m`)[0] ?? ''}`;
     }
     hook.ready = true;
   };
