@@ -64,6 +64,14 @@ export class ContentJudge {
     this.strikes = new TokenBucket(l.strikesPerSecond, l.strikeBurst, nowMs);
   }
 
+  /**
+   * The member sent a new profile (a JOIN again: a new style, a new height): its runtime restarts
+   * with it, so its next message may be a restart STATE, as its first was.
+   */
+  profileChanged(): void {
+    this.messages = 0;
+  }
+
   /** Null if `m` may be relayed, else the cause and a reason naming the value. Updates the record either way. */
   judge(m: StreamMessage): { cause: ContentCause; reason: string } | null {
     const first = this.messages++ === 0;

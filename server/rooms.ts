@@ -589,8 +589,10 @@ export function attachRooms(server: HttpServer | HttpsServer, options: RoomsOpti
       if (!c.joins.take(1, t)) return drop(c, CloseCode.rateLimited, 'rate limit: too many joins', 'dropped');
       const join = Buffer.from(bytes);
       if (c.id !== 0) {
-        // A profile update (e.g. a new calibrated height): re-announced with the same id.
+        // A profile update (e.g. a new calibrated height, a new style): re-announced with the same
+        // id; the member's runtime restarts with it (its next STATE may carry the restart bit).
         c.join = join;
+        c.content?.profileChanged();
         broadcast(room, c, encodeMemberJoined(c.id, join));
         bus?.publish(room.id, BusKind.update, c.id, join);
         return;

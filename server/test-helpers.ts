@@ -58,6 +58,7 @@ export const testJoin = (name: string, extra: Partial<JoinInfo> = {}): JoinInfo 
   height: 0,
   mode: 'desktop',
   devices: { keyboard: true },
+  style: 'neutral',
   ...extra,
 });
 

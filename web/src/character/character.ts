@@ -92,6 +92,8 @@ export interface TagQuery {
 }
 
 export interface CharacterStepper {
+  /** The character's style changed (`setStyle`): a shared room tells the others. */
+  styleChanged?(style: string): void;
   step(character: Character, dt: number): void;
 }
 
@@ -458,7 +460,9 @@ export class Character {
       const have = styles.length ? `it has ${styles.join(', ')}` : 'it was built without styles';
       throw new Error(`unknown style ${JSON.stringify(style)} for the database ${this.database.name}: ${have}`);
     }
+    if (style === this.style) return;
     this.runtime.setSettings({ style });
+    this.stepper?.styleChanged?.(style);
   }
 
   /**

@@ -47,6 +47,7 @@ const join: JoinInfo = {
   height: 1.623,
   mode: 'vr',
   devices: { headset: true, leftController: true, rightController: true },
+  style: 'angry',
 };
 
 function seeded(seed: number): () => number {
@@ -164,7 +165,8 @@ describe('client messages round trip', () => {
     const bytes = encodeJoin(join);
     expect(decodeClientMessage(bytes)).toEqual({ type: 'join', ...join });
     const builtin: JoinInfo = { name: '', avatar: { kind: 'builtin', id: 3 }, database: 'loco.v2', height: 0, mode: 'desktop', devices: { keyboard: true, pointer: true } };
-    expect(decodeClientMessage(encodeJoin(builtin))).toEqual({ type: 'join', ...builtin });
+    // No style is the neutral one (protocol 3).
+    expect(decodeClientMessage(encodeJoin(builtin))).toEqual({ type: 'join', ...builtin, style: 'neutral' });
   });
 
   it('join rejects bad names, URLs, databases and heights', () => {
@@ -172,6 +174,8 @@ describe('client messages round trip', () => {
       { name: 'evil\u202eeman' },
       { name: 'line\nbreak' },
       { name: 'x'.repeat(49) },
+      { style: 'Angry!' },
+      { style: 'x'.repeat(65) },
       { avatar: { kind: 'url', url: 'javascript:"<script>' } },
       { avatar: { kind: 'url', url: 'a b' } },
       { avatar: { kind: 'url', url: '/' + 'a'.repeat(600) } },

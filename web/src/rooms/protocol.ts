@@ -16,7 +16,7 @@ import { type MoveInput, type TrackedInput } from '../core/character.ts';
 
 // ------------------------------------------------------------------ constants
 
-export const PROTOCOL_VERSION = 2;
+export const PROTOCOL_VERSION = 3;
 
 /** Client → server message types. */
 export const MsgType = {
@@ -76,7 +76,7 @@ export const MAX_RUNTIME_STATE_BYTES = 16_000;
  * u32 of its header): the room server checks it (server/content.ts); a test compares it with
  * what the runtime writes.
  */
-export const RUNTIME_STATE_VERSION = 3;
+export const RUNTIME_STATE_VERSION = 4;
 export const MAX_MEMBERS_LIMIT = 64;
 /** Positions relative to a message origin are int16 mm: ±32.767 m. */
 export const MAX_RELATIVE_MM = 32767;
@@ -246,7 +246,15 @@ export interface JoinInfo {
   height: number;
   mode: DeviceMode;
   devices: DeviceSet;
+  /**
+   * The motion style the member's character prefers (`Character.setStyle`): its copies play the
+   * same one. 1–64 of [a-z0-9_-]; absent or empty: `neutral`. (Protocol 3.)
+   */
+  style?: string;
 }
+
+/** A style as the JOIN message carries it. */
+const STYLE_PATTERN = /^[a-z0-9_-]{1,64}$/;
 
 /** Fields every stream message (move, tracked, path, state) carries. */
 export interface StreamHeader {
@@ -561,6 +569,10 @@ export function encodeJoin(j: JoinInfo): Uint8Array {
     if (j.devices[k]) devices |= 1 << i;
   });
   w.u8(devices);
+  const style = utf8(j.style ?? 'neutral');
+  if (!STYLE_PATTERN.test(j.style ?? 'neutral')) fail('style must be 1–64 of [a-z0-9_-]');
+  w.u8(style.length);
+  w.bytes(style);
   const out = w.finish();
   decodeJoinBody(new Reader(viewOf(out), 2)); // the encoder never emits what the decoder rejects
   return out;
@@ -593,8 +605,11 @@ function decodeJoinBody(r: Reader): JoinInfo {
   DEVICE_BITS.forEach((k, i) => {
     if (bits & (1 << i)) devices[k] = true;
   });
+  const styleLength = r.u8('style length');
+  const style = styleLength === 0 ? 'neutral' : r.text(styleLength, 'style');
+  if (!STYLE_PATTERN.test(style)) fail('style must be 1–64 of [a-z0-9_-]');
   r.end('join');
-  return { name, avatar, database, height: heightMm / 1000, mode: mode === 1 ? 'vr' : 'desktop', devices };
+  return { name, avatar, database, height: heightMm / 1000, mode: mode === 1 ? 'vr' : 'desktop', devices, style };
 }
 
 // ------------------------------------------------------------------ stream messages

@@ -186,6 +186,29 @@ export class RoomClient {
     this.setStatus('closed', 'closed by the page');
   }
 
+  /** This member's profile as the room knows it (what `updateJoin` last set). */
+  get join(): Readonly<JoinInfo> {
+    return this.o.join;
+  }
+
+  /**
+   * A new profile whose runtime restarts with it (a new style): the steps recorded so far go
+   * first, then the profile, then `restart()` (the page restarts its runtime) and a STATE with
+   * the restart bit — the order every member sees, so each new copy starts from the restart and
+   * computes the sender's floats. Before the welcome the profile simply waits for the join.
+   */
+  updateJoinAndRestart(join: JoinInfo, restart: () => void): void {
+    encodeJoin(join);
+    this.o.join = join;
+    if (!this.memberId) return;
+    this.flush();
+    this.sendRaw(encodeJoin(join));
+    restart();
+    this.stream.queueState(true);
+    this.lastStateAt = this.now();
+    this.flush();
+  }
+
   /** Changes the profile (e.g. after height calibration); re-announced to the room. */
   updateJoin(join: JoinInfo): void {
     encodeJoin(join);

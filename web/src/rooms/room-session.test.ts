@@ -223,4 +223,39 @@ describe('RoomSession (real WASM, real room server)', () => {
     for (const p of [vr, late]) p.session.close();
     for (const p of [desk, vr, late]) expect(p.notes.filter((n) => !/path was stopped/.test(n))).toEqual([]);
   }, 120_000);
+
+  it('a style travels with the member: copies play it, and stay exact when it changes mid-stream', async () => {
+    const roomId = createRoomId();
+    const angry = person(roomId, 'desktop', 'Angry');
+    angry.character.setStyle('angry'); // before joining: in the JOIN profile
+    const viewer = person(roomId, 'desktop', 'Viewer');
+    const both: [Person, 'desktop' | 'vr'][] = [
+      [angry, 'desktop'],
+      [viewer, 'desktop'],
+    ];
+    for (let k = 0; k < 500 && !(ready(angry, 1) && ready(viewer, 1)); k++) await run(both, 1);
+    expect(ready(viewer, 1)).toBe(true);
+    const copyOf = (p: Person, sender: Person) => [...p.session.members.values()].find((m) => m.id === sender.session.client.memberId);
+    expect(copyOf(viewer, angry)!.character!.style).toBe('angry');
+    await run(both, 120);
+    // A change while walking: a new profile, a restart at the wire's root, and a new copy with it.
+    angry.character.setStyle('akimbo');
+    const changedAt = angry.session.trace.sent.length;
+    for (let k = 0; k < 500 && copyOf(viewer, angry)?.character?.style !== 'akimbo'; k++) await run(both, 1, 2);
+    for (let k = 0; k < 500 && !ready(viewer, 1); k++) await run(both, 1, 2);
+    await run(both, 180, 2);
+    await sleep(300);
+    await run(both, 20, 6);
+    const copy = copyOf(viewer, angry)!;
+    expect(copy.character!.style).toBe('akimbo');
+    expect(copy.character!.tags).toContain('style:akimbo');
+    const id = angry.session.client.memberId;
+    const sent = new Map(angry.session.trace.sent.slice(changedAt).filter((r) => r[0] === id).map((r) => [r[1], r]));
+    const d = viewer.session.trace.shown.filter((s) => s[0] === id && sent.has(s[1])).map((s) => Math.hypot(s[2] - sent.get(s[1])![2], s[3] - sent.get(s[1])![3]));
+    console.log(`after the style change: ${d.length} messages drawn, root error max ${(Math.max(...d) * 1000).toFixed(3)} mm`);
+    expect(d.length).toBeGreaterThan(50);
+    expect(Math.max(...d)).toBeLessThan(0.001);
+    for (const p of [angry, viewer]) p.session.close();
+    for (const p of [angry, viewer]) expect(p.notes.filter((n) => !/path was stopped/.test(n))).toEqual([]);
+  }, 120_000);
 });

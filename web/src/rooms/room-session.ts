@@ -176,6 +176,7 @@ export class RoomSession {
         height: options.height ?? 0,
         mode: options.mode,
         devices: options.devices ?? (options.mode === 'vr' ? { headset: true, leftController: true, rightController: true } : { keyboard: true, pointer: true }),
+        style: character.style,
       },
       // Someone joined: their copy of this person continues from this runtime's own floats.
       runtimeState: () => this.own.character.runtime.saveState(),
@@ -185,7 +186,12 @@ export class RoomSession {
     this.local.setScale(character.metresPerDatabaseUnit);
     const pose = (): RoomTrackerPose => ({ tracked: false, fromHand: false, position: [0, 0, 0], rotation: [0, 0, 0, 1] });
     this.sentTrackers = [pose(), pose(), pose()];
-    this.stepper = { step: (_c, dt) => this.stepLocal(dt) };
+    this.stepper = {
+      step: (_c, dt) => this.stepLocal(dt),
+      // A new style: the room hears the new profile, then this runtime restarts (a STATE with the
+      // restart bit), as every copy does with the new style — copies stay the sender's floats.
+      styleChanged: (style) => this.client.updateJoinAndRestart({ ...this.client.join, style }, () => this.restartOwn()),
+    };
     character.stepper = this.stepper;
 
     const note = (text: string) => this.note(text);
@@ -403,7 +409,10 @@ export class RoomSession {
         return;
       }
     }
-    const character = new Character(database, avatar, { settings: m.join.mode === 'vr' ? { ...VR_SETTINGS } : undefined });
+    // The sender's settings: VR or the defaults, in the sender's style (the runtime leaves out a
+    // style the database lacks, as the sender's did).
+    const settings = { ...(m.join.mode === 'vr' ? VR_SETTINGS : {}), style: m.join.style ?? 'neutral' };
+    const character = new Character(database, avatar, { settings });
     const rc = new RoomCharacter(character, true);
     // A VR member's arms reach for its controllers as on its own page (built at rest, before the first pose).
     if (m.join.mode === 'vr' && avatar) {
