@@ -102,6 +102,13 @@ impl Bvh {
         Parser { file, text: &text, pos: 0, line: 1 }.parse()
     }
 
+    /// Heap bytes this parse holds: the values, the joints and their names and channels.
+    pub fn heap_bytes(&self) -> usize {
+        self.values.capacity() * std::mem::size_of::<f64>()
+            + self.joints.capacity() * std::mem::size_of::<BvhJoint>()
+            + self.joints.iter().map(|j| j.name.capacity() + j.channels.capacity() * std::mem::size_of::<Channel>()).sum::<usize>()
+    }
+
     /// Frames per second (`1 / Frame Time`).
     pub fn fps(&self) -> f64 {
         1.0 / self.frame_time
