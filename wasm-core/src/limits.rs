@@ -31,6 +31,7 @@
 //! | a take's reach (values × scale, chained) | ≤ [`MAX_REACH`] (10⁵ m) | so positions, velocities at 1,000 fps and feature scales stay within what the loader accepts |
 //! | root-motion scale of a take | [`1 / MAX_ROOT_SCALE`](MAX_ROOT_SCALE) … [`MAX_ROOT_SCALE`] (10³) | the builder keeps a take's root motion unscaled outside it (`CLIP.root_scale`) |
 //! | configuration windows at the database fps | ≤ [`MAX_WINDOW_FRAMES`] (1,000) frames | the smoothing weights are window² floats, the contact vote window × frames steps |
+//! | characters in one crowd | ≤ `crowd::Crowd::max_characters`: [`CROWD_SEARCH_BUDGET`] / (frames × dims), [`CROWD_MEMORY_BUDGET`] / bytes per character, 1 … [`MAX_CROWD`] | every character searches at its first update: 100,000 took 304 s |
 //! | quoted input in a message | [`MAX_QUOTE_CHARS`] characters | a 1 MB token must not become a 1 MB message |
 //! | a whole message | [`MAX_MESSAGE_CHARS`] characters | same, as a backstop for every error of the crate |
 
@@ -283,6 +284,19 @@ impl BuildFootprint {
         Ok(())
     }
 }
+
+/// Characters one crowd may hold, whatever the database: far past what a frame can update (a
+/// few hundred in 4 ms), low enough that a typo cannot ask wasm32 for gigabytes.
+pub const MAX_CROWD: usize = 100_000;
+
+/// Feature values a crowd update may compare when every character searches at once (its first
+/// update, or a sharp input change for all): `count × frames × dims` ≤ this. 2²⁹ is ~1 s of
+/// search in WASM (805 characters on the 24,688-frame, 27-dim locomotion database); a crowd of
+/// 100,000 there took 304 s for its first update.
+pub const CROWD_SEARCH_BUDGET: u64 = 1 << 29;
+
+/// Memory a crowd's characters may hold (`crowd::character_bytes` each).
+pub const CROWD_MEMORY_BUDGET: u64 = 256 << 20;
 
 /// Frames a take of `source_frames` frames at `source_fps` gives when resampled to `fps`,
 /// the way the builder counts them, or `None` when that exceeds [`MAX_FRAMES`] (a builder

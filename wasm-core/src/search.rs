@@ -134,6 +134,9 @@ pub struct SearchIndex {
     /// `[block·D + d]`, lane `l` = frame `4·block + l`.
     lanes: Vec<F32x4>,
     bounds: BoxBounds,
+    /// Frames not tagged `idle` (`None` without the tag): what a character asked to move may
+    /// jump to. Made once per database here, shared by every character searching it.
+    not_idle: Option<Vec<bool>>,
 }
 
 /// A query and its per-dimension weights splatted across lanes, on the stack.
@@ -183,7 +186,11 @@ impl SearchIndex {
         }
         lanes.resize(padded / 4 * d, F32x4::ZERO);
         let bounds = BoxBounds::from_lanes(&lanes, &valid, d);
-        Ok(SearchIndex { num_frames: db.num_frames, num_dims: d, dim_weights, valid, lanes, bounds })
+        let not_idle = db.tag_mask("idle").map(|mut m| {
+            m.iter_mut().for_each(|i| *i = !*i);
+            m
+        });
+        Ok(SearchIndex { num_frames: db.num_frames, num_dims: d, dim_weights, valid, lanes, bounds, not_idle })
     }
 
     pub fn num_frames(&self) -> usize {
@@ -192,6 +199,11 @@ impl SearchIndex {
 
     pub fn num_dims(&self) -> usize {
         self.num_dims
+    }
+
+    /// The frames not tagged `idle`, one per database frame (`None` when nothing is tagged).
+    pub fn not_idle(&self) -> Option<&[bool]> {
+        self.not_idle.as_deref()
     }
 
     /// Whether a search may return `frame` (the database's validity; false out of range).

@@ -517,7 +517,7 @@ impl Character {
         self.query.set_trajectory(db, &self.drive, &self.simulation, &self.settings.controller, self.root.position, self.root.rotation);
         let speed = self.settings.idle_exclude_speed;
         let moving = speed > 0.0 && self.simulation.velocity.length() > speed;
-        self.schedule.refresh_idle(db);
+        self.schedule.refresh_idle(index);
         if let Outcome::Jump(frame) = self.schedule.search(index, &self.settings, self.frame, &self.query, &mut self.stats, moving) {
             self.transition(db, frame);
         }

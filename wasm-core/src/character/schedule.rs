@@ -37,15 +37,12 @@ pub struct Schedule {
     idle: IdleMask,
 }
 
-/// The database's frames *not* tagged `idle`, and their intersection with the user's mask: the
-/// frames a search may return while the character is asked to move
-/// (`CharacterSettings::idle_exclude_speed`). Rebuilt when the database changes (allocation at
-/// a switch only).
+/// The intersection of the user's mask with the database's frames *not* tagged `idle`
+/// ([`SearchIndex::not_idle`], made once per database and shared): the frames a search may
+/// return while the character is asked to move (`CharacterSettings::idle_exclude_speed`). Its
+/// buffer is sized when the mask is set, so an update never allocates.
 #[derive(Clone, Debug, Default)]
 struct IdleMask {
-    /// Address and frame count of the database it was made for.
-    key: (usize, usize),
-    not_idle: Option<Vec<bool>>,
     combined: Vec<bool>,
     combined_current: bool,
 }
@@ -82,16 +79,16 @@ impl Schedule {
     /// The user's search mask changed: the idle-excluding mask follows.
     pub fn mask_changed(&mut self) {
         self.idle.combined_current = false;
+        self.idle.combined.clear();
+        if let Some(m) = &self.mask {
+            self.idle.combined.reserve_exact(m.len());
+        }
     }
 
-    /// Makes the idle mask current for `db`.
-    pub fn refresh_idle(&mut self, db: &Database) {
-        let key = (db as *const Database as usize, db.num_frames);
-        if self.idle.key != key {
-            self.idle = IdleMask { key, not_idle: db.tag_mask("idle").map(|m| m.into_iter().map(|i| !i).collect()), ..IdleMask::default() };
-        }
+    /// Makes the idle-excluding mask current for the database `index` searches.
+    pub fn refresh_idle(&mut self, index: &SearchIndex) {
         if !self.idle.combined_current {
-            if let (Some(user), Some(not_idle)) = (&self.mask, &self.idle.not_idle) {
+            if let (Some(user), Some(not_idle)) = (&self.mask, index.not_idle()) {
                 if user.len() == not_idle.len() {
                     self.idle.combined.clear();
                     self.idle.combined.extend(user.iter().zip(not_idle).map(|(a, b)| *a && *b));
@@ -116,9 +113,9 @@ impl Schedule {
         self.frames_since_search = 0;
         let switching = std::mem::take(&mut self.switching);
         let r = settings.exclude_radius;
-        let mask = match (moving && !switching, &self.mask, &self.idle.not_idle) {
+        let mask = match (moving && !switching, &self.mask, index.not_idle()) {
             (true, Some(_), Some(_)) if self.idle.combined_current && !self.idle.combined.is_empty() => Some(self.idle.combined.as_slice()),
-            (true, None, Some(not_idle)) => Some(not_idle.as_slice()),
+            (true, None, Some(not_idle)) => Some(not_idle),
             (_, user, _) if !switching => user.as_deref(),
             _ => None,
         };

@@ -3,7 +3,7 @@
  * `RawBuilder` and owns its lifetime).
  */
 import { RawBuilder } from './raw.ts';
-import { asError } from './wasm.ts';
+import { asError, freeRaw } from './wasm.ts';
 
 
 export class DatabaseBuilder {
@@ -47,7 +47,7 @@ export class DatabaseBuilder {
   }
 
   free(): void {
-    this.raw?.free();
+    if (this.raw) freeRaw(this.raw, 'rawbuilder');
     this.raw = null;
   }
 }
