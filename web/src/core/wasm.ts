@@ -81,6 +81,7 @@ export interface LiveObjects {
   characters: number;
   crowds: number;
   retargeters: number;
+  builders: number;
   /** Bytes of WASM linear memory (it never shrinks; freed memory is reused). */
   memoryBytes: number;
 }
