@@ -290,10 +290,10 @@ impl BuildFootprint {
 pub const MAX_CROWD: usize = 100_000;
 
 /// Feature values a crowd update may compare when every character searches at once (its first
-/// update, or a sharp input change for all): `count × frames × dims` ≤ this. 2²⁹ is ~1 s of
-/// search in WASM (805 characters on the 24,688-frame, 27-dim locomotion database); a crowd of
-/// 100,000 there took 304 s for its first update.
-pub const CROWD_SEARCH_BUDGET: u64 = 1 << 29;
+/// update, or a sharp input change for all): `count × frames × dims` ≤ this. 2³² is about a
+/// second of WASM: 6,443 characters on the 24,688-frame, 27-dim locomotion database, whose
+/// first update took 1.0 s in Node (docs/robustness.md); a crowd of 100,000 there took 304 s.
+pub const CROWD_SEARCH_BUDGET: u64 = 1 << 32;
 
 /// Memory a crowd's characters may hold (`crowd::character_bytes` each).
 pub const CROWD_MEMORY_BUDGET: u64 = 256 << 20;

@@ -66,8 +66,8 @@ fn a_crowd_is_sized_by_its_first_update_and_its_memory() {
     let e = Crowd::new(&db, 100_000, &CharacterSettings::default()).err().unwrap();
     assert!(e.starts_with(&format!("crowd: 100000 characters asked for; at most {most} on this database ({} frames × {} feature dims", db.num_frames, db.num_features())), "{e}");
     assert!(Crowd::new(&db, most + 1, &CharacterSettings::default()).is_err());
-    // The locomotion database's size (24,688 frames × 27 dims): 805 characters, ~1 s of search.
-    assert_eq!(CROWD_SEARCH_BUDGET / (24_688 * 27), 805);
+    // The locomotion database's size (24,688 frames × 27 dims): 6,443 characters, ~1 s of search.
+    assert_eq!(CROWD_SEARCH_BUDGET / (24_688 * 27), 6443);
     // However large the database, one character.
     let mut huge = db.clone();
     huge.num_frames = 1 << 24;

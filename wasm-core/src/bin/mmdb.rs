@@ -517,6 +517,9 @@ fn replay(args: &[String]) -> CliResult {
     let (db, _) = load(path)?;
     let text = String::from_utf8_lossy(&read(Path::new(rec_path))?).into_owned();
     let rec = Recording::from_json(&text).map_err(|e| Error::config(format!("{rec_path}: {e}")))?;
+    if rec.num_frames() < 2 {
+        return Err(Error::config(format!("{rec_path}: a replay needs at least 2 frames, the recording has {}", rec.num_frames())).into());
+    }
     let alpha = a.number::<f32>("--alpha")?.unwrap_or(0.3);
     if !(alpha > 0.0 && alpha <= 10.0) {
         return Err(Usage(format!("--alpha: must be more than 0 and at most 10 m, found {alpha}")).into());

@@ -11,6 +11,7 @@ pub mod character;
 pub mod crowd;
 pub mod database;
 pub mod ik;
+pub mod recording;
 pub mod retarget;
 pub mod roles;
 pub mod search;
