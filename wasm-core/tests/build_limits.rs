@@ -134,16 +134,8 @@ fn a_leg_ratio_beyond_the_loader_s_root_scale_is_not_applied() {
 /// such a file by `INFO` now, and `check_database` (the builder's last step) says the same.
 #[test]
 fn a_database_with_more_dimensions_than_the_search_takes_is_refused() {
-    let mut db = hostile::tiny_database();
-    let d = db.num_features();
-    let group = db.groups[0].clone();
-    // One more group of 129 offsets × xz… past 128 in all.
-    let extra = mmcore::database::FeatureGroup { name: "wide".into(), offsets: vec![0; 64], first_dim: d, num_dims: 128, ..group };
-    db.groups.push(extra);
-    db.feature_mean.resize(d + 128, 0.0);
-    db.feature_scale.resize(d + 128, 1.0);
-    let n = db.num_frames;
-    db.features = (0..n).flat_map(|f| db.features[f * d..(f + 1) * d].iter().copied().chain(std::iter::repeat_n(0.0, 128)).collect::<Vec<_>>()).collect();
+    let db = hostile::wide_database(128);
+    let d = hostile::tiny_database().num_features();
     let dims = d + 128;
     let e = format::from_bytes(&format::to_bytes(&db)).unwrap_err().to_string();
     assert_eq!(e, format!("invalid .mmdb: INFO: {dims} feature dimensions; the search takes 1 to 128 (fewer groups, offsets or axes)"));

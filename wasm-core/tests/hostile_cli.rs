@@ -171,3 +171,40 @@ fn replay_validates_recordings_as_the_page_does() {
     // No truth: no root distance; every other metric a number (serde writes NaN as null).
     assert!(metrics.contains("\"root_distance\":null") && metrics.matches("null").count() == 1, "{metrics}");
 }
+
+/// Issue 28, cases 2 and 3 through the CLI: a configuration of 300 feature groups (2,700
+/// dimensions) built with exit 0 and `mmdb quality` panicked on the result (exit 101); a BVH
+/// with every number ≤ 10⁷ built with `--scale 1000 --fps 1000` exited 0 and its own loader
+/// refused the file. Now the first is a config error, a wide file is refused by the loader (no
+/// panic), and the second is refused by the build naming the take.
+#[test]
+fn builds_the_search_or_the_loader_would_refuse_are_refused_by_the_build() {
+    let bvh = temp("limits-walk.bvh");
+    std::fs::write(&bvh, hostile::humanoid_bvh(120)).unwrap();
+    let group = |i: usize| format!(r#"{{"name": "g{i}", "kind": "position", "joint": "hips", "offsets": [0, 10, 20]}}"#);
+    let config = temp("wide.json");
+    std::fs::write(&config, format!(r#"{{"clips": [{{"file": "limits-walk.bvh"}}], "features": [{}]}}"#, (0..300).map(group).collect::<Vec<_>>().join(","))).unwrap();
+    let db = temp("limits.mmdb");
+    let out = mmdb(&["build", "--config", config.to_str().unwrap(), "-o", db.to_str().unwrap()]);
+    assert!(!out.status.success() && stderr(&out).contains("features: 2700 feature dimensions; the search takes 1 to 128"), "{}", stderr(&out));
+    // A file with 133 dimensions (written by hand): refused by every command that loads it.
+    let wide = temp("wide.mmdb");
+    std::fs::write(&wide, mmcore::format::to_bytes(&hostile::wide_database(128))).unwrap();
+    for command in ["quality", "inspect"] {
+        let out = mmdb(&[command, wide.to_str().unwrap()]);
+        assert_eq!(out.status.code(), Some(1), "{command}: {}", stderr(&out));
+        assert!(stderr(&out).contains("INFO: 133 feature dimensions; the search takes 1 to 128"), "{command}: {}", stderr(&out));
+    }
+    // Every value ≤ 10⁷, the root jumping ±10⁷ units a frame, at 1,000 m per unit and 1,000 fps.
+    let text: String = hostile::humanoid_bvh(120)
+        .lines()
+        .enumerate()
+        .map(|(i, l)| if i >= 76 { l.replacen("0.000000 0.950000", if i % 2 == 0 { "10000000 0.950000" } else { "-10000000 0.950000" }, 1) } else { l.to_string() })
+        .collect::<Vec<_>>()
+        .join("\n");
+    let far = temp("far.bvh");
+    std::fs::write(&far, text).unwrap();
+    let out = mmdb(&["build", far.to_str().unwrap(), "-o", db.to_str().unwrap(), "--scale", "1000", "--fps", "1000"]);
+    assert_eq!(out.status.code(), Some(1), "{}", stderr(&out));
+    assert!(stderr(&out).contains("its values times the unit scale 1000 reach") && stderr(&out).contains("at most 100000 m — check the unit scale (--scale)"), "{}", stderr(&out));
+}
