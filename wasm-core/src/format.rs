@@ -900,6 +900,52 @@ mod tests {
         }
     }
 
+    /// The builder's last check is the loader's: each value the loader refuses in a file,
+    /// `check_database` refuses in memory with the same message (issue 28: the builder wrote
+    /// files its own loader refused).
+    #[test]
+    fn check_database_says_what_the_loader_says() {
+        type Edit = Box<dyn Fn(&mut Database)>;
+        let edits: Vec<(&str, Edit)> = vec![
+            ("huge fps", Box::new(|db| db.fps = 1e30)),
+            ("nan position", Box::new(|db| db.local_positions[3].y = f32::NAN)),
+            ("inf feature", Box::new(|db| db.features[5] = f32::INFINITY)),
+            ("zero scale", Box::new(|db| db.feature_scale[1] = 0.0)),
+            ("huge scale", Box::new(|db| db.feature_scale[0] = 1.34e12)),
+            ("nan clip scale", Box::new(|db| db.clips[0].scale = f32::NAN)),
+            ("huge offset", Box::new(|db| db.groups[0].offsets[0] = i32::MIN)),
+            ("nan weight", Box::new(|db| db.groups[0].weight = f32::NAN)),
+            ("root scale 1e4", Box::new(|db| db.clips[0].root_scale = 1e4)),
+            ("nan site", Box::new(|db| db.skeleton.sites[0].offset.x = f32::NAN)),
+            ("huge mean", Box::new(|db| db.feature_mean[1] = 1e13)),
+        ];
+        assert!(check_database(&tiny()).is_ok());
+        for (what, edit) in edits {
+            let mut db = tiny();
+            edit(&mut db);
+            let loader = message(&to_bytes(&db));
+            let builder = format!("invalid .mmdb: {}", check_database(&db).map(|_| "accepted".into()).unwrap_or_else(|e| match e {
+                Error::Format(m) => m,
+                other => other.to_string(),
+            }));
+            assert_eq!(builder, loader, "{what}");
+        }
+        let mut db = tiny();
+        db.local_rotations[2] = Quat::from_xyzw(0.0, 0.0, 0.0, 2.0);
+        assert!(check_database(&db).unwrap_err().to_string().contains("QROT: frame 1 joint 0 is not a unit quaternion"));
+    }
+
+    /// A frame count past 2²⁴ in `INFO` is refused before anything is read (frame indices stay
+    /// exact in f32 and u32).
+    #[test]
+    fn rejects_more_frames_than_the_limit() {
+        let mut bytes = to_bytes(&tiny());
+        let info = align(HEADER_LEN + ENTRY_LEN * TAGS.len());
+        bytes[info..info + 4].copy_from_slice(&((MAX_FRAMES + 1) as u32).to_le_bytes());
+        refix(&mut bytes);
+        assert_eq!(message(&bytes), "invalid .mmdb: INFO.num_frames is 16777217, more than 16777216");
+    }
+
     /// At least one frame and one feature group of at least one dimension (inspect and the
     /// runtime index rows by the dimension count).
     #[test]
