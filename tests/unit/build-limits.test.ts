@@ -71,7 +71,7 @@ describe('build limits in WASM', () => {
     const builder = new DatabaseBuilder({ fps: 30, mirror: false });
     builder.addBvh('a.bvh', cut(300, '0.0083333'));
     expect(liveObjects().builders).toBe(1);
-    // Take every page wasm32 has left, so that the next allocation fails: a trap.
+    // Take every page wasm32 has left…
     const memory = wasmMemory();
     for (let pages = 1 << 15; pages >= 1; pages >>= 1) {
       try {
@@ -80,18 +80,40 @@ describe('build limits in WASM', () => {
         // this step no longer fits: try a smaller one
       }
     }
-    const big = cut(3000, '0.0083333');
+    // …then fill what the allocator still holds: a file whose values do not fit is refused
+    // ("out of memory", the parser's one big allocation is fallible), until some smaller
+    // allocation inside a call fails: a trap, the builder left borrowed by that call.
     let trapped: unknown = null;
-    try {
-      for (let i = 0; i < 400; i++) builder.addBvh(`b${i}.bvh`, big);
-    } catch (e) {
-      trapped = e;
+    let refused = 0;
+    fill: for (const frames of [3000, 300, 30, 3]) {
+      const bytes = cut(frames, '0.0083333');
+      for (let i = 0; i < 100_000; i++) {
+        try {
+          builder.addBvh(`f${frames}_${i}.bvh`, bytes);
+        } catch (e) {
+          if (e instanceof WebAssembly.RuntimeError) {
+            trapped = e;
+            break fill;
+          }
+          expect((e as Error).message).toMatch(/out of memory: the motion's \d+ values/);
+          refused++;
+          continue fill;
+        }
+      }
     }
+    if (!trapped) {
+      try {
+        builder.build();
+      } catch (e) {
+        trapped = e;
+      }
+    }
+    expect(refused).toBeGreaterThan(0);
     expect(trapped).toBeInstanceOf(WebAssembly.RuntimeError);
     // wasm-bindgen's own free() would throw "attempted to take ownership of Rust value while it
     // was borrowed" and keep the builder's memory.
     builder.free();
     expect(liveObjects().builders).toBe(0);
-    expect(() => builder.addBvh('c.bvh', big)).toThrow(/DatabaseBuilder used after free\(\)/);
+    expect(() => builder.addBvh('c.bvh', cut(3, '0.0083333'))).toThrow(/DatabaseBuilder used after free\(\)/);
   });
 });
