@@ -68,9 +68,13 @@ fn a_crowd_is_sized_by_its_first_update_and_its_memory() {
     assert!(Crowd::new(&db, most + 1, &CharacterSettings::default()).is_err());
     // The locomotion database's size (24,688 frames × 27 dims): 6,443 characters, ~1 s of search.
     assert_eq!(CROWD_SEARCH_BUDGET / (24_688 * 27), 6443);
-    // However large the database, one character.
+    // The largest database the loader accepts (2²⁴ frames × 128 dims): 2 characters. However
+    // large, at least one.
     let mut huge = db.clone();
     huge.num_frames = 1 << 24;
+    huge.feature_mean.resize(128, 0.0);
+    assert_eq!(Crowd::max_characters(&huge), 2);
+    huge.num_frames = usize::MAX;
     assert_eq!(Crowd::max_characters(&huge), 1);
     // The largest crowd builds and its first update searches for every character.
     let index = SearchIndex::new(&db).unwrap();
