@@ -376,7 +376,7 @@ pub fn from_bytes(bytes: &[u8]) -> Result<Database> {
     // (codec.rs) and velocities are derived below.
     let (local_positions, local_rotations, velocities) = if version == 1 {
         let local_positions = section(b"LPOS")?.vec3s(fj)?;
-        let local_rotations: Vec<Quat> = section(b"LROT")?.pods(fj)?;
+        let mut local_rotations: Vec<Quat> = section(b"LROT")?.pods(fj)?;
         if let Some(i) = local_rotations.iter().position(|q| !(q.length_squared() - 1.0).abs().le(&QUAT_NORM_TOLERANCE)) {
             return Err(Error::format(format!(
                 "LROT: frame {} joint {} is not a unit quaternion ({})",
@@ -385,6 +385,9 @@ pub fn from_bytes(bytes: &[u8]) -> Result<Database> {
                 local_rotations[i]
             )));
         }
+        // Normalized, as version 2's decoder does: a rotation 10⁻³ off unit loads, and written
+        // again (quantized to 1/32767) it must still load (found by the `mmdb` fuzz target).
+        local_rotations.iter_mut().for_each(|q| *q = q.normalize());
         let velocities = (section(b"LVEL")?.vec3s(fj)?, section(b"LAVL")?.vec3s(fj)?);
         (local_positions, local_rotations, Some(velocities))
     } else {
