@@ -182,7 +182,7 @@ pub const MAX_ROOT_SCALE: f32 = 1e3;
 
 /// Longest configuration window in database frames (`contact_filter`, `root_position_window`,
 /// `root_facing_window` times the fps): a Savitzky–Golay window of w frames keeps w² f64
-/// weights for the session (8 MB at 1,001 frames; a 60 s window at 1,000 fps asked for 29 GB),
+/// weights for the session (8 MB at 1,001 frames; a 60 s window at 1,000 fps on a minute-long take would need 29 GB),
 /// and the contact vote takes 2w steps per frame.
 pub const MAX_WINDOW_FRAMES: f64 = 1000.0;
 
