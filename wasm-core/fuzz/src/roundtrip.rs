@@ -77,10 +77,10 @@ fn v(x: f64) -> String {
     format!("{:.6}", x.clamp(-MAX_ABS_BVH_VALUE, MAX_ABS_BVH_VALUE))
 }
 
-/// One take: `frames` frames of a walk (forward speed, sway, leg swing, turning) in `unit` file
+/// One take (for a database at `fps`): `frames` frames of a walk (forward speed, sway, leg swing, turning) in `unit` file
 /// units per metre, legs × `legs`, with Z up when `z_up`; arms unless `no_arms`; a few values
 /// anywhere within ±10⁷ when the bytes say so (a glitch, a teleport, a spinning joint).
-fn take(r: &mut Reader, no_arms: bool) -> String {
+fn take(r: &mut Reader, no_arms: bool, fps: f64) -> String {
     let unit = r.pick(&[1.0, 100.0, 1000.0, 39.37, 1.0, 100.0]);
     let legs = if r.chance(24) { r.log(1e-4, 1e4) } else { r.range(0.7, 1.4) };
     let z_up = r.chance(24);
@@ -89,6 +89,9 @@ fn take(r: &mut Reader, no_arms: bool) -> String {
     // A slow source resampled to 1,000 fps grows 1,000-fold: keep such takes short, so that a
     // case stays a fraction of a second (`tests/build_limits.rs` has the big builds).
     let frames = if frame_time >= 0.5 { frames.min(30) } else { frames };
+    // Likewise a long take at a high database rate: 2,000 frames at 60 fps are 66,000 at
+    // 1,000 fps, mirrored and reversed four times that (seconds per case under AFL).
+    let frames = if fps > 120.0 { frames.min(400) } else { frames };
     let (speed, swing, turn) = (r.range(-0.5, 3.0), r.range(0.0, 60.0), r.range(-1.0, 1.0));
     let glitches = if r.chance(48) { 1 + r.byte() % 4 } else { 0 };
     let joints: Vec<usize> = (0..JOINTS.len()).filter(|&j| !(no_arms && JOINTS[j].3)).collect();
@@ -220,9 +223,9 @@ pub fn generate(data: &[u8]) -> Case {
         let (s, e) = (r.byte() as usize % 8, 8 + r.byte() as usize % 64);
         keys.push(format!(r#""clips": [{{"file": "a.bvh", "frames": [{s}, {e}], "ranges": [{{"frames": [0, 4], "tags": ["idle"]}}]}}]"#));
     }
-    let mut takes = vec![("a.bvh".to_string(), take(&mut r, false))];
+    let mut takes = vec![("a.bvh".to_string(), take(&mut r, false, fps))];
     if two {
-        takes.push(("b.bvh".to_string(), take(&mut r, other_skeleton)));
+        takes.push(("b.bvh".to_string(), take(&mut r, other_skeleton, fps)));
     }
     Case { config: format!("{{{}}}", keys.join(", ")), takes }
 }
