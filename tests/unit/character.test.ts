@@ -198,6 +198,110 @@ describe('Character (the public API)', () => {
     }
   });
 
+  it('one dispose rule: after dispose() every method and property throws the same error', () => {
+    const c = new Character(db.retain(), null);
+    c.update(1 / 60);
+    c.dispose();
+    c.dispose(); // twice is harmless
+    expect(c.isDisposed).toBe(true);
+    const calls: [string, () => unknown][] = [
+      ['update', () => c.update(1 / 60)],
+      ['setMove', () => c.setMove(0, 1)],
+      ['setInput', () => c.setInput(createMoveInput())],
+      ['walkTo', () => c.walkTo(1, 1)],
+      ['followPath', () => c.followPath([[0, 0], [1, 1]])],
+      ['stop', () => c.stop()],
+      ['teleport', () => c.teleport(0, 0)],
+      ['setTracked', () => c.setTracked(0, 0, 0, 0, 0)],
+      ['setHipsDrop', () => c.setHipsDrop(0.1)],
+      ['setCrouch', () => c.setCrouch(0.1, 0)],
+      ['setAlpha', () => c.setAlpha(0.2)],
+      ['setAvatar', () => c.setAvatar(null)],
+      ['setDatabase', () => c.setDatabase(db)],
+      ['restartRuntime', () => c.restartRuntime()],
+      ['toDatabase', () => c.toDatabase(0, 0)],
+      ['fromDatabase', () => c.fromDatabase(0, 0, 0)],
+      ['jointPosition', () => c.jointPosition(1)],
+      ['root', () => c.root],
+      ['frame', () => c.frame],
+      ['clip', () => c.clip],
+      ['tags', () => c.tags],
+      ['contacts', () => c.contacts],
+      ['settings', () => c.settings],
+      ['set settings', () => (c.settings = {})],
+      ['database', () => c.database],
+      ['runtime', () => c.runtime],
+      ['avatar', () => c.avatar],
+      ['worldScale', () => c.worldScale],
+      ['metresPerDatabaseUnit', () => c.metresPerDatabaseUnit],
+      ['drive', () => c.drive],
+      ['followingPath', () => c.followingPath],
+      ['debug', () => c.debug],
+      ['set debug', () => (c.debug = true)],
+      ['debugViews', () => c.debugViews],
+      ['showSkeleton', () => c.showSkeleton],
+      ['set showSkeleton', () => (c.showSkeleton = true)],
+    ];
+    const wrong = calls.flatMap(([name, call]) => {
+      try {
+        call();
+        return [`${name}: no error`];
+      } catch (e) {
+        return e instanceof Error && e.message === 'Character used after dispose()' ? [] : [`${name}: ${String(e)}`];
+      }
+    });
+    expect(wrong).toEqual([]);
+  });
+
+  it('setAlpha and settings refuse NaN and infinities by name, changing nothing', () => {
+    const c = new Character(db.retain(), null);
+    try {
+      c.setAlpha(0.3);
+      for (const bad of [NaN, Infinity, -1, '0.2' as unknown as number]) {
+        expect(() => c.setAlpha(bad)).toThrow(`setAlpha: α must be a number of metres ≥ 0, got ${String(bad)}`);
+      }
+      expect(c.drive.alpha).toBe(0.3);
+      expect(c.settings['clamp_distance']).toBeCloseTo(0.3, 6);
+      expect(() => (c.settings = { clamp_distance: NaN })).toThrow('settings: clamp_distance is NaN, expected a finite number');
+      expect(() => (c.settings = { controller: { walk: { forward: Infinity } } })).toThrow('settings: controller.walk.forward is Infinity, expected a finite number');
+      expect(c.settings['clamp_distance']).toBeCloseTo(0.3, 6);
+    } finally {
+      c.dispose();
+    }
+  });
+
+  it('a crowd refuses a count that is not a whole number and an index it does not have', () => {
+    for (const bad of [NaN, 1.5, 0, -3, Infinity]) {
+      expect(() => new Crowd(db, bad)).toThrow(`crowd: the character count must be a whole number ≥ 1, got ${String(bad)}`);
+    }
+    const crowd = new Crowd(db, 4);
+    try {
+      for (const i of [4, -1, 1.5, NaN]) {
+        expect(() => crowd.worldPositions(i)).toThrow(`crowd: no character ${String(i)} (the crowd has 4: 0 to 3)`);
+        expect(() => crowd.setInput(i, createMoveInput())).toThrow(RangeError);
+      }
+      expect(crowd.worldPositions(3).length).toBe(db.numJoints * 3);
+    } finally {
+      crowd.free();
+    }
+  });
+
+  it('a crowd is sized by cost: the issue’s 100,000 is refused with how many fit', () => {
+    const most = Crowd.maxCharacters(db);
+    // Every character searches all frames × dims at its first update: ~1 s of search at most.
+    expect(most).toBe(Math.floor(2 ** 32 / (db.numFrames * db.numFeatures)));
+    expect(() => new Crowd(db, 100_000)).toThrow(new RegExp(`^crowd: 100000 characters asked for; at most ${most} on this database`));
+    const crowd = new Crowd(db, most);
+    try {
+      const t = performance.now();
+      crowd.update(1 / 60);
+      console.log(`the largest crowd on locomotion.mmdb (${most} characters): first update ${(performance.now() - t).toFixed(0)} ms in WASM`);
+      expect(crowd.worldPositions(most - 1).every(Number.isFinite)).toBe(true);
+    } finally {
+      crowd.free();
+    }
+  });
+
   it('a crowd on the same database moves hundreds of characters in one call', () => {
     const crowd = new Crowd(db, 64);
     try {

@@ -8,8 +8,8 @@
 #                                   on a character (cargo test --test hostile_*)
 #   fuzz/run.sh long [SECONDS] [TARGET...]
 #                                   coverage-guided AFL++ runs (cargo-afl, stable Rust), SECONDS
-#                                   per target (default 600), targets bvh mmdb builder character (default
-#                                   all); PARALLEL=1 runs them at once (one core each).
+#                                   per target (default 600), targets bvh mmdb builder character roundtrip
+#                                   (default all); PARALLEL=1 runs them at once (one core each).
 #                                   Installs cargo-afl when missing (~2 min). Findings land in
 #                                   fuzz/out/TARGET/default/crashes|hangs; a summary is printed.
 #
@@ -21,16 +21,16 @@ mode="${1:-ci}"
 
 if [[ "$mode" == ci ]]; then
   cd "$here/.."
-  exec cargo test --profile test-opt --test hostile_bvh --test hostile_mmdb --test hostile_character
+  exec cargo test --profile test-opt --test hostile_bvh --test hostile_mmdb --test hostile_character --test roundtrip
 fi
 if [[ "$mode" != long ]]; then
-  echo "usage: fuzz/run.sh ci | long [SECONDS] [bvh|mmdb|builder|character ...]" >&2
+  echo "usage: fuzz/run.sh ci | long [SECONDS] [bvh|mmdb|builder|character|roundtrip ...]" >&2
   exit 2
 fi
 seconds="${2:-600}"
 shift $(( $# >= 2 ? 2 : $# ))
 targets=("$@")
-(( ${#targets[@]} )) || targets=(bvh mmdb builder character)
+(( ${#targets[@]} )) || targets=(bvh mmdb builder character roundtrip)
 
 if ! cargo afl --version >/dev/null 2>&1; then
   echo "installing cargo-afl (cargo install cargo-afl)…"
@@ -43,11 +43,14 @@ export AFL_SKIP_CPUFREQ=1 AFL_I_DONT_CARE_ABOUT_MISSING_CRASHES=1 AFL_NO_UI=1 AF
 corpus_of() { case "$1" in builder) echo build ;; *) echo "$1" ;; esac; }
 
 run() {
-  local t="$1" out="$here/out/$1"
+  local t="$1" out="$here/out/$1" limit=2000
+  # A round-trip case builds, writes, loads and plays 120 updates: up to a few seconds in the
+  # instrumented build with overflow checks.
+  [[ "$t" == roundtrip ]] && limit=10000
   mkdir -p "$out"
   # -V: stop after SECONDS; -t: a per-input time limit (ms), above which AFL reports a hang.
   # A previous run's queue is resumed (AFL_AUTORESUME) so long runs add up.
-  AFL_AUTORESUME=1 cargo afl fuzz -V "$seconds" -t 2000 -i "$here/corpus/$(corpus_of "$t")" -o "$out" \
+  AFL_AUTORESUME=1 cargo afl fuzz -V "$seconds" -t "$limit" -i "$here/corpus/$(corpus_of "$t")" -o "$out" \
     "$here/target/release/$t" > "$out/afl.log" 2>&1 || true
 }
 

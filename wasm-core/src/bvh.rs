@@ -102,6 +102,13 @@ impl Bvh {
         Parser { file, text: &text, pos: 0, line: 1 }.parse()
     }
 
+    /// Heap bytes this parse holds: the values, the joints and their names and channels.
+    pub fn heap_bytes(&self) -> usize {
+        self.values.capacity() * std::mem::size_of::<f64>()
+            + self.joints.capacity() * std::mem::size_of::<BvhJoint>()
+            + self.joints.iter().map(|j| j.name.capacity() + j.channels.capacity() * std::mem::size_of::<Channel>()).sum::<usize>()
+    }
+
     /// Frames per second (`1 / Frame Time`).
     pub fn fps(&self) -> f64 {
         1.0 / self.frame_time
@@ -392,7 +399,13 @@ impl<'a> Parser<'a> {
         // Reserve what the header declares, but never more than the remaining bytes can hold
         // (a number and its separator take at least 2 bytes): `Frames:` may claim anything.
         let declared = num_frames.saturating_mul(num_channels);
-        let mut values = Vec::with_capacity(declared.min((n - self.pos).div_ceil(2)));
+        let capacity = declared.min((n - self.pos).div_ceil(2));
+        // Fallible: in WASM a page may already hold most of wasm32's 4 GiB, and a failed
+        // allocation there is a trap that takes every object of the page with it.
+        let mut values = Vec::new();
+        values.try_reserve_exact(capacity).map_err(|_| {
+            self.error_at(frames_line, format!("out of memory: the motion's {capacity} values ({:.1} MB) could not be allocated", (capacity * 8) as f64 / 1e6))
+        })?;
         let mut pos = self.pos;
         let mut frame = 0;
         while pos < n {

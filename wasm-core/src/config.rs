@@ -3,7 +3,7 @@
 
 use crate::database::{Axes, FeatureKind};
 use crate::error::{Error, Result};
-use crate::limits::{check_fps, check_scale, num, quote, MAX_FEATURE_OFFSET, MAX_SPEED, MAX_WEIGHT, MAX_WINDOW_SECONDS, MIN_WEIGHT};
+use crate::limits::{check_feature_dims, check_fps, check_scale, num, quote, MAX_FEATURE_OFFSET, MAX_SPEED, MAX_WEIGHT, MAX_WINDOW_FRAMES, MAX_WINDOW_SECONDS, MIN_WEIGHT};
 use serde::Deserialize;
 use std::collections::HashMap;
 
@@ -126,6 +126,20 @@ pub struct FeatureSpec {
     pub axis: [f32; 3],
 }
 
+impl FeatureSpec {
+    /// Whether the group is on the virtual root (a trajectory group).
+    pub fn on_root(&self) -> bool {
+        self.joint == "root" || self.joint == crate::builder::VIRTUAL_ROOT
+    }
+
+    /// The dimensions the group adds: its offsets times its axes (`xz` on the root by default,
+    /// `xyz` elsewhere).
+    pub fn num_dims(&self) -> usize {
+        let axes = self.axes.unwrap_or(if self.on_root() { Axes::Xz } else { Axes::Xyz });
+        self.offsets.len().saturating_mul(axes.num_dims())
+    }
+}
+
 fn default_offsets() -> Vec<i32> {
     vec![0]
 }
@@ -186,8 +200,10 @@ impl BuildConfig {
     ///
     /// # Errors
     /// [`Error::Config`] naming the key: `fps` outside 1…1000, a fixed `scale` outside
-    /// 10⁻⁶…10³, a negative, non-finite or too long window or speed, a feature weight outside
-    /// 10⁻³…10³, empty or out-of-range feature offsets, an empty clip frame range.
+    /// 10⁻⁶…10³, a negative, non-finite or too long window or speed (a window is also at most
+    /// [`MAX_WINDOW_FRAMES`] database frames), a feature weight outside 10⁻³…10³, empty or
+    /// out-of-range feature offsets, more feature dimensions than the search takes
+    /// ([`crate::limits::MAX_FEATURE_DIMS`]), an empty clip frame range.
     pub fn validate(&self) -> Result<()> {
         check_fps(self.fps).map_err(Error::config)?;
         if let Scale::Fixed(s) = self.scale {
@@ -201,6 +217,16 @@ impl BuildConfig {
         ] {
             if !(0.0..=max).contains(&v) {
                 return Err(Error::config(format!("{key} must be 0 to {max}, found {}", num(v))));
+            }
+        }
+        for (key, v) in [("contact_filter", self.contact_filter), ("root_position_window", self.root_position_window), ("root_facing_window", self.root_facing_window)] {
+            if v * self.fps > MAX_WINDOW_FRAMES {
+                return Err(Error::config(format!(
+                    "{key} of {} s is {} frames at {} fps; at most {MAX_WINDOW_FRAMES} frames",
+                    num(v),
+                    num(v * self.fps),
+                    num(self.fps)
+                )));
             }
         }
         if let Some(r) = self.min_head_height {
@@ -222,6 +248,9 @@ impl BuildConfig {
             if !f.axis.iter().all(|a| a.is_finite() && a.abs() <= 1e3) {
                 return Err(Error::config(format!("feature '{name}': axis must be finite, found {:?}", f.axis)));
             }
+        }
+        if let Some(features) = &self.features {
+            check_feature_dims(features.iter().map(FeatureSpec::num_dims).fold(0usize, usize::saturating_add)).map_err(|m| Error::config(format!("features: {m}")))?;
         }
         for c in &self.clips {
             if let Some(Scale::Fixed(s)) = c.scale {
@@ -311,6 +340,24 @@ mod tests {
         assert_eq!(BuildConfig::from_json(r#"{"scale": 0.01}"#).unwrap().scale, Scale::Fixed(0.01));
     }
 
+    /// Issue 28: 300 groups (2,700 dims) or 10,000 trajectory offsets passed the checks and built
+    /// a database that loaded but could not be searched.
+    #[test]
+    fn feature_dimensions_beyond_the_search_are_refused() {
+        let group = |i: usize| format!(r#"{{"name": "g{i}", "kind": "position", "joint": "hips", "offsets": [0, 10, 20]}}"#);
+        let many = format!(r#"{{"features": [{}]}}"#, (0..300).map(group).collect::<Vec<_>>().join(","));
+        let e = BuildConfig::from_json(&many).unwrap_err().to_string();
+        assert!(e.contains("features: 2700 feature dimensions; the search takes 1 to 128"), "{e}");
+        let offsets: Vec<String> = (0..10_000).map(|o| (o % 10_000).to_string()).collect();
+        let long = format!(r#"{{"features": [{{"name": "t", "kind": "position", "joint": "root", "offsets": [{}]}}]}}"#, offsets.join(","));
+        let e = BuildConfig::from_json(&long).unwrap_err().to_string();
+        assert!(e.contains("20000 feature dimensions"), "{e}");
+        // 128 exactly is fine: 64 root offsets × xz.
+        let offsets: Vec<String> = (0..64).map(|o| o.to_string()).collect();
+        let edge = format!(r#"{{"features": [{{"name": "t", "kind": "position", "joint": "root", "offsets": [{}]}}]}}"#, offsets.join(","));
+        assert!(BuildConfig::from_json(&edge).is_ok());
+    }
+
     #[test]
     fn wildcards() {
         assert!(wildcard_match("cmu_16_*.bvh", "cmu_16_15.bvh"));
@@ -335,6 +382,11 @@ mod tests {
             (r#"{"features": [{"name": "a", "kind": "position", "joint": "root", "offsets": []}]}"#, "offsets must not be empty"),
             (r#"{"features": [{"name": "a", "kind": "position", "joint": "root", "offsets": [2147483647]}]}"#, "beyond ±10000"),
             (r#"{"clips": [{"file": "a.bvh", "scale": 0}]}"#, "clip 'a.bvh': scale must be between"),
+            (r#"{"fps": 1000, "root_facing_window": 60}"#, "root_facing_window of 60 s is 60000 frames at 1000 fps; at most 1000 frames"),
+            (r#"{"fps": 1000, "contact_filter": 2}"#, "contact_filter of 2 s is 2000 frames"),
+            (r#"{"clips": [{"file": "a.bvh", "style": "Angry"}]}"#, "clip 'a.bvh': style 'Angry' must be 1 to 64 of a-z"),
+            (r#"{"clips": [{"file": "a.bvh", "style": ""}]}"#, "style '' must be 1 to 64"),
+            (r#"{"clips": [{"file": "a.bvh", "root_position_window": 61}]}"#, "clip 'a.bvh': root_position_window must be 0 to 60"),
         ] {
             let e = BuildConfig::from_json(json).unwrap_err().to_string();
             assert!(e.contains(expected), "{json}: {e}");

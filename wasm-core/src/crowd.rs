@@ -3,6 +3,7 @@
 use crate::character::{Character, CharacterSettings};
 use crate::controller::Input;
 use crate::database::Database;
+use crate::limits::{CROWD_MEMORY_BUDGET, CROWD_SEARCH_BUDGET, MAX_CROWD};
 use crate::search::SearchIndex;
 use glam::{Quat, Vec3};
 
@@ -14,7 +15,21 @@ pub struct Crowd {
 
 impl Crowd {
     /// `count` characters on a grid 2 m apart, facing +Z.
-    pub fn new(db: &Database, count: usize, settings: &CharacterSettings) -> Crowd {
+    ///
+    /// # Errors
+    /// More characters than [`Crowd::max_characters`] allows on `db`.
+    pub fn new(db: &Database, count: usize, settings: &CharacterSettings) -> Result<Crowd, String> {
+        let most = Crowd::max_characters(db);
+        if count > most {
+            return Err(format!(
+                "crowd: {count} characters asked for; at most {most} on this database ({} frames × {} feature dims: every character searches it at its first update, and a crowd update may compare {} feature values; each character holds ~{} kB of {} MB)",
+                db.num_frames,
+                db.num_features(),
+                CROWD_SEARCH_BUDGET,
+                character_bytes(db).div_ceil(1000),
+                CROWD_MEMORY_BUDGET >> 20
+            ));
+        }
         let side = (count as f32).sqrt().ceil().max(1.0) as usize;
         let floor = db.toe_height_in_contact();
         let characters = (0..count)
@@ -25,7 +40,19 @@ impl Crowd {
                 c
             })
             .collect();
-        Crowd { characters, inputs: vec![Input::default(); count] }
+        Ok(Crowd { characters, inputs: vec![Input::default(); count] })
+    }
+
+    /// The most characters a crowd on `db` may hold, from two budgets (`crate::limits`): every
+    /// character searches the whole database at its first update (and whenever its input
+    /// changes sharply), so `count × frames × dims` feature values compared in one update stay
+    /// within [`CROWD_SEARCH_BUDGET`] (~1 s in WASM); and their memory within
+    /// [`CROWD_MEMORY_BUDGET`]. At least 1 and at most [`MAX_CROWD`].
+    pub fn max_characters(db: &Database) -> usize {
+        let search = (db.num_frames as u64).saturating_mul(db.num_features() as u64).max(1);
+        let by_search = CROWD_SEARCH_BUDGET / search;
+        let by_memory = CROWD_MEMORY_BUDGET / character_bytes(db) as u64;
+        (by_search.min(by_memory) as usize).clamp(1, MAX_CROWD)
     }
 
     /// Advances every character by `dt` under its input. Allocates nothing.
@@ -34,4 +61,11 @@ impl Crowd {
             c.update(db, index, input, dt);
         }
     }
+}
+
+/// An upper bound of the memory one character of a crowd holds on `db`: the character itself
+/// and its per-joint and per-dimension buffers (measured against a counting allocator by
+/// `tests/crowd_cost.rs`), and its input.
+pub fn character_bytes(db: &Database) -> usize {
+    std::mem::size_of::<Character>() + std::mem::size_of::<Input>() + 1024 + 256 * db.num_joints() + 32 * db.num_features()
 }

@@ -7,8 +7,8 @@ pub mod codec;
 use crate::database::{Axes, Clip, Database, FeatureGroup, FeatureKind, Site, Skeleton, Tag};
 use crate::error::{Error, Result};
 use crate::limits::{
-    num, quote, MAX_ABS_STORED, MAX_FEATURE_OFFSET, MAX_FEATURE_SCALE, MAX_FPS, MAX_SCALE, MAX_SOURCE_FPS, MIN_FEATURE_SCALE, MIN_FPS, MIN_SCALE,
-    MIN_SOURCE_FPS, QUAT_NORM_TOLERANCE,
+    check_feature_dims, num, quote, MAX_ABS_STORED, MAX_FEATURE_OFFSET, MAX_FEATURE_SCALE, MAX_FPS, MAX_FRAMES, MAX_ROOT_SCALE, MAX_SCALE, MAX_SOURCE_FPS,
+    MIN_FEATURE_SCALE, MIN_FPS, MIN_SCALE, MIN_SOURCE_FPS, QUAT_NORM_TOLERANCE,
 };
 use glam::{Quat, Vec3};
 
@@ -252,6 +252,9 @@ pub fn from_bytes(bytes: &[u8]) -> Result<Database> {
     if num_frames == 0 {
         return Err(Error::format("INFO.num_frames is 0: a database needs at least one frame"));
     }
+    if num_frames > MAX_FRAMES {
+        return Err(Error::format(format!("INFO.num_frames is {num_frames}, more than {MAX_FRAMES}")));
+    }
     if num_joints == 0 {
         return Err(Error::format("INFO.num_joints is 0"));
     }
@@ -260,6 +263,8 @@ pub fn from_bytes(bytes: &[u8]) -> Result<Database> {
             "INFO has {num_groups} feature groups and {num_dims} feature dims: a database needs at least one of each"
         )));
     }
+    // A database the search cannot take would load and then fail in every page and tool.
+    check_feature_dims(num_dims).map_err(|m| Error::format(format!("INFO: {m}")))?;
     if flags & !1 != 0 {
         return Err(Error::format(format!("INFO.flags is {flags:#x}: only bit 0 (mirrored clips) is defined")));
     }
@@ -323,15 +328,7 @@ pub fn from_bytes(bytes: &[u8]) -> Result<Database> {
                 clip.start, clip.end
             )));
         }
-        if !(MIN_SOURCE_FPS..=MAX_SOURCE_FPS).contains(&clip.source_fps) {
-            return Err(Error::format(format!("CLIP '{name}': source fps {} is outside {MIN_SOURCE_FPS}..{MAX_SOURCE_FPS}", num(clip.source_fps))));
-        }
-        if !(MIN_SCALE as f32..=MAX_SCALE as f32).contains(&clip.scale) {
-            return Err(Error::format(format!("CLIP '{name}': scale {} is outside {}..{}", num(clip.scale), num(MIN_SCALE), num(MAX_SCALE))));
-        }
-        if !(1.0 / MAX_ROOT_SCALE..=MAX_ROOT_SCALE).contains(&clip.root_scale) {
-            return Err(Error::format(format!("CLIP '{name}': root scale {:e} is outside {:e}..{MAX_ROOT_SCALE:e}", clip.root_scale, 1.0 / MAX_ROOT_SCALE)));
-        }
+        check_clip_values(&clip)?;
         // Names identify clips in the page and the CLI (a linear scan: clips are few and a
         // hash set would allocate per name).
         if clips.iter().any(|c| c.name == clip.name) {
@@ -379,7 +376,7 @@ pub fn from_bytes(bytes: &[u8]) -> Result<Database> {
     // (codec.rs) and velocities are derived below.
     let (local_positions, local_rotations, velocities) = if version == 1 {
         let local_positions = section(b"LPOS")?.vec3s(fj)?;
-        let local_rotations: Vec<Quat> = section(b"LROT")?.pods(fj)?;
+        let mut local_rotations: Vec<Quat> = section(b"LROT")?.pods(fj)?;
         if let Some(i) = local_rotations.iter().position(|q| !(q.length_squared() - 1.0).abs().le(&QUAT_NORM_TOLERANCE)) {
             return Err(Error::format(format!(
                 "LROT: frame {} joint {} is not a unit quaternion ({})",
@@ -388,6 +385,9 @@ pub fn from_bytes(bytes: &[u8]) -> Result<Database> {
                 local_rotations[i]
             )));
         }
+        // Normalized, as version 2's decoder does: a rotation 10⁻³ off unit loads, and written
+        // again (quantized to 1/32767) it must still load (found by the `mmdb` fuzz target).
+        local_rotations.iter_mut().for_each(|q| *q = q.normalize());
         let velocities = (section(b"LVEL")?.vec3s(fj)?, section(b"LAVL")?.vec3s(fj)?);
         (local_positions, local_rotations, Some(velocities))
     } else {
@@ -430,13 +430,9 @@ pub fn from_bytes(bytes: &[u8]) -> Result<Database> {
         if offsets.is_empty() {
             return Err(Error::format(format!("FDSC: feature '{quoted}' has no frame offsets (no dimensions)")));
         }
-        if let Some(o) = offsets.iter().find(|o| o.unsigned_abs() > MAX_FEATURE_OFFSET as u32) {
-            return Err(Error::format(format!("FDSC: feature '{quoted}' has frame offset {o}, beyond ±{MAX_FEATURE_OFFSET}")));
-        }
+        check_offsets(&quoted, &offsets)?;
         let weight = r.f32("feature weight")?;
-        if !(1.0 / MAX_STORED_WEIGHT..=MAX_STORED_WEIGHT).contains(&weight) {
-            return Err(Error::format(format!("FDSC: feature '{quoted}' has weight {weight:e}, outside {:e}..{MAX_STORED_WEIGHT:e}", 1.0 / MAX_STORED_WEIGHT)));
-        }
+        check_weight(&quoted, weight)?;
         let first_dim = r.u32("feature first dim")? as usize;
         let num = r.u32("feature dim count")? as usize;
         if first_dim != next_dim || num != offsets.len() * axes.num_dims() {
@@ -452,12 +448,7 @@ pub fn from_bytes(bytes: &[u8]) -> Result<Database> {
     let mut norm = section(b"FNRM")?.f32s(num_dims.checked_mul(2).ok_or_else(|| Error::format("INFO counts overflow"))?)?;
     let feature_scale = norm.split_off(num_dims);
     let feature_mean = norm;
-    if let Some(d) = feature_scale.iter().position(|s| !(MIN_FEATURE_SCALE..=MAX_FEATURE_SCALE).contains(s)) {
-        return Err(Error::format(format!(
-            "FNRM: scale of dim {d} is {}, outside {MIN_FEATURE_SCALE:e}..{MAX_FEATURE_SCALE:e} (queries are divided by it)",
-            num(feature_scale[d])
-        )));
-    }
+    check_feature_scale(&feature_scale)?;
     let num_values = num_frames.checked_mul(num_dims).ok_or_else(|| Error::format("INFO counts overflow"))?;
     let features = if version == 1 { section(b"FEAT")?.f32s(num_values)? } else { codec::unshuffle_features(section(b"FSHF")?.data, num_frames, num_dims).map_err(Error::format)? };
     let valid = section(b"VALD")?.flags(num_frames)?;
@@ -539,9 +530,81 @@ pub fn check_round_trip(original: &Database, loaded: &Database) -> std::result::
     Ok(())
 }
 
-/// Largest `CLIP.root_scale` (a leg-length ratio between two subjects; people differ by
-/// less than 3×, so 1,000× either way is corruption), and the inverse is the smallest.
-const MAX_ROOT_SCALE: f32 = 1e3;
+/// Checks the values of a database in memory the way [`from_bytes`] checks them in a file,
+/// with the same messages: what the builder calls before it returns a database, so that it
+/// never writes one its own loader refuses (`limits` has every bound). The structure (counts,
+/// tiling) is the builder's by construction; these are the values that come from the data.
+///
+/// # Errors
+/// [`Error::Format`] naming the section and field of the first value out of range.
+pub fn check_database(db: &Database) -> Result<()> {
+    if !(MIN_FPS as f32..=MAX_FPS as f32).contains(&db.fps) {
+        return Err(Error::format(format!("INFO.fps must be between {MIN_FPS} and {MAX_FPS}, found {}", num(db.fps))));
+    }
+    if db.num_frames == 0 || db.num_frames > MAX_FRAMES {
+        return Err(Error::format(format!("INFO.num_frames is {}, not 1 to {MAX_FRAMES}", db.num_frames)));
+    }
+    check_feature_dims(db.num_features()).map_err(|m| Error::format(format!("INFO: {m}")))?;
+    check_floats("SKEL joint offset", bytemuck::cast_slice(&db.skeleton.offsets))?;
+    for clip in &db.clips {
+        check_clip_values(clip)?;
+    }
+    for g in &db.groups {
+        let quoted = quote(&g.name);
+        check_offsets(&quoted, &g.offsets)?;
+        check_weight(&quoted, g.weight)?;
+    }
+    check_feature_scale(&db.feature_scale)?;
+    check_floats("SKEL site offset", &db.skeleton.sites.iter().flat_map(|s| s.offset.to_array()).collect::<Vec<_>>())?;
+    check_floats("FDSC feature axis", &db.groups.iter().flat_map(|g| g.axis.to_array()).collect::<Vec<_>>())?;
+    check_floats("PANM", bytemuck::cast_slice(&db.local_positions))?;
+    if let Some(i) = db.local_rotations.iter().position(|q| !(q.length_squared() - 1.0).abs().le(&QUAT_NORM_TOLERANCE)) {
+        let j = db.num_joints().max(1);
+        return Err(Error::format(format!("QROT: frame {} joint {} is not a unit quaternion ({})", i / j, i % j, db.local_rotations[i])));
+    }
+    check_floats("FNRM mean", &db.feature_mean)?;
+    check_floats("FSHF", &db.features)?;
+    Ok(())
+}
+
+fn check_clip_values(clip: &Clip) -> Result<()> {
+    let name = quote(&clip.name);
+    if !(MIN_SOURCE_FPS..=MAX_SOURCE_FPS).contains(&clip.source_fps) {
+        return Err(Error::format(format!("CLIP '{name}': source fps {} is outside {MIN_SOURCE_FPS}..{MAX_SOURCE_FPS}", num(clip.source_fps))));
+    }
+    if !(MIN_SCALE as f32..=MAX_SCALE as f32).contains(&clip.scale) {
+        return Err(Error::format(format!("CLIP '{name}': scale {} is outside {}..{}", num(clip.scale), num(MIN_SCALE), num(MAX_SCALE))));
+    }
+    if !(1.0 / MAX_ROOT_SCALE..=MAX_ROOT_SCALE).contains(&clip.root_scale) {
+        return Err(Error::format(format!("CLIP '{name}': root scale {:e} is outside {:e}..{MAX_ROOT_SCALE:e}", clip.root_scale, 1.0 / MAX_ROOT_SCALE)));
+    }
+    Ok(())
+}
+
+fn check_offsets(quoted: &str, offsets: &[i32]) -> Result<()> {
+    if let Some(o) = offsets.iter().find(|o| o.unsigned_abs() > MAX_FEATURE_OFFSET as u32) {
+        return Err(Error::format(format!("FDSC: feature '{quoted}' has frame offset {o}, beyond ±{MAX_FEATURE_OFFSET}")));
+    }
+    Ok(())
+}
+
+fn check_weight(quoted: &str, weight: f32) -> Result<()> {
+    if !(1.0 / MAX_STORED_WEIGHT..=MAX_STORED_WEIGHT).contains(&weight) {
+        return Err(Error::format(format!("FDSC: feature '{quoted}' has weight {weight:e}, outside {:e}..{MAX_STORED_WEIGHT:e}", 1.0 / MAX_STORED_WEIGHT)));
+    }
+    Ok(())
+}
+
+fn check_feature_scale(feature_scale: &[f32]) -> Result<()> {
+    if let Some(d) = feature_scale.iter().position(|s| !(MIN_FEATURE_SCALE..=MAX_FEATURE_SCALE).contains(s)) {
+        return Err(Error::format(format!(
+            "FNRM: scale of dim {d} is {}, outside {MIN_FEATURE_SCALE:e}..{MAX_FEATURE_SCALE:e} (queries are divided by it)",
+            num(feature_scale[d])
+        )));
+    }
+    Ok(())
+}
+
 /// Largest feature weight a reader accepts, and the inverse the smallest (the configuration
 /// allows [`MIN_WEIGHT`](crate::limits::MIN_WEIGHT)…[`MAX_WEIGHT`](crate::limits::MAX_WEIGHT);
 /// files written before that check may have used more).
@@ -838,6 +901,52 @@ mod tests {
             let m = message(&to_bytes(&db));
             assert!(m.contains(expected), "{what}: {m}");
         }
+    }
+
+    /// The builder's last check is the loader's: each value the loader refuses in a file,
+    /// `check_database` refuses in memory with the same message (issue 28: the builder wrote
+    /// files its own loader refused).
+    #[test]
+    fn check_database_says_what_the_loader_says() {
+        type Edit = Box<dyn Fn(&mut Database)>;
+        let edits: Vec<(&str, Edit)> = vec![
+            ("huge fps", Box::new(|db| db.fps = 1e30)),
+            ("nan position", Box::new(|db| db.local_positions[3].y = f32::NAN)),
+            ("inf feature", Box::new(|db| db.features[5] = f32::INFINITY)),
+            ("zero scale", Box::new(|db| db.feature_scale[1] = 0.0)),
+            ("huge scale", Box::new(|db| db.feature_scale[0] = 1.34e12)),
+            ("nan clip scale", Box::new(|db| db.clips[0].scale = f32::NAN)),
+            ("huge offset", Box::new(|db| db.groups[0].offsets[0] = i32::MIN)),
+            ("nan weight", Box::new(|db| db.groups[0].weight = f32::NAN)),
+            ("root scale 1e4", Box::new(|db| db.clips[0].root_scale = 1e4)),
+            ("nan site", Box::new(|db| db.skeleton.sites[0].offset.x = f32::NAN)),
+            ("huge mean", Box::new(|db| db.feature_mean[1] = 1e13)),
+        ];
+        assert!(check_database(&tiny()).is_ok());
+        for (what, edit) in edits {
+            let mut db = tiny();
+            edit(&mut db);
+            let loader = message(&to_bytes(&db));
+            let builder = format!("invalid .mmdb: {}", check_database(&db).map(|_| "accepted".into()).unwrap_or_else(|e| match e {
+                Error::Format(m) => m,
+                other => other.to_string(),
+            }));
+            assert_eq!(builder, loader, "{what}");
+        }
+        let mut db = tiny();
+        db.local_rotations[2] = Quat::from_xyzw(0.0, 0.0, 0.0, 2.0);
+        assert!(check_database(&db).unwrap_err().to_string().contains("QROT: frame 1 joint 0 is not a unit quaternion"));
+    }
+
+    /// A frame count past 2²⁴ in `INFO` is refused before anything is read (frame indices stay
+    /// exact in f32 and u32).
+    #[test]
+    fn rejects_more_frames_than_the_limit() {
+        let mut bytes = to_bytes(&tiny());
+        let info = align(HEADER_LEN + ENTRY_LEN * TAGS.len());
+        bytes[info..info + 4].copy_from_slice(&((MAX_FRAMES + 1) as u32).to_le_bytes());
+        refix(&mut bytes);
+        assert_eq!(message(&bytes), "invalid .mmdb: INFO.num_frames is 16777217, more than 16777216");
     }
 
     /// At least one frame and one feature group of at least one dimension (inspect and the

@@ -26,6 +26,12 @@
 //! | `.mmdb` allocation | ≤ [`MMDB_ALLOCATION_FACTOR`] × file size | every count is checked against the bytes that must hold it |
 //! | BVH allocation | ≤ [`BVH_ALLOCATION_FACTOR`] × file size + 1 MiB | values are at least 2 bytes of text each; non-UTF-8 text may triple when made readable |
 //! | a built database | ≤ [`MAX_DATABASE_BYTES`] (1 GiB), ≤ [`MAX_FRAMES`] frames ([`check_database_size`]) | resampling a 1 fps take to 1,000 fps grows it 1,000-fold; wasm32 has 4 GiB |
+//! | feature dimensions (config, build, `INFO`, search) | 1 … [`MAX_FEATURE_DIMS`] (128) ([`check_feature_dims`]) | the search keeps a query's lanes on the stack, so a search never allocates |
+//! | memory a build needs (estimated before it allocates) | ≤ [`MAX_BUILD_BYTES`] (3 GiB) ([`BuildFootprint`]) | wasm32 holds 4 GiB in all; an allocation that fails there is a trap |
+//! | a take's reach (values × scale, chained) | ≤ [`MAX_REACH`] (10⁵ m) | so positions, velocities at 1,000 fps and feature scales stay within what the loader accepts |
+//! | root-motion scale of a take | [`1 / MAX_ROOT_SCALE`](MAX_ROOT_SCALE) … [`MAX_ROOT_SCALE`] (10³) | the builder keeps a take's root motion unscaled outside it (`CLIP.root_scale`) |
+//! | configuration windows at the database fps | ≤ [`MAX_WINDOW_FRAMES`] (1,000) frames | the smoothing weights are window² floats, the contact vote window × frames steps |
+//! | characters in one crowd | ≤ `crowd::Crowd::max_characters`: [`CROWD_SEARCH_BUDGET`] / (frames × dims), [`CROWD_MEMORY_BUDGET`] / bytes per character, 1 … [`MAX_CROWD`] | every character searches at its first update: 100,000 took 304 s |
 //! | quoted input in a message | [`MAX_QUOTE_CHARS`] characters | a 1 MB token must not become a 1 MB message |
 //! | a whole message | [`MAX_MESSAGE_CHARS`] characters | same, as a backstop for every error of the crate |
 
@@ -144,6 +150,42 @@ pub fn check_scale(scale: f64) -> std::result::Result<(), String> {
     }
 }
 
+/// Feature dimensions of a database. The search ([`crate::search::SearchIndex`]) splats a
+/// query and its weights across lanes on the stack (2 × 2 KiB at 128) so that a search never
+/// allocates; the default feature set has 27 dims. Checked by the configuration, the builder,
+/// the loader (`INFO.num_feature_dims`) and the search itself.
+pub const MAX_FEATURE_DIMS: usize = 128;
+
+/// Checks a feature dimension count: 1 to [`MAX_FEATURE_DIMS`].
+///
+/// # Errors
+/// A message with the count and the limit.
+pub fn check_feature_dims(dims: usize) -> std::result::Result<(), String> {
+    if (1..=MAX_FEATURE_DIMS).contains(&dims) {
+        Ok(())
+    } else {
+        Err(format!("{dims} feature dimensions; the search takes 1 to {MAX_FEATURE_DIMS} (fewer groups, offsets or axes)"))
+    }
+}
+
+/// Farthest a take's joints may reach from the origin, in metres: every BVH value (offsets and
+/// position channels, at most [`MAX_ABS_BVH_VALUE`]) times the unit scale (up to
+/// [`MAX_SCALE`]) and the root-motion scale, summed along each joint chain. Within it, a
+/// position is ≤ 10⁵ m, a velocity at 1,000 fps ≤ 2·10⁸ m/s and so every feature scale
+/// (std / weight ≤ 2·10¹¹) and stored float stays inside what the loader accepts; 100 km is
+/// also how far the runtime lets a character be teleported or walk a path.
+pub const MAX_REACH: f64 = 1e5;
+
+/// Root-motion scale of a clip (`CLIP.root_scale`): a take whose legs are more than 1,000
+/// times longer or shorter than the reference's keeps its root motion unscaled.
+pub const MAX_ROOT_SCALE: f32 = 1e3;
+
+/// Longest configuration window in database frames (`contact_filter`, `root_position_window`,
+/// `root_facing_window` times the fps): a Savitzky–Golay window of w frames keeps w² f64
+/// weights for the session (8 MB at 1,001 frames; a 60 s window at 1,000 fps on a minute-long take would need 29 GB),
+/// and the contact vote takes 2w steps per frame.
+pub const MAX_WINDOW_FRAMES: f64 = 1000.0;
+
 /// Largest database a build may produce, in bytes of its arrays (pose arrays, contacts,
 /// features, validity): wasm32 has 4 GiB of address space, shared with the sources and the
 /// builder's f64 intermediates (about twice the output).
@@ -170,6 +212,91 @@ pub fn check_database_size(frames: usize, joints: usize, dims: usize) -> std::re
     }
     Ok(())
 }
+
+/// Most memory a build may need, in bytes (see [`BuildFootprint`]): wasm32 holds 4 GiB in all,
+/// and the page keeps the module's code, its databases and characters in the rest. The same
+/// limit holds natively, so a database the CLI builds can be built in the page too.
+pub const MAX_BUILD_BYTES: u64 = 3 << 30;
+
+/// What a build will hold at its peak, counted before it allocates anything: the parsed
+/// sources, the database's arrays, the f64 working copies of the largest take, the velocities
+/// derived at the end and the `.mmdb` bytes written. [`BuildFootprint::bytes`] is an upper bound
+/// of the heap a single-threaded build (WASM) holds, measured against a counting allocator by
+/// `tests/build_limits.rs`; a native build runs takes on several threads, each with its own
+/// working copies.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct BuildFootprint {
+    /// Heap bytes the parsed sources hold (8 per BVH value, plus names).
+    pub source_bytes: u64,
+    /// Database frames, joints (the virtual root included) and feature dimensions.
+    pub frames: u64,
+    pub joints: u64,
+    pub dims: u64,
+    /// Output frames of the longest take, and the most joints a take's working copies have
+    /// (its own skeleton's plus the reference's when it is retargeted).
+    pub take_frames: u64,
+    pub take_joints: u64,
+    /// Working copies of a take besides the resampled one: 1 per mirrored or reversed variant.
+    pub take_copies: u64,
+    /// Bytes of names in the database (clips, tags, joints), written into the file.
+    pub name_bytes: u64,
+}
+
+impl BuildFootprint {
+    /// The estimated peak, in bytes (saturating).
+    pub fn bytes(&self) -> u64 {
+        let m = |a: u64, b: u64| a.saturating_mul(b);
+        let (n, j, d) = (self.frames, self.joints, self.dims);
+        // The database's arrays while the takes are built (positions 12 B and rotations 16 B
+        // per joint, 4 B per feature, 2 contact bytes), and once whole (+ velocities 24 B per
+        // joint, + 1 validity byte).
+        let rows = m(n, m(j, 28) + m(d, 4) + 2);
+        let whole = m(n, m(j, 52) + m(d, 4) + 3);
+        // One take's f64 working copies: the resampled local transforms (56 B per joint), one
+        // per mirrored/reversed variant, world transforms, the rows with the virtual root, the
+        // root itself and its smoothing inputs, contacts.
+        let t = self.take_frames;
+        let take = m(t, m(self.take_joints, 56).saturating_mul(2 + self.take_copies) + m(j, 56) + 56 + 48 + 2);
+        // The file: encoded poses (≤ 12 B per animated joint position, 8 B per rotation),
+        // shuffled features and the flags, held twice while the file is assembled.
+        let file = m(n, m(j, 20) + m(d, 4) + 3).saturating_add(self.name_bytes).saturating_add(1 << 16);
+        let peak = (rows.saturating_add(take)).max(whole.saturating_add(m(file, 2)));
+        // Small things (groups, tags, clip lists, the smoothing weights of two 1,001-frame
+        // windows) and allocator rounding.
+        self.source_bytes.saturating_add(peak).saturating_add(peak / 64).saturating_add(48 << 20)
+    }
+
+    /// Checks the estimate against [`MAX_BUILD_BYTES`].
+    ///
+    /// # Errors
+    /// A message with the estimate, the limit and what to change.
+    pub fn check(&self) -> std::result::Result<(), String> {
+        let bytes = self.bytes();
+        if bytes > MAX_BUILD_BYTES {
+            return Err(format!(
+                "the build would need about {:.1} GB of memory ({} frames, the longest take {} frames), more than the {:.1} GB a build may use (wasm32 holds 4 GB) — use fewer or shorter takes, or a lower fps",
+                bytes as f64 / 1e9,
+                self.frames,
+                self.take_frames,
+                MAX_BUILD_BYTES as f64 / 1e9
+            ));
+        }
+        Ok(())
+    }
+}
+
+/// Characters one crowd may hold, whatever the database: far past what a frame can update (a
+/// few hundred in 4 ms), low enough that a typo cannot ask wasm32 for gigabytes.
+pub const MAX_CROWD: usize = 100_000;
+
+/// Feature values a crowd update may compare when every character searches at once (its first
+/// update, or a sharp input change for all): `count × frames × dims` ≤ this. 2³² is about a
+/// second of WASM: 6,443 characters on the 24,688-frame, 27-dim locomotion database, whose
+/// first update took 1.0 s in Node (docs/robustness.md); a crowd of 100,000 there took 304 s.
+pub const CROWD_SEARCH_BUDGET: u64 = 1 << 32;
+
+/// Memory a crowd's characters may hold (`crowd::character_bytes` each).
+pub const CROWD_MEMORY_BUDGET: u64 = 256 << 20;
 
 /// Frames a take of `source_frames` frames at `source_fps` gives when resampled to `fps`,
 /// the way the builder counts them, or `None` when that exceeds [`MAX_FRAMES`] (a builder

@@ -81,7 +81,7 @@ pub fn brute_force(db: &Database, query: &[f32], options: &SearchOptions, k: usi
 /// Largest feature dimension count a [`SearchIndex`] accepts. The per-search splatted query
 /// and weights live on the stack (2 × 2 KiB) so a search never allocates; the default feature
 /// set has 27 dims.
-pub const MAX_DIMS: usize = 128;
+pub const MAX_DIMS: usize = crate::limits::MAX_FEATURE_DIMS;
 
 /// Which search algorithm to run; all return the same result.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]

@@ -124,3 +124,89 @@ fn a_slow_take_resampled_past_the_size_limit_is_refused_before_allocating() {
     assert!(stderr(&out).contains("the database would have"), "{}", stderr(&out));
     assert!(!db.exists());
 }
+
+/// Issue 28: `mmdb replay` accepted recordings the page refuses (zero or 10³⁰⁰ quaternions,
+/// non-increasing time) and printed NaN metrics; a string in `time` said "time has 345 finite
+/// numbers, expected 345". It now reads them with the page's validator (the shared cases are in
+/// `tests/corpus/recordings/cases.json`), and a recording it replays gives finite metrics.
+#[test]
+fn replay_validates_recordings_as_the_page_does() {
+    let bvh = temp("replay-walk.bvh");
+    std::fs::write(&bvh, hostile::humanoid_bvh(240)).unwrap();
+    let db = temp("replay-walk.mmdb");
+    let out = mmdb(&["build", bvh.to_str().unwrap(), "-o", db.to_str().unwrap()]);
+    assert!(out.status.success(), "{}", stderr(&out));
+    let recording = |frames: usize, edit: &dyn Fn(&mut serde_json::Value)| {
+        let mut v = serde_json::json!({
+            "format": "mm-vr-recording", "version": 1, "frames": frames, "meta": {"eyeHeight": 1.6},
+            "time": (0..frames).map(|f| f as f64 / 60.0).collect::<Vec<_>>(),
+            "position": (0..frames).flat_map(|f| [0.0, 1.6, f as f64 / 60.0, -0.2, 1.0, 0.0, 0.2, 1.0, 0.0]).collect::<Vec<_>>(),
+            "rotation": (0..frames * 3).flat_map(|_| [0.0, 0.0, 0.0, 1.0]).collect::<Vec<_>>(),
+            "tracked": vec![1; 3 * frames],
+        });
+        edit(&mut v);
+        let path = temp("rec.json");
+        std::fs::write(&path, v.to_string()).unwrap();
+        mmdb(&["replay", db.to_str().unwrap(), path.to_str().unwrap(), "--yaw", "hmd", "--json"])
+    };
+    let zero = |v: &mut serde_json::Value| (0..4).for_each(|c| v["rotation"][12 + c] = 0.0.into());
+    let huge = |v: &mut serde_json::Value| v["rotation"][15] = 1e300.into();
+    let back = |v: &mut serde_json::Value| v["time"][5] = 0.0.into();
+    let text = |v: &mut serde_json::Value| v["time"][3] = "0.05".into();
+    for (what, edit, expected) in [
+        ("zero quaternion", &zero as &dyn Fn(&mut serde_json::Value), "rec.json: rotation of frame 1, tracker 0 is not a unit quaternion (length 0.0000)"),
+        ("1e300 quaternion", &huge, "rec.json: rotation of frame 1, tracker 0 is not a unit quaternion (length Infinity)"),
+        ("time going back", &back, "rec.json: time must increase: time[5] = 0 after 0.06666666666666667"),
+        ("a string in time", &text, "rec.json: \"time\"[3] is not a number"),
+    ] {
+        let out = recording(120, edit);
+        assert_eq!(out.status.code(), Some(1), "{what}: {}", stderr(&out));
+        assert!(stderr(&out).contains(expected), "{what}: {}", stderr(&out));
+    }
+    let out = recording(1, &|_| {});
+    assert!(stderr(&out).contains("a replay needs at least 2 frames, the recording has 1"), "{}", stderr(&out));
+    let out = recording(120, &|_| {});
+    assert!(out.status.success(), "{}", stderr(&out));
+    let metrics = String::from_utf8_lossy(&out.stdout);
+    // No truth: no root distance; every other metric a number (serde writes NaN as null).
+    assert!(metrics.contains("\"root_distance\":null") && metrics.matches("null").count() == 1, "{metrics}");
+}
+
+/// Issue 28, cases 2 and 3 through the CLI: a configuration of 300 feature groups (2,700
+/// dimensions) built with exit 0 and `mmdb quality` panicked on the result (exit 101); a BVH
+/// with every number ≤ 10⁷ built with `--scale 1000 --fps 1000` exited 0 and its own loader
+/// refused the file. Now the first is a config error, a wide file is refused by the loader (no
+/// panic), and the second is refused by the build naming the take.
+#[test]
+fn builds_the_search_or_the_loader_would_refuse_are_refused_by_the_build() {
+    let bvh = temp("limits-walk.bvh");
+    std::fs::write(&bvh, hostile::humanoid_bvh(120)).unwrap();
+    let group = |i: usize| format!(r#"{{"name": "g{i}", "kind": "position", "joint": "hips", "offsets": [0, 10, 20]}}"#);
+    let config = temp("wide.json");
+    std::fs::write(&config, format!(r#"{{"clips": [{{"file": "limits-walk.bvh"}}], "features": [{}]}}"#, (0..300).map(group).collect::<Vec<_>>().join(","))).unwrap();
+    let db = temp("limits.mmdb");
+    let out = mmdb(&["build", "--config", config.to_str().unwrap(), "-o", db.to_str().unwrap()]);
+    assert!(!out.status.success() && stderr(&out).contains("features: 2700 feature dimensions; the search takes 1 to 128"), "{}", stderr(&out));
+    // A file with 133 dimensions (written by hand): refused by every command that loads it.
+    let wide = temp("wide.mmdb");
+    std::fs::write(&wide, mmcore::format::to_bytes(&hostile::wide_database(128))).unwrap();
+    for command in ["quality", "inspect"] {
+        let out = mmdb(&[command, wide.to_str().unwrap()]);
+        assert_eq!(out.status.code(), Some(1), "{command}: {}", stderr(&out));
+        assert!(stderr(&out).contains("INFO: 133 feature dimensions; the search takes 1 to 128"), "{command}: {}", stderr(&out));
+    }
+    // Every value ≤ 10⁷, the root jumping ±10⁷ units every other frame at 1,000 fps, built at
+    // 1,000 m per unit and 1,000 fps: exit 0 and "FNRM: scale of dim 6 is 3.3e12" on load before.
+    let text: String = hostile::humanoid_bvh(120)
+        .replace("Frame Time: 0.00833333", "Frame Time: 0.001")
+        .lines()
+        .enumerate()
+        .map(|(i, l)| if i >= 76 { l.replacen("0.000000 0.950000", if (i - 76) / 2 % 2 == 0 { "10000000 0.950000" } else { "-10000000 0.950000" }, 1) } else { l.to_string() })
+        .collect::<Vec<_>>()
+        .join("\n");
+    let far = temp("far.bvh");
+    std::fs::write(&far, text).unwrap();
+    let out = mmdb(&["build", far.to_str().unwrap(), "-o", db.to_str().unwrap(), "--scale", "1000", "--fps", "1000"]);
+    assert_eq!(out.status.code(), Some(1), "{}", stderr(&out));
+    assert!(stderr(&out).contains("its values times the unit scale 1000 reach") && stderr(&out).contains("at most 100000 m — check the unit scale (--scale)"), "{}", stderr(&out));
+}

@@ -3,6 +3,7 @@
 //! (`tests/hostile_*.rs`) replay on every `cargo test`.
 
 pub mod character;
+pub mod roundtrip;
 pub use character::check_character;
 
 use mmcore::limits::{MAX_FPS, MAX_JOINTS, MAX_MESSAGE_CHARS, MIN_FPS};

@@ -5,6 +5,9 @@
 //! mmdb-cases OUT_DIR          every BVH case and .mmdb mutation + OUT_DIR/cases.json
 //! mmdb-cases --seeds DIR      the fuzzers' seed corpus: DIR/{bvh,build,mmdb}/ (small files),
 //!                             and tests/corpus/mmdb/humanoid.mmdb if it is missing
+//! mmdb-cases --roundtrip DIR N  N cases of the round-trip property (`fuzz/src/roundtrip.rs`,
+//!                             the seeds of `tests/roundtrip.rs`): DIR/NNN/{config.json, *.bvh}
+//!                             and DIR/roundtrip.json with the native verdict of each
 //! ```
 //!
 //! `cases.json` lists `{kind: "bvh"|"mmdb", file, expect: "ok"|"error"|"either", contains,
@@ -14,6 +17,9 @@
 
 #[path = "../../tests/hostile/mod.rs"]
 mod hostile;
+#[path = "../../fuzz/src/roundtrip.rs"]
+#[allow(dead_code)]
+mod roundtrip;
 
 use hostile::Expect;
 use mmcore::{format, Bvh};
@@ -23,8 +29,9 @@ fn main() {
     let args: Vec<String> = std::env::args().skip(1).collect();
     let result = match args.as_slice() {
         [flag, dir] if flag == "--seeds" => seeds(Path::new(dir)),
+        [flag, dir, n] if flag == "--roundtrip" => n.parse().map_err(|_| format!("--roundtrip: {n} is not a count")).and_then(|n| round_trip_cases(Path::new(dir), n)),
         [dir] if !dir.starts_with('-') => cases(Path::new(dir)),
-        _ => Err("usage: mmdb-cases OUT_DIR | mmdb-cases --seeds DIR".to_string()),
+        _ => Err("usage: mmdb-cases OUT_DIR | mmdb-cases --seeds DIR | mmdb-cases --roundtrip DIR N".to_string()),
     };
     if let Err(e) = result {
         eprintln!("mmdb-cases: {e}");
@@ -72,6 +79,29 @@ fn seeds(dir: &Path) -> Result<(), String> {
     }
     write(&dir.join("mmdb/humanoid.mmdb"), &humanoid_seed()?)?;
     println!("{} seed files in {}", n + 2, dir.display());
+    Ok(())
+}
+
+/// The first `n` cases of `tests/roundtrip.rs` (same seed, same bytes), with the native verdict.
+fn round_trip_cases(dir: &Path, n: usize) -> Result<(), String> {
+    let mut rng = mmcore::rng::Rng(28);
+    let mut list = Vec::new();
+    for i in 0..n {
+        let bytes: Vec<u8> = (0..400).map(|_| (rng.next_u64() >> 24) as u8).collect();
+        let case = roundtrip::generate(&bytes);
+        let sub = format!("{i:03}");
+        write(&dir.join(&sub).join("config.json"), case.config.as_bytes())?;
+        for (name, text) in &case.takes {
+            write(&dir.join(&sub).join(name), text.as_bytes())?;
+        }
+        let (native, message, frames) = match roundtrip::run(&case) {
+            roundtrip::Verdict::Played { frames } => ("played", None, frames),
+            roundtrip::Verdict::Refused(e) => ("refused", Some(e), 0),
+        };
+        list.push(serde_json::json!({"dir": sub, "takes": case.takes.iter().map(|t| &t.0).collect::<Vec<_>>(), "native": native, "message": message, "frames": frames}));
+    }
+    write(&dir.join("roundtrip.json"), serde_json::to_string_pretty(&list).unwrap().as_bytes())?;
+    println!("{n} round-trip cases in {}", dir.display());
     Ok(())
 }
 

@@ -428,7 +428,7 @@ fn bench_runtime(args: &[String]) -> CliResult {
             ..Default::default()
         }
     };
-    let mut crowd = mmcore::crowd::Crowd::new(&db, 1, &CharacterSettings::default());
+    let mut crowd = mmcore::crowd::Crowd::new(&db, 1, &CharacterSettings::default()).map_err(mmcore::Error::config)?;
     let mut times = Vec::with_capacity(3600);
     for step in 0..3600 {
         crowd.inputs[0] = input(step);
@@ -438,8 +438,8 @@ fn bench_runtime(args: &[String]) -> CliResult {
     }
     times.sort_by(f64::total_cmp);
     let (median, p95) = (times[times.len() / 2], times[times.len() * 95 / 100]);
-    let n = 256;
-    let mut crowd = mmcore::crowd::Crowd::new(&db, n, &CharacterSettings::default());
+    let n = mmcore::crowd::Crowd::max_characters(&db).min(256);
+    let mut crowd = mmcore::crowd::Crowd::new(&db, n, &CharacterSettings::default()).map_err(mmcore::Error::config)?;
     let mut crowd_times = Vec::new();
     for step in 0..240 {
         for (i, inp) in crowd.inputs.iter_mut().enumerate() {
@@ -546,6 +546,9 @@ fn replay(args: &[String]) -> CliResult {
     let (db, _) = load(path)?;
     let text = String::from_utf8_lossy(&read(Path::new(rec_path))?).into_owned();
     let rec = Recording::from_json(&text).map_err(|e| Error::config(format!("{rec_path}: {e}")))?;
+    if rec.num_frames() < 2 {
+        return Err(Error::config(format!("{rec_path}: a replay needs at least 2 frames, the recording has {}", rec.num_frames())).into());
+    }
     let alpha = a.number::<f32>("--alpha")?.unwrap_or(0.3);
     if !(alpha > 0.0 && alpha <= 10.0) {
         return Err(Usage(format!("--alpha: must be more than 0 and at most 10 m, found {alpha}")).into());

@@ -1,6 +1,6 @@
 //! `RawBuilder`: builds a database in the page from BVH files (drag and drop), and `bvh_info`.
 
-use super::js_error;
+use super::{js_error, Kind, LiveToken};
 use crate::builder::{self, Source};
 use crate::config::BuildConfig;
 use crate::{format, Bvh};
@@ -12,6 +12,8 @@ pub struct RawBuilder {
     config: BuildConfig,
     sources: Vec<Source>,
     warnings: Vec<String>,
+    footprint: Option<crate::limits::BuildFootprint>,
+    _live: LiveToken,
 }
 
 #[wasm_bindgen]
@@ -20,7 +22,7 @@ impl RawBuilder {
     #[wasm_bindgen(constructor)]
     pub fn new(config_json: &str) -> Result<RawBuilder, JsError> {
         let config = BuildConfig::from_json(config_json).map_err(js_error)?;
-        Ok(RawBuilder { config, sources: Vec::new(), warnings: Vec::new() })
+        Ok(RawBuilder { config, sources: Vec::new(), warnings: Vec::new(), footprint: None, _live: LiveToken::new(Kind::Builder) })
     }
 
     /// Parses a BVH file now, so a bad file is reported (file:line) when it is added.
@@ -38,7 +40,14 @@ impl RawBuilder {
     pub fn build(&mut self) -> Result<Vec<u8>, JsError> {
         let out = builder::build(&self.config, &self.sources).map_err(js_error)?;
         self.warnings = out.warnings;
+        self.footprint = Some(out.footprint);
         Ok(format::to_bytes(&out.database))
+    }
+
+    /// What the last successful build was estimated to need before it started, as JSON:
+    /// `{"bytes": …, "frames": …, "limit": …}` (`limits::BuildFootprint`), or `null`.
+    pub fn footprint_json(&self) -> String {
+        self.footprint.map_or("null".into(), |f| serde_json::json!({"bytes": f.bytes(), "frames": f.frames, "limit": crate::limits::MAX_BUILD_BYTES}).to_string())
     }
 
     /// Warnings of the last build, as a JSON array of strings.

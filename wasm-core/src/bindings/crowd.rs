@@ -9,10 +9,6 @@ use glam::Vec2;
 use std::rc::Rc;
 use wasm_bindgen::prelude::*;
 
-/// Characters one crowd may hold: far past what a frame can update (a few thousand in 4 ms),
-/// and low enough that a typo cannot ask wasm32's 4 GiB for gigabytes of characters.
-pub const MAX_CROWD: usize = 100_000;
-
 #[wasm_bindgen]
 pub struct RawCrowd {
     shared: Rc<Shared>,
@@ -25,15 +21,17 @@ impl RawCrowd {
     /// `count` characters on a 2 m grid on `database` (shared, not copied).
     ///
     /// # Errors
-    /// More than [`MAX_CROWD`] characters.
+    /// More characters than [`Crowd::max_characters`] allows on the database.
     #[wasm_bindgen(constructor)]
     pub fn new(database: &RawDatabase, count: usize) -> Result<RawCrowd, JsError> {
-        if count > MAX_CROWD {
-            return Err(JsError::new(&format!("crowd: {count} characters asked for; at most {MAX_CROWD}")));
-        }
         let shared = Rc::clone(&database.shared);
-        let crowd = Crowd::new(&shared.db, count, &CharacterSettings::default());
+        let crowd = Crowd::new(&shared.db, count, &CharacterSettings::default()).map_err(|e| JsError::new(&e))?;
         Ok(RawCrowd { shared, crowd, _live: LiveToken::new(Kind::Crowd) })
+    }
+
+    /// The most characters a crowd on `database` may hold (see `Crowd::max_characters`).
+    pub fn max_characters(database: &RawDatabase) -> usize {
+        Crowd::max_characters(&database.shared.db)
     }
 
     pub fn num_characters(&self) -> usize {

@@ -11,6 +11,7 @@ pub mod character;
 pub mod crowd;
 pub mod database;
 pub mod ik;
+pub mod recording;
 pub mod retarget;
 pub mod roles;
 pub mod search;
@@ -24,9 +25,9 @@ fn js_error(e: Error) -> JsError {
 }
 
 thread_local! {
-    /// Live `Raw*` objects by kind (databases, characters, crowds, retargeters): what a page can
-    /// read to see that removing an avatar freed its memory.
-    static LIVE: [Cell<i32>; 4] = const { [Cell::new(0), Cell::new(0), Cell::new(0), Cell::new(0)] };
+    /// Live `Raw*` objects by kind (databases, characters, crowds, retargeters, builders): what a
+    /// page can read to see that removing an avatar freed its memory.
+    static LIVE: [Cell<i32>; 5] = const { [Cell::new(0), Cell::new(0), Cell::new(0), Cell::new(0), Cell::new(0)] };
 }
 
 /// Kinds counted in [`live_objects`].
@@ -36,6 +37,7 @@ pub(crate) enum Kind {
     Character = 1,
     Crowd = 2,
     Retargeter = 3,
+    Builder = 4,
 }
 
 /// Counts one live object of `kind` until it drops.
@@ -54,10 +56,17 @@ impl Drop for LiveToken {
     }
 }
 
-/// Live objects as JSON: `{"databases": 1, "characters": 2, "crowds": 0, "retargeters": 2}`.
+/// Live objects as JSON: `{"databases": 1, "characters": 2, "crowds": 0, "retargeters": 2, "builders": 0}`.
 #[wasm_bindgen]
 pub fn live_objects() -> String {
     LIVE.with(|l| {
-        format!(r#"{{"databases": {}, "characters": {}, "crowds": {}, "retargeters": {}}}"#, l[0].get(), l[1].get(), l[2].get(), l[3].get())
+        format!(
+            r#"{{"databases": {}, "characters": {}, "crowds": {}, "retargeters": {}, "builders": {}}}"#,
+            l[0].get(),
+            l[1].get(),
+            l[2].get(),
+            l[3].get(),
+            l[4].get()
+        )
     })
 }

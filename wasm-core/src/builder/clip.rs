@@ -90,7 +90,7 @@ impl ClipBuilder<'_> {
 
         // World transforms of the source joints.
         let world = &mut scratch.world;
-        world.clear(nj);
+        world.reset(nj, n);
         world.positions.resize(n * nj, DVec3::ZERO);
         world.rotations.resize(n * nj, DQuat::IDENTITY);
         for f in 0..n {
@@ -108,6 +108,10 @@ impl ClipBuilder<'_> {
         let (lp, lr) = (&mut scratch.lp, &mut scratch.lr);
         lp.clear();
         lr.clear();
+        // Exact capacities: the build's memory estimate (`limits::BuildFootprint`) counts on
+        // them, and a doubling `push` would hold the old and the new buffer at once.
+        lp.reserve_exact(n * nd);
+        lr.reserve_exact(n * nd);
         for f in 0..n {
             let (rp, rq) = root[f];
             lp.push(rp);

@@ -2,7 +2,6 @@
 //! config or the default 27-float locomotion set), their raw values per frame in the character
 //! space of that frame, their normalization, and which frames a search may return.
 
-use super::VIRTUAL_ROOT;
 use crate::config::{BuildConfig, FeatureSpec};
 use crate::database::{Axes, Clip, FeatureGroup, FeatureKind, Skeleton};
 use crate::error::{Error, Result};
@@ -45,7 +44,7 @@ pub fn feature_groups(config: &BuildConfig, skeleton: &Skeleton) -> Result<Vec<F
     let mut groups = Vec::with_capacity(specs.len());
     let mut first_dim = 0;
     for s in specs {
-        let (joint, site_offset) = if s.joint == "root" || s.joint == VIRTUAL_ROOT {
+        let (joint, site_offset) = if s.on_root() {
             (0, Vec3::ZERO)
         } else if let Some(site) = skeleton.site(&s.joint) {
             (site.joint as usize, site.offset)

@@ -10,7 +10,7 @@ use glam::{DQuat, DVec3};
 /// shares one skeleton.
 pub fn mirror(poses: &Poses, pairs: &[usize], animated: &[bool], out: &mut Poses) {
     let n = pairs.len();
-    out.clear(n);
+    out.reset(n, poses.num_frames());
     for f in 0..poses.num_frames() {
         for j in 0..n {
             let (t, q) = poses.at(f, pairs[j]);

@@ -55,6 +55,9 @@ pub struct BuildOutput {
     pub warnings: Vec<String>,
     /// Takes of another skeleton retargeted onto the reference one: (source name, report).
     pub retargeted: Vec<(String, RetargetReport)>,
+    /// What the build was estimated to need before it started (checked against
+    /// [`crate::limits::MAX_BUILD_BYTES`]).
+    pub footprint: crate::limits::BuildFootprint,
 }
 
 impl BuildOutput {
@@ -101,9 +104,16 @@ struct Plan {
 
 /// Builds one database from `sources` (at least one) as `config` says.
 ///
+/// Everything that could make the result unusable is checked before the arrays are allocated
+/// (`crate::limits`): the frame count and size, the feature dimensions, the memory the build
+/// will need ([`crate::limits::BuildFootprint`]), how far each take reaches once scaled. At the
+/// end the database's values go through the loader's own checks
+/// ([`crate::format::check_database`]), so a database `build` returns always loads.
+///
 /// # Errors
 /// No sources, a skeleton that is not a humanoid (the message says which part is missing),
-/// roles that cannot be found, a bad feature or clip spec, or no take long enough to build from.
+/// roles that cannot be found, a bad feature or clip spec, no take long enough to build from,
+/// or a limit above exceeded (the message has the number and the limit).
 pub fn build(config: &BuildConfig, sources: &[Source]) -> Result<BuildOutput> {
     if sources.is_empty() {
         return Err(Error::config("no BVH files to build from"));
@@ -139,6 +149,7 @@ pub fn build(config: &BuildConfig, sources: &[Source]) -> Result<BuildOutput> {
 
     let groups = features::feature_groups(config, &skeleton)?;
     let num_dims: usize = groups.iter().map(|g| g.num_dims).sum();
+    crate::limits::check_feature_dims(num_dims).map_err(|m| Error::config(format!("features: {m}")))?;
     let fps = config.fps;
     // Every take's row count is known before any work, so the output arrays are allocated
     // once and split into per-clip slices.
@@ -168,7 +179,38 @@ pub fn build(config: &BuildConfig, sources: &[Source]) -> Result<BuildOutput> {
     // Refuse before allocating: the output is num_frames × (joints, dims) and must fit (on
     // wasm32 too, where usize is 32 bits).
     crate::limits::check_database_size(num_frames, nd, num_dims).map_err(Error::config)?;
-    let mut out = Accumulator::new(num_frames, nd, num_dims);
+    // Root motion of a take with other leg lengths is scaled by the leg ratio (a take of another
+    // skeleton: its own legs); a take whose legs have no length (a degenerate rest pose) or
+    // differ more than `MAX_ROOT_SCALE`-fold cannot be compared: its root motion stays as is.
+    let mut root_scales = Vec::with_capacity(takes.len());
+    let max_root_scale = crate::limits::MAX_ROOT_SCALE as f64;
+    for (t, take) in takes.iter().enumerate() {
+        let leg = rig_of(t).leg_length(&take.offsets);
+        let scale = ref_leg / leg;
+        root_scales.push(if t == reference_index {
+            1.0
+        } else if scale.is_finite() && (1.0 / max_root_scale..=max_root_scale).contains(&scale) && leg > 1e-6 {
+            scale
+        } else {
+            warnings.push(format!("{}: legs of length {leg:.3} m in the rest pose; root motion not rescaled to the reference", sources[t].name));
+            1.0
+        });
+    }
+    for (t, take) in takes.iter().enumerate() {
+        take.check_reach(&sources[t].name, root_scales[t])?;
+    }
+    let footprint = crate::limits::BuildFootprint {
+        source_bytes: sources.iter().map(|s| s.bvh.heap_bytes() as u64).sum(),
+        frames: num_frames as u64,
+        joints: nd as u64,
+        dims: num_dims as u64,
+        take_frames: plans.iter().map(|p| p.frames as u64).max().unwrap_or(0),
+        take_joints: plans.iter().map(|p| (reference.num_joints() + foreign[p.take].as_ref().map_or(0, |_| sources[p.take].bvh.joints.len())) as u64).max().unwrap_or(0),
+        take_copies: takes.iter().map(|t| t.mirror as u64 + t.reverse as u64).max().unwrap_or(0),
+        name_bytes: plans.iter().map(|p| 3 * sources[p.take].name.len() as u64 + 64).sum::<u64>() + skeleton.names.iter().map(|n| n.len() as u64 + 16).sum::<u64>(),
+    };
+    footprint.check().map_err(Error::config)?;
+    let mut out = Accumulator::new(num_frames, nd, num_dims).map_err(Error::config)?;
     let clip_builder = ClipBuilder {
         config,
         fps,
@@ -179,22 +221,6 @@ pub fn build(config: &BuildConfig, sources: &[Source]) -> Result<BuildOutput> {
         groups: &groups,
         num_dims,
     };
-    // Root motion of a take with other leg lengths is scaled by the leg ratio (a take of another
-    // skeleton: its own legs); a take whose legs have no length (a degenerate rest pose) cannot
-    // be compared: its root motion stays as is.
-    let mut root_scales = Vec::with_capacity(takes.len());
-    for (t, take) in takes.iter().enumerate() {
-        let leg = rig_of(t).leg_length(&take.offsets);
-        let scale = ref_leg / leg;
-        root_scales.push(if t == reference_index {
-            1.0
-        } else if scale.is_finite() && scale > 0.0 && leg > 1e-6 {
-            scale
-        } else {
-            warnings.push(format!("{}: legs of length {leg:.3} m in the rest pose; root motion not rescaled to the reference", sources[t].name));
-            1.0
-        });
-    }
     let target_rig = Rig { parents: &reference.parents, roles: &reference.roles, offsets: &ref_offsets, end_sites: &ref_take.end_sites };
     // Retargeted takes stand their planted toes at the reference take's planted toe height.
     let toe_floor = if foreign.iter().any(Option::is_some) {
@@ -257,6 +283,8 @@ pub fn build(config: &BuildConfig, sources: &[Source]) -> Result<BuildOutput> {
         (scratch.locals, scratch.mirrored, scratch.reversed) = (locals, mirrored, reversed);
         pool.lock().unwrap().push(scratch);
     });
+    // The working copies go before the velocities are added (the memory estimate's peaks).
+    drop(pool);
     let (mut spike_warnings, mut reports) = job_notes.into_inner().unwrap();
     spike_warnings.sort();
     warnings.extend(spike_warnings);
@@ -357,7 +385,10 @@ pub fn build(config: &BuildConfig, sources: &[Source]) -> Result<BuildOutput> {
         }
         warnings.push(format!("min_head_height {ratio}: {excluded} frames with the head lower are not searched ({searchable} are)"));
     }
-    Ok(BuildOutput { database, warnings, retargeted })
+    // The loader's own value checks: whatever got past the limits above, `build` never returns
+    // a database its loader would refuse.
+    crate::format::check_database(&database).map_err(|e| Error::config(format!("the built database would not load: {e}")))?;
+    Ok(BuildOutput { database, warnings, retargeted, footprint })
 }
 
 /// Sorted, merged `[start, end)` ranges.

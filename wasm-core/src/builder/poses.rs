@@ -22,6 +22,15 @@ impl Poses {
         self.rotations.clear();
     }
 
+    /// Empties the arrays for `frames` frames of `num_joints` joints, with exactly that
+    /// capacity when they must grow (the build's memory estimate counts on it:
+    /// `limits::BuildFootprint`).
+    pub fn reset(&mut self, num_joints: usize, frames: usize) {
+        self.clear(num_joints);
+        self.positions.reserve_exact(frames * num_joints);
+        self.rotations.reserve_exact(frames * num_joints);
+    }
+
     pub fn push(&mut self, position: DVec3, rotation: DQuat) {
         self.positions.push(position);
         self.rotations.push(rotation);

@@ -186,7 +186,7 @@ impl<'a> Retargeter<'a> {
     pub fn apply(&self, src: &Poses, toe_floor: Option<f64>, out: &mut Poses) -> RetargetReport {
         let (ns, nt) = (self.source.offsets.len(), self.target.offsets.len());
         let frames = src.num_frames();
-        out.clear(nt);
+        out.reset(nt, frames);
         let (mut ws_p, mut ws_r) = (vec![DVec3::ZERO; ns], vec![DQuat::IDENTITY; ns]);
         let (mut wt_p, mut wt_r) = (vec![DVec3::ZERO; nt], vec![DQuat::IDENTITY; nt]);
         let mut local_r = vec![DQuat::IDENTITY; nt];

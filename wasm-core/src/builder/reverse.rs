@@ -10,7 +10,7 @@ use super::poses::Poses;
 /// `out` = `poses` with the frames in reverse order.
 pub fn reverse(poses: &Poses, out: &mut Poses) {
     let (n, j) = (poses.num_frames(), poses.num_joints);
-    out.clear(j);
+    out.reset(j, n);
     for f in (0..n).rev() {
         for k in 0..j {
             let (t, q) = poses.at(f, k);

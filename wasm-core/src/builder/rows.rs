@@ -15,14 +15,26 @@ pub struct Accumulator {
 }
 
 impl Accumulator {
-    pub fn new(num_frames: usize, num_joints: usize, num_dims: usize) -> Accumulator {
-        Accumulator {
-            num_frames,
-            positions: vec![Vec3::ZERO; num_frames * num_joints],
-            rotations: vec![Quat::IDENTITY; num_frames * num_joints],
-            contacts: vec![0; num_frames * 2],
-            features: vec![0.0; num_frames * num_dims],
+    /// The arrays for `num_frames` frames. The allocation is fallible: where memory runs out
+    /// (wasm32's 4 GiB, shared with the page's other objects) the build gets an error, not an
+    /// abort (a trap in WASM).
+    ///
+    /// # Errors
+    /// The bytes that could not be had.
+    pub fn new(num_frames: usize, num_joints: usize, num_dims: usize) -> Result<Accumulator, String> {
+        fn filled<T: Clone>(n: usize, value: T) -> Result<Vec<T>, String> {
+            let mut v = Vec::new();
+            v.try_reserve_exact(n).map_err(|_| format!("out of memory: {:.1} MB for the database's arrays could not be allocated", (n * std::mem::size_of::<T>()) as f64 / 1e6))?;
+            v.resize(n, value);
+            Ok(v)
         }
+        Ok(Accumulator {
+            num_frames,
+            positions: filled(num_frames * num_joints, Vec3::ZERO)?,
+            rotations: filled(num_frames * num_joints, Quat::IDENTITY)?,
+            contacts: filled(num_frames * 2, 0)?,
+            features: filled(num_frames * num_dims, 0.0)?,
+        })
     }
 
     pub fn rows(&mut self) -> Rows<'_> {

@@ -32,6 +32,10 @@ pub struct Take {
     pub offsets: Vec<DVec3>,
     /// End-site offsets in metres, Y up.
     pub end_sites: Vec<Option<DVec3>>,
+    /// How far the take's joints can be from the origin in source units, at most: every
+    /// offset, position channel and end site, summed along each joint chain (see
+    /// [`crate::limits::MAX_REACH`]).
+    pub reach: f64,
 }
 
 impl Take {
@@ -152,7 +156,27 @@ impl Take {
             root_position_window: spec.and_then(|s| s.root_position_window).unwrap_or(config.root_position_window),
             offsets: raw_offsets.iter().map(|&o| up * o * scale).collect(),
             end_sites: bvh.joints.iter().map(|j| j.end_site.map(|e| up * e * scale)).collect(),
+            reach: reach(bvh, frames),
         })
+    }
+
+    /// Refuses a take whose joints can reach beyond [`crate::limits::MAX_REACH`] metres once
+    /// scaled (by its unit scale and, when its root motion is rescaled, by `root_scale`):
+    /// its velocities at the database rate would overflow the feature scale the loader accepts.
+    ///
+    /// # Errors
+    /// The reach, the scale and what to check.
+    pub fn check_reach(&self, name: &str, root_scale: f64) -> Result<()> {
+        let metres = self.reach * self.scale * root_scale.max(1.0);
+        if !(metres <= crate::limits::MAX_REACH) {
+            return Err(Error::config(format!(
+                "{name}: its values times the unit scale {} reach {} m from the origin; at most {} m — check the unit scale (--scale)",
+                crate::limits::num(self.scale),
+                crate::limits::num(metres),
+                crate::limits::num(crate::limits::MAX_REACH)
+            )));
+        }
+        Ok(())
     }
 
     /// Number of frames after resampling to `fps`, or `None` past [`crate::limits::MAX_FRAMES`]
@@ -171,9 +195,7 @@ impl Take {
         let count = self.frames.1 - self.frames.0;
         // build() refused takes past the frame limit before calling this.
         let num_out = self.num_out(fps).unwrap_or(0);
-        out.clear(num_joints);
-        out.positions.reserve(num_out * num_joints);
-        out.rotations.reserve(num_out * num_joints);
+        out.reset(num_joints, num_out);
         let convert = self.up != DQuat::IDENTITY;
         let sample = |frame: usize, j: usize| {
             let (t, q) = bvh.local_transform(self.frames.0 + frame, j);
@@ -196,4 +218,28 @@ impl Take {
             }
         }
     }
+}
+
+/// The farthest any joint (or end site) of `bvh` can be from the origin over `frames`, in
+/// source units: per joint the largest offset or position-channel component (√3 × that bounds
+/// the translation), summed along the chain from the root.
+fn reach(bvh: &Bvh, frames: (usize, usize)) -> f64 {
+    let mut own: Vec<f64> = bvh.joints.iter().map(|j| j.offset.abs().max_element()).collect();
+    for (k, j) in bvh.joints.iter().enumerate() {
+        for (c, channel) in j.channels.iter().enumerate() {
+            if matches!(channel, crate::bvh::Channel::PosX | crate::bvh::Channel::PosY | crate::bvh::Channel::PosZ) {
+                let at = j.first_channel + c;
+                let largest = (frames.0..frames.1.min(bvh.num_frames)).map(|f| bvh.values[f * bvh.num_channels + at].abs()).fold(0.0, f64::max);
+                own[k] = own[k].max(largest);
+            }
+        }
+    }
+    let mut chain = vec![0.0f64; bvh.joints.len()];
+    let mut farthest = 0.0f64;
+    for (k, j) in bvh.joints.iter().enumerate() {
+        chain[k] = j.parent.map_or(0.0, |p| chain[p]) + 3f64.sqrt() * own[k];
+        let site = j.end_site.map_or(0.0, |e| e.length());
+        farthest = farthest.max(chain[k] + site);
+    }
+    farthest
 }

@@ -197,3 +197,28 @@ impl CharacterSettings {
         Ok(())
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn tag_queries_and_styles_are_checked() {
+        let s = CharacterSettings::default();
+        assert_eq!(s.style, "neutral");
+        let ok = s.patched(r#"{"style": "angry", "style_bias": 3, "require_tags": ["walk"], "exclude_tags": ["run"], "prefer_tags": []}"#).unwrap();
+        assert_eq!((ok.style.as_str(), ok.style_bias, ok.require_tags.len()), ("angry", 3.0, 1));
+        let many = format!(r#"{{"exclude_tags": [{}]}}"#, vec!["\"t\""; 65].join(","));
+        for (json, expected) in [
+            (many.as_str(), "exclude_tags has 65 tags, at most 64"),
+            (r#"{"style_bias": -1}"#, "style_bias is -1"),
+            (r#"{"style_bias": 1e30}"#, "expected a number in [0, 1000000]"),
+            (r#"{"require_tags": "walk"}"#, "settings: invalid type"),
+        ] {
+            let e = s.patched(json).unwrap_err();
+            assert!(e.contains(expected), "{json}: {e}");
+        }
+        let long = format!(r#"{{"style": "{}"}}"#, "x".repeat(300));
+        assert!(s.patched(&long).unwrap_err().contains("style has a name of 300 bytes"));
+    }
+}

@@ -344,6 +344,21 @@ pub fn tiny_database() -> Database {
     }
 }
 
+/// [`tiny_database`] with a group of `extra` more dimensions (xz at `extra / 2` offsets): 128
+/// more makes 133, past what the search takes (issue 28: such a file loaded and nothing could
+/// search it).
+pub fn wide_database(extra: usize) -> Database {
+    let mut db = tiny_database();
+    let d = db.num_features();
+    let group = FeatureGroup { name: "wide".into(), offsets: vec![0; extra / 2], first_dim: d, num_dims: extra / 2 * 2, ..db.groups[0].clone() };
+    let extra = group.num_dims;
+    db.groups.push(group);
+    db.feature_mean.resize(d + extra, 0.0);
+    db.feature_scale.resize(d + extra, 1.0);
+    db.features = db.features.chunks(d).flat_map(|row| row.iter().copied().chain(std::iter::repeat_n(0.0, extra))).collect();
+    db
+}
+
 /// The `.mmdb` cases of the issue, by name, each with the message the loader must give
 /// (all with a valid checksum: the damage is what the loader must see).
 pub fn mmdb_named_cases() -> Vec<Case> {

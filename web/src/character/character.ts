@@ -109,8 +109,7 @@ const _e = new THREE.Euler();
 export class Character {
   /** Add this to a scene. Move, turn or scale it to place the character's floor frame. */
   readonly object3d = new THREE.Group();
-  /** The motion-matching runtime of this character. */
-  readonly runtime: CharacterRuntime;
+  private runtime_: CharacterRuntime;
   /** Drawn in database units: the skeleton and the debug views. */
   private readonly databaseSpace = new THREE.Group();
   private avatar_: Avatar | null = null;
@@ -133,11 +132,30 @@ export class Character {
   private disposed = false;
 
   /**
+   * The one dispose rule: after `dispose()` every method and property of the character throws
+   * this error (`dispose()` itself may be called again; `isDisposed` tells).
+   */
+  private live(): void {
+    if (this.disposed) throw new Error('Character used after dispose()');
+  }
+
+  /** Whether `dispose()` was called. */
+  get isDisposed(): boolean {
+    return this.disposed;
+  }
+
+  /** The motion-matching runtime of this character. */
+  get runtime(): CharacterRuntime {
+    this.live();
+    return this.runtime_;
+  }
+
+  /**
    * A character on `database` (retained until `dispose()`) with `avatar` (owned: disposed
    * with the character), standing at the origin facing +Z.
    */
   constructor(database: Database, avatar: Avatar | null = null, options: CharacterOptions = {}) {
-    this.runtime = new CharacterRuntime(database, options.settings);
+    this.runtime_ = new CharacterRuntime(database, options.settings);
     this.object3d.name = 'mm-character';
     this.object3d.add(this.databaseSpace);
     this.showSkeleton_ = options.skeleton;
@@ -166,11 +184,13 @@ export class Character {
   }
 
   get avatar(): Avatar | null {
+    this.live();
     return this.avatar_;
   }
 
   /** Avatar metres per database metre: how large the character is drawn. */
   get worldScale(): number {
+    this.live();
     return this.worldScale_;
   }
 
@@ -179,7 +199,8 @@ export class Character {
    * runtime is re-placed for the new scale. The old avatar is disposed.
    */
   setAvatar(avatar: Avatar | null): void {
-    const before = this.disposed ? null : this.root;
+    this.live();
+    const before = this.root;
     const scale = avatar ? avatar.bind(this.database) : 1;
     if (this.avatar_ && this.avatar_ !== avatar) {
       this.object3d.remove(this.avatar_.object);
@@ -200,7 +221,7 @@ export class Character {
    */
   restartRuntime(): void {
     const old = this.runtime;
-    (this as { runtime: CharacterRuntime }).runtime = new CharacterRuntime(old.database, old.settings());
+    this.runtime_ = new CharacterRuntime(old.database, old.settings());
     old.free();
     const debug = this.debug;
     this.debug = false;
@@ -215,7 +236,7 @@ export class Character {
     const before = this.root;
     const settings = this.runtime.settings();
     const old = this.runtime;
-    (this as { runtime: CharacterRuntime }).runtime = new CharacterRuntime(database, settings);
+    this.runtime_ = new CharacterRuntime(database, settings);
     old.free();
     this.databaseSpace.remove(this.skeletonView.object);
     disposeObject(this.skeletonView.object);
@@ -241,22 +262,27 @@ export class Character {
 
   /** Whether the skeleton is drawn (default: only without an avatar). */
   get showSkeleton(): boolean {
+    this.live();
     return this.skeletonView.object.visible;
   }
   set showSkeleton(on: boolean) {
+    this.live();
     this.showSkeleton_ = on;
     this.updateSkeletonVisibility();
   }
 
   /** The debug views (simulated character, trajectories, foot locks), or null when off. */
   get debugViews(): DebugViews | null {
+    this.live();
     return this.debugViews_;
   }
   get debug(): boolean {
+    this.live();
     return this.debugViews_ !== null;
   }
   set debug(on: boolean) {
-    if (on === this.debug) return;
+    this.live();
+    if (on === (this.debugViews_ !== null)) return;
     if (on) {
       this.debugViews_ = new DebugViews(this.runtime);
       this.databaseSpace.add(this.debugViews_.object);
@@ -271,6 +297,7 @@ export class Character {
 
   /** A floor point (x, z) of `object3d`'s parent frame in database units (into `out`). */
   toDatabase(x: number, z: number, out: THREE.Vector3 = _v): THREE.Vector3 {
+    this.live();
     this.object3d.updateMatrix();
     return out.set(x, 0, z).applyMatrix4(_m.copy(this.object3d.matrix).invert()).multiplyScalar(1 / this.worldScale_);
   }
@@ -283,12 +310,14 @@ export class Character {
 
   /** A database point in `object3d`'s parent frame (into `out`). */
   fromDatabase(x: number, y: number, z: number, out: THREE.Vector3 = _v): THREE.Vector3 {
+    this.live();
     this.object3d.updateMatrix();
     return out.set(x, y, z).multiplyScalar(this.worldScale_).applyMatrix4(this.object3d.matrix);
   }
 
   /** Parent-frame metres per database metre (world scale × `object3d`'s own scale). */
   get metresPerDatabaseUnit(): number {
+    this.live();
     return this.worldScale_ * this.object3d.scale.x;
   }
 
@@ -304,6 +333,7 @@ export class Character {
    * (longer is clamped); (0, 0) stands. Leaves a path.
    */
   setMove(x: number, z: number, options: MoveOptions = {}): void {
+    this.live();
     const d = this.directionToDatabase(x, z);
     this.input.moveX = d.x;
     this.input.moveZ = d.z;
@@ -359,16 +389,19 @@ export class Character {
 
   /** Whether the character is on a path (`walkTo`, `followPath`) rather than move input. */
   get followingPath(): boolean {
+    this.live();
     return this.drive_.mode === 'path';
   }
 
   /** What drives the character now (the last move input, path or tracked input). */
   get drive(): CharacterDrive {
+    this.live();
     return this.drive_;
   }
 
   /** Stands still: no move input, no path. */
   stop(): void {
+    this.live();
     this.input.moveX = this.input.moveZ = 0;
     this.input.strafe = false;
     this.drive_.mode = 'move';
@@ -387,6 +420,7 @@ export class Character {
    * and the body yaw (rad) this frame. See `TrackedDrive` for the whole VR recipe.
    */
   setTracked(headX: number, headZ: number, velocityX: number, velocityZ: number, yaw: number): void {
+    this.live();
     const t = this.drive_.tracked;
     t.headX = headX;
     t.headZ = headZ;
@@ -403,6 +437,7 @@ export class Character {
 
   /** Lowers the hips `drop` metres (parent frame) with the feet kept planted (VR crouching). */
   setHipsDrop(drop: number): void {
+    this.live();
     this.drive_.tracked.hipsDrop = drop;
     this.drive_.tracked.bend = 0;
     if (!this.stepper) {
@@ -427,8 +462,13 @@ export class Character {
     t.bend = runtime.torsoBend;
   }
 
-  /** α: how far (m, parent frame) the character may lag where it is asked to be. */
+  /**
+   * α: how far (m, parent frame) the character may lag where it is asked to be. Throws on a
+   * value that is not a number ≥ 0 (NaN, ∞, a string), changing nothing.
+   */
   setAlpha(alpha: number): void {
+    this.live();
+    if (!(typeof alpha === 'number' && alpha >= 0 && alpha < Infinity)) throw new Error(`setAlpha: α must be a number of metres ≥ 0, got ${String(alpha)}`);
     this.drive_.alpha = alpha;
     if (!this.stepper) this.runtime.setSettings({ clamp_distance: alpha / this.metresPerDatabaseUnit });
   }
@@ -486,7 +526,7 @@ export class Character {
 
   /** Advances `dt` seconds and poses everything (the per-frame recipe). */
   update(dt: number): void {
-    if (this.disposed) return;
+    this.live();
     if (this.stepper) this.stepper.step(this, dt);
     else {
       this.runtime.setInput(this.input);
@@ -556,8 +596,8 @@ export class Character {
   /** Frees the runtime's WASM memory (and the database's, with its last character) and GPU objects. */
   dispose(): void {
     if (this.disposed) return;
-    this.disposed = true;
     this.debug = false;
+    this.disposed = true;
     if (this.avatar_) {
       this.object3d.remove(this.avatar_.object);
       this.avatar_.dispose();
@@ -565,7 +605,7 @@ export class Character {
     }
     disposeObject(this.databaseSpace);
     this.object3d.removeFromParent();
-    this.runtime.free();
+    this.runtime_.free();
   }
 }
 

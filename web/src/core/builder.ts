@@ -3,7 +3,7 @@
  * `RawBuilder` and owns its lifetime).
  */
 import { RawBuilder } from './raw.ts';
-import { asError } from './wasm.ts';
+import { asError, freeRaw } from './wasm.ts';
 
 
 export class DatabaseBuilder {
@@ -41,13 +41,21 @@ export class DatabaseBuilder {
     }
   }
 
+  /**
+   * What the last successful build was estimated to need before it started (bytes of WASM
+   * memory, database frames; a build over `limit` is refused with the estimate), or null.
+   */
+  footprint(): { bytes: number; frames: number; limit: number } | null {
+    return JSON.parse(this.r.footprint_json()) as { bytes: number; frames: number; limit: number } | null;
+  }
+
   /** Warnings collected while parsing and building. */
   warnings(): unknown[] {
     return JSON.parse(this.r.warnings_json()) as unknown[];
   }
 
   free(): void {
-    this.raw?.free();
+    if (this.raw) freeRaw(this.raw, 'rawbuilder');
     this.raw = null;
   }
 }

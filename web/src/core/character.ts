@@ -6,7 +6,7 @@
 import { type Database } from './database.ts';
 import { RawCharacter } from './raw.ts';
 import { ViewCache } from './view-cache.ts';
-import { asError, wasmMemory } from './wasm.ts';
+import { asError, freeRaw, wasmMemory } from './wasm.ts';
 
 /**
  * What a player asks the character for this frame, on the ground plane in world space (the
@@ -52,6 +52,21 @@ export function createTrackedInput(): TrackedInput {
 /** The runtime settings (docs/runtime.md lists them; `CharacterSettings` in Rust). */
 export type RuntimeSettings = Record<string, unknown>;
 
+/**
+ * A settings patch as JSON. JSON has no NaN or ∞ (`JSON.stringify` writes `null`, which the
+ * runtime would report as "invalid type: null"): such a value is refused here by name.
+ */
+function settingsJson(patch: RuntimeSettings): string {
+  const check = (o: Record<string, unknown>, path: string) => {
+    for (const [k, v] of Object.entries(o)) {
+      if (typeof v === 'number' && !Number.isFinite(v)) throw new Error(`settings: ${path}${k} is ${v}, expected a finite number`);
+      if (typeof v === 'object' && v !== null && !Array.isArray(v)) check(v as Record<string, unknown>, `${path}${k}.`);
+    }
+  };
+  if (typeof patch === 'object' && patch !== null) check(patch, '');
+  return JSON.stringify(patch);
+}
+
 export class CharacterRuntime {
   readonly database: Database;
   readonly numJoints: number;
@@ -70,7 +85,7 @@ export class CharacterRuntime {
   /** A character on `database` (retained until `free()`), with a settings patch. */
   constructor(database: Database, settings: RuntimeSettings = {}) {
     try {
-      this.raw_ = new RawCharacter(database.raw, JSON.stringify(settings));
+      this.raw_ = new RawCharacter(database.raw, settingsJson(settings));
     } catch (e) {
       throw asError(e);
     }
@@ -173,7 +188,7 @@ export class CharacterRuntime {
   /** Patches settings; throws on unknown keys or wrong types. */
   setSettings(patch: RuntimeSettings): void {
     try {
-      this.raw.set_settings_json(JSON.stringify(patch));
+      this.raw.set_settings_json(settingsJson(patch));
     } catch (e) {
       throw asError(e);
     }
@@ -262,7 +277,7 @@ export class CharacterRuntime {
 
   free(): void {
     if (!this.raw_) return;
-    this.raw_.free();
+    freeRaw(this.raw_, 'rawcharacter');
     this.raw_ = null;
     this.database.release();
   }

@@ -8,7 +8,7 @@ import { type FetchOptions, fetchBytes, mark } from '../fetch.ts';
 import { RawDatabase } from './raw.ts';
 import { type RoleName } from './roles.ts';
 import { ViewCache } from './view-cache.ts';
-import { asError, initWasm, wasmMemory } from './wasm.ts';
+import { asError, freeRaw, initWasm, wasmMemory } from './wasm.ts';
 
 /** One clip (a contiguous range of frames from one source file). */
 export interface ClipInfo {
@@ -156,7 +156,7 @@ export class Database {
   release(): void {
     if (!this.raw_) return;
     if (--this.references > 0) return;
-    this.raw_.free();
+    freeRaw(this.raw_, 'rawdatabase');
     this.raw_ = null;
     this.onFree?.();
   }

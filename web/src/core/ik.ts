@@ -4,7 +4,7 @@
  */
 import { RawTwoBoneIk } from './raw.ts';
 import { ViewCache } from './view-cache.ts';
-import { wasmMemory } from './wasm.ts';
+import { freeRaw, wasmMemory } from './wasm.ts';
 
 export interface Vec3Like {
   x: number;
@@ -45,6 +45,6 @@ export class TwoBoneIk {
   }
 
   free(): void {
-    this.raw.free();
+    freeRaw(this.raw, 'rawtwoboneik');
   }
 }

@@ -10,6 +10,7 @@ export {
   find_roles_json,
   live_objects,
   role_names_json,
+  validate_recording,
   RawBuilder,
   RawCharacter,
   RawCrowd,

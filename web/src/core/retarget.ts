@@ -8,7 +8,7 @@ import { type Database } from './database.ts';
 import { RawRetargeter } from './raw.ts';
 import { ROLE_NAMES, type RoleName } from './roles.ts';
 import { ViewCache } from './view-cache.ts';
-import { asError, wasmMemory } from './wasm.ts';
+import { asError, freeRaw, wasmMemory } from './wasm.ts';
 
 /** An avatar skeleton at rest (any joint order). */
 export interface TargetSkeleton {
@@ -84,7 +84,7 @@ export class Retargeter {
   }
 
   free(): void {
-    this.raw?.free();
+    if (this.raw) freeRaw(this.raw, 'rawretargeter');
     this.raw = null;
   }
 }

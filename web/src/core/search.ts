@@ -5,7 +5,7 @@
 import { type Database } from './database.ts';
 import { RawSearchIndex } from './raw.ts';
 import { ViewCache } from './view-cache.ts';
-import { asError, wasmMemory } from './wasm.ts';
+import { asError, freeRaw, wasmMemory } from './wasm.ts';
 
 /** 0 scalar, 1 SIMD, 2 AABB: all return the same frame and cost. */
 export const SEARCH_METHODS = ['scalar', 'simd', 'aabb'] as const;
@@ -61,7 +61,7 @@ export class SearchIndex {
   }
 
   free(): void {
-    this.raw?.free();
+    if (this.raw) freeRaw(this.raw, 'rawsearchindex');
     this.raw = null;
   }
 }

@@ -81,6 +81,7 @@ export interface LiveObjects {
   characters: number;
   crowds: number;
   retargeters: number;
+  builders: number;
   /** Bytes of WASM linear memory (it never shrinks; freed memory is reused). */
   memoryBytes: number;
 }
@@ -93,4 +94,27 @@ export function liveObjects(): LiveObjects {
 /** wasm-bindgen may throw a string rather than an Error. */
 export function asError(e: unknown): Error {
   return e instanceof Error ? e : new Error(String(e));
+}
+
+/** The `Raw*` classes by the name of their export `__wbg_<kind>_free`. */
+export type RawKind = 'rawbuilder' | 'rawcharacter' | 'rawcrowd' | 'rawdatabase' | 'rawretargeter' | 'rawsearchindex' | 'rawtwoboneik';
+
+/**
+ * Frees a `Raw*` object, even one a trap left behind. A trap (`WebAssembly.RuntimeError`: out
+ * of memory, a bug) aborts the Rust call without running its drops, so the object stays marked
+ * as borrowed by that call and its `free()` throws "attempted to take ownership of Rust value
+ * while it was borrowed", keeping its memory for ever. Nothing can use that borrow any more
+ * (its call is gone), so here its reference is released too and the object is dropped — as if
+ * the call had ended. Every wrapper in this folder frees through this.
+ */
+export function freeRaw(raw: { free(): void }, kind: RawKind): void {
+  const ptr = (raw as unknown as { __wbg_ptr?: number }).__wbg_ptr ?? 0;
+  try {
+    raw.free();
+  } catch (e) {
+    if (!(e instanceof Error && e.message.includes('while it was borrowed')) || ptr === 0) throw e;
+    const free = (wasmExports() as unknown as Record<string, unknown>)[`__wbg_${kind}_free`];
+    if (typeof free !== 'function') throw e;
+    (free as (ptr: number, allowDelayed: number) => void)(ptr, 1);
+  }
 }

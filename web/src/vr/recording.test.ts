@@ -1,4 +1,7 @@
-import { describe, expect, it } from 'vitest';
+import fs from 'node:fs';
+import path from 'node:path';
+import { beforeAll, describe, expect, it } from 'vitest';
+import { initWasmSync } from '../core/wasm.ts';
 import { decodeRecording, encodeRecordingBinary, encodeRecordingJson, type Recording, RecordingPlayer, TrackerRecorder } from './recording.ts';
 import { SCRIPT_DURATION, scriptedSample } from './scripted-motion.ts';
 import { HEAD, RIGHT, TrackerSample } from './tracker-sample.ts';
@@ -15,7 +18,29 @@ function scripted(hz = 72, seconds = SCRIPT_DURATION): Recording {
   return recorder.toRecording({ device: 'test', rate: hz });
 }
 
+const ROOT = path.resolve(import.meta.dirname, '../../..');
+
+beforeAll(() => {
+  // The validator is the runtime's (the one `mmdb replay` runs).
+  initWasmSync(fs.readFileSync(path.join(ROOT, 'web/src/core/pkg/mmcore_bg.wasm')));
+});
+
 describe('recordings', () => {
+  it('reads the shared hostile recordings as `mmdb replay` does: same verdict, same message', () => {
+    const doc = JSON.parse(fs.readFileSync(path.join(ROOT, 'wasm-core/tests/corpus/recordings/cases.json'), 'utf8')) as { cases: { name: string; text: string; expect: string | null }[] };
+    expect(doc.cases.length).toBeGreaterThanOrEqual(20);
+    const wrong = doc.cases.flatMap((c) => {
+      try {
+        decodeRecording(c.text, 'case.json');
+        return c.expect === null ? [] : [`${c.name}: accepted, expected ${c.expect}`];
+      } catch (e) {
+        const message = e instanceof Error ? e.message : String(e);
+        return c.expect !== null && message === `case.json: ${c.expect}` ? [] : [`${c.name}: ${message}`];
+      }
+    });
+    expect(wrong).toEqual([]);
+  });
+
   it('round-trips through JSON to 0.1 mm / 1e-6', () => {
     const r = scripted();
     const back = decodeRecording(encodeRecordingJson(r), 'test.json');

@@ -5,6 +5,7 @@
  * encodings of one versioned format: JSON (readable, diffable) and a compact little-endian
  * binary (`MMTR` magic). Loading validates everything and names what is wrong.
  */
+import { validateRecordingValues } from '../core/recording.ts';
 import { NUM_TRACKERS, type TrackerSample } from './tracker-sample.ts';
 
 export const RECORDING_FORMAT = 'mm-vr-recording';
@@ -46,40 +47,16 @@ export class RecordingError extends Error {
   }
 }
 
-/** Checks lengths, finiteness, time order and unit quaternions; throws a RecordingError. */
+/**
+ * Checks lengths, finiteness, time order and unit quaternions; throws a RecordingError. The
+ * checks are the runtime's (`validateRecordingValues`, through WASM: `initWasm()` first), the
+ * very code `mmdb replay` runs, so both accept the same recordings.
+ */
 export function validateRecording(r: Recording, source = 'recording'): void {
-  const fail = (m: string): never => {
-    throw new RecordingError(source, m);
-  };
-  if (!Number.isInteger(r.frames) || r.frames < 1) fail(`frames must be a positive integer (got ${r.frames})`);
-  const expect = (name: string, length: number, per: number) => {
-    if (length !== r.frames * per) fail(`${name} has ${length} values, expected frames × ${per} = ${r.frames * per}`);
-  };
-  expect('time', r.time.length, 1);
-  expect('position', r.position.length, NUM_TRACKERS * 3);
-  expect('rotation', r.rotation.length, NUM_TRACKERS * 4);
-  expect('tracked', r.tracked.length, NUM_TRACKERS);
-  if (r.truth) {
-    expect('truth.bodyYaw', r.truth.bodyYaw.length, 1);
-    expect('truth.root', r.truth.root.length, 2);
-    for (const v of r.truth.bodyYaw) if (!Number.isFinite(v)) fail('truth.bodyYaw has a non-finite value');
-    for (const v of r.truth.root) if (!Number.isFinite(v)) fail('truth.root has a non-finite value');
-  }
-  for (let f = 0; f < r.frames; f++) {
-    if (!Number.isFinite(r.time[f])) fail(`time[${f}] is not a finite number`);
-    if (f > 0 && !(r.time[f] > r.time[f - 1])) fail(`time must increase: time[${f}] = ${r.time[f]} after ${r.time[f - 1]}`);
-    for (let t = 0; t < NUM_TRACKERS; t++) {
-      const k = f * NUM_TRACKERS + t;
-      if (r.tracked[k] > 1) fail(`tracked[${k}] must be 0 or 1 (got ${r.tracked[k]})`);
-      for (let c = 0; c < 3; c++) if (!Number.isFinite(r.position[3 * k + c])) fail(`position of frame ${f}, tracker ${t} is not finite`);
-      let n = 0;
-      for (let c = 0; c < 4; c++) {
-        const v = r.rotation[4 * k + c];
-        if (!Number.isFinite(v)) fail(`rotation of frame ${f}, tracker ${t} is not finite`);
-        n += v * v;
-      }
-      if (Math.abs(Math.sqrt(n) - 1) > 1e-3) fail(`rotation of frame ${f}, tracker ${t} is not a unit quaternion (length ${Math.sqrt(n).toFixed(4)})`);
-    }
+  try {
+    validateRecordingValues(r);
+  } catch (e) {
+    throw new RecordingError(source, e instanceof Error ? e.message : String(e));
   }
 }
 
