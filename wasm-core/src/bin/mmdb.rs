@@ -470,22 +470,38 @@ fn bench_runtime(args: &[String]) -> CliResult {
     Ok(())
 }
 
-/// The quality harness: each scripted input for `--seconds` (60) at 60 Hz.
-fn quality(args: &[String]) -> CliResult {
-    use mmcore::quality;
+/// What the scripted harnesses (`quality`, `naturalness`) take: one database, `--seconds` (60)
+/// per script, `--settings` over the defaults, `--json`.
+struct Scripted {
+    path: String,
+    db: mmcore::Database,
+    seconds: f32,
+    settings: mmcore::character::CharacterSettings,
+    json: bool,
+}
+
+fn scripted(args: &[String], command: &str) -> Result<Scripted, CliError> {
     let a = Args::parse(args, &["--seconds", "--settings"], &["--json"])?;
-    let [path] = a.positional.as_slice() else { return Err(Usage("quality needs one .mmdb file".into()).into()) };
+    let [path] = a.positional.as_slice() else { return Err(Usage(format!("{command} needs one .mmdb file")).into()) };
     let (db, _) = load(path)?;
     let seconds = a.number::<f32>("--seconds")?.unwrap_or(60.0);
     if !(seconds > 0.0 && seconds <= 3600.0) {
         return Err(Usage(format!("--seconds: must be more than 0 and at most 3600, found {seconds}")).into());
     }
+    let defaults = mmcore::character::CharacterSettings::default();
     let settings = match a.get("--settings") {
-        Some(json) => mmcore::character::CharacterSettings::default().patched(json).map_err(|e| Usage(e))?,
-        None => mmcore::character::CharacterSettings::default(),
+        Some(json) => defaults.patched(json).map_err(Usage)?,
+        None => defaults,
     };
+    Ok(Scripted { path: path.clone(), db, seconds, settings, json: a.has("--json") })
+}
+
+/// The quality harness: each scripted input for `--seconds` (60) at 60 Hz.
+fn quality(args: &[String]) -> CliResult {
+    use mmcore::quality;
+    let Scripted { path, db, seconds, settings, json } = scripted(args, "quality")?;
     let reports: Vec<quality::Report> = quality::scripts().iter().map(|s| quality::run(&db, &settings, s, seconds, 1.0 / 60.0)).collect();
-    if a.has("--json") {
+    if json {
         println!("{}", serde_json::to_string_pretty(&reports).unwrap());
     } else {
         print!("{path}: {seconds} s per script at 60 Hz, α = {} m\n{}", settings.clamp_distance, quality::table(&reports));
@@ -493,25 +509,17 @@ fn quality(args: &[String]) -> CliResult {
     Ok(())
 }
 
+/// The naturalness harness: standing, walking, side-stepping, walking backward (style share,
+/// head pitch, hands).
 fn naturalness(args: &[String]) -> CliResult {
     use mmcore::naturalness;
-    let a = Args::parse(args, &["--seconds", "--settings"], &["--json"])?;
-    let [path] = a.positional.as_slice() else { return Err(Usage("naturalness needs one .mmdb file".into()).into()) };
-    let (db, _) = load(path)?;
-    let seconds = a.number::<f32>("--seconds")?.unwrap_or(60.0);
-    if !(seconds > 0.0 && seconds <= 3600.0) {
-        return Err(Usage(format!("--seconds: must be more than 0 and at most 3600, found {seconds}")).into());
-    }
-    let settings = match a.get("--settings") {
-        Some(json) => mmcore::character::CharacterSettings::default().patched(json).map_err(Usage)?,
-        None => mmcore::character::CharacterSettings::default(),
-    };
+    let Scripted { path, db, seconds, settings, json } = scripted(args, "naturalness")?;
     let reports = naturalness::Motion::ALL
         .iter()
         .map(|&m| naturalness::measure(&db, &settings, m, seconds, 1.0 / 60.0))
         .collect::<Result<Vec<_>, String>>()
         .map_err(|e| CliError::Failed(Error::config(e)))?;
-    if a.has("--json") {
+    if json {
         println!("{}", serde_json::to_string_pretty(&reports).unwrap());
     } else {
         print!("{path}: {seconds} s per motion at 60 Hz, style '{}' (bias {})\n{}", settings.style, settings.style_bias, naturalness::table(&reports));
