@@ -30,11 +30,12 @@ async function rooms(n: number, options: Parameters<typeof startRooms>[0] = {}):
   return started;
 }
 
-async function join(p: RoomsProcess, roomId: string, name: string): Promise<TestClient> {
+/** Joins and waits for the welcome (`ms`: a fresh NATS cluster elects its JetStream leader first, seconds on a busy machine). */
+async function join(p: RoomsProcess, roomId: string, name: string, ms = 3000): Promise<TestClient> {
   const c = await TestClient.open(p.url(roomId), p.origin);
   clients.push(c);
   c.send(encodeJoin(testJoin(name)));
-  await c.waitFor((m) => m.type === 'welcome');
+  await c.waitFor((m) => m.type === 'welcome', ms);
   return c;
 }
 
@@ -120,8 +121,9 @@ describe('rooms across processes (NATS)', () => {
       const ps = await Promise.all([0, 1].map((k) => startRooms({ nats: [urls[k], ...urls.filter((_, j) => j !== k)].join(',') })));
       procs.push(...ps);
       const room = createRoomId();
-      const a = await join(ps[0], room, 'a');
-      const b = await join(ps[1], room, 'b');
+      // Member ids are claimed in the cluster's KV bucket: the first join waits for JetStream.
+      const a = await join(ps[0], room, 'a', 20_000);
+      const b = await join(ps[1], room, 'b', 20_000);
       expect(a.memberId).not.toBe(b.memberId);
       await a.waitFor((m) => m.type === 'memberJoined' && m.member.id === b.memberId, 5000);
       a.send(stateBytes(1, 1));
