@@ -6,7 +6,7 @@
  * survivor, a NATS restart resumes relaying.
  */
 import { afterAll, afterEach, beforeAll, describe, expect, it } from 'vitest';
-import { encodeJoin } from '../web/src/rooms/protocol.ts';
+import { CloseCode, encodeJoin } from '../web/src/rooms/protocol.ts';
 import { freePort, startNats, startRooms, type NatsServer, type RoomsProcess } from './nats-helpers.ts';
 import { createRoomId, moveBytes, settle, sleep, stateBytes, TestClient, testJoin } from './test-helpers.ts';
 
@@ -30,13 +30,32 @@ async function rooms(n: number, options: Parameters<typeof startRooms>[0] = {}):
   return started;
 }
 
-/** Joins and waits for the welcome (`ms`: a fresh NATS cluster elects its JetStream leader first, seconds on a busy machine). */
-async function join(p: RoomsProcess, roomId: string, name: string, ms = 3000): Promise<TestClient> {
-  const c = await TestClient.open(p.url(roomId), p.origin);
-  clients.push(c);
-  c.send(encodeJoin(testJoin(name)));
-  await c.waitFor((m) => m.type === 'welcome', ms);
-  return c;
+/**
+ * Joins and waits for the welcome (`ms`: a fresh NATS cluster elects its JetStream leader first,
+ * seconds on a busy machine). A close with "try again" (the bus was not ready) is answered as the
+ * room client answers it: join again, until `ms` is spent.
+ */
+async function join(p: RoomsProcess, roomId: string, name: string, ms = 15_000): Promise<TestClient> {
+  const deadline = performance.now() + ms;
+  for (;;) {
+    const c = await TestClient.open(p.url(roomId), p.origin);
+    clients.push(c);
+    c.send(encodeJoin(testJoin(name)));
+    const left = Math.max(0, deadline - performance.now());
+    const welcomed = c.waitFor((m) => m.type === 'welcome', left).then(() => true);
+    const closed = c.waitClosed(left).then((x) => x.code);
+    const got = await Promise.race([welcomed, closed]);
+    welcomed.catch(() => {});
+    closed.catch(() => {});
+    if (got === true) return c;
+    if (got !== CloseCode.tryAgain || performance.now() > deadline) throw new Error(`${name}: closed ${got} before its welcome\n${p.log()}`);
+    await sleep(200);
+  }
+}
+
+/** Waits until every node of a NATS cluster names a JetStream metadata leader (the id bucket needs one). */
+async function clusterReady(nodes: NatsServer[], ms = 30_000): Promise<void> {
+  await settle(() => nodes.every((n) => /metadata leader/.test(n.log())), ms);
 }
 
 /** Relayed MOVEs from `from` (the STATE each member starts with left out). */
@@ -52,12 +71,12 @@ describe('rooms across processes (NATS)', () => {
     const o1 = await join(c, other, 'o1');
     const o2 = await join(a, other, 'o2');
     // m1 hears of m2 (from process B) and is asked for a STATE.
-    await m1.waitFor((m) => m.type === 'memberJoined' && m.member.id === m2.memberId);
-    await m1.waitFor((m) => m.type === 'stateRequest');
+    await m1.waitFor((m) => m.type === 'memberJoined' && m.member.id === m2.memberId, 10_000);
+    await m1.waitFor((m) => m.type === 'stateRequest', 10_000);
     expect(m2.memberId).not.toBe(m1.memberId);
     const welcome2 = m2.messages.find((m) => m.type === 'welcome');
     expect(welcome2?.type === 'welcome' && welcome2.members.map((x) => x.id)).toEqual([m1.memberId]);
-    await o1.waitFor((m) => m.type === 'memberJoined' && m.member.id === o2.memberId);
+    await o1.waitFor((m) => m.type === 'memberJoined' && m.member.id === o2.memberId, 10_000);
     // Each starts as a client does, with a STATE where it stands.
     for (const [c, x] of [[m1, 100], [m2, 100], [o1, 300], [o2, 300]] as const) c.send(stateBytes(1, x + c.memberId));
     const N = 30;
@@ -82,7 +101,7 @@ describe('rooms across processes (NATS)', () => {
     const w3 = m3.messages.find((m) => m.type === 'welcome');
     expect(w3?.type === 'welcome' && w3.members.map((x) => x.id).sort()).toEqual([m1.memberId, m2.memberId].sort());
     expect(new Set([m1.memberId, m2.memberId, m3.memberId]).size).toBe(3);
-    await m2.waitFor((m) => m.type === 'memberJoined' && m.member.id === m3.memberId);
+    await m2.waitFor((m) => m.type === 'memberJoined' && m.member.id === m3.memberId, 10_000);
 
     // A leave is seen on the other processes within 2 s.
     const t0 = performance.now();
@@ -116,14 +135,15 @@ describe('rooms across processes (NATS)', () => {
       [0, 1, 2].map((k) => startNats({ extra: ['-n', `n${k + 1}`, '--cluster_name', 'rooms', '--cluster', `nats://127.0.0.1:${ports[k]}`, '--routes', routes(k)] })),
     );
     try {
+      await clusterReady(cluster);
       // Each process lists the three nodes, its own first (the client tries them in order).
       const urls = cluster.map((n) => n.url);
       const ps = await Promise.all([0, 1].map((k) => startRooms({ nats: [urls[k], ...urls.filter((_, j) => j !== k)].join(',') })));
       procs.push(...ps);
       const room = createRoomId();
       // Member ids are claimed in the cluster's KV bucket: the first join waits for JetStream.
-      const a = await join(ps[0], room, 'a', 20_000);
-      const b = await join(ps[1], room, 'b', 20_000);
+      const a = await join(ps[0], room, 'a', 30_000);
+      const b = await join(ps[1], room, 'b', 30_000);
       expect(a.memberId).not.toBe(b.memberId);
       await a.waitFor((m) => m.type === 'memberJoined' && m.member.id === b.memberId, 5000);
       a.send(stateBytes(1, 1));
@@ -136,6 +156,10 @@ describe('rooms across processes (NATS)', () => {
       await settle(() => a.relays(b.memberId).length === 11 && b.relays(a.memberId).length === 11, 5000);
       expect(b.relays(a.memberId).map((r) => r.message.seq)).toEqual(Array.from({ length: 11 }, (_, i) => i + 1));
       expect(a.relays(b.memberId).map((r) => r.message.seq)).toEqual(Array.from({ length: 11 }, (_, i) => i + 1));
+    } catch (e) {
+      for (const [k, n] of cluster.entries()) console.log(`NATS node n${k + 1}:\n${n.log().split('\n').slice(-12).join('\n')}`);
+      for (const p of procs) console.log(`rooms process on ${p.port}:\n${p.log()}\nstats ${JSON.stringify([...p.stats.values()])}`);
+      throw e;
     } finally {
       for (const c of clients.splice(0)) c.ws.terminate();
       await Promise.all(procs.splice(0).map((p) => p.stop()));

@@ -40,6 +40,8 @@ export interface NatsServer {
   start(): Promise<void>;
   /** Stops it for good and removes its folder. */
   close(): Promise<void>;
+  /** What it printed (its log: cluster routes, JetStream elections), for a failing test to show. */
+  log(): string;
 }
 
 const exited = (child: ChildProcess) => new Promise<void>((resolve) => (child.exitCode !== null || child.signalCode !== null ? resolve() : child.once('exit', () => resolve())));
@@ -57,10 +59,10 @@ export async function startNats(options: { port?: number; extra?: string[] } = {
   const port = options.port ?? (await freePort());
   const dir = mkdtempSync(join(tmpdir(), 'nats-test-'));
   let child: ChildProcess | null = null;
+  let output = '';
   const start = async () => {
     child = spawn(natsServerBinary(), ['-a', '127.0.0.1', '-p', String(port), '-js', '-sd', dir, ...(options.extra ?? [])], { stdio: ['ignore', 'ignore', 'pipe'] });
     const c = child;
-    let output = '';
     await new Promise<void>((resolve, reject) => {
       const timer = setTimeout(() => reject(new Error(`nats-server did not start in 10 s:\n${output}`)), 10_000);
       createInterface({ input: c.stderr! }).on('line', (l) => {
@@ -82,6 +84,7 @@ export async function startNats(options: { port?: number; extra?: string[] } = {
     url: `nats://127.0.0.1:${port}`,
     stop: () => stopChild(child),
     start,
+    log: () => output,
     close: async () => {
       await stopChild(child);
       rmSync(dir, { recursive: true, force: true });
@@ -137,6 +140,8 @@ export interface RoomsProcess {
   exits: { pid: number; code: number | null; signal: string | null }[];
   child: ChildProcess;
   stop(): Promise<void>;
+  /** What it wrote to stderr, for a failing test to show. */
+  log(): string;
 }
 
 /** Starts `server/main.ts` on a loopback port: `--nats url`, `--workers N`, stats every `statsMs`. */
@@ -193,5 +198,6 @@ export async function startRooms(options: { nats?: string; workers?: number; por
     exits,
     child,
     stop: () => stopChild(child),
+    log: () => errors,
   };
 }

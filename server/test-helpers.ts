@@ -136,8 +136,12 @@ export class TestClient {
     if (this.ws.readyState === this.ws.OPEN) this.ws.send(bytes);
   }
 
-  /** Resolves with the first message (from `from` on) matching `pred`; rejects after `ms`. */
-  waitFor(pred: (m: ServerMessage) => boolean, ms = 3000, from = 0): Promise<ServerMessage> {
+  /**
+   * Resolves with the first message (from `from` on) matching `pred`; rejects after `ms`. The
+   * default is generous (a CI machine running suites side by side delays NATS and JetStream by
+   * seconds); a test that times something passes its own bound.
+   */
+  waitFor(pred: (m: ServerMessage) => boolean, ms = 10_000, from = 0): Promise<ServerMessage> {
     return new Promise((resolve, reject) => {
       const deadline = setTimeout(() => reject(new Error(`timed out after ${ms} ms waiting for a message`)), ms);
       const check = () => {
@@ -151,7 +155,7 @@ export class TestClient {
     });
   }
 
-  waitClosed(ms = 3000): Promise<{ code: number; reason: string; at: number }> {
+  waitClosed(ms = 10_000): Promise<{ code: number; reason: string; at: number }> {
     return new Promise((resolve, reject) => {
       const deadline = setTimeout(() => reject(new Error(`not closed after ${ms} ms`)), ms);
       const check = () => {
