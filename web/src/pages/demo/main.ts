@@ -10,9 +10,10 @@
 import GUI, { type Controller } from 'lil-gui';
 import * as THREE from 'three';
 import {
-  Avatar, Database, DatabaseBuilder, type DroppedFiles, PathEditor, RUNTIME_SETTINGS, type RoleOverrides, RoomPanel, UpdateTimer,
+  Avatar, Database, DatabaseBuilder, type DroppedFiles, PathEditor, RUNTIME_SETTINGS, type RoleOverrides, UpdateTimer,
   defineMMAvatar, errorMessage, installDropTarget, listDatabases, registerOfflineCache, showError,
 } from '../../index.ts';
+import { RoomPanel } from '../../rooms/index.ts';
 
 const hook = {
   ready: false,
