@@ -24,17 +24,17 @@ export const CMU_VRM_BONES: Record<string, string> = {
 interface Take {
   bones: THREE.Bone[];
   /** Per bone (by index): key times, positions (xyz per key, offset included), quaternions (xyzw). */
-  times: Float32Array;
-  positions: Map<string, Float32Array>;
-  rotations: Map<string, Float32Array>;
+  times: Float32Array<ArrayBufferLike>;
+  positions: Map<string, Float32Array<ArrayBufferLike>>;
+  rotations: Map<string, Float32Array<ArrayBufferLike>>;
 }
 
 export function readBvh(file: string): Take {
   const { skeleton, clip } = new BVHLoader().parse(fs.readFileSync(file, 'utf8'));
   const bones = skeleton.bones.filter((b) => b.name !== 'ENDSITE');
-  const positions = new Map<string, Float32Array>();
-  const rotations = new Map<string, Float32Array>();
-  let times = new Float32Array();
+  const positions = new Map<string, Float32Array<ArrayBufferLike>>();
+  const rotations = new Map<string, Float32Array<ArrayBufferLike>>();
+  let times: Float32Array<ArrayBufferLike> = new Float32Array();
   for (const track of clip.tracks) {
     const [name, property] = track.name.split('.');
     times = track.times;
@@ -124,7 +124,7 @@ export async function bvhToGltf(take: Take, options: GlbOptions): Promise<Uint8A
       add(node, 'rotation', q, 4);
     }
   }
-  let glb = await new NodeIO().writeBinary(doc);
+  let glb: Uint8Array = await new NodeIO().writeBinary(doc);
   if (options.vrma) {
     const humanBones: Record<string, { node: number }> = {};
     const order = doc.getRoot().listNodes();
