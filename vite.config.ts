@@ -3,6 +3,7 @@ import fs from 'node:fs';
 import path from 'node:path';
 import { fileURLToPath } from 'node:url';
 import basicSsl from '@vitejs/plugin-basic-ssl';
+import type { Plugin } from 'vite';
 import { defineConfig } from 'vitest/config';
 import { roomsPlugin } from './server/vite-plugin.ts';
 
@@ -36,6 +37,29 @@ function assetVersions(): Record<string, { v: string; bytes: number }> {
   return out;
 }
 
+/**
+ * The package build's asset URLs: the source writes each shipped asset as
+ * `new URL(/* @vite-ignore *\/ '../<file>', import.meta.url)` so that this build leaves it alone
+ * (vite would inline the file into the JS); the comment is dropped after bundling (by the
+ * minifier, or here), so the
+ * app's bundler (vite, webpack 5, parcel) sees the plain pattern and copies the file. The build
+ * fails when a chunk keeps a URL the app's bundler could not follow.
+ */
+function packagedAssetUrls(): Plugin {
+  const ignored = /new URL\(\s*\/\*\s*@vite-ignore\s*\*\/\s*/g;
+  return {
+    name: 'mm-packaged-asset-urls',
+    enforce: 'post',
+    renderChunk(code, chunk) {
+      const out = code.replace(ignored, 'new URL(');
+      for (const m of out.matchAll(/new URL\(([^,()]*),\s*import\.meta\.url\s*\)/g)) {
+        if (!/^\s*(['"])\.\.\/[\w./-]+\1\s*$/.test(m[1])) this.error(`${chunk.fileName}: ${m[0]} is not a literal '../file' URL`);
+      }
+      return out === code ? null : { code: out, map: null };
+    },
+  };
+}
+
 export default defineConfig(({ command, mode }) => {
   const build = command === 'build';
   const base = { root, publicDir: 'public' };
@@ -58,12 +82,18 @@ export default defineConfig(({ command, mode }) => {
     return {
       ...base,
       publicDir: false,
-      define: { __MM_ASSET_BASE__: JSON.stringify('../'), ...versions },
+      // __MM_PACKAGE__: the shipped assets are literal `new URL('../<file>', import.meta.url)`s
+      // for the app's bundler (web/src/assets.ts), kept as they are by `packagedAssetUrls`.
+      define: { __MM_ASSET_BASE__: JSON.stringify('../'), __MM_PACKAGE__: 'true', ...versions },
+      plugins: [packagedAssetUrls()],
       build: {
         outDir: 'dist/lib',
         emptyOutDir: true,
         target: 'es2022',
-        lib: { entry: { index: 'web/src/index.ts', element: 'web/src/element/register.ts' }, formats: ['es'] },
+        // One entry per `exports` path of package.json: the desktop library, the element
+        // (registers itself), VR and rooms (so a desktop app never bundles them). Shared code
+        // lands in shared chunks, so the entries share one WASM module and one set of classes.
+        lib: { entry: { index: 'web/src/index.ts', element: 'web/src/element/register.ts', vr: 'web/src/vr/index.ts', rooms: 'web/src/rooms/index.ts' }, formats: ['es'] },
         rollupOptions: { external: [/^three($|\/)/, /^@pixiv\/three-vrm/, /^onnxruntime-web/] },
       },
     };

@@ -14,7 +14,8 @@
 //   requests too) within 4 s after the first frame;
 // - where the time goes: the library's marks (`mm:fetched:<stage>`, `mm:database-ready`,
 //   `mm:avatar-ready`) and the page's own resource timing.
-// Also prints what the default database costs on the wire today (raw, gzip, brotli as built).
+// Also prints what the default database costs on the wire today (raw, gzip, brotli as built), and
+// what each of the package's entries costs an app that bundles it (gzip; scripts/entry-sizes.mjs).
 import { spawn } from 'node:child_process';
 import fs from 'node:fs';
 import os from 'node:os';
@@ -168,9 +169,14 @@ export async function loadBenchmark({ json, args, log }) {
   const db = path.join(DIST, 'databases', 'locomotion.mmdb');
   const size = (p) => (fs.existsSync(p) ? fs.statSync(p).size : null);
   const database = { raw: size(db), gzip: size(`${db}.gz`), brotli: size(`${db}.br`) };
-  const result = { machine: { cores: os.availableParallelism(), load_average_1min: os.loadavg()[0] }, networks: NETWORKS, targets: TARGETS, database, rows };
+  const { entrySizes, printEntrySizes } = await import('./entry-sizes.mjs');
+  const entries = await entrySizes(DIST);
+  const result = { machine: { cores: os.availableParallelism(), load_average_1min: os.loadavg()[0] }, networks: NETWORKS, targets: TARGETS, database, entries, rows };
   if (json) console.log(JSON.stringify(result, null, 2));
-  else printLoad(result);
+  else {
+    printLoad(result);
+    printEntrySizes(entries);
+  }
   return result;
 }
 

@@ -356,7 +356,7 @@ async function stepDist() {
     const stamp = path.join(dist, '.build-stamp');
     const inputs = [
       newestUnder(path.join(ROOT, 'web', 'src')),
-      newestUnder(path.join(ROOT, 'examples')),
+      ...embedExamples().map((f) => mtime(f)),
       newestUnder(path.join(ROOT, 'public')),
       newestUnder(path.join(ROOT, 'web', 'sw')),
       ...['index.html', 'viewer.html', 'vr.html', 'bench.html', 'vite.config.ts', 'tsconfig.json', 'tsconfig.lib.json', 'package.json', 'scripts/precompress.mjs'].map((f) => mtime(path.join(ROOT, f))),
@@ -370,11 +370,21 @@ async function stepDist() {
     await run(vite, ['build', '--mode', 'element', '--logLevel', 'warn']);
     await run(vite, ['build', '--mode', 'lib', '--logLevel', 'warn']);
     await run(path.join(ROOT, 'node_modules', '.bin', 'tsc'), ['-p', 'tsconfig.lib.json']);
-    fs.cpSync(path.join(ROOT, 'examples'), path.join(dist, 'examples'), { recursive: true });
+    fs.mkdirSync(path.join(dist, 'examples'), { recursive: true });
+    for (const f of embedExamples()) fs.copyFileSync(f, path.join(dist, 'examples', path.basename(f)));
     // .br/.gz beside every compressible file (cached by content hash) and the service worker.
     await run(process.execPath, [path.join(ROOT, 'scripts', 'precompress.mjs'), dist]);
     fs.writeFileSync(stamp, `${new Date().toISOString()}\n`);
   });
+}
+
+/**
+ * The embedding example served with the site (examples/embed.*: the files at the top of
+ * examples/); the bundler apps in its folders are built by their own tests (tests/e2e/package.spec.ts).
+ */
+function embedExamples() {
+  const dir = path.join(ROOT, 'examples');
+  return fs.readdirSync(dir, { withFileTypes: true }).filter((e) => e.isFile()).map((e) => path.join(dir, e.name));
 }
 
 /** The production server (server/serve.ts and what it imports) bundled for Node: dist-server/serve.mjs. */

@@ -1,6 +1,7 @@
 import fs from 'node:fs';
 import path from 'node:path';
 import { expect, test, type Page } from '@playwright/test';
+import { bvhToGltf, readBvh } from '../unit/gltf-fixtures.ts';
 
 const ROOT = path.resolve(import.meta.dirname, '../..');
 const hook = (page: Page) =>
@@ -218,6 +219,43 @@ test('dropping BVH files builds a database the character walks on; a broken one 
   expect(vrmToes.length).toBeGreaterThan(10);
   expect(vrmToes[vrmToes.length >> 1]).toBeLessThan(0.03);
   await page.screenshot({ path: path.join(ROOT, 'test-results/demo-dropped.png') });
+  expect(errors).toEqual([]);
+});
+
+test('dropping a GLB with animation clips or a .vrma builds a database the character walks on; broken ones are reported', async ({ page }) => {
+  test.setTimeout(240_000);
+  const errors = await open(page);
+  // Made here from a ../shared BVH take with @gltf-transform (tests/unit/gltf-fixtures.ts).
+  const take = readBvh(path.join(ROOT, '../shared/mocap/cmu-asf/cmu_16_15.bvh'));
+  const half = Math.floor(take.times.length / 2);
+  const glb = Buffer.from(await bvhToGltf(take, { clips: [['First', 0, half], ['Second', half, take.times.length]], dcc: true }));
+  const vrma = Buffer.from(await bvhToGltf(take, { clips: [['Walk', 0, take.times.length]], vrma: true }));
+  let loads = (await hook(page)).databaseLoads;
+  for (const [name, bytes] of [['clips.glb', glb], ['walk.vrma', vrma]] as const) {
+    await drop(page, [{ name, base64: bytes.toString('base64') }]);
+    await page.waitForFunction((n) => window.__mm.databaseLoads > n || window.__mm.fileError, loads, { timeout: 60_000 });
+    const h = await hook(page);
+    expect(h.fileError, name).toBeNull();
+    expect(h.database).toBe(name);
+    expect(h.databaseFrames).toBeGreaterThan(300); // the clips and their mirrors at 60 fps
+    expect(h.avatar).toBe('ubc_male.glb'); // a motion file is not taken for an avatar
+    loads = h.databaseLoads;
+    await page.locator('#viewport canvas').click();
+    await hold(page, ['KeyW'], 90);
+    const walked = await hook(page);
+    console.log(`${name}: walked ${Math.hypot(walked.root[0] - h.root[0], walked.root[2] - h.root[2]).toFixed(2)} m in 1.5 s`);
+    expect(Math.hypot(walked.root[0] - h.root[0], walked.root[2] - h.root[2])).toBeGreaterThan(1.0);
+  }
+  // Broken: a GLB cut in its binary chunk and a .vrma that is not glTF; the message names the
+  // file and the fault, the database stays.
+  const cut = 20 + glb.readUInt32LE(12) + 1000;
+  await drop(page, [{ name: 'cut.glb', base64: glb.subarray(0, cut).toString('base64') }]);
+  await page.waitForFunction(() => /cut\.glb/.test(window.__mm.fileError ?? ''), null, { timeout: 30_000 });
+  expect((await hook(page)).fileError).toMatch(new RegExp(`cut\\.glb: truncated GLB: its header says \\d+ bytes, the file has ${cut}`));
+  await drop(page, [{ name: 'junk.vrma', text: 'not motion' }]);
+  await page.waitForFunction(() => /junk\.vrma/.test(window.__mm.fileError ?? ''), null, { timeout: 30_000 });
+  expect((await hook(page)).fileError).toMatch(/junk\.vrma: not a glTF file/);
+  expect((await hook(page)).database).toBe('walk.vrma');
   expect(errors).toEqual([]);
 });
 

@@ -26,7 +26,14 @@ const lines = (file: string) => fs.readFileSync(file, 'utf8').split('\n').length
 const rel = (file: string) => path.relative(ROOT, file);
 const source = (file: string) => !/\.test\.ts$/.test(file);
 
-describe('pages are built on the public entry only', () => {
+/** The package's public entries (package.json `exports`: `mm-avatar`, `mm-avatar/vr`, `mm-avatar/rooms`) and their API reference pages. */
+const ENTRIES = [
+  { file: 'index.ts', name: 'mm-avatar', docs: 'docs/api/mm-avatar/README.md' },
+  { file: 'vr/index.ts', name: 'mm-avatar/vr', docs: 'docs/api/mm-avatar/vr/README.md' },
+  { file: 'rooms/index.ts', name: 'mm-avatar/rooms', docs: 'docs/api/mm-avatar/rooms/README.md' },
+];
+
+describe('pages are built on the public entries only', () => {
   const pages = fs.readdirSync(path.join(WEB, 'pages'), { withFileTypes: true }).filter((e) => e.isDirectory()).map((e) => e.name);
 
   it('has the four pages', () => {
@@ -34,13 +41,13 @@ describe('pages are built on the public entry only', () => {
   });
 
   for (const page of pages) {
-    it(`${page}: imports only '../../index.ts' (and third-party packages); ≤ 250 lines`, () => {
+    it(`${page}: imports only the public entries ('../../index.ts', '../../vr/index.ts', '../../rooms/index.ts') and third-party packages; ≤ 250 lines`, () => {
       const ts = files(path.join(WEB, 'pages', page), /\.ts$/).filter(source);
       expect(ts.length).toBeGreaterThan(0);
       for (const f of ts) {
         for (const spec of imports(f)) {
           if (!spec.startsWith('.')) continue; // a package: three, lil-gui, iwer
-          expect(spec, `${rel(f)} imports ${spec}`).toBe('../../index.ts');
+          expect(ENTRIES.map((e) => `../../${e.file}`), `${rel(f)} imports ${spec}`).toContain(spec);
         }
       }
       const total = ts.reduce((n, f) => n + lines(f), 0);
@@ -121,12 +128,30 @@ describe('the repository stands alone', () => {
 });
 
 describe('the API reference', () => {
-  it('docs/api (npm run docs) lists every name the public entry exports', () => {
-    const entry = fs.readFileSync(path.join(WEB, 'index.ts'), 'utf8');
-    const names = [...entry.matchAll(/export (?:type )?\{([^}]+)\}/g)].flatMap((m) => m[1].split(',').map((n) => n.trim().replace(/^type /, '')).filter(Boolean));
-    const index = fs.readFileSync(path.join(ROOT, 'docs/api/README.md'), 'utf8');
-    expect(names.length).toBeGreaterThan(60);
-    const missing = names.filter((n) => !index.includes(`[${n.replace(/_/g, '\\_')}]`));
-    expect(missing, 'run `npm run docs`').toEqual([]);
+  for (const entry of ENTRIES) {
+    it(`docs/api (npm run docs) lists every name ${entry.name} (web/src/${entry.file}) exports`, () => {
+      const text = fs.readFileSync(path.join(WEB, entry.file), 'utf8');
+      const names = [...text.matchAll(/export (?:type )?\{([^}]+)\}/g)].flatMap((m) => m[1].split(',').map((n) => n.trim().replace(/^type /, '')).filter(Boolean));
+      const index = fs.readFileSync(path.join(ROOT, entry.docs), 'utf8');
+      expect(names.length).toBeGreaterThan(20);
+      const missing = names.filter((n) => !index.includes(`[${n.replace(/_/g, '\\_')}]`));
+      expect(missing, 'run `npm run docs`').toEqual([]);
+    });
+  }
+
+  it('the three entries share no name, and VR and rooms are not in the root entry', () => {
+    const exported = (file: string) => new Set([...fs.readFileSync(path.join(WEB, file), 'utf8').matchAll(/export (?:type )?\{([^}]+)\}/g)].flatMap((m) => m[1].split(',').map((n) => n.trim().replace(/^type /, '')).filter(Boolean)));
+    const [root, vr, rooms] = ENTRIES.map((e) => exported(e.file));
+    for (const n of [...vr, ...rooms]) expect(root.has(n), `${n} is exported by the root entry too`).toBe(false);
+    for (const n of vr) expect(rooms.has(n), `${n} is exported by both vr and rooms`).toBe(false);
+  });
+
+  it('package.json exports each entry with its types', () => {
+    const pkg = JSON.parse(fs.readFileSync(path.join(ROOT, 'package.json'), 'utf8')) as { exports: Record<string, { types: string; import: string } | string> };
+    for (const entry of ENTRIES) {
+      const key = entry.name === 'mm-avatar' ? '.' : `./${entry.name.slice('mm-avatar/'.length)}`;
+      const target = pkg.exports[key];
+      expect(typeof target === 'object' && target.types, key).toBe(`./dist/types/${entry.file.replace(/\.ts$/, '.d.ts')}`);
+    }
   });
 });

@@ -62,6 +62,9 @@ pub struct Bvh {
     pub frame_time: f64,
     /// `num_frames × num_channels` values, frame-major.
     pub values: Vec<f64>,
+    /// Roles the file itself names, `(role, joint name)`: a VRM humanoid map of a glTF take
+    /// (`crate::gltf`); none for BVH. A build config's `roles` take precedence.
+    pub role_hints: Vec<(String, String)>,
 }
 
 impl Bvh {
@@ -276,7 +279,7 @@ impl<'a> Parser<'a> {
             ));
         }
         let values = self.motion(num_frames, num_channels, frames_line)?;
-        Ok(Bvh { joints, num_channels, num_frames, frame_time, values })
+        Ok(Bvh { joints, num_channels, num_frames, frame_time, values, role_hints: Vec::new() })
     }
 
     /// Parses the hierarchy whose `ROOT` keyword was just read at `root_line`: the joints and

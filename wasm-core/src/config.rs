@@ -288,16 +288,32 @@ impl BuildConfig {
     /// The frame window `frame_cuts` gives a source file, if any.
     pub fn frame_cuts_of(&self, file_name: &str) -> Option<[usize; 2]> {
         let base = file_name.rsplit(['/', '\\']).next().unwrap_or(file_name);
-        self.cuts.get(base).copied()
+        self.cuts.get(base).or_else(|| self.cuts.get(split_clip(base).0)).copied()
     }
 
     /// The spec for a source file: the first clip entry whose `file` pattern matches its name
-    /// (compared on the last path component).
+    /// (compared on the last path component). One clip of a glTF file (`walks.glb#Walk`) matches
+    /// a pattern for itself (`walks.glb#W*`) or for its file (`walks.glb`).
     pub fn clip_spec(&self, file_name: &str) -> Option<&ClipSpec> {
         let base = |p: &str| p.rsplit(['/', '\\']).next().unwrap_or(p).to_string();
         let name = base(file_name);
-        self.clips.iter().find(|c| wildcard_match(&base(&c.file), &name))
+        self.clips.iter().find(|c| source_matches(&base(&c.file), &name))
     }
+}
+
+/// A source name split into its file and, for one clip of a glTF file, the clip's name:
+/// `walks.glb#Walk` → (`walks.glb`, `Walk`).
+pub fn split_clip(name: &str) -> (&str, Option<&str>) {
+    match name.split_once('#') {
+        Some((file, clip)) => (file, Some(clip)),
+        None => (name, None),
+    }
+}
+
+/// Whether a config's file `pattern` names the source `name` (a file name; a glTF clip is named
+/// by its file too unless the pattern names clips).
+pub fn source_matches(pattern: &str, name: &str) -> bool {
+    wildcard_match(pattern, name) || (!pattern.contains('#') && wildcard_match(pattern, split_clip(name).0))
 }
 
 /// `*` (any run) and `?` (any one character) matching on a file name.

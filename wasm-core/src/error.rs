@@ -14,6 +14,8 @@ use std::fmt;
 pub enum Error {
     /// Malformed BVH text. `line` is 1-based; `0` means "end of file".
     Bvh { file: String, line: usize, message: String },
+    /// A glTF/GLB/VRMA file that cannot be read as motion (`crate::gltf`): what and where in it.
+    Gltf { file: String, message: String },
     /// A `.mmdb` file that is corrupt, truncated or of another version.
     Format(String),
     /// A database configuration that cannot be built (bad key, missing file, topology mismatch).
@@ -28,13 +30,11 @@ pub const MAX_FILE_NAME_CHARS: usize = 120;
 impl Error {
     /// A BVH error at `line` (1-based, `0` = end of file) of `file`.
     pub fn bvh(file: &str, line: usize, message: impl Into<String>) -> Self {
-        let chars = file.chars().count();
-        let file = if chars > MAX_FILE_NAME_CHARS {
-            format!("…{}", file.chars().skip(chars - MAX_FILE_NAME_CHARS).collect::<String>())
-        } else {
-            file.to_string()
-        };
-        Error::Bvh { file, line, message: cap_message(message.into()) }
+        Error::Bvh { file: cap_file(file), line, message: cap_message(message.into()) }
+    }
+    /// A glTF error in `file`.
+    pub fn gltf(file: &str, message: impl Into<String>) -> Self {
+        Error::Gltf { file: cap_file(file), message: cap_message(message.into()) }
     }
     pub fn format(message: impl Into<String>) -> Self {
         Error::Format(cap_message(message.into()))
@@ -44,11 +44,22 @@ impl Error {
     }
 }
 
+/// A file name cut to its last [`MAX_FILE_NAME_CHARS`] characters.
+fn cap_file(file: &str) -> String {
+    let chars = file.chars().count();
+    if chars > MAX_FILE_NAME_CHARS {
+        format!("…{}", file.chars().skip(chars - MAX_FILE_NAME_CHARS).collect::<String>())
+    } else {
+        file.to_string()
+    }
+}
+
 impl fmt::Display for Error {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match self {
             Error::Bvh { file, line: 0, message } => write!(f, "{file}: end of file: {message}"),
             Error::Bvh { file, line, message } => write!(f, "{file}:{line}: {message}"),
+            Error::Gltf { file, message } => write!(f, "{file}: {message}"),
             Error::Format(m) => write!(f, "invalid .mmdb: {m}"),
             Error::Config(m) => write!(f, "config: {m}"),
             Error::Io(m) => write!(f, "{m}"),

@@ -1,4 +1,4 @@
-//! Motion matching core: BVH import, motion database build, the `.mmdb` format, search and
+//! Motion matching core: BVH and glTF animation import, motion database build, the `.mmdb` format, search and
 //! the runtime (springs, trajectory, inertialization, IK).
 //! The pure core never touches wasm-bindgen; `bindings/` is the only JS-facing module, one
 //! file per `Raw*` class, mirrored file for file by the TypeScript raw layer (`web/src/core/`).
@@ -14,6 +14,7 @@ pub mod database;
 pub mod error;
 pub mod format;
 pub mod frame_cuts;
+pub mod gltf;
 pub mod ik;
 pub mod inertialize;
 pub mod inspect;

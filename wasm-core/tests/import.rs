@@ -45,7 +45,7 @@ fn rewritten(bvh: &Bvh, offset: impl Fn(usize, DVec3) -> DVec3, end: impl Fn(usi
             values.extend([z.to_degrees(), y.to_degrees(), x.to_degrees()]);
         }
     }
-    let out = Bvh { joints, num_channels: first, num_frames: bvh.num_frames, frame_time: bvh.frame_time, values };
+    let out = Bvh { joints, num_channels: first, num_frames: bvh.num_frames, frame_time: bvh.frame_time, values, role_hints: Vec::new() };
     // The writer's Euler convention is the reader's: a frame reads back as written.
     let (t, q) = out.local_transform(7, 3);
     let (t0, q0) = bvh.local_transform(7, 3);

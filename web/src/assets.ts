@@ -1,9 +1,20 @@
 /**
  * Where the library finds its default assets (the WASM module, the default database and
- * avatar, the orientation model): a base URL, by default the folder of the library's own module
- * as built (`dist/`: `mm-avatar.js` sits beside `mmcore_bg.wasm`, `databases/`, `avatars/`,
- * `models/`), set at build time and resolved against `import.meta.url` at run time; in the dev
- * server, the site root. `setAssetBase` overrides it (e.g. a CDN folder).
+ * avatar, the orientation models).
+ *
+ * - **The package for bundlers** (`dist/lib/`, `npm i mm-avatar`): each shipped asset is named by
+ *   a literal `new URL('../<file>', import.meta.url)` in the built module, the pattern vite,
+ *   webpack 5 and parcel follow to copy the file into the app's output by themselves (no
+ *   copying step, no configuration); the app's bundler then rewrites the URL to where it put
+ *   the file. The literals are in this module (`PACKAGED`) and in the VR entry's (vr/assets.ts),
+ *   written relative to `dist/lib/`, where the built modules sit beside `../mmcore_bg.wasm`,
+ *   `../databases/`, `../avatars/`, `../models/`. Only the entries that use an asset name it,
+ *   so a desktop app never carries the VR models.
+ * - **The one-tag build** (`dist/mm-avatar.js`) and **the site** find them in a base folder set
+ *   at build time (`__MM_ASSET_BASE__`: beside `mm-avatar.js`, one folder up from the site's
+ *   `assets/`) resolved against `import.meta.url` at run time; the dev server, at the site root.
+ * - `setAssetBase(url)` overrides all of them (a CDN folder, a bundler that does not follow the
+ *   pattern: rollup and esbuild without a plugin).
  */
 declare const __MM_ASSET_BASE__: string | undefined;
 /**
@@ -12,37 +23,74 @@ declare const __MM_ASSET_BASE__: string | undefined;
  * so caches may keep them for good (cache.ts, the server's `immutable`); none in development.
  */
 declare const __MM_ASSET_VERSIONS__: Record<string, { v: string; bytes: number }> | undefined;
+/** True in the package build for bundlers (`vite build --mode lib`). */
+declare const __MM_PACKAGE__: boolean | undefined;
+
+/** The package build: shipped assets are the literal URLs below, not a base folder. */
+export const PACKAGE = typeof __MM_PACKAGE__ === 'boolean' && __MM_PACKAGE__;
 
 /** The built-in base, relative to this module's URL ('/' in development). */
 const BUILT_IN = typeof __MM_ASSET_BASE__ === 'string' ? __MM_ASSET_BASE__ : '/';
 
 let base: URL | null = null;
+/** Whether `setAssetBase` chose the base (it then wins over the package's literal URLs). */
+let baseSet = false;
+
+/** The page's URL, or undefined outside a page (Node: SSR, tests). Read when called, never at import. */
+export function pageUrl(): string | undefined {
+  return typeof location !== 'undefined' ? location.href : undefined;
+}
 
 function defaultBase(): URL {
   const here = import.meta.url;
-  const origin = typeof location !== 'undefined' ? location.href : here;
   // An absolute path is relative to the page's origin; anything else to this module.
-  return new URL(BUILT_IN, BUILT_IN.startsWith('/') ? origin : here);
+  return new URL(BUILT_IN, BUILT_IN.startsWith('/') ? (pageUrl() ?? here) : here);
 }
 
 /** Sets the folder the default assets are fetched from (absolute, or relative to the page). */
 export function setAssetBase(url: string | URL): void {
-  base = new URL(url, typeof location !== 'undefined' ? location.href : undefined);
+  base = new URL(url, pageUrl());
   if (!base.pathname.endsWith('/')) base.pathname += '/';
+  baseSet = true;
 }
 
 const VERSIONS = typeof __MM_ASSET_VERSIONS__ === 'object' && __MM_ASSET_VERSIONS__ ? __MM_ASSET_VERSIONS__ : {};
 
 /**
+ * The root entry's shipped assets in the package build, each a literal URL for the app's
+ * bundler (`@vite-ignore`: our own build leaves them alone; the package build drops the comment,
+ * vite.config.ts). Anywhere else the branch is removed at build time.
+ */
+const PACKAGED: Record<string, () => URL> = PACKAGE
+  ? {
+      'mmcore_bg.wasm': () => new URL(/* @vite-ignore */ '../mmcore_bg.wasm', import.meta.url),
+      'databases/locomotion.mmdb': () => new URL(/* @vite-ignore */ '../databases/locomotion.mmdb', import.meta.url),
+      'avatars/ubc_male.glb': () => new URL(/* @vite-ignore */ '../avatars/ubc_male.glb', import.meta.url),
+    }
+  : {};
+
+function versioned(url: URL, path: string): URL {
+  const version = VERSIONS[path];
+  if (version && !url.search && url.protocol !== 'data:') url.searchParams.set('v', version.v);
+  return url;
+}
+
+/**
  * URL of a default asset, e.g. `assetUrl('databases/locomotion.mmdb')`; in a build, versioned by
- * its content hash (`…/locomotion.mmdb?v=1f2e3d4c5b6a7980`).
+ * its content hash (`…/locomotion.mmdb?v=1f2e3d4c5b6a7980`). In the package, a shipped asset's
+ * URL is where the app's bundler put it (unless `setAssetBase` was called).
  */
 export function assetUrl(path: string): URL {
-  base ??= defaultBase();
-  const url = new URL(path, base);
-  const version = VERSIONS[path];
-  if (version && !url.search) url.searchParams.set('v', version.v);
-  return url;
+  const packaged = baseSet ? undefined : PACKAGED[path];
+  return packaged ? versioned(packaged(), path) : versioned(new URL(path, (base ??= defaultBase())), path);
+}
+
+/**
+ * `assetUrl` for an asset only another entry ships (the VR entry's models): `packaged` is its
+ * literal URL in the package build, null elsewhere. @internal
+ */
+export function shippedAssetUrl(path: string, packaged: (() => URL) | null): URL {
+  return packaged && !baseSet ? versioned(packaged(), path) : assetUrl(path);
 }
 
 /** Whether this is a build with versioned assets (not the dev server). */
@@ -57,11 +105,7 @@ export function assetBytes(url: string | URL): number {
   return v ? (Object.values(VERSIONS).find((e) => e.v === v)?.bytes ?? 0) : 0;
 }
 
-/** The shipped defaults. */
+/** The shipped default database (`Character.create()` and `<mm-avatar>` without one load it). */
 export const DEFAULT_DATABASE = 'databases/locomotion.mmdb';
-/** The VR page's database (docs/database.md, `vr.json`): slow walks, steps, gestures, idle. */
-export const DEFAULT_VR_DATABASE = 'databases/vr.mmdb';
+/** The shipped default avatar (`Character.create()` and `<mm-avatar>` without one load it). */
 export const DEFAULT_AVATAR = 'avatars/ubc_male.glb';
-export const DEFAULT_ORIENTATION_MODEL = 'models/orientation.onnx';
-/** The orientation model for one controller or none (recurrent; docs/orientation-model.md). */
-export const DEFAULT_ORIENTATION_MODEL_FEWER_DEVICES = 'models/orientation_gru.onnx';

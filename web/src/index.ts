@@ -12,6 +12,7 @@
  * Or in any page: `<script type="module" src="mm-avatar.js"></script><mm-avatar></mm-avatar>`.
  *
  * @packageDocumentation
+ * @module mm-avatar
  */
 
 // Characters: a database and an avatar → a three.js object; the per-frame recipe.
@@ -30,7 +31,7 @@ export type { ClipInfo, DatabaseEntry, FeatureGroupInfo, TagInfo } from './core/
 export { DatabaseBuilder } from './core/builder.ts';
 export { initWasm, initWasmSync, liveObjects } from './core/wasm.ts';
 export type { LiveObjects, WasmExports } from './core/wasm.ts';
-export { DEFAULT_AVATAR, DEFAULT_DATABASE, DEFAULT_VR_DATABASE, DEFAULT_ORIENTATION_MODEL, DEFAULT_ORIENTATION_MODEL_FEWER_DEVICES, assetBytes, assetUrl, hasAssetVersions, setAssetBase } from './assets.ts';
+export { DEFAULT_AVATAR, DEFAULT_DATABASE, assetBytes, assetUrl, hasAssetVersions, setAssetBase } from './assets.ts';
 export { errorMessage, fetchBytes } from './fetch.ts';
 export { ASSET_CACHE, isVersioned } from './cache.ts';
 export { registerOfflineCache } from './offline.ts';
@@ -64,38 +65,6 @@ export { RootMarker } from './views/root-marker.ts';
 export { Playback } from './views/playback.ts';
 export { UpdateTimer } from './views/update-timer.ts';
 
-// VR: tracked devices drive the character.
-export { DEFAULT_ALPHA, HMD_TO_HEAD_CENTRE, TrackedDrive, VR_SETTINGS } from './vr/tracked-drive.ts';
-export { HEAD, LEFT, NUM_TRACKERS, RIGHT, TrackerSample, gripFromHand, sampleXRFrame } from './vr/tracker-sample.ts';
-export { deviceKind, deviceSetName } from './vr/device-set.ts';
-export { TrackerState, TrackerView } from './vr/trackers.ts';
-export type { TrackerOptions } from './vr/trackers.ts';
-export type { BodyYawPredictor, TrackerPose } from './vr/body-yaw.ts';
-export { HeadingYawPredictor } from './vr/fallback-yaw.ts';
-export type { HeadingYawOptions } from './vr/fallback-yaw.ts';
-export { NetworkYawPredictor, loadNetworkPredictor } from './vr/network-yaw.ts';
-export type { OrientationModel } from './orientation/orientation-model.ts';
-export type { OrientationFeatures } from './orientation/features.ts';
-export { RecordingPlayer, TrackerRecorder, decodeRecording, encodeRecordingJson } from './vr/recording.ts';
-export type { Recording, RecordingMeta, RecordingTruth } from './vr/recording.ts';
-export { SCRIPT_DURATION, scriptedSample } from './vr/scripted-motion.ts';
-export { loadRecording } from './vr/load-recording.ts';
-export { EnterVrButton } from './vr/enter-vr-button.ts';
-export { SpectatorView } from './vr/spectator-view.ts';
-export { FIRST_PERSON_LAYER, FirstPerson, THIRD_PERSON_LAYER, setHeadsetView } from './vr/first-person.ts';
-export { UpperBody } from './vr/upper-body.ts';
-export type { UpperBodyOptions, UpperBodyRig } from './vr/upper-body.ts';
-
-// Shared rooms: people see each other's avatars over the network (docs/rooms.md).
-export { RoomCharacter, RoomClient, RoomPanel, RoomSession, NameLabel, qrCodeImage, roomIdFromUrl, roomOf, roomUrl } from './rooms/index.ts';
-export { DriftCorrector, InputStream, JitterBuffer, LocalAvatar, RemoteAvatar, measureBandwidth } from './rooms/index.ts';
-export { CloseCode, PROTOCOL_VERSION, ProtocolError, TICKS_PER_SECOND, createRoomId, decodeClientMessage, decodeServerMessage, isRoomId } from './rooms/index.ts';
-export type { RoomMember, RoomMemberView, RoomNote, RoomPanelOptions, RoomSessionOptions, RoomClientEvents, RoomClientOptions, RoomStatus, DrivenCharacter, PathInput } from './rooms/index.ts';
-export type { AvatarChoice, DeviceSet, JoinInfo, LeaveReasonName, MemberInfo, MoveStep, PathMessage, RoomTrackerPose, StateMessage, StreamMessage, TrackedStep } from './rooms/index.ts';
-export { LeaveReason, TickClock } from './rooms/index.ts';
-export type { BandwidthOptions, BandwidthResult, DriftCorrectorOptions, JitterBufferOptions, JitterStats, PushResult, Released, RemoteAvatarOptions, RemoteAvatarStats, WebSocketLike } from './rooms/index.ts';
-export type { ClientMessage, DeviceMode, DriveMode, MoveMessage, ServerMessage, StreamReport, TrackedMessage } from './rooms/index.ts';
-
 // Page helpers.
 export { installDropTarget, sortDroppedFiles } from './ui/drop.ts';
 export type { DroppedFiles } from './ui/drop.ts';
@@ -115,5 +84,3 @@ export { benchRuntime } from './bench/runtime-bench.ts';
 export type { RuntimeBenchResult } from './bench/runtime-bench.ts';
 export { realisticQueries, seededRandom } from './bench/queries.ts';
 export type { BenchQuery } from './bench/queries.ts';
-export { ELBOW_LIMIT, HIPS_MIN_RATIO, UPRIGHT_BAND, benchReplay, stats } from './vr/replay-bench.ts';
-export type { PoseCheck, ReplayBenchResult, Stats } from './vr/replay-bench.ts';

@@ -8,8 +8,8 @@ use std::process::ExitCode;
 use std::time::Instant;
 
 const USAGE: &str = "usage:
-  mmdb build (--config CONFIG.json | FILE.bvh...) -o OUT.mmdb [--fps N] [--scale S|auto] [--no-mirror]
-             [--no-repair] [--json]
+  mmdb build (--config CONFIG.json | FILE...) -o OUT.mmdb [--fps N] [--scale S|auto] [--no-mirror]
+             [--no-repair] [--json]   (FILE: .bvh, or .glb/.gltf/.vrma: each animation a clip)
   mmdb inspect DB.mmdb [--json]
   mmdb search DB.mmdb (--frame N | --query v1,v2,...) [--normalized] [-k K] [--tag TAG]
               [--beta-pose B] [--beta-trajectory B] [--exclude-radius R]
@@ -112,17 +112,25 @@ fn read(path: &Path) -> Result<Vec<u8>, Error> {
     std::fs::read(path).map_err(|e| Error::Io(format!("{}: {e}", path.display())))
 }
 
-fn parse_bvh(path: &Path) -> Result<Source, Error> {
+/// The takes of one file: a BVH file, or each animation of a glTF file (`file.glb#clip` when
+/// it has several; `keep` says which of those a config asks for).
+fn parse_sources(path: &Path, keep: &dyn Fn(&str) -> bool) -> Result<Vec<Source>, Error> {
     let bytes = read(path)?;
     let name = path.to_string_lossy().into_owned();
-    Ok(Source { bvh: Bvh::parse(&name, &bytes)?, name })
+    let ext = path.extension().map(|e| e.to_string_lossy().to_ascii_lowercase()).unwrap_or_default();
+    if matches!(ext.as_str(), "glb" | "gltf" | "vrma") || (ext != "bvh" && mmcore::gltf::looks_like_gltf(&bytes)) {
+        let takes = mmcore::gltf::parse(&name, &bytes)?;
+        let single = takes.len() == 1;
+        return Ok(takes.into_iter().map(|t| Source { name: if single { name.clone() } else { format!("{name}#{}", t.clip) }, bvh: t.bvh }).filter(|s| keep(&s.name)).collect());
+    }
+    Ok(vec![Source { bvh: Bvh::parse(&name, &bytes)?, name }])
 }
 
 /// Files named by a config's clip entries, relative to the config, `*`/`?` in the file name.
 fn config_files(config: &BuildConfig, dir: &Path) -> Result<Vec<PathBuf>, Error> {
     let mut files: Vec<PathBuf> = Vec::new();
     for clip in &config.clips {
-        let pattern = dir.join(&clip.file);
+        let pattern = dir.join(mmcore::config::split_clip(&clip.file).0);
         let name = pattern.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
         let parent = pattern.parent().unwrap_or(dir);
         let mut matched: Vec<PathBuf> = if name.contains(['*', '?']) {
@@ -174,7 +182,7 @@ fn build(args: &[String]) -> CliResult {
         None => (BuildConfig::default(), a.positional.iter().map(PathBuf::from).collect()),
     };
     if files.is_empty() {
-        return Err(Usage("build needs BVH files or --config".into()).into());
+        return Err(Usage("build needs BVH/glTF files or --config".into()).into());
     }
     // Range-checked here, by flag name: the config was validated before these override it.
     if let Some(fps) = a.number::<f64>("--fps")? {
@@ -198,7 +206,9 @@ fn build(args: &[String]) -> CliResult {
         config.clips.iter_mut().for_each(|c| c.mirror = Some(false));
     }
     let started = Instant::now();
-    let sources = files.iter().map(|f| parse_bvh(f)).collect::<Result<Vec<_>, _>>()?;
+    let from_config = a.get("--config").is_some();
+    let keep = |name: &str| !from_config || config.clip_spec(name).is_some();
+    let sources = files.iter().map(|f| parse_sources(f, &keep)).collect::<Result<Vec<_>, _>>()?.into_iter().flatten().collect::<Vec<_>>();
     let parsed = started.elapsed();
     let out = mmcore::build(&config, &sources)?;
     let bytes = format::to_bytes(&out.database);
@@ -217,8 +227,9 @@ fn build(args: &[String]) -> CliResult {
         println!("{}", inspect::summary(db, Some(bytes.len())));
     } else {
         println!(
-            "{output}: {} files → {} clips, {} frames at {} fps ({:.1} s), {} joints, {} features, {:.2} MB in {:.2} s (parse {:.2} s)",
-            sources.len(),
+            "{output}: {} files{} → {} clips, {} frames at {} fps ({:.1} s), {} joints, {} features, {:.2} MB in {:.2} s (parse {:.2} s)",
+            files.len(),
+            if sources.len() == files.len() { String::new() } else { format!(" ({} takes)", sources.len()) },
             db.clips.len(),
             db.num_frames,
             db.fps,

@@ -1,4 +1,5 @@
-//! `RawBuilder`: builds a database in the page from BVH files (drag and drop), and `bvh_info`.
+//! `RawBuilder`: builds a database in the page from BVH files and glTF/GLB/VRMA animations
+//! (drag and drop, the API), and `bvh_info`.
 
 use super::{js_error, Kind, LiveToken};
 use crate::builder::{self, Source};
@@ -30,6 +31,20 @@ impl RawBuilder {
         let bvh = Bvh::parse(name, bytes).map_err(js_error)?;
         self.sources.push(Source { name: name.to_string(), bvh });
         Ok(())
+    }
+
+    /// Parses a glTF/GLB/VRMA file now (each animation a take, `name#clip` when there are
+    /// several) and returns the names of the takes added, as a JSON array.
+    pub fn add_gltf(&mut self, name: &str, bytes: &[u8]) -> Result<String, JsError> {
+        let takes = crate::gltf::parse(name, bytes).map_err(js_error)?;
+        let single = takes.len() == 1;
+        let mut names = Vec::with_capacity(takes.len());
+        for t in takes {
+            let source = if single { name.to_string() } else { format!("{name}#{}", t.clip) };
+            names.push(source.clone());
+            self.sources.push(Source { name: source, bvh: t.bvh });
+        }
+        Ok(serde_json::to_string(&names).unwrap_or_default())
     }
 
     pub fn num_files(&self) -> usize {

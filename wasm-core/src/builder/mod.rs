@@ -123,7 +123,7 @@ pub fn build(config: &BuildConfig, sources: &[Source]) -> Result<BuildOutput> {
     let reference_index = match &config.reference {
         Some(r) => sources
             .iter()
-            .position(|s| crate::config::wildcard_match(r, base_name(&s.name)))
+            .position(|s| crate::config::source_matches(r, base_name(&s.name)))
             .ok_or_else(|| Error::config(format!("reference '{r}' is not one of the source files")))?,
         None => 0,
     };

@@ -44,13 +44,17 @@ impl Reference {
         let end_sites: Vec<Option<DVec3>> = bvh.joints.iter().map(|j| j.end_site).collect();
         let poses = sample_poses(bvh, frames, 16);
         let shape = Shape { offsets: &offsets, end_sites: &end_sites, poses: &poses };
-        let overrides = if is_reference {
+        let mut overrides: std::collections::HashMap<String, String> = if is_reference {
             config.roles.clone()
         } else {
             // Overrides describe the reference skeleton; another skeleton keeps those that fit.
             let known: Vec<String> = names.iter().map(|n| roles::normalize_name(n)).collect();
             config.roles.iter().filter(|(_, j)| j.is_empty() || known.contains(&roles::normalize_name(j))).map(|(r, j)| (r.clone(), j.clone())).collect()
         };
+        // The file's own map (a VRM humanoid), under the config's.
+        for (role, joint) in &bvh.role_hints {
+            overrides.entry(role.clone()).or_insert_with(|| joint.clone());
+        }
         let roles = roles::find_roles_in(&names, &parents, Some(&shape), &overrides).map_err(|e| Error::config(format!("roles: {e}")))?;
         let humanoid = roles::find_humanoid(&parents, &shape);
         for role in REQUIRED {

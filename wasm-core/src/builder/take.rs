@@ -139,7 +139,7 @@ impl Take {
         // Frame Time is usually printed with few digits (0.00833333): snap to the whole rate.
         let fps = bvh.fps();
         let source_fps = if (fps - fps.round()).abs() < 0.01 { fps.round() } else { fps };
-        let stem = base_name(&source.name).trim_end_matches(".bvh").trim_end_matches(".BVH").to_string();
+        let stem = clip_stem(base_name(&source.name));
         let clip_name = if frames == (0, bvh.num_frames) { stem } else { format!("{stem}[{}-{}]", frames.0, frames.1) };
         Ok(Take {
             clip_name,
@@ -242,4 +242,18 @@ fn reach(bvh: &Bvh, frames: (usize, usize)) -> f64 {
         farthest = farthest.max(chain[k] + site);
     }
     farthest
+}
+
+/// A source's clip name: its file name without the extension, and for one clip of a glTF file
+/// (`walks.glb#Walk`) the clip's name after a `#` (`walks#Walk`).
+fn clip_stem(name: &str) -> String {
+    let (file, clip) = crate::config::split_clip(name);
+    let stem = match file.rsplit_once('.') {
+        Some((stem, ext)) if ["bvh", "glb", "gltf", "vrma"].contains(&ext.to_ascii_lowercase().as_str()) => stem,
+        _ => file,
+    };
+    match clip {
+        Some(clip) => format!("{stem}#{clip}"),
+        None => stem.to_string(),
+    }
 }

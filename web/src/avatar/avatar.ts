@@ -52,7 +52,12 @@ export class Avatar {
   /** Parent of each bone among `bones` (its nearest ancestor in the set), −1 for none. */
   readonly parents: Int32Array;
   readonly roles: ReadonlyMap<RoleName, number>;
-  readonly vrm: VRM | undefined;
+  /**
+   * A VRM model's `VRM` object from `@pixiv/three-vrm` (undefined for a plain glTF): cast it to
+   * use it as one (`avatar.vrm as VRM`). Typed by its shape so that the package's types never
+   * load three-vrm's, which do not resolve under TypeScript's `moduleResolution: node16`.
+   */
+  readonly vrm: { readonly scene: THREE.Object3D; readonly meta: unknown; update(delta: number): void } | undefined;
   /** Toe height standing on the floor (the rest pose), avatar units; NaN without toes. */
   readonly standingToeHeight: number;
   /** Toe heights after the last `pose` (left, right), avatar units; NaN for a missing toe. */

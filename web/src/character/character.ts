@@ -15,6 +15,7 @@ import * as THREE from 'three';
 import { Avatar, type AvatarOptions } from '../avatar/avatar.ts';
 import { CharacterRuntime, createMoveInput, createTrackedInput, type MoveInput, type RuntimeSettings, type TrackedInput } from '../core/character.ts';
 import { type Database, loadDatabase } from '../core/database.ts';
+import { DEFAULT_AVATAR, DEFAULT_DATABASE, assetUrl } from '../assets.ts';
 import { type FetchOptions } from '../fetch.ts';
 import { DebugViews } from '../views/debug-views.ts';
 import { SkeletonView } from '../views/skeleton-view.ts';
@@ -51,9 +52,15 @@ export interface CharacterOptions {
 }
 
 export interface CreateOptions extends CharacterOptions, FetchOptions {
-  /** A database, or where to load one (shared by URL). */
-  database: Database | string | URL | Uint8Array;
-  /** An avatar, a GLB/VRM URL or bytes, a three.js object with skinned meshes, or null: skeleton only. */
+  /**
+   * A database, or where to load one (shared by URL); default the shipped locomotion database
+   * (`DEFAULT_DATABASE`, fetched only then; from a bundler, where it put the file).
+   */
+  database?: Database | string | URL | Uint8Array;
+  /**
+   * An avatar, a GLB/VRM URL or bytes, a three.js object with skinned meshes, or null: skeleton
+   * only; default the shipped avatar (`DEFAULT_AVATAR`, fetched only then).
+   */
   avatar?: Avatar | string | URL | Uint8Array | THREE.Object3D | null;
   /** Avatar loading options (manual joint map). */
   avatarOptions?: AvatarOptions;
@@ -165,14 +172,24 @@ export class Character {
     this.draw(0);
   }
 
-  /** Loads what is needed (database shared by URL, avatar) and makes a character. */
-  static async create(options: CreateOptions): Promise<Character> {
-    const { database, avatar, avatarOptions, ...rest } = options;
-    const db = typeof database === 'object' && !(database instanceof URL) && !(database instanceof Uint8Array) ? database.retain() : await loadDatabase(database, rest);
+  /**
+   * Loads what is needed (database shared by URL, avatar: in parallel) and makes a character.
+   * `Character.create()` alone: the shipped database and avatar.
+   */
+  static async create(options: CreateOptions = {}): Promise<Character> {
+    const { database = assetUrl(DEFAULT_DATABASE), avatar = assetUrl(DEFAULT_AVATAR), avatarOptions, ...rest } = options;
+    // The avatar downloads while the database does; a failed database drops it.
+    const avatarLoad: Promise<Avatar | null> = avatar instanceof Avatar || avatar === null ? Promise.resolve(avatar) : Avatar.load(avatar, { ...avatarOptions, ...rest });
+    avatarLoad.catch(() => undefined);
+    let db: Database;
     try {
-      let a: Avatar | null = null;
-      if (avatar instanceof Avatar) a = avatar;
-      else if (avatar !== null && avatar !== undefined) a = await Avatar.load(avatar, { ...avatarOptions, ...rest });
+      db = typeof database === 'object' && !(database instanceof URL) && !(database instanceof Uint8Array) ? database.retain() : await loadDatabase(database, rest);
+    } catch (e) {
+      void avatarLoad.then((a) => a !== avatar && a?.dispose(), () => undefined);
+      throw e;
+    }
+    try {
+      const a = await avatarLoad;
       return new Character(db, a, options);
     } finally {
       db.release(); // the character holds its own reference

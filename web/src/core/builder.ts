@@ -1,5 +1,6 @@
 /**
- * `DatabaseBuilder`: builds `.mmdb` bytes from BVH files in the page (wraps the WASM
+ * `DatabaseBuilder`: builds `.mmdb` bytes in the page from motion files — BVH takes, glTF/GLB
+ * animation clips and VRM Animation (`.vrma`) — the same build as `mmdb build` (wraps the WASM
  * `RawBuilder` and owns its lifetime).
  */
 import { RawBuilder } from './raw.ts';
@@ -32,6 +33,30 @@ export class DatabaseBuilder {
     }
   }
 
+  /**
+   * Parses a glTF/GLB/VRMA file now: each of its animations becomes a take (`name#clip` when it
+   * has several), the skeleton mapped by its VRM humanoid map when it has one, else by the
+   * importer's rules (names, topology). Returns the takes' names; throws an Error naming the
+   * file and what is wrong.
+   */
+  addGltf(name: string, bytes: Uint8Array): string[] {
+    try {
+      return JSON.parse(this.r.add_gltf(name, bytes)) as string[];
+    } catch (e) {
+      throw asError(e);
+    }
+  }
+
+  /**
+   * Adds a motion file by its kind: glTF (`.glb`, `.gltf`, `.vrma`, or bytes that start like
+   * one) through `addGltf`, anything else as BVH. Returns the takes' names.
+   */
+  addFile(name: string, bytes: Uint8Array): string[] {
+    if (isGltf(name, bytes)) return this.addGltf(name, bytes);
+    this.addBvh(name, bytes);
+    return [name];
+  }
+
   /** Builds the database and returns its `.mmdb` bytes. */
   build(): Uint8Array {
     try {
@@ -58,4 +83,13 @@ export class DatabaseBuilder {
     if (this.raw) freeRaw(this.raw, 'rawbuilder');
     this.raw = null;
   }
+}
+
+/** glTF by name (`.glb`, `.gltf`, `.vrma`) or by content (`glTF` magic, JSON text) unless named `.bvh`. */
+function isGltf(name: string, bytes: Uint8Array): boolean {
+  const ext = name.toLowerCase().match(/\.([a-z0-9]+)$/)?.[1] ?? '';
+  if (ext === 'glb' || ext === 'gltf' || ext === 'vrma') return true;
+  if (ext === 'bvh') return false;
+  const head = new TextDecoder().decode(bytes.subarray(0, 16)).replace(/^\uFEFF/, '').trimStart();
+  return head.startsWith('glTF') || head.startsWith('{');
 }

@@ -7,7 +7,7 @@
  * from disk, or call `initWasmSync(bytes)`.
  */
 import { initWasmModule, initWasmModuleSync, live_objects } from './raw.ts';
-import { assetUrl } from '../assets.ts';
+import { PACKAGE, assetUrl } from '../assets.ts';
 import { type FetchOptions, type FetchProgress, fetchBytes } from '../fetch.ts';
 
 /** What the module's initializer returns: its exports, including `memory`. */
@@ -20,8 +20,9 @@ let _pending: Promise<WasmExports> | null = null;
 /** Everyone waiting on the pending load who wants its progress. */
 const _listeners = new Set<(p: FetchProgress) => void>();
 
-/** Node (tests, tools) rather than a browser: read the module from disk there. */
-const isNode = typeof (globalThis as { process?: { versions?: { node?: string } } }).process?.versions?.node === 'string' && typeof window === 'undefined';
+/** Node (tests, tools, server-side rendering) rather than a browser: read the module from disk
+ * there. Asked when loading, never at import (importing touches no browser global). */
+const isNode = () => typeof (globalThis as { process?: { versions?: { node?: string } } }).process?.versions?.node === 'string' && typeof window === 'undefined';
 
 /** Initializes from the module bytes, synchronously. A no-op when already initialized. */
 export function initWasmSync(bytes: BufferSource): WasmExports {
@@ -39,14 +40,16 @@ export function initWasm(url?: string | URL, options: Pick<FetchOptions, 'onProg
   if (_exports) return Promise.resolve(_exports);
   if (options.onProgress) _listeners.add(options.onProgress);
   _pending ??= (async () => {
-    if (isNode && url === undefined) {
+    if (isNode() && url === undefined) {
       // Kept out of the browser bundle: the specifier is not a literal a bundler can follow.
       const fsModule = 'node:fs/promises';
       const { readFile } = (await import(/* @vite-ignore */ fsModule)) as { readFile(path: URL): Promise<Uint8Array<ArrayBuffer>> };
-      // Not `new URL('literal', import.meta.url)`: bundlers would inline the module into the JS.
-      const file = ['pkg', 'mmcore_bg.wasm'].join('/');
-      const bytes = await readFile(new URL(file, import.meta.url));
-      return initWasmSync(bytes);
+      // The package: the shipped file (a file: URL beside dist/lib/). The source (vitest): the
+      // generated package beside this file, not `new URL('literal', import.meta.url)`, which
+      // our own build would inline into the JS.
+      const file = PACKAGE ? assetUrl('mmcore_bg.wasm') : new URL(['pkg', 'mmcore_bg.wasm'].join('/'), import.meta.url);
+      file.search = '';
+      return initWasmSync(await readFile(file));
     }
     const where = String(url ?? assetUrl('mmcore_bg.wasm'));
     try {

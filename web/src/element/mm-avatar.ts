@@ -466,9 +466,14 @@ export class MMAvatarElement extends ElementBase {
   }
 }
 
-/** Registers `<mm-avatar>` (or another tag name); a no-op when it is already defined. */
-export function defineMMAvatar(tag = 'mm-avatar'): void {
+/**
+ * Registers `<mm-avatar>` (or another tag name); a no-op when it is already defined, and outside
+ * a browser (no `customElements`: server-side rendering, Node), where it returns false.
+ */
+export function defineMMAvatar(tag = 'mm-avatar'): boolean {
+  if (typeof customElements === 'undefined') return false;
   if (!customElements.get(tag)) customElements.define(tag, MMAvatarElement);
+  return true;
 }
 
 declare global {

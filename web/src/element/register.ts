@@ -1,7 +1,9 @@
 /**
- * The standalone build's entry (`dist/mm-avatar.js`): registers `<mm-avatar>` on load, so a
- * plain page needs one `<script type="module" src=".../mm-avatar.js">`. Bundler users import
- * `defineMMAvatar` from the package (or `mm-avatar/element`, this file).
+ * `mm-avatar/element` and the standalone build's entry (`dist/mm-avatar.js`): registers
+ * `<mm-avatar>` on load in a browser, so a plain page needs one
+ * `<script type="module" src=".../mm-avatar.js">` and a bundled app one
+ * `import 'mm-avatar/element'`. Outside a browser (server-side rendering, Node tests) importing it
+ * registers nothing and touches no DOM global.
  */
 import { defineMMAvatar } from './mm-avatar.ts';
 

@@ -1,32 +1,51 @@
 /**
- * Files dropped on the page, sorted by what they are for: BVH takes (build a database in the
- * page), a database (`.mmdb`), or an avatar (`.glb`, `.vrm`). Anything else is reported, not
+ * Files dropped on the page, sorted by what they are for: motion (BVH takes, VRM Animation
+ * `.vrma`, glTF/GLB files with animations and no mesh: build a database in the page), a database
+ * (`.mmdb`), or an avatar (`.vrm`, and `.glb`/`.gltf` with a mesh). Anything else is reported, not
  * silently ignored.
  */
 
 export interface DroppedFiles {
-  bvh: File[];
+  /** Motion to build a database from (`DatabaseBuilder.addFile`): BVH, VRMA, animation-only glTF/GLB. */
+  motions: File[];
   databases: File[];
   avatars: File[];
   /** Names of files of no known kind. */
   unknown: string[];
 }
 
-export function sortDroppedFiles(files: Iterable<File>): DroppedFiles {
-  const out: DroppedFiles = { bvh: [], databases: [], avatars: [], unknown: [] };
+/** Whether a glTF/GLB file holds animations and no mesh (motion, not an avatar), from its JSON. */
+async function isMotionOnly(file: File): Promise<boolean> {
+  try {
+    const head = new Uint8Array(await file.slice(0, 20).arrayBuffer());
+    let text: string;
+    if (new TextDecoder().decode(head.subarray(0, 4)) === 'glTF') {
+      const length = new DataView(head.buffer).getUint32(12, true);
+      text = new TextDecoder().decode(await file.slice(20, 20 + length).arrayBuffer());
+    } else text = await file.text();
+    const json = JSON.parse(text) as { animations?: unknown[]; meshes?: unknown[] };
+    return (json.animations?.length ?? 0) > 0 && (json.meshes?.length ?? 0) === 0;
+  } catch {
+    return false; // not readable as glTF: the avatar loader says what is wrong with it
+  }
+}
+
+export async function sortDroppedFiles(files: Iterable<File>): Promise<DroppedFiles> {
+  const out: DroppedFiles = { motions: [], databases: [], avatars: [], unknown: [] };
   for (const f of files) {
     const ext = f.name.toLowerCase().match(/\.([a-z0-9]+)$/)?.[1] ?? '';
-    if (ext === 'bvh') out.bvh.push(f);
+    if (ext === 'bvh' || ext === 'vrma') out.motions.push(f);
     else if (ext === 'mmdb') out.databases.push(f);
-    else if (ext === 'glb' || ext === 'vrm') out.avatars.push(f);
+    else if (ext === 'glb' || ext === 'gltf') (await isMotionOnly(f) ? out.motions : out.avatars).push(f);
+    else if (ext === 'vrm') out.avatars.push(f);
     else out.unknown.push(f.name);
   }
   return out;
 }
 
 /**
- * Calls `onDrop` with the files dropped anywhere on `target`, showing `overlay` while files are
- * dragged over it.
+ * Calls `onDrop` with the files dropped anywhere on `target`, sorted, showing `overlay` while
+ * files are dragged over it.
  */
 export function installDropTarget(target: HTMLElement, overlay: HTMLElement, onDrop: (files: DroppedFiles) => void): void {
   let depth = 0; // dragenter/dragleave fire for every child crossed
@@ -50,6 +69,6 @@ export function installDropTarget(target: HTMLElement, overlay: HTMLElement, onD
     depth = 0;
     overlay.hidden = true;
     const files = e.dataTransfer?.files;
-    if (files && files.length > 0) onDrop(sortDroppedFiles(files));
+    if (files && files.length > 0) void sortDroppedFiles([...files]).then(onDrop);
   });
 }

@@ -1,7 +1,7 @@
 /**
  * The desktop demo (index.html): `<mm-avatar>` full page, plus a panel with every runtime knob,
- * path editing, view toggles, the database and style choice; files dropped on the page (BVH → a
- * database built here, `.mmdb`, `.glb`/`.vrm`); a HUD. Only the library's public entry is used.
+ * path editing, view toggles, the database and style choice; files dropped on the page (BVH,
+ * VRMA, glTF clips → a database built here, `.mmdb`, `.glb`/`.vrm`); a HUD. Only the library's public entries are used.
  *
  * URL parameters: `db=<url>`, `avatar=<url>|none`, `roles=<JSON role → bone name>` (manual
  * joint map), `skeleton=1`, `shadows=0`, `dt=fixed` (exactly 1/60 s per frame, for tests; `dt=0.05`: that many s),
@@ -10,9 +10,10 @@
 import GUI, { type Controller } from 'lil-gui';
 import * as THREE from 'three';
 import {
-  Avatar, Database, DatabaseBuilder, type DroppedFiles, PathEditor, RUNTIME_SETTINGS, type RoleOverrides, RoomPanel, UpdateTimer,
+  Avatar, Database, DatabaseBuilder, type DroppedFiles, PathEditor, RUNTIME_SETTINGS, type RoleOverrides, UpdateTimer,
   defineMMAvatar, errorMessage, installDropTarget, listDatabases, registerOfflineCache, showError,
 } from '../../index.ts';
+import { RoomPanel } from '../../rooms/index.ts';
 
 const hook = {
   ready: false,
@@ -175,20 +176,20 @@ el.addEventListener('load', async () => {
     c.name(s.label).onChange((v: unknown) => (el.character!.settings = { [s.key]: v }));
   }
 
-  // ---- dropped files: BVH → a database built here; .mmdb; .glb/.vrm → the avatar
+  // ---- dropped files: motion (BVH, .vrma, glTF clips) → a database built here; .mmdb; .glb/.vrm → the avatar
   installDropTarget(document.body, document.getElementById('drop-overlay')!, (files: DroppedFiles) => void onDrop(files));
   const onDrop = async (files: DroppedFiles) => {
-    if (files.unknown.length) fileError(`Not used (drop .bvh, .mmdb, .glb or .vrm): ${files.unknown.join(', ')}`);
+    if (files.unknown.length) fileError(`Not used (drop .bvh, .vrma, .glb, .mmdb or .vrm): ${files.unknown.join(', ')}`);
     const read = async (f: File) => new Uint8Array(await f.arrayBuffer());
     try {
       let bytes: Uint8Array | null = null;
       let name = '';
-      if (files.bvh.length) {
+      if (files.motions.length) {
         const builder = new DatabaseBuilder({});
         try {
-          for (const f of files.bvh) builder.addBvh(f.name, await read(f));
+          for (const f of files.motions) builder.addFile(f.name, await read(f));
           bytes = builder.build();
-          name = files.bvh.length === 1 ? files.bvh[0].name : `${files.bvh[0].name} + ${files.bvh.length - 1} more`;
+          name = files.motions.length === 1 ? files.motions[0].name : `${files.motions[0].name} + ${files.motions.length - 1} more`;
         } finally {
           builder.free();
         }

@@ -13,12 +13,12 @@
  */
 import * as THREE from 'three';
 import { Reflector } from 'three/addons/objects/Reflector.js';
+import { DEFAULT_AVATAR, FollowCamera, LoadingStatus, Stage, UpdateTimer, assetUrl, errorMessage, loadPageCharacter, registerOfflineCache, saveTextFile, showError } from '../../index.ts';
 import {
-  DEFAULT_ALPHA, DEFAULT_AVATAR, DEFAULT_VR_DATABASE, DEFAULT_ORIENTATION_MODEL, DEFAULT_ORIENTATION_MODEL_FEWER_DEVICES, EnterVrButton, FollowCamera, HeadingYawPredictor, LEFT, LoadingStatus,
-  FIRST_PERSON_LAYER, FirstPerson, deviceSetName, type NetworkYawPredictor, RIGHT, RecordingPlayer, RoomPanel, SpectatorView, Stage, TrackedDrive, TrackerRecorder, TrackerSample, UpdateTimer, assetUrl,
-  benchReplay, encodeRecordingJson, errorMessage, loadNetworkPredictor, loadPageCharacter, loadRecording, registerOfflineCache, sampleXRFrame,
-  THIRD_PERSON_LAYER, saveTextFile, scriptedSample, setHeadsetView, showError,
-} from '../../index.ts';
+  DEFAULT_ALPHA, EnterVrButton, FIRST_PERSON_LAYER, FirstPerson, HeadingYawPredictor, LEFT, type NetworkYawPredictor, RIGHT, RecordingPlayer, SpectatorView, THIRD_PERSON_LAYER,
+  TrackedDrive, TrackerRecorder, TrackerSample, benchReplay, deviceSetName, encodeRecordingJson, loadNetworkPredictor, loadRecording, orientationModelUrl, sampleXRFrame, scriptedSample, setHeadsetView, vrDatabaseUrl,
+} from '../../vr/index.ts';
+import { RoomPanel } from '../../rooms/index.ts';
 
 const $ = <T extends HTMLElement>(id: string) => document.getElementById(id) as T;
 const hook = {
@@ -62,7 +62,7 @@ async function main(): Promise<void> {
 
   const avatarParam = params.get('avatar');
   const loading = LoadingStatus.attach($('hud'));
-  const loaded = await loadPageCharacter({ database: params.get('db') ?? assetUrl(DEFAULT_VR_DATABASE), avatar: avatarParam === 'none' ? null : (avatarParam ?? assetUrl(DEFAULT_AVATAR)), status: loading });
+  const loaded = await loadPageCharacter({ database: params.get('db') ?? vrDatabaseUrl(), avatar: avatarParam === 'none' ? null : (avatarParam ?? assetUrl(DEFAULT_AVATAR)), status: loading });
   if (!loaded) return void (hook.error = $('hud').textContent);
   const { character, avatarNote } = loaded;
   loading.finish(avatarNote ? (showError(avatarNote), 'skeleton: the avatar did not load') : null);
@@ -92,7 +92,7 @@ async function main(): Promise<void> {
   // then, the heuristic for good if it cannot load — and the page says which and why.
   let network: NetworkYawPredictor | null = null;
   let networkLoad: Promise<void> | null = null;
-  const modelUrl = params.get('model') ?? String(assetUrl(DEFAULT_ORIENTATION_MODEL));
+  const modelUrl = params.get('model') ?? String(orientationModelUrl());
   const select = $<HTMLSelectElement>('predictor');
   const status = $('predictor-status');
   const showPredictor = () => {
@@ -103,7 +103,7 @@ async function main(): Promise<void> {
     status.title = hook.predictorFallback ?? `model: ${modelUrl}`;
     status.classList.toggle('fallback', failed);
   };
-  const loadNetwork = () => (networkLoad ??= loadNetworkPredictor(modelUrl, { fewerDevices: params.get('model') ? null : assetUrl(DEFAULT_ORIENTATION_MODEL_FEWER_DEVICES) }).then((n) => {
+  const loadNetwork = () => (networkLoad ??= loadNetworkPredictor(modelUrl, { fewerDevices: params.get('model') ? null : orientationModelUrl(true) }).then((n) => {
     [network, hook.networkLoaded] = [n, true];
     choosePredictor(params.get('predictor') === 'heuristic' ? 'heuristic' : 'network');
   }, (e: unknown) => {
