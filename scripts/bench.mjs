@@ -2,23 +2,25 @@
 // `npm run bench [-- --json] [-- --seconds S] [-- --queries N] [-- --search-only] [-- --vr] [-- --compare REV] [-- --load]`
 // (--vr [--recordings a,b] [--alpha A]: only the VR replay benchmark, see vrBenchmark; --vr-shots: screenshots of the replays; --load: bytes and time to the first
 // animated frame of the pages, cold and warm, localhost and throttled: scripts/bench-load.mjs):
+// Every database here is a pinned recipe of databases/bench/ (scripts/bench-recipes.mjs): the
+// numbers stay comparable as ../shared grows; a new recipe is a new row.
 // 1. BVH parse speed (MB/s) and database build speed (frames/s), native (the mmdb CLI) and WASM
-//    in Node, on the same files in one run so the two are comparable under the same machine
-//    noise. Medians of repeated runs.
+//    in Node, on the takes of the cmu16-60fps recipe, in one run so the two are comparable under
+//    the same machine noise. Medians of repeated runs.
 // 2. Motion-matching search: median and p95 per-search time of the scalar, SIMD and AABB
-//    searches (WASM) in Node and in headless Chromium, on locomotion.mmdb and on a ~53k-frame
-//    database (public/databases/bench53k.mmdb, built here from all of ../shared/mocap/cmu-asf
-//    when missing). Queries: a database frame with its trajectory turned (web/src/bench/).
-//    Chromium gets the page bench.html from a vite server started here on a free port.
+//    searches (WASM) in Node and in headless Chromium, on every recipe's database. Queries: a
+//    database frame with its trajectory turned (web/src/bench/). Chromium gets the page
+//    bench.html from a vite server started here on a free port. The character update runs on
+//    the locomotion-2026-11 recipe.
 import fs from 'node:fs';
 import os from 'node:os';
 import path from 'node:path';
 import { execFileSync } from 'node:child_process';
 import { fileURLToPath } from 'node:url';
+import { PARSE_RECIPE, recipeDatabase, recipes, RUNTIME_RECIPE } from './bench-recipes.mjs';
 import { startBenchServer } from './bench-server.mjs';
 
 const ROOT = path.resolve(path.dirname(fileURLToPath(import.meta.url)), '..');
-const MOCAP = path.resolve(ROOT, '..', 'shared', 'mocap', 'cmu-asf');
 const args = process.argv.slice(2);
 const json = args.includes('--json');
 const seconds = Number(args[args.indexOf('--seconds') + 1]) || 2;
@@ -34,15 +36,17 @@ if (args.includes('--load')) {
 
 const mmdb = path.join(ROOT, 'wasm-core', 'target', 'release', 'mmdb');
 const pkg = path.join(ROOT, 'web', 'src', 'core', 'pkg');
-for (const [what, p] of [['native CLI', mmdb], ['WASM package', path.join(pkg, 'mmcore.js')], ['mocap', MOCAP]]) {
+for (const [what, p] of [['native CLI', mmdb], ['WASM package', path.join(pkg, 'mmcore.js')]]) {
   if (!fs.existsSync(p)) {
     console.error(`bench: ${what} missing at ${p}; run \`npm run build\` first (and keep ../shared beside the repo)`);
     process.exit(1);
   }
 }
 
-// The benchmark set: every subject-16 take (walks, runs, turns; 50 files, 13 MB, 14k frames).
-const files = fs.readdirSync(MOCAP).filter((f) => /^cmu_16_\d+\.bvh$/.test(f)).sort().map((f) => path.join(MOCAP, f));
+const RECIPES = recipes();
+const recipe = (name) => RECIPES.find((r) => r.name === name) ?? (() => { throw new Error(`no recipe databases/bench/${name}.json`); })();
+// The parse and build set: the takes of a pinned recipe (every subject-16 take: walks, runs, turns; 49 files, 13 MB).
+const files = recipe(PARSE_RECIPE).clips;
 
 function median(values) {
   const s = [...values].sort((a, b) => a - b);
@@ -115,7 +119,7 @@ function buildBenchmark() {
 function printBuildBenchmark(result) {
   const { megabytes, rows } = result;
   console.log(
-    `database build benchmark: ${result.files} BVH files (CMU subject 16), ${megabytes.toFixed(1)} MB, ` +
+    `database build benchmark: ${result.files} BVH files (recipe ${PARSE_RECIPE}: CMU subject 16), ${megabytes.toFixed(1)} MB, ` +
       `${result.source_frames} source frames at 120 fps → ${result.database_frames} database frames (60 fps, mirrored); medians`,
   );
   console.log('runtime          parse MB/s   build ms   build frames/s (source frames)');
@@ -130,42 +134,21 @@ function printBuildBenchmark(result) {
 // ---------------------------------------------------------------- search benchmark
 
 const DATABASES = path.join(ROOT, 'public', 'databases');
-const SEARCH_DATABASES = ['locomotion.mmdb', 'bench53k.mmdb'];
 const BENCH_PORT = 5197;
 const CHROMIUM = '/usr/bin/chromium';
-/** Targets for the AABB median in Chromium, ms. */
-const AABB_TARGETS_MS = { 'locomotion.mmdb': 0.02, 'bench53k.mmdb': 0.06 };
+/** Targets for the AABB median in Chromium, ms, by recipe (issue targets; a recipe without one has none). */
+const AABB_TARGETS_MS = { [RUNTIME_RECIPE]: 0.0035, 'cmu-first-batch-104fps': 0.06 };
 
-/**
- * Builds public/databases/bench53k.mmdb when missing: all 77 takes of ../shared/mocap/cmu-asf,
- * mirrored, resampled to 104 fps so the total is ≈ 53k frames (30,550 source frames at 120 fps
- * × 104/120 × 2). The config lives in a temp dir; its paths are relative to that dir.
- */
-function ensureBigDatabase(log) {
-  const out = path.join(DATABASES, 'bench53k.mmdb');
-  if (fs.existsSync(out)) return;
-  const dir = fs.mkdtempSync(path.join(os.tmpdir(), 'mm-bench-'));
-  try {
-    const config = path.join(dir, 'bench53k.json');
-    const clips = [{ file: `${path.relative(dir, MOCAP).split(path.sep).join('/')}/*.bvh` }];
-    fs.writeFileSync(config, JSON.stringify({ fps: 104, mirror: true, scale: 'auto', reference: 'cmu_16_15.bvh', clips }, null, 2));
-    fs.mkdirSync(DATABASES, { recursive: true });
-    const t = performance.now();
-    // Its warnings (repaired rotation spikes…) are the builder's business; shown only on failure.
-    execFileSync(mmdb, ['build', '--config', config, '-o', out], { stdio: ['ignore', 'ignore', 'pipe'] });
-    const info = JSON.parse(execFileSync(mmdb, ['inspect', out, '--json'], { encoding: 'utf8', maxBuffer: 1 << 28 }));
-    log(`built ${path.relative(ROOT, out)}: ${info.num_frames} frames (${info.clips.length} clips) in ${((performance.now() - t) / 1000).toFixed(1)} s`);
-    if (Math.abs(info.num_frames - 53000) > 2000) log(`warning: bench53k.mmdb has ${info.num_frames} frames, expected ≈ 53000`);
-  } finally {
-    fs.rmSync(dir, { recursive: true, force: true });
-  }
+/** Every recipe's database, built when missing or stale: `{ name, file }` (file: path under ROOT, as the page fetches it). */
+function benchDatabases(log) {
+  return RECIPES.map((r) => ({ name: r.name, file: path.relative(ROOT, recipeDatabase(r, mmdb, log)).split(path.sep).join('/') }));
 }
 
 /** Starts vite on 127.0.0.1 (from port 5197 up), cross-origin isolated for the 5 µs timer. */
 const startVite = () => startBenchServer(BENCH_PORT);
 
 /** Runs bench.html in headless Chromium; returns the page's `window.__searchBench`. */
-async function chromiumSearchBench(baseUrl, names) {
+async function chromiumSearchBench(baseUrl, databases, runtime) {
   const { chromium } = await import('playwright-core');
   // The flags of playwright.config.ts, minus the WebGL ones (no rendering here).
   const browser = await chromium.launch({
@@ -176,7 +159,7 @@ async function chromiumSearchBench(baseUrl, names) {
     const page = await browser.newPage();
     const pageErrors = [];
     page.on('pageerror', (e) => pageErrors.push(e.message));
-    await page.goto(`${baseUrl}bench.html?db=${names.join(',')}&queries=${numQueries}&runtime=locomotion.mmdb`);
+    await page.goto(`${baseUrl}bench.html?db=${databases.map((d) => d.file).join(',')}&queries=${numQueries}&runtime=${runtime.file}`);
     await page.waitForFunction(() => window.__searchBench?.done, null, { timeout: 600_000, polling: 250 });
     const hook = await page.evaluate(() => window.__searchBench);
     if (hook.error || pageErrors.length) throw new Error(`bench page: ${[hook.error, ...pageErrors].filter(Boolean).join('\n')}`);
@@ -187,9 +170,8 @@ async function chromiumSearchBench(baseUrl, names) {
 }
 
 async function searchBenchmark(log) {
-  ensureBigDatabase(log);
-  const names = SEARCH_DATABASES.filter((n) => fs.existsSync(path.join(DATABASES, n)));
-  if (names.length < SEARCH_DATABASES.length) log(`warning: missing ${SEARCH_DATABASES.filter((n) => !names.includes(n)).join(', ')} (run \`npm run build\`)`);
+  const databases = benchDatabases(log);
+  const runtimeDb = databases.find((d) => d.name === RUNTIME_RECIPE);
   const server = await startVite();
   try {
     // The same TypeScript as the page (the library's public entry), loaded through vite (Node 20
@@ -197,15 +179,15 @@ async function searchBenchmark(log) {
     const lib = await server.ssrLoadModule('/web/src/index.ts');
     lib.initWasmSync(fs.readFileSync(path.join(pkg, 'mmcore_bg.wasm')));
     const { benchSearch, benchRuntime } = lib;
-    const node = names.map((name) => benchSearch(name, new Uint8Array(fs.readFileSync(path.join(DATABASES, name))), { queries: numQueries }));
-    const locomotion = path.join(DATABASES, 'locomotion.mmdb');
+    const node = databases.map((d) => benchSearch(d.name, new Uint8Array(fs.readFileSync(path.join(ROOT, d.file))), { queries: numQueries }));
+    const locomotion = path.join(ROOT, runtimeDb.file);
     const nativeRuntime = JSON.parse(execFileSync(mmdb, ['bench-runtime', locomotion, '--json'], { encoding: 'utf8' }));
     const runtime = [
-      { runtime: 'native', ...nativeRuntime, database: 'locomotion.mmdb' },
-      { runtime: 'wasm (node)', ...benchRuntime('locomotion.mmdb', new Uint8Array(fs.readFileSync(locomotion))) },
+      { runtime: 'native', ...nativeRuntime, database: RUNTIME_RECIPE },
+      { runtime: 'wasm (node)', ...benchRuntime(RUNTIME_RECIPE, new Uint8Array(fs.readFileSync(locomotion))) },
     ];
     let chromiumRun = null;
-    if (fs.existsSync(CHROMIUM)) chromiumRun = await chromiumSearchBench(server.resolvedUrls.local[0], names);
+    if (fs.existsSync(CHROMIUM)) chromiumRun = await chromiumSearchBench(server.resolvedUrls.local[0], databases, runtimeDb);
     else log(`warning: ${CHROMIUM} missing, Chromium search benchmark skipped`);
     const runtimes = [{ runtime: 'wasm (node)', version: process.version, results: node }];
     if (chromiumRun) {
@@ -234,13 +216,13 @@ async function searchBenchmark(log) {
 function printSearchBenchmark(search) {
   const ms = (v) => (v < 0.1 ? v.toFixed(4) : v.toFixed(3));
   console.log(`\nsearch benchmark: ${search.queries} queries per database (${search.query}); per-search ms, median / p95`);
-  console.log('runtime          database           frames  index ms   scalar med / p95     simd med / p95       aabb med / p95   ok');
+  console.log('runtime          recipe                  frames  index ms   scalar med / p95     simd med / p95       aabb med / p95   ok');
   for (const rt of search.runtimes) {
     for (const r of rt.results) {
       const m = Object.fromEntries(r.methods.map((x) => [x.method, x]));
       const cell = (x) => `${ms(x.median_ms).padStart(8)} / ${ms(x.p95_ms).padEnd(8)}`;
       console.log(
-        `${rt.runtime.padEnd(16)} ${r.database.padEnd(17)} ${String(r.frames).padStart(7)} ${r.index_build_ms.toFixed(1).padStart(9)}  ` +
+        `${rt.runtime.padEnd(16)} ${r.database.padEnd(22)} ${String(r.frames).padStart(7)} ${r.index_build_ms.toFixed(1).padStart(9)}  ` +
           `${cell(m.scalar)} ${cell(m.simd)} ${cell(m.aabb)} ${r.mismatches === 0 ? 'yes' : `${r.mismatches} mismatches`}`,
       );
     }
@@ -258,7 +240,7 @@ function printSearchBenchmark(search) {
 }
 
 function printRuntimeBenchmark(runtime) {
-  console.log('\ncharacter update on locomotion.mmdb (zig-zag / back-run / stop script, AABB search, foot lock on)');
+  console.log(`\ncharacter update on the ${RUNTIME_RECIPE} recipe (zig-zag / back-run / stop script, AABB search, foot lock on)`);
   console.log('runtime            update median ms   p95 ms   characters in 4 ms (crowd of 256)');
   for (const r of runtime) {
     console.log(`${r.runtime.padEnd(18)} ${r.update_ms_median.toFixed(4).padStart(16)} ${r.update_ms_p95.toFixed(4).padStart(8)} ${String(r.characters_in_4ms).padStart(20)}`);
@@ -419,7 +401,7 @@ async function compareRevision(rev, log) {
   }
   const old = await import(path.join(oldPkg, 'mmcore.js'));
   old.initSync({ module: fs.readFileSync(path.join(oldPkg, 'mmcore_bg.wasm')) });
-  const bytes = new Uint8Array(fs.readFileSync(path.join(DATABASES, 'locomotion.mmdb')));
+  const bytes = new Uint8Array(fs.readFileSync(recipeDatabase(recipe(RUNTIME_RECIPE), mmdb, log)));
   // The same input script as runtime-bench.ts: zig-zag, back-run, stop, 2 s each at 60 Hz.
   const input = (step) => {
     const phase = Math.floor(step / 120) % 4;
@@ -469,7 +451,7 @@ if (args.includes('--compare')) {
   if (json) console.log(JSON.stringify(c, null, 2));
   else {
     const pct = (a, b) => `${((b / a - 1) * 100).toFixed(1)}%`;
-    console.log(`character update on locomotion.mmdb, Node, ${c.rounds.before.length} interleaved rounds (medians):`);
+    console.log(`character update on the ${RUNTIME_RECIPE} recipe, Node, ${c.rounds.before.length} interleaved rounds (medians):`);
     console.log(`  update ms median: ${c.revision} ${c.before.update_ms.toFixed(4)} → now ${c.after.update_ms.toFixed(4)} (${pct(c.before.update_ms, c.after.update_ms)})`);
     console.log(`  characters in 4 ms: ${c.revision} ${c.before.characters_in_4ms} → now ${c.after.characters_in_4ms} (${pct(c.before.characters_in_4ms, c.after.characters_in_4ms)})`);
     console.log(`  rounds: ${c.rounds.before.map((r, i) => `${r.characters_in_4ms}/${c.rounds.after[i].characters_in_4ms}`).join(' ')} (before/after characters in 4 ms)`);

@@ -39,6 +39,9 @@ pub enum UpAxis {
 #[derive(Clone, Debug, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct BuildConfig {
+    /// What the database is for, in words (a pinned benchmark recipe says where its list came
+    /// from); the build ignores it. The one free-text field, so that a typo elsewhere stays an error.
+    pub description: Option<String>,
     /// Database frame rate; sources are resampled to it.
     pub fps: f64,
     /// Add a left/right mirrored copy of every clip.
@@ -85,6 +88,7 @@ pub struct BuildConfig {
 impl Default for BuildConfig {
     fn default() -> Self {
         BuildConfig {
+            description: None,
             fps: 60.0,
             mirror: true,
             repair_spikes: true,

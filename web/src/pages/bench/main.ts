@@ -42,6 +42,10 @@ function show(r: SearchBenchResult): void {
   }
 }
 
+/** `?db=` entries: a name in databases/, or a path from the site root (the bench's pinned recipes, bench-databases/x.mmdb, named x). */
+const databaseUrl = (entry: string): [string, string] =>
+  entry.includes('/') ? [`/${entry.replace(/^\//, '')}`, entry.replace(/^.*\//, '').replace(/\.mmdb$/, '')] : [`databases/${entry}`, entry];
+
 /** Yields so the page paints between databases. */
 const nextFrame = (): Promise<void> => new Promise((resolve) => setTimeout(resolve, 0));
 
@@ -49,9 +53,10 @@ async function main(): Promise<void> {
   const params = new URLSearchParams(location.search);
   const queries = Number(params.get('queries') ?? 400);
   await initWasm();
-  for (const name of (params.get('db') ?? 'locomotion.mmdb').split(',').filter(Boolean)) {
+  for (const file of (params.get('db') ?? 'locomotion.mmdb').split(',').filter(Boolean)) {
+    const [url, name] = databaseUrl(file);
     status.textContent = `loading ${name}…`;
-    const bytes = await fetchBytes(`databases/${name}`, { stage: 'database' });
+    const bytes = await fetchBytes(url, { stage: 'database' });
     status.textContent = `benchmarking ${name}…`;
     await nextFrame();
     const result = benchSearch(name, bytes, { queries });
@@ -63,7 +68,8 @@ async function main(): Promise<void> {
   if (runtime) {
     status.textContent = `character updates on ${runtime}…`;
     await nextFrame();
-    hook.runtime = benchRuntime(runtime, await fetchBytes(`databases/${runtime}`, { stage: 'database' }));
+    const [url, name] = databaseUrl(runtime);
+    hook.runtime = benchRuntime(name, await fetchBytes(url, { stage: 'database' }));
   }
   status.textContent = `done (${crossOriginIsolated ? '5 µs' : '100 µs'} timer resolution)`;
   hook.done = true;
