@@ -135,10 +135,6 @@ export function i16ToAngle(q: number): number {
   return (q * Math.PI) / 32768;
 }
 
-export function ticksToSeconds(ticks: number): number {
-  return ticks / TICKS_PER_SECOND;
-}
-
 const SMALLEST_THREE_RANGE = Math.SQRT1_2;
 // 1023 levels (0…1022): zero is exact, so the identity round-trips exactly.
 const SMALLEST_THREE_MAX = 1022;
@@ -1192,13 +1188,6 @@ export function decodeServerMessage(bytes: Uint8Array | ArrayBuffer): ServerMess
     default:
       return fail(`unknown server message type 0x${type.toString(16)}`);
   }
-}
-
-/** The type byte of a message (after checking the version), without decoding the rest. */
-export function peekType(bytes: Uint8Array): number {
-  if (bytes.length < 2) fail('message shorter than its 2-byte header');
-  if (bytes[0] !== PROTOCOL_VERSION) fail(`protocol version ${bytes[0]} (this build speaks ${PROTOCOL_VERSION})`, CloseCode.badVersion);
-  return bytes[1];
 }
 
 // ------------------------------------------------------------------ framing (bandwidth)

@@ -318,10 +318,3 @@ export class RecordingPlayer {
   }
 }
 
-/** A recording from in-memory samples (tests and synthetic recordings). */
-export function recordingFromSamples(samples: readonly TrackerSample[], meta: RecordingMeta = {}): Recording {
-  const recorder = new TrackerRecorder(samples.length);
-  for (const s of samples) recorder.add(s);
-  return recorder.toRecording(meta);
-}
-
