@@ -29,6 +29,7 @@ pub mod retarget;
 pub mod rng;
 pub mod roles;
 pub mod search;
+pub mod skating;
 pub mod smoothing;
 pub mod spring;
 pub mod tag_query;

@@ -14,7 +14,7 @@
 
 use crate::character::{Character, CharacterSettings, Tracked};
 use crate::controller::Input;
-use crate::quality::ON_FLOOR;
+use crate::skating::ON_FLOOR;
 use crate::database::Database;
 use crate::search::SearchIndex;
 use glam::{Quat, Vec2, Vec3};
@@ -237,7 +237,7 @@ pub struct ReplayReport {
     pub head_gap: Stats,
     /// Share of frames with the root clamped at α (head gap ≥ 0.98 α).
     pub clamped_share: f32,
-    /// Planted-toe sliding on the floor (`quality::SkatingMeter`), cm/s.
+    /// Planted-toe sliding on the floor (`skating::SkatingMeter`), cm/s.
     pub skating: f32,
     /// Corrective steps (a foot the drag pulled out of its lock stepping back, `ik::FootLock`)
     /// per second, both feet.

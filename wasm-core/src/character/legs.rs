@@ -10,7 +10,7 @@ use super::settings::CharacterSettings;
 use crate::database::Database;
 use crate::ik::{knee_bend_direction, leg_ik, FootLock, LegJoints};
 use crate::kinematics::subtree_range;
-use crate::quality::ON_FLOOR;
+use crate::skating::ON_FLOOR;
 use crate::persist::{Persist, Visitor};
 use glam::{Quat, Vec3};
 use std::ops::Range;

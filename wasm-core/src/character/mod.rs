@@ -26,7 +26,7 @@ pub use settings::CharacterSettings;
 
 use crate::controller::{Input, Path, Simulation, MAX_PATH_COORDINATE};
 use crate::database::Database;
-use crate::quality::SkatingMeter;
+use crate::skating::SkatingMeter;
 use crate::search::SearchIndex;
 use drive::{Drive, Mode};
 use glam::{Quat, Vec3};
