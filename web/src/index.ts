@@ -32,12 +32,11 @@ export { DatabaseBuilder } from './core/builder.ts';
 export { initWasm, initWasmSync, liveObjects } from './core/wasm.ts';
 export type { LiveObjects, WasmExports } from './core/wasm.ts';
 export { DEFAULT_AVATAR, DEFAULT_DATABASE, assetBytes, assetUrl, hasAssetVersions, setAssetBase } from './assets.ts';
-export { errorMessage, fetchBytes } from './fetch.ts';
 export { ASSET_CACHE, isVersioned } from './cache.ts';
 export { registerOfflineCache } from './offline.ts';
 export type { FetchOptions, FetchProgress } from './fetch.ts';
 
-// The runtime underneath (advanced: crowds, benchmarks, tools).
+// The runtime underneath (advanced: crowds, tools).
 export { CharacterRuntime, createMoveInput, createTrackedInput } from './core/character.ts';
 export type { MoveInput, RuntimeSettings, TrackedInput } from './core/character.ts';
 export { Crowd } from './core/crowd.ts';
@@ -54,33 +53,12 @@ export { readGamepad } from './input/gamepad.ts';
 export type { GamepadLike } from './input/gamepad.ts';
 export { CameraBasis } from './input/input.ts';
 
-// Scene helpers.
+// The views the element and Character hand out (`el.stage`, `el.orbit`, `character.debugViews`).
 export { Stage } from './views/stage.ts';
 export { FloorGrid } from './views/floor-grid.ts';
 export { FollowCamera } from './views/follow-camera.ts';
-export { SkeletonView } from './views/skeleton-view.ts';
 export { DebugViews, TrajectoryView } from './views/debug-views.ts';
-export { PathEditor } from './views/path-editor.ts';
-export { RootMarker } from './views/root-marker.ts';
-export { Playback } from './views/playback.ts';
-export { UpdateTimer } from './views/update-timer.ts';
-
-// Page helpers.
-export { installDropTarget, sortDroppedFiles } from './ui/drop.ts';
-export type { DroppedFiles } from './ui/drop.ts';
-export { showError } from './ui/error-box.ts';
-export { LoadingStatus, describeProgress, shortUrl } from './ui/loading-status.ts';
-export { loadPageCharacter } from './ui/page-loader.ts';
-export { saveTextFile } from './ui/save-file.ts';
-export type { PageCharacter, PageCharacterOptions } from './ui/page-loader.ts';
 
 // Angles (project convention: yaw 0 faces +Z, positive turns +Z toward +X).
 export { bodyYaw, headingYaw, wrapAngle, yawOf } from './yaw.ts';
 
-// Benchmarks (the bench page, `npm run bench`).
-export { benchSearch } from './bench/search-bench.ts';
-export type { MethodTiming, SearchBenchOptions, SearchBenchResult } from './bench/search-bench.ts';
-export { benchRuntime } from './bench/runtime-bench.ts';
-export type { RuntimeBenchResult } from './bench/runtime-bench.ts';
-export { realisticQueries, seededRandom } from './bench/queries.ts';
-export type { BenchQuery } from './bench/queries.ts';

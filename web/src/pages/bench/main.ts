@@ -2,9 +2,10 @@
  * The benchmark page (bench.html): times the three searches in this browser's WASM on the
  * databases named by `?db=` and, with `?runtime=<database>`, the character update and crowd;
  * shows a table. `scripts/bench.mjs` drives it in headless Chromium and reads
- * `window.__searchBench`. Only the library's public entry is used.
+ * `window.__searchBench`. Only the library's public entry and the pages' kit are used.
  */
-import { type RuntimeBenchResult, type SearchBenchResult, benchRuntime, benchSearch, errorMessage, fetchBytes, initWasm } from '../../index.ts';
+import { initWasm } from '../../index.ts';
+import { type RuntimeBenchResult, type SearchBenchResult, benchRuntime, benchSearch, errorMessage, fetchBytes } from '../kit.ts';
 
 const hook = {
   done: false,

@@ -1,7 +1,7 @@
 /**
  * The desktop demo (index.html): `<mm-avatar>` full page, plus a panel with every runtime knob,
  * path editing, view toggles, the database and style choice; files dropped on the page (BVH,
- * VRMA, glTF clips → a database built here, `.mmdb`, `.glb`/`.vrm`); a HUD. Only the library's public entries are used.
+ * VRMA, glTF clips → a database built here, `.mmdb`, `.glb`/`.vrm`); a HUD. The public entries and the pages' kit only.
  *
  * URL parameters: `db=<url>`, `avatar=<url>|none`, `roles=<JSON role → bone name>` (manual
  * joint map), `skeleton=1`, `shadows=0`, `dt=fixed` (exactly 1/60 s per frame, for tests; `dt=0.05`: that many s),
@@ -9,10 +9,8 @@
  */
 import GUI, { type Controller } from 'lil-gui';
 import * as THREE from 'three';
-import {
-  Avatar, Database, DatabaseBuilder, type DroppedFiles, PathEditor, RUNTIME_SETTINGS, type RoleOverrides, UpdateTimer,
-  defineMMAvatar, errorMessage, installDropTarget, listDatabases, registerOfflineCache, showError,
-} from '../../index.ts';
+import { Avatar, Database, DatabaseBuilder, RUNTIME_SETTINGS, type RoleOverrides, defineMMAvatar, listDatabases, registerOfflineCache } from '../../index.ts';
+import { type DroppedFiles, PathEditor, UpdateTimer, errorMessage, installDropTarget, showError } from '../kit.ts';
 import { RoomPanel } from '../../rooms/index.ts';
 
 const hook = {

@@ -2,11 +2,10 @@
  * The database viewer (viewer.html): every frame of a `.mmdb` (default the locomotion database,
  * or `?db=<url>`) in order on its skeleton, with the virtual root, foot contacts, a scrubber and
  * a HUD. `?frame=N` starts at frame N, `?paused` starts paused (links to a moment). State for
- * tests is on `window.__viewer`. Only the library's public entry is used.
+ * tests is on `window.__viewer`. Only the library's public entry and the pages' kit are used.
  */
-import {
-  DEFAULT_DATABASE, Database, FollowCamera, LoadingStatus, Playback, RootMarker, SkeletonView, Stage, assetUrl, errorMessage, registerOfflineCache, showError,
-} from '../../index.ts';
+import { DEFAULT_DATABASE, Database, assetUrl, registerOfflineCache, FollowCamera, Stage } from '../../index.ts';
+import { LoadingStatus, Playback, RootMarker, SkeletonView, errorMessage, showError } from '../kit.ts';
 
 const hook = { numFrames: 0, frame: 0, playing: false, clipName: '', error: null as string | null, ready: false };
 declare global {

@@ -1,7 +1,6 @@
 /**
- * The VR page (vr.html): a WebXR `immersive-vr` session on `local-floor` where the headset and
- * both controllers drive a full-body motion-matched avatar (`TrackedDrive`). Only the
- * library's public entry is used (plus three's Reflector and, with `emulate=1`, iwer, loaded only then).
+ * The VR page (vr.html): a WebXR `immersive-vr` session on `local-floor` where the headset and both controllers drive a full-body
+ * motion-matched avatar (`TrackedDrive`), on the public entries and the pages' kit (three's Reflector; iwer only with `emulate=1`).
  * Loading: the character first (stages named in the toolbar; a failed avatar → the skeleton, a note);
  * the network and onnxruntime after the first frame, the heuristic driving until then (shown).
  *
@@ -13,7 +12,8 @@
  */
 import * as THREE from 'three';
 import { Reflector } from 'three/addons/objects/Reflector.js';
-import { DEFAULT_AVATAR, FollowCamera, LoadingStatus, Stage, UpdateTimer, assetUrl, errorMessage, loadPageCharacter, registerOfflineCache, saveTextFile, showError } from '../../index.ts';
+import { DEFAULT_AVATAR, assetUrl, registerOfflineCache, FollowCamera, Stage } from '../../index.ts';
+import { LoadingStatus, UpdateTimer, errorMessage, loadPageCharacter, saveTextFile, showError } from '../kit.ts';
 import {
   DEFAULT_ALPHA, EnterVrButton, FIRST_PERSON_LAYER, FirstPerson, HeadingYawPredictor, LEFT, type NetworkYawPredictor, RIGHT, RecordingPlayer, SpectatorView, THIRD_PERSON_LAYER,
   TrackedDrive, TrackerRecorder, TrackerSample, benchReplay, deviceSetName, encodeRecordingJson, loadNetworkPredictor, loadRecording, orientationModelUrl, sampleXRFrame, scriptedSample, setHeadsetView, vrDatabaseUrl,

@@ -1,0 +1,32 @@
+/**
+ * The pages' own kit (demo, viewer, VR, bench): scene views, page helpers (error box, loading
+ * status, drop target, file save, the page's character loader) and the benchmarks. Internal:
+ * not in the package's `exports`, not part of its API; the pages may import it and the public
+ * entries, nothing else (`tests/unit/structure.test.ts`).
+ */
+
+// Scene views.
+export { SkeletonView } from '../views/skeleton-view.ts';
+export { PathEditor } from '../views/path-editor.ts';
+export { RootMarker } from '../views/root-marker.ts';
+export { Playback } from '../views/playback.ts';
+export { UpdateTimer } from '../views/update-timer.ts';
+
+// Page helpers.
+export { installDropTarget, sortDroppedFiles } from '../ui/drop.ts';
+export type { DroppedFiles } from '../ui/drop.ts';
+export { showError } from '../ui/error-box.ts';
+export { LoadingStatus, describeProgress, shortUrl } from '../ui/loading-status.ts';
+export { loadPageCharacter } from '../ui/page-loader.ts';
+export { saveTextFile } from '../ui/save-file.ts';
+export type { PageCharacter, PageCharacterOptions } from '../ui/page-loader.ts';
+
+// Benchmarks (bench.html, scripts/bench.mjs).
+export { benchSearch } from '../bench/search-bench.ts';
+export type { MethodTiming, SearchBenchOptions, SearchBenchResult } from '../bench/search-bench.ts';
+export { benchRuntime } from '../bench/runtime-bench.ts';
+export type { RuntimeBenchResult } from '../bench/runtime-bench.ts';
+export { realisticQueries, seededRandom } from '../bench/queries.ts';
+export type { BenchQuery } from '../bench/queries.ts';
+// Fetching with progress and the error text the pages show.
+export { errorMessage, fetchBytes } from '../fetch.ts';
