@@ -225,10 +225,6 @@ impl Path {
         *self.times.last().unwrap()
     }
 
-    pub fn is_looped(&self) -> bool {
-        self.looped
-    }
-
     /// Position and velocity at time `t` (wrapping when looped; at rest at the end otherwise).
     pub fn sample(&self, t: f32) -> (Vec3, Vec3) {
         let total = self.duration();

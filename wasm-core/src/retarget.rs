@@ -257,11 +257,6 @@ impl Retargeter {
         })
     }
 
-    /// Number of avatar joints.
-    pub fn num_target_joints(&self) -> usize {
-        self.order.len()
-    }
-
     /// Retargets one pose: `source_world_rotations` (the database skeleton's, unit) and the
     /// source hips' world position (`lift` metres of the avatar's units added to its height, the
     /// avatar's grounding) → the avatar's local rotations (indexed like its joints) and the

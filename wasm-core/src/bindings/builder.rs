@@ -47,10 +47,6 @@ impl RawBuilder {
         Ok(serde_json::to_string(&names).unwrap_or_default())
     }
 
-    pub fn num_files(&self) -> usize {
-        self.sources.len()
-    }
-
     /// The `.mmdb` bytes of a database built from the added files.
     pub fn build(&mut self) -> Result<Vec<u8>, JsError> {
         let out = builder::build(&self.config, &self.sources).map_err(js_error)?;

@@ -34,10 +34,6 @@ impl RawCrowd {
         Crowd::max_characters(&database.shared.db)
     }
 
-    pub fn num_characters(&self) -> usize {
-        self.crowd.characters.len()
-    }
-
     /// Input of character `i` (see `RawCharacter.set_input`); out-of-range `i` is ignored.
     #[allow(clippy::too_many_arguments)]
     pub fn set_input(&mut self, i: usize, move_x: f32, move_z: f32, face_x: f32, face_z: f32, run: bool, strafe: bool) {
