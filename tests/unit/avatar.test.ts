@@ -31,6 +31,21 @@ describe('roles (the runtime vocabulary on avatar bones)', () => {
     avatar.dispose();
   });
 
+  it('finds the roles of an avatar whose bone names say nothing, from its rest pose (the same bones as by name)', async () => {
+    const named = await Avatar.load(glbScene(GLB), { name: 'ubc_male' });
+    const scene = glbScene(GLB);
+    let k = 0;
+    scene.traverse((o) => {
+      if ((o as THREE.Bone).isBone) o.name = `Bone.${String(k++).padStart(3, '0')}`;
+    });
+    const anonymous = await Avatar.load(scene, { name: 'anonymous' });
+    const core = ['hips', 'spine', 'head', 'left_upper_leg', 'left_lower_leg', 'left_foot', 'right_upper_leg', 'right_lower_leg', 'right_foot', 'left_upper_arm', 'left_lower_arm', 'left_hand', 'right_upper_arm', 'right_lower_arm', 'right_hand'] as const;
+    const wrong = core.filter((r) => anonymous.roles.get(r) !== named.roles.get(r));
+    expect(wrong, `roles found elsewhere: ${wrong.map((r) => `${r} → ${anonymous.roles.get(r)} (by name ${named.roles.get(r)})`).join(', ')}`).toEqual([]);
+    named.dispose();
+    anonymous.dispose();
+  });
+
   it('maps Mixamo names and takes overrides; a bad override is an error naming it', () => {
     const names = ['Hips', 'Spine', 'Spine1', 'Spine2', 'Neck', 'Head'];
     const parents = [-1, 0, 1, 2, 3, 4];

@@ -570,9 +570,18 @@ pub fn find_humanoid(parents: &[i32], shape: &Shape) -> Result<Humanoid, String>
         j = children[j][0];
         neck_chain.push(j);
     }
-    // A short leaf after the head is its end (`HeadTop_End`), not the head.
-    if neck_chain.len() >= 2 && children[j].is_empty() && end(j) < 0.05 * thigh_shin {
-        neck_chain.pop();
+    // A short leaf after the head is its end (`HeadTop_End`), not the head. Without end sites (a
+    // glTF skin: every leaf is a bone, none says where it ends) a leaf is the skull-top marker
+    // when its bone is much longer than the one before it (the skull, ~18 cm, against the
+    // neck's ~10 cm); a head bone ending the chain is not.
+    if neck_chain.len() >= 2 && children[j].is_empty() {
+        let marker = match shape.end_sites[j] {
+            Some(_) => end(j) < 0.05 * thigh_shin,
+            None => bone(j) > 1.4 * bone(neck_chain[neck_chain.len() - 2]),
+        };
+        if marker {
+            neck_chain.pop();
+        }
     }
     let head = *neck_chain.last().unwrap();
 

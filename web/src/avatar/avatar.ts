@@ -91,7 +91,8 @@ export class Avatar {
       for (let p = b.parent; p; p = p.parent) if (index.has(p)) return index.get(p)!;
       return -1;
     });
-    // A VRM says which bone is which; other models go by the runtime's name conventions.
+    // A VRM says which bone is which; other models go by the runtime's name conventions, and
+    // where the names say nothing, by the skeleton's shape in its rest pose (the model frame).
     if (vrm && !overrides) {
       const roles = new Map<RoleName, number>();
       for (const [role, vrmName] of vrmBoneNames()) {
@@ -101,7 +102,11 @@ export class Avatar {
       this.roles = roles;
     } else {
       try {
-        this.roles = findRoles(bones.map((b) => b.name), this.parents, overrides);
+        root.updateMatrixWorld(true);
+        const toModel = root.matrixWorld.clone().invert();
+        const at = new THREE.Vector3();
+        const rest = bones.flatMap((b) => at.setFromMatrixPosition(b.matrixWorld).applyMatrix4(toModel).toArray());
+        this.roles = findRoles(bones.map((b) => b.name), this.parents, overrides, rest);
       } catch (e) {
         throw new Error(`${name}: ${e instanceof Error ? e.message : String(e)}`);
       }

@@ -8,6 +8,7 @@ export {
   initSync as initWasmModuleSync,
   bvh_info,
   find_roles_json,
+  find_roles_rest_json,
   live_objects,
   role_names_json,
   validate_recording,

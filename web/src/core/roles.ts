@@ -3,7 +3,7 @@
  * (`wasm-core/src/roles.rs`) and shared by the database builder, the `.mmdb` site table and
  * avatars: `findRoles` runs the same name conventions and topology rules on an avatar's bones.
  */
-import { find_roles_json, role_names_json } from './raw.ts';
+import { find_roles_json, find_roles_rest_json, role_names_json } from './raw.ts';
 import { asError } from './wasm.ts';
 
 /** Every role in the runtime's order. */
@@ -48,12 +48,17 @@ export function vrmBoneNames(): ReadonlyMap<RoleName, string> {
 
 /**
  * The joint of each role in a skeleton of `names` with `parents` (−1 for roots), by the
- * runtime's rules (name conventions, hips from the legs). Throws on a bad override.
+ * runtime's rules (name conventions, hips from the legs). With `restPositions` (x, y, z per
+ * joint in one model frame, any unit and facing) the skeleton's shape finds the roles the names
+ * do not (limbs as pairs of matching branches, left from the pose): bones named `Bone.012` map
+ * too. Throws on a bad override.
  */
-export function findRoles(names: readonly string[], parents: ArrayLike<number>, overrides: RoleOverrides = {}): Map<RoleName, number> {
+export function findRoles(names: readonly string[], parents: ArrayLike<number>, overrides: RoleOverrides = {}, restPositions?: ArrayLike<number>): Map<RoleName, number> {
   let joints: Int32Array;
   try {
-    joints = find_roles_json(JSON.stringify(names), Int32Array.from(parents), JSON.stringify(overrides));
+    joints = restPositions
+      ? find_roles_rest_json(JSON.stringify(names), Int32Array.from(parents), Float32Array.from(restPositions), JSON.stringify(overrides))
+      : find_roles_json(JSON.stringify(names), Int32Array.from(parents), JSON.stringify(overrides));
   } catch (e) {
     throw asError(e);
   }
