@@ -6,9 +6,8 @@
  * survivor, a NATS restart resumes relaying.
  */
 import { afterAll, afterEach, beforeAll, describe, expect, it } from 'vitest';
-import { CloseCode, encodeJoin } from '../web/src/rooms/protocol.ts';
 import { freePort, startNats, startRooms, type NatsServer, type RoomsProcess } from './nats-helpers.ts';
-import { createRoomId, moveBytes, settle, sleep, stateBytes, TestClient, testJoin } from './test-helpers.ts';
+import { createRoomId, moveBytes, settle, sleep, stateBytes, TestClient } from './test-helpers.ts';
 
 let nats: NatsServer;
 const procs: RoomsProcess[] = [];
@@ -30,26 +29,12 @@ async function rooms(n: number, options: Parameters<typeof startRooms>[0] = {}):
   return started;
 }
 
-/**
- * Joins and waits for the welcome (`ms`: a fresh NATS cluster elects its JetStream leader first,
- * seconds on a busy machine). A close with "try again" (the bus was not ready) is answered as the
- * room client answers it: join again, until `ms` is spent.
- */
+/** Joins through `p` and waits for the welcome, re-joining on "try again" (`ms`: a fresh NATS cluster elects its JetStream leader first, seconds on a busy machine). */
 async function join(p: RoomsProcess, roomId: string, name: string, ms = 15_000): Promise<TestClient> {
-  const deadline = performance.now() + ms;
-  for (;;) {
-    const c = await TestClient.open(p.url(roomId), p.origin);
-    clients.push(c);
-    c.send(encodeJoin(testJoin(name)));
-    const left = Math.max(0, deadline - performance.now());
-    const welcomed = c.waitFor((m) => m.type === 'welcome', left).then(() => true);
-    const closed = c.waitClosed(left).then((x) => x.code);
-    const got = await Promise.race([welcomed, closed]);
-    welcomed.catch(() => {});
-    closed.catch(() => {});
-    if (got === true) return c;
-    if (got !== CloseCode.tryAgain || performance.now() > deadline) throw new Error(`${name}: closed ${got} before its welcome\n${p.log()}`);
-    await sleep(200);
+  try {
+    return await TestClient.joinRetrying(p.url(roomId), p.origin, name, ms, (c) => clients.push(c));
+  } catch (e) {
+    throw new Error(`${e instanceof Error ? e.message : String(e)}\n${p.log()}`);
   }
 }
 

@@ -11,6 +11,7 @@ import {
   encodeJoin,
   encodeMove,
   quantizeMoveStep,
+  CloseCode,
   type JoinInfo,
   type MoveStep,
   type ServerMessage,
@@ -130,6 +131,30 @@ export class TestClient {
     c.send(encodeJoin(testJoin(name, extra)));
     await c.waitFor((m) => m.type === 'welcome');
     return c;
+  }
+
+  /**
+   * Opens `url`, joins as `name` and waits for the welcome; a close with "try again" (1013: the
+   * rooms bus or its id bucket not ready yet, e.g. JetStream electing after a NATS start) is
+   * answered as the room client answers it — join again — until `ms` is spent. `made` receives
+   * every socket opened (to close them after the test).
+   */
+  static async joinRetrying(url: string, origin: string, name: string, ms: number, made: (c: TestClient) => void = () => {}): Promise<TestClient> {
+    const deadline = performance.now() + ms;
+    for (;;) {
+      const c = await TestClient.open(url, origin);
+      made(c);
+      c.send(encodeJoin(testJoin(name)));
+      const left = Math.max(0, deadline - performance.now());
+      const welcomed = c.waitFor((m) => m.type === 'welcome', left).then(() => true as const);
+      const closed = c.waitClosed(left).then((x) => x.code);
+      welcomed.catch(() => {});
+      closed.catch(() => {});
+      const got = await Promise.race([welcomed, closed]);
+      if (got === true) return c;
+      if (got !== CloseCode.tryAgain || performance.now() > deadline) throw new Error(`${name}: closed ${got} before its welcome`);
+      await new Promise((r) => setTimeout(r, 200));
+    }
   }
 
   send(bytes: Uint8Array | string): void {
