@@ -18,6 +18,7 @@ import { type WebSocketLike } from '../web/src/rooms/room-client.ts';
 import { RoomSession } from '../web/src/rooms/room-session.ts';
 import { DEFAULT_ALPHA, VR_SETTINGS } from '../web/src/vr/tracked-drive.ts';
 import { startNats, startRooms, type NatsServer, type RoomsProcess } from './nats-helpers.ts';
+import { sessionPerson, type SessionPerson } from './session-helpers.ts';
 import { moveBytes, settle, sleep, stateBytes, TestClient, testJoin } from './test-helpers.ts';
 
 const ROOT = path.resolve(import.meta.dirname, '..');
@@ -40,38 +41,13 @@ afterAll(async () => {
   db?.release();
 });
 
-interface Person {
+interface Person extends SessionPerson {
   name: string;
   mode: 'desktop' | 'vr';
-  character: Character;
-  session: RoomSession;
-  notes: string[];
 }
 
 function person(server: RoomsProcess, roomId: string, mode: 'desktop' | 'vr', name: string): Person {
-  const character = new Character(db, null);
-  if (mode === 'vr') {
-    character.settings = VR_SETTINGS;
-    character.object3d.scale.setScalar(1.07);
-    character.setAlpha(DEFAULT_ALPHA);
-  }
-  const notes: string[] = [];
-  const session = new RoomSession({
-    roomId,
-    character,
-    scene: new THREE.Group(),
-    mode,
-    name,
-    builtinAvatars: [null],
-    trace: true,
-    onNote: (n) => notes.push(n),
-    client: {
-      url: server.url(roomId),
-      baseUrl: `${server.origin}/index.html`,
-      createSocket: (url) => new WebSocket(url, { origin: server.origin }) as unknown as WebSocketLike,
-    },
-  });
-  const p = { name, mode, character, session, notes };
+  const p = { name, mode, ...sessionPerson(db, server, roomId, mode, name) };
   people.push(p);
   return p;
 }

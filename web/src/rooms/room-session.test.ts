@@ -7,17 +7,12 @@
  */
 import fs from 'node:fs';
 import path from 'node:path';
-import * as THREE from 'three';
 import { afterAll, beforeAll, describe, expect, it } from 'vitest';
-import { WebSocket } from 'ws';
+import { sessionPerson, type SessionPerson } from '../../../server/session-helpers.ts';
 import { startServer, sleep, type TestServer } from '../../../server/test-helpers.ts';
-import { Character } from '../character/character.ts';
 import { Database } from '../core/database.ts';
 import { initWasmSync } from '../core/wasm.ts';
-import { DEFAULT_ALPHA, VR_SETTINGS } from '../vr/tracked-drive.ts';
 import { createRoomId } from './protocol.ts';
-import { type WebSocketLike } from './room-client.ts';
-import { RoomSession } from './room-session.ts';
 
 const ROOT = path.resolve(import.meta.dirname, '../../..');
 let db: Database;
@@ -33,38 +28,9 @@ afterAll(async () => {
   db?.release();
 });
 
-interface Person {
-  character: Character;
-  session: RoomSession;
-  notes: string[];
-}
+type Person = SessionPerson;
 
-function person(roomId: string, mode: 'desktop' | 'vr', name: string): Person {
-  const character = new Character(db, null);
-  if (mode === 'vr') {
-    // As TrackedDrive sets it up and calibrates: VR settings, α, a 1.07× taller person.
-    character.settings = VR_SETTINGS;
-    character.object3d.scale.setScalar(1.07);
-    character.setAlpha(DEFAULT_ALPHA);
-  }
-  const notes: string[] = [];
-  const session = new RoomSession({
-    roomId,
-    character,
-    scene: new THREE.Group(),
-    mode,
-    name,
-    builtinAvatars: [null],
-    trace: true,
-    onNote: (n) => notes.push(n),
-    client: {
-      url: server.url(roomId),
-      baseUrl: `${server.origin}/index.html`,
-      createSocket: (url) => new WebSocket(url, { origin: server.origin }) as unknown as WebSocketLike,
-    },
-  });
-  return { character, session, notes };
-}
+const person = (roomId: string, mode: 'desktop' | 'vr', name: string): Person => sessionPerson(db, server, roomId, mode, name);
 
 /** Desktop: walk, turn, side-step (strafe), stop (and again from 7 s). VR: walk a circle with the head, crouch a bit. */
 function drive(p: Person, mode: 'desktop' | 'vr', t: number): void {
