@@ -110,6 +110,27 @@ async function hostile(url: string, origin: string, kind: Kind, samples: Uint8Ar
   return sent;
 }
 
+/**
+ * The good members' steady talk: a MOVE each every 50 ms after sequence number `from` (rootX
+ * says the room: 100 + id in room A for g1 and g2, 300 + id in room B for g3). `stop()` returns
+ * the last sequence number sent.
+ */
+function talk(g1: TestClient, g2: TestClient, g3: TestClient, from: number): { stop(): number } {
+  let seq = from;
+  const timer = setInterval(() => {
+    seq++;
+    g1.send(moveBytes(seq, 100 + g1.memberId));
+    g2.send(moveBytes(seq, 100 + g2.memberId));
+    g3.send(moveBytes(seq, 300 + g3.memberId));
+  }, 50);
+  return {
+    stop: () => {
+      clearInterval(timer);
+      return seq;
+    },
+  };
+}
+
 it('survives 10,000+ hostile messages; good members unaffected; nothing crosses rooms', async () => {
   // The listeners only listen: on a busy machine the hostile phase outlasts the 5 s idle timeout
   // that would drop a silent member.
@@ -121,13 +142,8 @@ it('survives 10,000+ hostile messages; good members unaffected; nothing crosses 
   const g2 = await TestClient.join(server, roomA, 'g2');
   const listenerB = await TestClient.join(server, roomB, 'listenerB');
   const g3 = await TestClient.join(server, roomB, 'g3');
+  const good = talk(g1, g2, g3, 0);
   let seq = 0;
-  const good = setInterval(() => {
-    seq++;
-    g1.send(moveBytes(seq, 100 + g1.memberId));
-    g2.send(moveBytes(seq, 100 + g2.memberId));
-    g3.send(moveBytes(seq, 300 + g3.memberId));
-  }, 50);
   const samples = validSamples();
   const names = Object.keys(kinds);
   let hostileSent = 0;
@@ -140,7 +156,7 @@ it('survives 10,000+ hostile messages; good members unaffected; nothing crosses 
       for (const n of await Promise.all(wave)) hostileSent += n;
     }
   } finally {
-    clearInterval(good);
+    seq = good.stop();
   }
   const seconds = (performance.now() - t0) / 1000;
   const pairs = [
@@ -208,13 +224,8 @@ it('across three processes sharing rooms over NATS: hostile messages at every pr
     g1.send(stateBytes(1, 100 + g1.memberId));
     g2.send(stateBytes(1, 100 + g2.memberId));
     g3.send(stateBytes(1, 300 + g3.memberId));
+    const good = talk(g1, g2, g3, 1);
     let seq = 1;
-    const good = setInterval(() => {
-      seq++;
-      g1.send(moveBytes(seq, 100 + g1.memberId));
-      g2.send(moveBytes(seq, 100 + g2.memberId));
-      g3.send(moveBytes(seq, 300 + g3.memberId));
-    }, 50);
     const samples = validSamples();
     const names = Object.keys(kinds);
     let hostileSent = 0;
@@ -225,7 +236,7 @@ it('across three processes sharing rooms over NATS: hostile messages at every pr
         for (const n of await Promise.all(names.map((name) => hostile(p.url(roomA), p.origin, kinds[name], samples)))) hostileSent += n;
       }
     } finally {
-      clearInterval(good);
+      seq = good.stop();
     }
     const pairs = [
       [listener, g1],

@@ -102,8 +102,7 @@ export class Avatar {
       this.roles = roles;
     } else {
       try {
-        root.updateMatrixWorld(true);
-        const toModel = root.matrixWorld.clone().invert();
+        const toModel = root.matrixWorld.clone().invert(); // world matrices updated above
         const at = new THREE.Vector3();
         const rest = bones.flatMap((b) => at.setFromMatrixPosition(b.matrixWorld).applyMatrix4(toModel).toArray());
         this.roles = findRoles(bones.map((b) => b.name), this.parents, overrides, rest);
