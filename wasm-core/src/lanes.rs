@@ -153,6 +153,22 @@ impl F32x4 {
         }
     }
 
+    /// Lanes where `self ≤ rhs` (false for NaN).
+    #[inline(always)]
+    pub fn cmple(self, rhs: Self) -> Mask4 {
+        #[cfg(all(target_arch = "wasm32", target_feature = "simd128"))]
+        return Mask4(arch::i32x4_bitmask(arch::f32x4_le(self.0, rhs.0)) as u32);
+        #[cfg(target_arch = "x86_64")]
+        #[allow(unused_unsafe)]
+        // SAFETY: SSE is part of the x86_64 baseline.
+        return Mask4(unsafe { arch::_mm_movemask_ps(arch::_mm_cmple_ps(self.0, rhs.0)) } as u32);
+        #[cfg(not(any(all(target_arch = "wasm32", target_feature = "simd128"), target_arch = "x86_64")))]
+        {
+            let (a, b) = (self.to_array(), rhs.to_array());
+            return Mask4((0..4).fold(0, |m, i| m | (((a[i] <= b[i]) as u32) << i)));
+        }
+    }
+
     /// Sum of the lanes, as `(x0 + x1) + (x2 + x3)`.
     #[inline(always)]
     pub fn element_sum(self) -> f32 {
@@ -165,6 +181,13 @@ impl F32x4 {
     pub fn element_min(self) -> f32 {
         let a = self.to_array();
         a[0].min(a[1]).min(a[2].min(a[3]))
+    }
+
+    /// Largest lane (NaN lanes are skipped unless all are NaN).
+    #[inline(always)]
+    pub fn element_max(self) -> f32 {
+        let a = self.to_array();
+        a[0].max(a[1]).max(a[2].max(a[3]))
     }
 
     #[cfg(not(any(all(target_arch = "wasm32", target_feature = "simd128"), target_arch = "x86_64")))]
@@ -321,6 +344,8 @@ mod tests {
         assert!(!F32x4::splat(1.0).cmplt(F32x4::splat(1.0)).any());
         assert_eq!(F32x4::ZERO.cmplt(F32x4::INFINITY).bitmask(), 0b1111);
         assert_eq!(F32x4::splat(f32::NAN).cmplt(F32x4::INFINITY).bitmask(), 0);
+        assert_eq!(F32x4::from_array([1.0, 2.0, f32::NAN, 0.0]).cmple(F32x4::splat(1.0)).bitmask(), 0b1001);
+        assert_eq!(F32x4::INFINITY.cmple(F32x4::INFINITY).bitmask(), 0b1111);
     }
 
     #[test]
@@ -328,6 +353,7 @@ mod tests {
         let v = F32x4::from_array([1.0, 2.0, 3.0, -4.0]);
         assert_eq!(v.element_sum(), 2.0);
         assert_eq!(v.element_min(), -4.0);
+        assert_eq!(v.element_max(), 3.0);
         assert_eq!(F32x4::from_array(A).element_min(), -2.0);
     }
 

@@ -1,8 +1,8 @@
 //! Finding the database frame whose features best match a query (docs/method.md §3).
 //! [`brute_force`] is the scalar reference; [`SearchIndex`] runs the same search fast (SIMD
-//! lanes and two-level bounding boxes) and must equal it exactly.
+//! lanes and a tree of bounding boxes) and must equal it exactly.
 
-use crate::aabb::{BoxBounds, LARGE_BOX, SMALL_BOX};
+use crate::aabb::{BoxBounds, BOX_FRAMES, LEVELS, PADDING};
 use crate::database::Database;
 use crate::lanes::{as_f32_slice, F32x4};
 use crate::tag_query::{frame_tag_bits, RunBias, TagQuery, TagSummary};
@@ -91,7 +91,7 @@ pub enum SearchMethod {
     Scalar = 0,
     /// Four frames per lane vector, every frame.
     Simd = 1,
-    /// Two-level bounding boxes, SIMD inside the 16-frame boxes that survive.
+    /// A tree of bounding boxes (256, 64, 16 frames), SIMD inside the 16-frame boxes that survive.
     Aabb = 2,
 }
 
@@ -129,7 +129,8 @@ enum DimWeight {
 /// one lane vector with dimension `d` of frames `4b .. 4b + 4`. A kernel then computes four
 /// frame costs with one lane operation per step, each lane doing exactly the scalar steps of
 /// [`brute_force`] — so all three methods return the very same `(frame, cost)`, bit for bit.
-/// The frame count is padded to a multiple of 256 (four 64-frame boxes) with invalid frames.
+/// The frame count is padded to a multiple of [`PADDING`] (four top-level boxes) with invalid
+/// frames.
 ///
 /// Search semantics (all methods): among the frames that are valid, outside
 /// `options.exclude` and inside `options.mask`, the one with the lowest cost if that cost is
@@ -145,12 +146,44 @@ pub struct SearchIndex {
     /// `[block·D + d]`, lane `l` = frame `4·block + l`.
     lanes: Vec<F32x4>,
     bounds: BoxBounds,
-    /// Per padded frame, its tag bits ([`crate::tag_query`]; 0 for the padding), and per
-    /// 16- and 64-frame box the OR and AND of its valid frames' bits.
+    /// Per padded frame, its tag bits ([`crate::tag_query`]; 0 for the padding), and per box
+    /// of every level the OR and AND of its valid frames' bits.
     tag_bits: Vec<u64>,
-    small_tags: Vec<TagSummary>,
-    large_tags: Vec<TagSummary>,
+    box_tags: [Vec<TagSummary>; LEVELS],
 }
+
+/// The best frame so far and its cost. `frame` is only a tie-break key until a frame is found:
+/// it starts at 0 with `cost` = the bar, so a frame costing exactly the bar (not strictly below
+/// it) never wins, and a later frame wins only by a strictly lower cost.
+#[derive(Clone, Copy)]
+struct Best {
+    frame: usize,
+    cost: f32,
+}
+
+impl Best {
+    /// Whether a frame `frame` costing `cost` beats the best: lower, or equal and earlier.
+    #[inline(always)]
+    fn beaten_by(&self, cost: f32, frame: usize) -> bool {
+        cost < self.cost || (cost == self.cost && frame < self.frame)
+    }
+
+    /// The lanes of `costs` (lane `l` = a box or frame starting at `first + l·step`) that may
+    /// beat the best: lower, or equal and starting before the best frame.
+    #[inline(always)]
+    fn lanes_beaten_by(&self, costs: F32x4, first: usize, step: usize) -> u32 {
+        let best = F32x4::splat(self.cost);
+        let before = if self.frame <= first { 0 } else { (1u32 << (self.frame - first).div_ceil(step).min(4)) - 1 };
+        costs.cmplt(best).bitmask() | (costs.cmple(best).bitmask() & before)
+    }
+
+    fn result(self, bar: f32) -> Option<(usize, f32)> {
+        (self.cost < bar).then_some((self.frame, self.cost))
+    }
+}
+
+/// Top-level groups whose bounds a search keeps on the stack (2 KiB; 128k frames).
+const TOP_CACHE: usize = 128;
 
 /// A query and its per-dimension weights splatted across lanes, on the stack.
 struct LaneQuery {
@@ -180,7 +213,7 @@ impl SearchIndex {
             dim_weights[g.first_dim..g.first_dim + g.num_dims].fill(if g.is_trajectory { DimWeight::Trajectory } else { DimWeight::Pose });
         }
         // Padded to whole groups of four large boxes, so every box the search may visit exists.
-        let padded = db.num_frames.div_ceil(4 * LARGE_BOX) * 4 * LARGE_BOX;
+        let padded = db.num_frames.div_ceil(PADDING) * PADDING;
         let mut valid: Vec<bool> = db.valid.iter().map(|&v| v != 0).collect();
         valid.resize(padded, false);
         // Transpose 4 rows at a time; the padding frames are zeros (and invalid).
@@ -204,8 +237,8 @@ impl SearchIndex {
         let summarize = |size: usize| -> Vec<TagSummary> {
             (0..padded / size).map(|b| (b * size..(b + 1) * size).filter(|&f| valid[f]).fold(TagSummary::EMPTY, |s, f| s.add(tag_bits[f]))).collect()
         };
-        let (small_tags, large_tags) = (summarize(SMALL_BOX), summarize(LARGE_BOX));
-        Ok(SearchIndex { num_frames: db.num_frames, num_dims: d, dim_weights, valid, lanes, bounds, tag_bits, small_tags, large_tags })
+        let box_tags = BOX_FRAMES.map(summarize);
+        Ok(SearchIndex { num_frames: db.num_frames, num_dims: d, dim_weights, valid, lanes, bounds, tag_bits, box_tags })
     }
 
     pub fn num_frames(&self) -> usize {
@@ -277,60 +310,127 @@ impl SearchIndex {
     pub fn search_simd(&self, query: &[f32], options: &SearchOptions, bar: f32) -> Option<(usize, f32)> {
         self.check_query(query, options);
         let q = self.lane_query(query, options);
-        let mut best = (usize::MAX, bar);
+        let mut best = Best { frame: 0, cost: bar };
         for span in 0..self.lanes.len() / (4 * self.num_dims) {
             self.search_span(4 * span, &q, options, &mut best);
         }
-        (best.0 != usize::MAX).then_some(best)
+        best.result(bar)
     }
 
-    /// Pruned by the 64/16-frame boxes, SIMD inside the 16-frame boxes it visits. Same
-    /// preconditions and panics as [`Self::search_scalar`].
+    /// Pruned by the box tree, SIMD inside the 16-frame boxes it visits. Same preconditions
+    /// and panics as [`Self::search_scalar`].
+    ///
+    /// The top-level box with the lowest bound is searched first: the best it yields prunes
+    /// the rest, which is then visited in frame order (without that box). Visiting out of order
+    /// keeps the result exact because ties go to the earliest frame ([`Best`]).
     pub fn search_aabb(&self, query: &[f32], options: &SearchOptions, bar: f32) -> Option<(usize, f32)> {
         self.check_query(query, options);
         let q = self.lane_query(query, options);
-        let (qs, ws) = (&q.query[..self.num_dims], &q.weights[..self.num_dims]);
-        let mut best = (usize::MAX, bar);
-        let tags = options.tags;
-        // A box none of whose frames the tags allow is out (+∞); the others' bounds add the least
-        // bias of their frames. Both are exact: the added bound never exceeds a frame's
-        // `fl(Σ + bias)` since rounding is monotone.
-        let tag_bounds = |summaries: &[TagSummary]| {
-            F32x4::from_array(std::array::from_fn(|l| if tags.may_allow(summaries[l]) { tags.min_bias(summaries[l]) } else { f32::INFINITY }))
-        };
-        let tagged = !tags.is_trivial();
-        // Boxes in frame order, like the scalar loop, so ties resolve to the earliest frame.
-        for group in 0..self.bounds.num_large_boxes() / 4 {
-            let mut large_bounds = self.bounds.large_lower_bounds(group, qs, ws);
-            if tagged {
-                large_bounds += tag_bounds(&self.large_tags[4 * group..4 * group + 4]);
-            }
-            let mut candidates = large_bounds.cmplt(F32x4::splat(best.1)).bitmask();
-            let large_bounds = large_bounds.to_array();
-            while candidates != 0 {
-                let l = candidates.trailing_zeros() as usize;
-                candidates &= candidates - 1;
-                // The best may have dropped while visiting an earlier box of this group.
-                if large_bounds[l] >= best.1 {
-                    continue;
+        let mut best = Best { frame: 0, cost: bar };
+        let top = LEVELS - 1;
+        let groups = self.bounds.num_boxes(top) / 4;
+        // The top-level bounds, computed once (four groups at a time) and kept for the visit in
+        // frame order when they fit (`TOP_CACHE` groups: 128k frames), else computed again.
+        let mut cache = [F32x4::ZERO; TOP_CACHE];
+        let mut seed = (f32::INFINITY, usize::MAX);
+        let mut group = 0;
+        while group < groups {
+            // Four groups at a time while there are four, then one.
+            let n = if group + 4 <= groups { 4 } else { 1 };
+            let four = if n == 4 { self.box_bounds4(top, group, &q, options) } else { [self.box_bounds(top, group, &q, options); 4] };
+            for (g, bounds) in four.iter().enumerate().take(n) {
+                if group + g < TOP_CACHE {
+                    cache[group + g] = *bounds;
                 }
-                let large = 4 * group + l;
-                let mut small_bounds = self.bounds.small_lower_bounds(large, qs, ws);
-                if tagged {
-                    small_bounds += tag_bounds(&self.small_tags[4 * large..4 * large + 4]);
-                }
-                let mut smalls = small_bounds.cmplt(F32x4::splat(best.1)).bitmask();
-                let small_bounds = small_bounds.to_array();
-                while smalls != 0 {
-                    let s = smalls.trailing_zeros() as usize;
-                    smalls &= smalls - 1;
-                    if small_bounds[s] < best.1 {
-                        self.search_span((LARGE_BOX * large + SMALL_BOX * s) / 4, &q, options, &mut best);
+                for (l, &b) in bounds.to_array().iter().enumerate() {
+                    if b < seed.0 {
+                        seed = (b, 4 * (group + g) + l);
                     }
                 }
             }
+            group += n;
         }
-        (best.0 != usize::MAX).then_some(best)
+        if seed.1 != usize::MAX && seed.0 < best.cost {
+            self.visit(top, seed.1, &q, options, &mut best);
+        }
+        for group in 0..groups {
+            let skip = if seed.1 / 4 == group { 1 << (seed.1 % 4) } else { 0 };
+            let bounds = if group < TOP_CACHE { cache[group] } else { self.box_bounds(top, group, &q, options) };
+            self.visit_boxes(top, group, bounds, skip, &q, options, &mut best);
+        }
+        best.result(bar)
+    }
+
+    /// Lower bounds of boxes `4·group ..` of `level`, the tags' least bias added (+∞ for a box
+    /// none of whose frames the tags allow). Both are exact: the added bound never exceeds a
+    /// frame's `fl(Σ + bias)` since rounding is monotone.
+    #[inline(always)]
+    fn box_bounds(&self, level: usize, group: usize, q: &LaneQuery, options: &SearchOptions) -> F32x4 {
+        let d = self.num_dims;
+        let bounds = self.bounds.lower_bounds(level, group, &q.query[..d], &q.weights[..d]);
+        let tags = &options.tags;
+        if tags.is_trivial() {
+            return bounds;
+        }
+        bounds + self.tag_bounds(level, group, tags)
+    }
+
+    /// [`Self::box_bounds`] of groups `first .. first + 4`.
+    #[inline(always)]
+    fn box_bounds4(&self, level: usize, first: usize, q: &LaneQuery, options: &SearchOptions) -> [F32x4; 4] {
+        let d = self.num_dims;
+        let bounds = self.bounds.lower_bounds4(level, first, &q.query[..d], &q.weights[..d]);
+        if options.tags.is_trivial() {
+            return bounds;
+        }
+        std::array::from_fn(|g| bounds[g] + self.tag_bounds(level, first + g, &options.tags))
+    }
+
+    /// Per box of group `group` of `level`: the least bias of its frames, +∞ when the tags
+    /// allow none of them.
+    #[inline(always)]
+    fn tag_bounds(&self, level: usize, group: usize, tags: &TagQuery) -> F32x4 {
+        let summaries = &self.box_tags[level][4 * group..4 * group + 4];
+        F32x4::from_array(std::array::from_fn(|l| if tags.may_allow(summaries[l]) { tags.min_bias(summaries[l]) } else { f32::INFINITY }))
+    }
+
+    /// Visits the boxes of group `group` of `level` (their `bounds`; but those in `skip`, a
+    /// lane mask) that may hold a frame beating the best, the lowest bound first.
+    fn visit_boxes(&self, level: usize, group: usize, bounds: F32x4, skip: u32, q: &LaneQuery, options: &SearchOptions, best: &mut Best) {
+        let size = BOX_FRAMES[level];
+        let first = 4 * group * size;
+        let mut lanes = best.lanes_beaten_by(bounds, first, size) & !skip;
+        let bounds = bounds.to_array();
+        // Lowest bound first.
+        let mut order = [0usize; 4];
+        let mut n = 0;
+        while lanes != 0 {
+            let l = lanes.trailing_zeros() as usize;
+            lanes &= lanes - 1;
+            let mut at = n;
+            while at > 0 && bounds[order[at - 1]] > bounds[l] {
+                order[at] = order[at - 1];
+                at -= 1;
+            }
+            order[at] = l;
+            n += 1;
+        }
+        for &l in &order[..n] {
+            // The best may have dropped while visiting an earlier box of this group.
+            if best.beaten_by(bounds[l], first + l * size) {
+                self.visit(level, 4 * group + l, q, options, best);
+            }
+        }
+    }
+
+    /// Visits box `index` of `level`: its four children, or its frames at the leaves.
+    #[inline(always)]
+    fn visit(&self, level: usize, index: usize, q: &LaneQuery, options: &SearchOptions, best: &mut Best) {
+        if level == 0 {
+            self.search_span(index * BOX_FRAMES[0] / 4, q, options, best);
+        } else {
+            self.visit_boxes(level - 1, index, self.box_bounds(level - 1, index, q, options), 0, q, options, best);
+        }
     }
 
     fn check_query(&self, query: &[f32], options: &SearchOptions) {
@@ -386,10 +486,10 @@ impl SearchIndex {
     /// Four independent accumulators so the lane additions pipeline instead of waiting on one
     /// dependency chain.
     #[inline(always)]
-    fn search_span(&self, first_block: usize, q: &LaneQuery, options: &SearchOptions, best: &mut (usize, f32)) {
+    fn search_span(&self, first_block: usize, q: &LaneQuery, options: &SearchOptions, best: &mut Best) {
         let tags = &options.tags;
         // The span is one 16-frame box.
-        let summary = self.small_tags[first_block / 4];
+        let summary = self.box_tags[0][first_block / 4];
         if !tags.is_trivial() && !tags.may_allow(summary) {
             return;
         }
@@ -418,7 +518,7 @@ impl SearchIndex {
             }
         }
         for (k, costs) in acc.into_iter().enumerate() {
-            let better = costs.cmplt(F32x4::splat(best.1)).bitmask();
+            let better = best.lanes_beaten_by(costs, 4 * (first_block + k), 1);
             if better != 0 {
                 self.fold_block(first_block + k, costs, better, options, best);
             }
@@ -428,14 +528,14 @@ impl SearchIndex {
     /// The rare path: lanes of one block that beat the best; check that those frames may be
     /// returned, in frame order (the earliest frame wins a tie, as in the scalar loop).
     #[inline(never)]
-    fn fold_block(&self, block: usize, costs: F32x4, mut lanes: u32, options: &SearchOptions, best: &mut (usize, f32)) {
+    fn fold_block(&self, block: usize, costs: F32x4, mut lanes: u32, options: &SearchOptions, best: &mut Best) {
         let costs = costs.to_array();
         while lanes != 0 {
             let l = lanes.trailing_zeros() as usize;
             lanes &= lanes - 1;
             let frame = 4 * block + l;
-            if costs[l] < best.1 && self.is_allowed(frame, options) {
-                *best = (frame, costs[l]);
+            if best.beaten_by(costs[l], frame) && self.is_allowed(frame, options) {
+                *best = Best { frame, cost: costs[l] };
             }
         }
     }
@@ -494,12 +594,14 @@ mod tests {
     #[test]
     fn every_method_equals_brute_force_bit_for_bit_ties_included() {
         let mut rng = Rng(7);
-        // Sizes around the padding boundaries (4, 16, 64, 256 frames).
-        for num_frames in [1, 3, 4, 17, 63, 64, 65, 255, 256, 257, 1000] {
+        // Sizes around the box and padding boundaries (4, 16, 64, 256, 1024 frames), with 1, 2
+        // and 3 top-level groups past the last whole four, and past the cached top bounds.
+        let beyond_cache = 1024 * (TOP_CACHE + 3) + 5;
+        for num_frames in [1, 3, 4, 17, 63, 64, 65, 255, 256, 257, 1000, 1024, 1025, 4096, 5121, 6200, 7165, beyond_cache] {
             let db = synthetic(num_frames, &mut rng);
             let index = SearchIndex::new(&db).unwrap();
             let mask: Vec<bool> = (0..num_frames).map(|_| rng.below(3) != 0).collect();
-            for round in 0..300 {
+            for round in 0..if num_frames > 10_000 { 20 } else { 300 } {
                 // Grid queries make exact cost ties between frames likely.
                 let query: Vec<f32> = (0..6).map(|_| (rng.below(7) as f32 - 3.0) * 0.5).collect();
                 let a = rng.below(num_frames);
@@ -530,6 +632,33 @@ mod tests {
                             num_frames
                         );
                     }
+                }
+            }
+        }
+    }
+
+    /// The grid features above look alike in every box (each spans the whole grid), so they
+    /// cannot tell a box bound taken from the wrong box; mocap-like features drift with the
+    /// frame, and here each top-level box has its own range.
+    #[test]
+    fn box_tree_equals_brute_force_on_coherent_features() {
+        let mut rng = Rng(11);
+        for num_frames in [1024, 5121, 6200, 7165, 1024 * (TOP_CACHE + 3) + 5] {
+            let mut db = synthetic(num_frames, &mut rng);
+            let phase: Vec<f32> = (0..6).map(|_| rng.below(1000) as f32 / 100.0).collect();
+            for (i, f) in db.features.iter_mut().enumerate() {
+                let (frame, dim) = ((i / 6) as f32, i % 6);
+                *f = (frame * 0.01 * (dim + 1) as f32 + phase[dim]).sin() + frame / num_frames as f32 * 4.0;
+            }
+            let index = SearchIndex::new(&db).unwrap();
+            for _ in 0..200 {
+                let source = rng.below(num_frames);
+                let query: Vec<f32> = db.features[source * 6..source * 6 + 6].iter().map(|v| v + (rng.below(100) as f32 - 50.0) / 200.0).collect();
+                let options = SearchOptions { exclude: Some((source.saturating_sub(20), source + 21)), ..Default::default() };
+                let expected = reference(&db, &query, &options, f32::INFINITY);
+                for method in [SearchMethod::Simd, SearchMethod::Aabb] {
+                    let got = index.search(method, &query, &options, f32::INFINITY);
+                    assert_eq!(got.map(|(f, c)| (f, c.to_bits())), expected.map(|(f, c)| (f, c.to_bits())), "{num_frames} frames, {method:?}, query from frame {source}");
                 }
             }
         }
