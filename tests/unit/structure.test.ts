@@ -93,22 +93,44 @@ describe('one of each', () => {
 
   it('one forward kinematics: kinematics.rs in Rust, none in TS', () => {
     const defs = rust.filter((f) => /fn (local_to_model|forward_kinematics)\s*[<(]/.test(fs.readFileSync(f, 'utf8')));
-    expect(defs.map(rel)).toContain('wasm-core/src/kinematics.rs');
+    expect(defs.map(rel)).toContain('wasm-core/src/runtime/kinematics.rs');
     // Other `forward_kinematics` methods (database, pose) only call the one function.
-    for (const f of defs) if (rel(f) !== 'wasm-core/src/kinematics.rs') expect(fs.readFileSync(f, 'utf8'), rel(f)).toMatch(/local_to_model\(/);
+    for (const f of defs) if (rel(f) !== 'wasm-core/src/runtime/kinematics.rs') expect(fs.readFileSync(f, 'utf8'), rel(f)).toMatch(/local_to_model\(/);
     for (const f of ts) expect(fs.readFileSync(f, 'utf8'), rel(f)).not.toMatch(/function\s+forwardKinematics|forwardKinematics\s*\(/);
   });
 
   it('one two-bone IK: ik.rs in Rust; TS calls it through its binding', () => {
     const defs = rust.filter((f) => /fn two_bone_ik\w*\s*\(/.test(fs.readFileSync(f, 'utf8')));
-    expect(defs.map(rel)).toEqual(['wasm-core/src/ik.rs']);
+    expect(defs.map(rel)).toEqual(['wasm-core/src/runtime/ik.rs']);
     for (const f of ts) expect(fs.readFileSync(f, 'utf8'), rel(f)).not.toMatch(/solveTwoBone|lawOfCosines/);
   });
 
   it('one role vocabulary: roles.rs; TS reads it through the binding', () => {
     const defs = rust.filter((f) => /fn find_roles\s*[<(]/.test(fs.readFileSync(f, 'utf8')));
-    expect(defs.map(rel)).toEqual(['wasm-core/src/roles.rs']);
+    expect(defs.map(rel)).toEqual(['wasm-core/src/runtime/roles.rs']);
     for (const f of ts) expect(fs.readFileSync(f, 'utf8'), rel(f)).not.toMatch(/JOINT_NAME_TABLE|\/foot\|ankle\|toe\/i/);
+  });
+});
+
+describe('runtime and offline apart (wasm-core/src/runtime, offline, harness)', () => {
+  const SRC = path.join(ROOT, 'wasm-core/src');
+  const OFFLINE = fs.readdirSync(path.join(SRC, 'offline')).map((f) => f.replace(/\.rs$/, '')).filter((m) => m !== 'mod');
+  const HARNESS = fs.readdirSync(path.join(SRC, 'harness')).map((f) => f.replace(/\.rs$/, '')).filter((m) => m !== 'mod');
+  /** A file's code without its comments (doc links may name any module). */
+  const code = (f: string) => fs.readFileSync(f, 'utf8').split('\n').filter((l) => !/^\s*\/\//.test(l)).join('\n');
+
+  it('no runtime module imports an offline module or a harness', () => {
+    expect(OFFLINE).toEqual(expect.arrayContaining(['builder', 'bvh', 'config', 'gltf']));
+    expect(HARNESS).toEqual(expect.arrayContaining(['quality', 'vr_replay']));
+    const banned = new RegExp(`\\b(crate|super)::(offline|harness|${[...OFFLINE, ...HARNESS].join('|')})\\b|use crate::\\{[^}]*\\b(${[...OFFLINE, ...HARNESS].join('|')})\\b`);
+    const runtime = files(path.join(SRC, 'runtime'), /\.rs$/);
+    expect(runtime.length).toBeGreaterThan(15);
+    for (const f of runtime) expect(code(f), rel(f)).not.toMatch(banned);
+  });
+
+  it('no Rust source reads a file from web/ (shared settings live in settings/)', () => {
+    for (const f of files(SRC, /\.rs$/)) expect(code(f), rel(f)).not.toMatch(/include_(str|bytes)!\([^)]*web\//);
+    expect(fs.existsSync(path.join(ROOT, 'settings/vr-settings.json'))).toBe(true);
   });
 });
 

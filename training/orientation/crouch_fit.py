@@ -1,7 +1,7 @@
 """Where a VR user's head drop goes — knees or waist — measured on the mocap
 (`python -m orientation.crouch_fit`; docs/vr.md, "Crouching and bending over").
 
-The runtime's rule (`wasm-core/src/character/crouch.rs`, `split`) turns a head drop d below the
+The runtime's rule (`wasm-core/src/runtime/character/crouch.rs`, `split`) turns a head drop d below the
 standing height and the headset's pitch into a hips drop and a torso bend. This scores it against
 the mocap's truth: every original take of the orientation network's subjects (every 4th frame),
 the headset placed as the network's simulation places it (`data.load_clips`, calibrated from the
@@ -26,7 +26,7 @@ import mmdb
 from . import data
 from .geometry import quat_mul, quat_rotate
 
-CROUCH_RS = data.REPO / "wasm-core" / "src" / "character" / "crouch.rs"
+CROUCH_RS = data.REPO / "wasm-core" / "src" / "runtime" / "character" / "crouch.rs"
 FRAME_STEP = 4
 
 

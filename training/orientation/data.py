@@ -32,6 +32,8 @@ MMDB_BIN = Path(os.environ.get("MMDB_BIN", REPO / "wasm-core" / "target" / "rele
 # The models the site serves: the feed-back network and the recurrent one (fewer devices).
 PUBLIC_MODEL = REPO / "public" / "models" / "orientation.onnx"
 GRU_MODEL = REPO / "public" / "models" / "orientation_gru.onnx"
+# Side models and the weights the fixtures are made from (not served).
+MODELS_DIR = TRAINING / "models"
 
 # (folder, subject): a CMU subject number, or a 100STYLE style (one performer, so a style is the
 # unit held out — not a person). Held out, never trained on:

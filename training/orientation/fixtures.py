@@ -134,7 +134,5 @@ def write_fixtures(onnx_path: Path, weights: Path, out: Path = FIXTURE) -> Path:
 
 
 if __name__ == "__main__":
-    from .train import MODELS_DIR, PUBLIC_MODEL
-
-    write_fixtures(PUBLIC_MODEL, MODELS_DIR / "orientation_main.npz")
+    write_fixtures(data.PUBLIC_MODEL, data.MODELS_DIR / "orientation_main.npz")
     sys.exit(0)

@@ -48,7 +48,7 @@ from .model import OrientationNet, export_onnx, state_to_numpy
 from .simulate import TRAIN_AUGMENT, Augment, simulate, without_look_around
 
 PUBLIC_MODEL = data.PUBLIC_MODEL
-MODELS_DIR = data.TRAINING / "models"
+MODELS_DIR = data.MODELS_DIR
 
 
 @dataclass

@@ -1,4 +1,4 @@
-"""The runtime's crouch rule (`wasm-core/src/character/crouch.rs`) against the mocap's truth:
+"""The runtime's crouch rule (`wasm-core/src/runtime/character/crouch.rs`) against the mocap's truth:
 its constants are the ones fitted on the training subjects, and on the held-out subjects it
 predicts the hips drop and the torso bend far better than letting the hips take the whole drop."""
 

@@ -3,37 +3,23 @@
 //! The pure core never touches wasm-bindgen; `bindings/` is the only JS-facing module, one
 //! file per `Raw*` class, mirrored file for file by the TypeScript raw layer (`web/src/core/`).
 
-pub mod aabb;
-pub mod builder;
-pub mod bvh;
-pub mod character;
-pub mod config;
-pub mod controller;
-pub mod crowd;
-pub mod database;
+// The runtime (what a page runs every frame) apart from the offline part (import, database
+// build, the CLI's tools) and the harnesses that measure the runtime, as ozz-animation keeps
+// `runtime/` and `offline/`: no runtime module imports an offline one or a harness
+// (tests/unit/structure.test.ts). The modules are re-exported at the crate root, so every path
+// (`mmcore::search`, `crate::builder`) names the module, not the folder.
+pub mod harness;
+pub mod offline;
+pub mod runtime;
+
 pub mod error;
 pub mod format;
-pub mod frame_cuts;
-pub mod gltf;
-pub mod ik;
-pub mod inertialize;
-pub mod inspect;
-pub mod kinematics;
 pub mod limits;
-pub mod naturalness;
-pub mod lanes;
-pub mod parallel;
-pub mod persist;
-pub mod quality;
-pub mod retarget;
 pub mod rng;
-pub mod roles;
-pub mod search;
-pub mod skating;
-pub mod smoothing;
-pub mod spring;
-pub mod tag_query;
-pub mod vr_replay;
+
+pub use harness::{naturalness, quality, vr_replay};
+pub use offline::{builder, bvh, config, frame_cuts, gltf, inspect, parallel, smoothing};
+pub use runtime::{aabb, character, controller, crowd, database, ik, inertialize, kinematics, lanes, persist, recording, retarget, roles, search, skating, spring, tag_query};
 
 #[cfg(target_arch = "wasm32")]
 mod bindings;

@@ -98,7 +98,7 @@ fn aabb_and_simd_equal_brute_force_on_10000_random_queries() {
         let mut tags = TagQuery::default();
         let num_tags = db.tags.len().min(64);
         if num_tags > 0 {
-            let mut bit = |rng: &mut Rng| if rng.below(2) == 0 { 1u64 << rng.below(num_tags) } else { 0 };
+            let bit = |rng: &mut Rng| if rng.below(2) == 0 { 1u64 << rng.below(num_tags) } else { 0 };
             tags = TagQuery { require: bit(&mut rng), exclude: bit(&mut rng), prefer: bit(&mut rng), bias: [0.0, 0.5, 2.0, 20.0][rng.below(4)] };
         }
         let exclude_recent = (rng.below(3) == 0).then(|| {

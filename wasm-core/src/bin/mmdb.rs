@@ -559,7 +559,8 @@ fn coverage(args: &[String]) -> CliResult {
 }
 
 fn replay(args: &[String]) -> CliResult {
-    use mmcore::vr_replay::{self, Recording};
+    use mmcore::recording::Recording;
+    use mmcore::vr_replay;
     let a = Args::parse(args, &["--alpha", "--yaw", "--settings"], &["--json"])?;
     let [path, rec_path] = a.positional.as_slice() else { return Err(Usage("replay needs DB.mmdb and REC.json".into()).into()) };
     let (db, _) = load(path)?;

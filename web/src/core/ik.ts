@@ -1,5 +1,5 @@
 /**
- * `TwoBoneIk`: the runtime's one two-bone IK (wasm-core/src/ik.rs, law of cosines with an exact
+ * `TwoBoneIk`: the runtime's one two-bone IK (wasm-core/src/runtime/ik.rs, law of cosines with an exact
  * pole plane) for the avatar's arms. Inputs and outputs are zero-copy views; nothing allocates.
  */
 import { RawTwoBoneIk } from './raw.ts';

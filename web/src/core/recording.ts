@@ -1,5 +1,5 @@
 /**
- * The recording validator of the runtime (wraps `validate_recording`, wasm-core/src/vr_replay.rs):
+ * The recording validator of the runtime (wraps `validate_recording`, wasm-core/src/runtime/recording.rs):
  * the page and `mmdb replay` check a VR recording with the same code, so the CLI accepts exactly
  * the recordings the page replays. Needs the WASM module (`initWasm()`).
  */

@@ -1,6 +1,6 @@
 /**
  * `Retargeter`: the runtime's retargeting of a character's world pose onto an avatar skeleton
- * (wraps `RawRetargeter`; the method is in wasm-core/src/retarget.rs). `apply` fills zero-copy
+ * (wraps `RawRetargeter`; the method is in wasm-core/src/runtime/retarget.rs). `apply` fills zero-copy
  * views of the avatar's local rotations and hips translation.
  */
 import { type CharacterRuntime } from './character.ts';

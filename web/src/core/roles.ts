@@ -1,6 +1,6 @@
 /**
  * The joint-role vocabulary (`hips`, `left_toe`, `upper_chest`…), defined once in the runtime
- * (`wasm-core/src/roles.rs`) and shared by the database builder, the `.mmdb` site table and
+ * (`wasm-core/src/runtime/roles.rs`) and shared by the database builder, the `.mmdb` site table and
  * avatars: `findRoles` runs the same name conventions and topology rules on an avatar's bones.
  */
 import { find_roles_json, find_roles_rest_json, role_names_json } from './raw.ts';

@@ -72,7 +72,7 @@ export const MAX_CLIENT_MESSAGE_BYTES = 1024;
 /** The largest runtime state a STATE carries (a 32-joint character's is 4.7 KB; ~136 B a joint). */
 export const MAX_RUNTIME_STATE_BYTES = 16_000;
 /**
- * The runtime state's version (`STATE_VERSION` in wasm-core/src/character/state.rs, the second
+ * The runtime state's version (`STATE_VERSION` in wasm-core/src/runtime/character/state.rs, the second
  * u32 of its header): the room server checks it (server/content.ts); a test compares it with
  * what the runtime writes.
  */

@@ -28,7 +28,7 @@ import { type BodyYawPredictor } from './body-yaw.ts';
 import { type TrackerSample } from './tracker-sample.ts';
 import { TrackerState } from './trackers.ts';
 import { UpperBody } from './upper-body.ts';
-import vrSettings from './vr-settings.json';
+import vrSettings from '../../../settings/vr-settings.json';
 
 /**
  * HMD (eyes) → head centre, m backward along the headset's view axis (MMVR: HMD = head + 0.10 m
@@ -38,7 +38,8 @@ export const HMD_TO_HEAD_CENTRE = 0.1;
 
 /**
  * The runtime settings of the VR mode (docs/runtime.md); α is set separately (`setAlpha`). One
- * file, `vr-settings.json`, read by this page and by the native replay (`vr_replay.rs`):
+ * file, `settings/vr-settings.json` at the repository root, read by this page and by the
+ * native replay (`vr_replay.rs`):
  * - `clamping`; `adjustment_min_speed` 0.15 m/s: a standing avatar walks back under its user
  *   instead of staying up to α away;
  * - `clamp_angle` 0.35: turning on the spot, the root lags the predicted body yaw by ~20° at most;

@@ -16,6 +16,7 @@ use crate::character::{Character, CharacterSettings, Tracked};
 use crate::controller::Input;
 use crate::skating::ON_FLOOR;
 use crate::database::Database;
+use crate::recording::Recording;
 use crate::search::SearchIndex;
 use glam::{Quat, Vec2, Vec3};
 
@@ -28,172 +29,11 @@ const RESET_AFTER: f32 = 0.5;
 
 /// The VR page's runtime settings: the one file the page reads too (`VR_SETTINGS` in
 /// `web/src/vr/tracked-drive.ts`, whose comment says why each value).
-const VR_SETTINGS_JSON: &str = include_str!("../../web/src/vr/vr-settings.json");
+const VR_SETTINGS_JSON: &str = include_str!("../../../settings/vr-settings.json");
 
 /// The VR page's runtime settings, α apart.
 pub fn vr_settings() -> CharacterSettings {
-    CharacterSettings::default().patched(VR_SETTINGS_JSON).expect("web/src/vr/vr-settings.json is valid settings (tested)")
-}
-
-/// The parts of a recording the replay uses.
-#[derive(Clone, Debug, Default)]
-pub struct Recording {
-    pub time: Vec<f64>,
-    pub head_position: Vec<Vec3>,
-    pub head_rotation: Vec<Quat>,
-    /// `meta.eyeHeight`: the calibrated standing eye height (m).
-    pub eye_height: Option<f32>,
-    /// `truth.bodyYaw` and `truth.root` (x, z) when the recording was made from mocap.
-    pub truth_yaw: Option<Vec<f32>>,
-    pub truth_root: Option<Vec<Vec2>>,
-}
-
-impl Recording {
-    /// Reads the JSON encoding (version 1) exactly as the page does (`decodeRecording` in
-    /// `web/src/vr/recording.ts`): the same shape checks in the same order with the same
-    /// messages, then [`validate`], the one validator both use (the page through WASM).
-    ///
-    /// # Errors
-    /// What is wrong and where (`"time"[3] is not a number`, `time must increase: …`, `rotation
-    /// of frame 2, tracker 0 is not a unit quaternion (length 0.0000)`).
-    pub fn from_json(text: &str) -> Result<Recording, String> {
-        use serde_json::Value;
-        let v: Value = serde_json::from_str(text).map_err(|e| format!("not JSON ({e})"))?;
-        let o = v.as_object().ok_or("expected a JSON object")?;
-        let shown = |x: Option<&Value>| x.map_or("undefined".to_string(), |x| crate::limits::quote(&x.to_string()));
-        if o.get("format").and_then(Value::as_str) != Some("mm-vr-recording") {
-            return Err(format!("\"format\" must be \"mm-vr-recording\" (got {})", shown(o.get("format"))));
-        }
-        if o.get("version").and_then(Value::as_f64) != Some(1.0) {
-            return Err(format!("unsupported version {} (this page reads version 1)", shown(o.get("version"))));
-        }
-        let numbers = |name: &str| -> Result<Vec<f64>, String> {
-            let a = o.get(name).and_then(Value::as_array).ok_or(format!("\"{name}\" must be an array of numbers"))?;
-            a.iter().enumerate().map(|(i, x)| x.as_f64().ok_or(format!("\"{name}\"[{i}] is not a number"))).collect()
-        };
-        if o.get("meta").is_some_and(|m| !m.is_object()) {
-            return Err("\"meta\" must be an object".into());
-        }
-        let frames = o.get("frames").and_then(Value::as_f64).ok_or("\"frames\" must be a number")?;
-        let truth = match o.get("truth") {
-            None => None,
-            Some(t) => {
-                let t = t.as_object().ok_or("\"truth\" must be an object")?;
-                let arr = |name: &str| -> Result<Vec<f64>, String> {
-                    let a = t.get(name).and_then(Value::as_array).ok_or(format!("\"truth.{name}\" must be an array of numbers"))?;
-                    a.iter().map(|x| x.as_f64().ok_or(format!("\"truth.{name}\" must be an array of numbers"))).collect()
-                };
-                Some((arr("bodyYaw")?, arr("root")?))
-            }
-        };
-        let time = numbers("time")?;
-        let p = numbers("position")?;
-        let r = numbers("rotation")?;
-        let tracked: Vec<u8> = numbers("tracked")?.into_iter().map(|t| if t == 0.0 || t == 1.0 { t as u8 } else { 255 }).collect();
-        validate(frames, &time, &p, &r, &tracked, truth.as_ref().map(|(y, r)| (y.as_slice(), r.as_slice())))?;
-        let n = time.len();
-        if n > crate::limits::MAX_FRAMES {
-            return Err(format!("{n} frames, more than {}", crate::limits::MAX_FRAMES));
-        }
-        Ok(Recording {
-            time,
-            head_position: (0..n).map(|f| Vec3::new(p[9 * f] as f32, p[9 * f + 1] as f32, p[9 * f + 2] as f32)).collect(),
-            head_rotation: (0..n).map(|f| Quat::from_xyzw(r[12 * f] as f32, r[12 * f + 1] as f32, r[12 * f + 2] as f32, r[12 * f + 3] as f32).normalize()).collect(),
-            eye_height: o.get("meta").and_then(|m| m["eyeHeight"].as_f64()).map(|e| e as f32),
-            truth_yaw: truth.as_ref().map(|(y, _)| y.iter().map(|&x| x as f32).collect()),
-            truth_root: truth.as_ref().map(|(_, r)| r.chunks(2).map(|c| Vec2::new(c[0] as f32, c[1] as f32)).collect()),
-        })
-    }
-
-    pub fn num_frames(&self) -> usize {
-        self.time.len()
-    }
-}
-
-/// Trackers per recorded frame: head, left grip, right grip.
-pub const NUM_TRACKERS: usize = 3;
-
-/// The one validator of a recording's values, used by `mmdb replay` ([`Recording::from_json`])
-/// and by the page (`validateRecording` in `web/src/vr/recording.ts`, through the WASM binding
-/// `validate_recording`): a positive whole frame count; arrays of frames × 1 (time), × 9
-/// (positions), × 12 (rotations), × 3 (tracked flags) values; truth (when given) of frames × 1
-/// and × 2 finite values; finite times that strictly increase; tracked flags 0 or 1; finite
-/// positions; finite unit quaternions (|q| within 10⁻³ of 1, so a zero or a 10³⁰⁰ quaternion
-/// is refused).
-///
-/// # Errors
-/// The first thing wrong, as the page says it.
-pub fn validate(frames: f64, time: &[f64], position: &[f64], rotation: &[f64], tracked: &[u8], truth: Option<(&[f64], &[f64])>) -> Result<(), String> {
-    if !(frames >= 1.0 && frames.fract() == 0.0 && frames <= 9_007_199_254_740_991.0) {
-        return Err(format!("frames must be a positive integer (got {})", js_number(frames)));
-    }
-    let expect = |name: &str, length: usize, per: usize| -> Result<(), String> {
-        if length as f64 != frames * per as f64 {
-            return Err(format!("{name} has {length} values, expected frames × {per} = {}", js_number(frames * per as f64)));
-        }
-        Ok(())
-    };
-    expect("time", time.len(), 1)?;
-    expect("position", position.len(), NUM_TRACKERS * 3)?;
-    expect("rotation", rotation.len(), NUM_TRACKERS * 4)?;
-    expect("tracked", tracked.len(), NUM_TRACKERS)?;
-    if let Some((yaw, root)) = truth {
-        expect("truth.bodyYaw", yaw.len(), 1)?;
-        expect("truth.root", root.len(), 2)?;
-        if !yaw.iter().all(|v| v.is_finite()) {
-            return Err("truth.bodyYaw has a non-finite value".into());
-        }
-        if !root.iter().all(|v| v.is_finite()) {
-            return Err("truth.root has a non-finite value".into());
-        }
-    }
-    for f in 0..time.len() {
-        if !time[f].is_finite() {
-            return Err(format!("time[{f}] is not a finite number"));
-        }
-        if f > 0 && !(time[f] > time[f - 1]) {
-            return Err(format!("time must increase: time[{f}] = {} after {}", js_number(time[f]), js_number(time[f - 1])));
-        }
-        for t in 0..NUM_TRACKERS {
-            let k = f * NUM_TRACKERS + t;
-            if tracked[k] > 1 {
-                return Err(format!("tracked[{k}] must be 0 or 1 (got {})", tracked[k]));
-            }
-            if !position[3 * k..3 * k + 3].iter().all(|v| v.is_finite()) {
-                return Err(format!("position of frame {f}, tracker {t} is not finite"));
-            }
-            let q = &rotation[4 * k..4 * k + 4];
-            if !q.iter().all(|v| v.is_finite()) {
-                return Err(format!("rotation of frame {f}, tracker {t} is not finite"));
-            }
-            let length = q.iter().map(|v| v * v).sum::<f64>().sqrt();
-            if !((length - 1.0).abs() <= 1e-3) {
-                return Err(format!("rotation of frame {f}, tracker {t} is not a unit quaternion (length {})", js_fixed4(length)));
-            }
-        }
-    }
-    Ok(())
-}
-
-/// A number the way JavaScript's `String(x)` writes the usual ones (`3`, `0.5`, `NaN`,
-/// `Infinity`), so both callers of [`validate`] say the same.
-fn js_number(x: f64) -> String {
-    if x.is_nan() {
-        "NaN".into()
-    } else if x.is_infinite() {
-        if x > 0.0 { "Infinity".into() } else { "-Infinity".into() }
-    } else {
-        crate::limits::num(x)
-    }
-}
-
-/// `x.toFixed(4)` of JavaScript for the lengths [`validate`] reports.
-fn js_fixed4(x: f64) -> String {
-    if x.is_finite() {
-        format!("{x:.4}")
-    } else {
-        js_number(x)
-    }
+    CharacterSettings::default().patched(VR_SETTINGS_JSON).expect("settings/vr-settings.json is valid settings (tested)")
 }
 
 /// Heading yaw of an HMD rotation: where its view (−Z) points on the floor, the up axis filling
@@ -365,25 +205,5 @@ mod tests {
     fn the_vr_settings_file_is_valid_settings() {
         let s = super::vr_settings();
         assert!(s.clamping && s.adjustment_max_ratio > 0.0);
-    }
-
-    /// The hostile recordings the page's reader is tested on too (`web/src/vr/recording.test.ts`):
-    /// the same verdict and message. `mmdb replay` accepted zero and 10³⁰⁰ quaternions and
-    /// non-increasing times (and printed NaN metrics), and said "time has 345 finite numbers,
-    /// expected 345" of a string in `time`.
-    #[test]
-    fn recordings_are_read_as_the_page_reads_them() {
-        let doc: serde_json::Value = serde_json::from_str(include_str!("../tests/corpus/recordings/cases.json")).unwrap();
-        let cases = doc["cases"].as_array().unwrap();
-        assert!(cases.len() >= 20);
-        for c in cases {
-            let (name, text) = (c["name"].as_str().unwrap(), c["text"].as_str().unwrap());
-            match (super::Recording::from_json(text), c["expect"].as_str()) {
-                (Ok(r), None) => assert!(r.head_rotation.iter().all(|q| q.is_finite()), "{name}"),
-                (Err(e), Some(expected)) => assert_eq!(e, expected, "{name}"),
-                (Ok(_), Some(expected)) => panic!("{name}: accepted, expected {expected:?}"),
-                (Err(e), None) => panic!("{name}: refused ({e}), expected to be read"),
-            }
-        }
     }
 }
