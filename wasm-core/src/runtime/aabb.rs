@@ -93,8 +93,8 @@ impl BoxBounds {
             min0.extend(box_min.iter().map(|&a| F32x4::from_array(a)));
             max0.extend(box_max.iter().map(|&a| F32x4::from_array(a)));
         }
-        let mut min = [min0, Vec::new(), Vec::new()];
-        let mut max = [max0, Vec::new(), Vec::new()];
+        let (mut min, mut max): ([Vec<F32x4>; LEVELS], [Vec<F32x4>; LEVELS]) = Default::default();
+        (min[0], max[0]) = (min0, max0);
         // A box of a higher level is the union of its four children (one lane vector below).
         for level in 1..LEVELS {
             let groups = num_frames / BOX_FRAMES[level] / 4;

@@ -333,22 +333,25 @@ impl SearchIndex {
         // frame order when they fit (`TOP_CACHE` groups: 128k frames), else computed again.
         let mut cache = [F32x4::ZERO; TOP_CACHE];
         let mut seed = (f32::INFINITY, usize::MAX);
-        let mut group = 0;
-        while group < groups {
-            // Four groups at a time while there are four, then one.
-            let n = if group + 4 <= groups { 4 } else { 1 };
-            let four = if n == 4 { self.box_bounds4(top, group, &q, options) } else { [self.box_bounds(top, group, &q, options); 4] };
-            for (g, bounds) in four.iter().enumerate().take(n) {
-                if group + g < TOP_CACHE {
-                    cache[group + g] = *bounds;
-                }
-                for (l, &b) in bounds.to_array().iter().enumerate() {
-                    if b < seed.0 {
-                        seed = (b, 4 * (group + g) + l);
-                    }
+        let mut note = |group: usize, bounds: F32x4| {
+            if group < TOP_CACHE {
+                cache[group] = bounds;
+            }
+            for (l, &b) in bounds.to_array().iter().enumerate() {
+                if b < seed.0 {
+                    seed = (b, 4 * group + l);
                 }
             }
-            group += n;
+        };
+        // Four groups at a time while there are four, then one at a time.
+        let whole = groups - groups % 4;
+        for first in (0..whole).step_by(4) {
+            for (g, bounds) in self.box_bounds4(top, first, &q, options).into_iter().enumerate() {
+                note(first + g, bounds);
+            }
+        }
+        for group in whole..groups {
+            note(group, self.box_bounds(top, group, &q, options));
         }
         if seed.1 != usize::MAX && seed.0 < best.cost {
             self.visit(top, seed.1, &q, options, &mut best);
