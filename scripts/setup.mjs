@@ -76,12 +76,20 @@ function newestUnder(dir) {
   return newest;
 }
 
-/** Runs a command with output streamed to this terminal; throws StepError on failure. */
-function run(cmd, args, opts = {}) {
+/**
+ * Runs a command with output streamed to this terminal (or, with `logFile`, written there and
+ * shown only if it fails: a step running beside others); throws StepError on failure.
+ */
+function run(cmd, args, { logFile, ...opts } = {}) {
   const shown = [cmd, ...args].map((a) => (/\s/.test(a) ? JSON.stringify(a) : a)).join(' ');
-  log(`  $ ${shown}${opts.cwd && opts.cwd !== ROOT ? `   (in ${path.relative(ROOT, opts.cwd)})` : ''}`);
+  log(`  $ ${shown}${opts.cwd && opts.cwd !== ROOT ? `   (in ${path.relative(ROOT, opts.cwd)})` : ''}${logFile ? `   (output: ${path.relative(ROOT, logFile)})` : ''}`);
   return new Promise((resolve, reject) => {
-    const child = spawn(cmd, args, { cwd: ROOT, stdio: 'inherit', ...opts });
+    const fd = logFile ? fs.openSync(logFile, 'w') : null;
+    const child = spawn(cmd, args, { cwd: ROOT, stdio: fd === null ? 'inherit' : ['ignore', fd, fd], ...opts });
+    if (fd !== null) {
+      fs.closeSync(fd);
+      child.on('close', (code) => code !== 0 && process.stdout.write(fs.readFileSync(logFile, 'utf8').slice(-20_000)));
+    }
     child.on('error', (e) => reject(new StepError(`${cmd}: ${e.message}`)));
     child.on('close', (code, signal) => {
       if (code === 0) resolve();
@@ -422,7 +430,11 @@ async function stepNats() {
   });
 }
 
-async function stepVenv() {
+/**
+ * The venv is mostly downloading and unpacking PyTorch's wheels (~3 min on a bare machine), so
+ * `npm test` runs it beside the Rust builds (which keep both cores busy) with its output in a file.
+ */
+async function stepVenv(logFile) {
   await step('venv', 'Python venv (training/.venv)', async () => {
     const req = path.join(ROOT, 'training', 'requirements.txt');
     if (!fs.existsSync(req)) return 'no training/requirements.txt';
@@ -433,7 +445,8 @@ async function stepVenv() {
       return 'requirements.txt unchanged';
     }
     if (!fs.existsSync(py)) await run('python3', ['-m', 'venv', VENV]);
-    await run(py, ['-m', 'pip', 'install', '--disable-pip-version-check', '-r', req]);
+    fs.mkdirSync(path.dirname(logFile), { recursive: true });
+    await run(py, ['-m', 'pip', 'install', '--disable-pip-version-check', '-r', req], { logFile });
     fs.writeFileSync(stamp, `${hash}\n`);
   });
 }
@@ -500,7 +513,9 @@ async function runSuites() {
     { id: 'cargo', title: 'cargo test (wasm-core)', cmd: 'cargo', args: ['test', '--profile', 'test-opt', '--no-fail-fast'], cwd: CORE },
     { id: 'vitest', title: 'vitest', cmd: bin('vitest'), args: ['run'] },
     { id: 'pytest', title: 'pytest (training)', cmd: path.join(VENV, 'bin', 'pytest'), args: ['-q'], cwd: path.join(ROOT, 'training') },
-    { id: 'playwright', title: 'playwright', cmd: bin('playwright'), args: ['test'] },
+    // Two runs: the rooms tests alone after the rest (playwright.config.ts says why).
+    { id: 'playwright', title: 'playwright', cmd: bin('playwright'), args: ['test', '--project', 'chromium'] },
+    { id: 'playwright', title: 'playwright (rooms)', cmd: bin('playwright'), args: ['test', '--project', 'rooms'] },
   ].filter((s) => only.size === 0 || only.has(s.id));
 
   const results = [];
@@ -560,6 +575,8 @@ async function runSuites() {
 async function main() {
   log(`mode: ${mode}`);
   await stepNpm();
+  const venv = mode === 'test' ? stepVenv(path.join(ROOT, 'test-results', 'pip-install.log')) : null;
+  venv?.catch(() => undefined); // awaited below; a failure is reported there
   await stepRustTarget();
   await stepWasmBindgen();
   await stepWasm();
@@ -569,7 +586,7 @@ async function main() {
   if (mode === 'test') {
     await stepChromium();
     await stepNats();
-    await stepVenv();
+    await venv;
   }
   if (mode !== 'build') await stepRecordings();
   if (mode !== 'dev') await stepDist();

@@ -9,6 +9,8 @@ import { type PoseCheck } from '../../web/src/vr/replay-bench.ts';
 
 const ROOT = path.resolve(import.meta.dirname, '../..');
 const SHOTS = path.join(ROOT, 'test-results');
+// The tests share nothing: both workers may take them (this file is the suite's longest chain).
+test.describe.configure({ mode: 'parallel' });
 
 interface Frame {
   t: number;
