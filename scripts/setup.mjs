@@ -17,7 +17,7 @@
 // Environment:
 //   SETUP_SKIP=step,step   skip named steps: npm, rust-target, wasm-bindgen, wasm, cli, databases,
 //                          avatars, dist, server, chromium, nats, venv, recordings (for working on one part while another is broken)
-//   TEST_SUITES=a,b        run only these suites: cargo, vitest, pytest, playwright
+//   TEST_SUITES=a,b        run only these suites: lint, cargo, vitest, pytest, playwright
 //
 // Node builtins only: this runs before node_modules exists.
 
@@ -482,6 +482,10 @@ const parsers = {
     if (lines.length === 0) return null;
     return lines.reduce((a, m) => ({ passed: a.passed + Number(m[1]), failed: a.failed + Number(m[2]) }), { passed: 0, failed: 0 });
   },
+  lint(out) {
+    const m = out.match(/^lint: (\d+) passed, (\d+) failed$/m);
+    return m ? { passed: Number(m[1]), failed: Number(m[2]) } : null;
+  },
   vitest(out) {
     // "      Tests  1 failed | 12 passed (13)"
     const m = out.match(/^\s*Tests\s+([^\n]*)\(\d+\)\s*$/m);
@@ -510,6 +514,8 @@ async function runSuites() {
   const only = new Set((process.env.TEST_SUITES ?? '').split(',').map((s) => s.trim()).filter(Boolean));
   const bin = (name) => path.join(ROOT, 'node_modules', '.bin', name);
   const suites = [
+    // Formatters and linters first: a finding fails `npm test` (scripts/lint.mjs).
+    { id: 'lint', title: 'lint (rustfmt, clippy, ruff, tsc)', cmd: process.execPath, args: [path.join(ROOT, 'scripts', 'lint.mjs')] },
     { id: 'cargo', title: 'cargo test (wasm-core)', cmd: 'cargo', args: ['test', '--profile', 'test-opt', '--no-fail-fast'], cwd: CORE },
     { id: 'vitest', title: 'vitest', cmd: bin('vitest'), args: ['run'] },
     { id: 'pytest', title: 'pytest (training)', cmd: path.join(VENV, 'bin', 'pytest'), args: ['-q'], cwd: path.join(ROOT, 'training') },

@@ -125,15 +125,19 @@ def parse_text(text: str) -> Bvh:
     num_channels = sum(len(c) for c in bvh["channels"])
     values = words[5:]
     if len(values) != frames * num_channels:
-        raise BvhError(
-            f"MOTION has {len(values)} numbers, expected {frames} frames x {num_channels} channels"
-        )
+        raise BvhError(f"MOTION has {len(values)} numbers, expected {frames} frames x {num_channels} channels")
     try:
         data = np.array(values, dtype=np.float64).reshape(frames, num_channels)
     except ValueError as e:
         raise BvhError(f"bad number in MOTION: {e}") from None
-    return Bvh(bvh["names"], np.array(bvh["parents"]), np.array(bvh["offsets"], dtype=np.float64),
-               bvh["channels"], frame_time, data)
+    return Bvh(
+        bvh["names"],
+        np.array(bvh["parents"]),
+        np.array(bvh["offsets"], dtype=np.float64),
+        bvh["channels"],
+        frame_time,
+        data,
+    )
 
 
 def parse(path: str | os.PathLike) -> Bvh:

@@ -47,12 +47,47 @@ RECORDINGS = (
     ("walk", "cmu-asf", "16", "cmu_16_32", "walk straight, 4.8 s", True, None, ()),
     ("turn", "cmu-asf", "16", "cmu_16_17", "walk with a 90° left turn, 4.3 s", True, None, ()),
     ("run", "cmu-asf", "127", "cmu_127_04", "walk to run, 3.7 s", True, None, ()),
-    ("backward", "100style", "Akimbo", "Akimbo_TR1", "walking backward and turning, hands on hips", False, 12.0, ("backward",)),
-    ("sidestep", "100style", "Akimbo", "Akimbo_TR1", "side-steps left and right, hands on hips", False, 12.0, ("sideways",)),
+    (
+        "backward",
+        "100style",
+        "Akimbo",
+        "Akimbo_TR1",
+        "walking backward and turning, hands on hips",
+        False,
+        12.0,
+        ("backward",),
+    ),
+    (
+        "sidestep",
+        "100style",
+        "Akimbo",
+        "Akimbo_TR1",
+        "side-steps left and right, hands on hips",
+        False,
+        12.0,
+        ("sideways",),
+    ),
     ("turn-in-place", "cmu-asf", "69", "cmu_69_16", "a stepping turn of 153° on the spot, 2.8 s", False, None, ()),
-    ("gesture", "cmu-asf", "14", "cmu_14_26", "directing traffic, waving, pointing, a few steps", False, 20.0, ("gesturing", "standing")),
-    ("moving-about", "cmu-asf", "14", "cmu_14_18", "laughing while stepping about: forward, back, sideways", False, 20.0,
-     ("forward", "backward", "sideways")),
+    (
+        "gesture",
+        "cmu-asf",
+        "14",
+        "cmu_14_26",
+        "directing traffic, waving, pointing, a few steps",
+        False,
+        20.0,
+        ("gesturing", "standing"),
+    ),
+    (
+        "moving-about",
+        "cmu-asf",
+        "14",
+        "cmu_14_18",
+        "laughing while stepping about: forward, back, sideways",
+        False,
+        20.0,
+        ("forward", "backward", "sideways"),
+    ),
     ("walk-69", "cmu-asf", "69", "cmu_69_01", "a forward walk, 3.9 s", False, None, ()),
 )
 
@@ -83,16 +118,34 @@ def _root_floor(db: mmdb.Database, start: int, end: int, times: np.ndarray) -> n
 def _cut(clip: MocapClip, s: int, e: int) -> MocapClip:
     """Frames [s, e) of a clip (its motion classes kept: computed on the whole take)."""
     classes = clip.classes[s:e]
-    out = MocapClip(name=clip.name, subject=clip.subject, mirrored=clip.mirrored, fps=clip.fps,
-                    body_yaw=clip.body_yaw[s:e], root_pos=clip.root_pos[s:e], head_pos=clip.head_pos[s:e],
-                    head_rot=clip.head_rot[s:e], hand_pos=clip.hand_pos[:, s:e], hand_rot=clip.hand_rot[:, s:e],
-                    rig=clip.rig)
+    out = MocapClip(
+        name=clip.name,
+        subject=clip.subject,
+        mirrored=clip.mirrored,
+        fps=clip.fps,
+        body_yaw=clip.body_yaw[s:e],
+        root_pos=clip.root_pos[s:e],
+        head_pos=clip.head_pos[s:e],
+        head_rot=clip.head_rot[s:e],
+        hand_pos=clip.hand_pos[:, s:e],
+        hand_rot=clip.hand_rot[:, s:e],
+        rig=clip.rig,
+    )
     out._classes = classes
     return out
 
 
-def make(name: str, folder: str, subject: str, take: str, note: str, held_in: bool, seconds: float | None,
-         classes: tuple[str, ...], seed: int) -> dict:
+def make(
+    name: str,
+    folder: str,
+    subject: str,
+    take: str,
+    note: str,
+    held_in: bool,
+    seconds: float | None,
+    classes: tuple[str, ...],
+    seed: int,
+) -> dict:
     if held_in != ((folder, subject) in TRAIN_SUBJECTS) or (not held_in and (folder, subject) not in TEST_SUBJECTS):
         raise SystemExit(f"{folder} {subject}: recording {name} must be {'held in' if held_in else 'held out'}")
     path = ensure_database(folder, subject)
@@ -121,16 +174,23 @@ def make(name: str, folder: str, subject: str, take: str, note: str, held_in: bo
         "version": 1,
         "trackers": ["head", "left", "right"],
         "frames": n,
-        "meta": {"source": f"{folder}/{whole.name}", "subject": f"{folder}_{subject}", "heldIn": held_in,
-                 "window": f"{s / whole.fps:.2f}-{e / whole.fps:.2f} s", "description": note, "rate": FPS,
-                 "seed": seed, "eyeHeight": round(eye, 4), "lookAround": True,
-                 "generator": "training/make_recordings.py"},
+        "meta": {
+            "source": f"{folder}/{whole.name}",
+            "subject": f"{folder}_{subject}",
+            "heldIn": held_in,
+            "window": f"{s / whole.fps:.2f}-{e / whole.fps:.2f} s",
+            "description": note,
+            "rate": FPS,
+            "seed": seed,
+            "eyeHeight": round(eye, 4),
+            "lookAround": True,
+            "generator": "training/make_recordings.py",
+        },
         "time": r(t, 6),
         "position": r(pos, 5),
         "rotation": r(seq.rot / np.linalg.norm(seq.rot, axis=-1, keepdims=True), 6),
         "tracked": [1] * (3 * n),
-        "truth": {"bodyYaw": r(seq.body_yaw, 5), "root": r(root, 5),
-                  "motionClass": [int(c) for c in seq.classes]},
+        "truth": {"bodyYaw": r(seq.body_yaw, 5), "root": r(root, 5), "motionClass": [int(c) for c in seq.classes]},
     }
 
 
@@ -138,8 +198,12 @@ def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--out", type=Path, default=OUT)
     ap.add_argument("--force", action="store_true", help="rewrite existing files")
-    ap.add_argument("--seed", type=int, default=SEED,
-                    help="simulation seed (another draw of the devices' noise, offsets and looking around: the benches' spread)")
+    ap.add_argument(
+        "--seed",
+        type=int,
+        default=SEED,
+        help="simulation seed (another draw of the devices' noise, offsets and looking around: the benches' spread)",
+    )
     args = ap.parse_args(argv)
     args.out.mkdir(parents=True, exist_ok=True)
     index = []

@@ -28,8 +28,7 @@ ENTRY_SIZE = 24
 ALIGNMENT = 16
 
 REQUIRED_SECTIONS = {
-    1: ("INFO", "SKEL", "CLIP", "TAGS", "LPOS", "LROT", "LVEL", "LAVL", "CONT", "FDSC", "FNRM",
-        "FEAT", "VALD"),
+    1: ("INFO", "SKEL", "CLIP", "TAGS", "LPOS", "LROT", "LVEL", "LAVL", "CONT", "FDSC", "FNRM", "FEAT", "VALD"),
     2: ("INFO", "SKEL", "CLIP", "TAGS", "PANM", "QROT", "CONT", "FDSC", "FNRM", "FSHF", "VALD"),
 }
 ROTATION_SCALE = 32767.0
@@ -116,7 +115,7 @@ class _Cursor:
                 f"section {self.section}: {what} runs past the end of the section "
                 f"(needs {n} bytes at offset {self.pos}, section is {len(self.data)} bytes)"
             )
-        out = self.data[self.pos:self.pos + n]
+        out = self.data[self.pos : self.pos + n]
         self.pos += n
         return out
 
@@ -165,9 +164,7 @@ def _read_bytes(path_or_bytes) -> bytes:
 def _check_header(data: bytes) -> tuple[int, int]:
     """Check magic, version, file_size and checksum; return the version and section count."""
     if len(data) < HEADER_SIZE:
-        raise MmdbError(
-            f"truncated: file is {len(data)} bytes, shorter than the {HEADER_SIZE}-byte header"
-        )
+        raise MmdbError(f"truncated: file is {len(data)} bytes, shorter than the {HEADER_SIZE}-byte header")
     if data[:8] != MAGIC:
         raise MmdbError(f"header: bad magic {data[:8]!r}, expected {MAGIC!r} (not an .mmdb file)")
     version, section_count, file_size, checksum, _reserved = struct.unpack_from("<IIQII", data, 8)
@@ -185,8 +182,7 @@ def _check_header(data: bytes) -> tuple[int, int]:
     actual = zlib.crc32(memoryview(data)[HEADER_SIZE:]) & 0xFFFFFFFF
     if actual != checksum:
         raise MmdbError(
-            f"header: checksum mismatch: stored CRC-32 {checksum:#010x}, computed {actual:#010x} "
-            f"(file corrupted)"
+            f"header: checksum mismatch: stored CRC-32 {checksum:#010x}, computed {actual:#010x} (file corrupted)"
         )
     return version, section_count
 
@@ -194,9 +190,7 @@ def _check_header(data: bytes) -> tuple[int, int]:
 def _read_section_table(data: bytes, section_count: int, version: int) -> dict[str, bytes]:
     table_end = HEADER_SIZE + ENTRY_SIZE * section_count
     if table_end > len(data):
-        raise MmdbError(
-            f"section table: {section_count} entries need {table_end} bytes, file is {len(data)}"
-        )
+        raise MmdbError(f"section table: {section_count} entries need {table_end} bytes, file is {len(data)}")
     sections: dict[str, bytes] = {}
     for i in range(section_count):
         raw_tag, _reserved, offset, length = struct.unpack_from("<4sIQQ", data, HEADER_SIZE + ENTRY_SIZE * i)
@@ -205,14 +199,12 @@ def _read_section_table(data: bytes, section_count: int, version: int) -> dict[s
         if offset < table_end:
             raise MmdbError(f"{where}: offset {offset} is before the end of the section table ({table_end})")
         if offset + length > len(data):
-            raise MmdbError(
-                f"{where}: data [{offset}, {offset + length}) lies outside the file ({len(data)} bytes)"
-            )
+            raise MmdbError(f"{where}: data [{offset}, {offset + length}) lies outside the file ({len(data)} bytes)")
         if offset % ALIGNMENT:
             raise MmdbError(f"{where}: offset {offset} is not a multiple of {ALIGNMENT}")
         if tag in sections:
             raise MmdbError(f"{where}: duplicate section {tag}")
-        sections[tag] = data[offset:offset + length]
+        sections[tag] = data[offset : offset + length]
     missing = [t for t in REQUIRED_SECTIONS[version] if t not in sections]
     if missing:
         raise MmdbError(f"section table: missing required section(s) {', '.join(missing)}")
@@ -293,21 +285,25 @@ def load(path_or_bytes) -> Database:
         raise MmdbError(f"section CLIP: count {count} differs from INFO num_clips {num_clips}")
     clips = []
     for c in range(count):
-        clips.append(Clip(
-            name=cur.string(f"clip {c} name"),
-            source=cur.string(f"clip {c} source"),
-            start=cur.u32(f"clip {c} start"),
-            end=cur.u32(f"clip {c} end"),
-            mirrored=bool(cur.u8(f"clip {c} mirrored")),
-            source_fps=cur.f32(f"clip {c} source_fps") if version == 1 else cur.f64(f"clip {c} source_fps"),
-            scale=cur.f32(f"clip {c} scale"),
-            root_scale=cur.f32(f"clip {c} root_scale"),
-            source_start=0 if version == 1 else cur.u32(f"clip {c} source_start"),
-        ))
+        clips.append(
+            Clip(
+                name=cur.string(f"clip {c} name"),
+                source=cur.string(f"clip {c} source"),
+                start=cur.u32(f"clip {c} start"),
+                end=cur.u32(f"clip {c} end"),
+                mirrored=bool(cur.u8(f"clip {c} mirrored")),
+                source_fps=cur.f32(f"clip {c} source_fps") if version == 1 else cur.f64(f"clip {c} source_fps"),
+                scale=cur.f32(f"clip {c} scale"),
+                root_scale=cur.f32(f"clip {c} root_scale"),
+                source_start=0 if version == 1 else cur.u32(f"clip {c} source_start"),
+            )
+        )
     cur.finish()
     _check_ranges("section CLIP", [(c.start, c.end) for c in clips], F)
-    if (clips[0].start if clips else 0) != 0 or (clips[-1].end if clips else 0) != F or any(
-        a.end != b.start for a, b in zip(clips, clips[1:])
+    if (
+        (clips[0].start if clips else 0) != 0
+        or (clips[-1].end if clips else 0) != F
+        or any(a.end != b.start for a, b in zip(clips, clips[1:]))
     ):
         raise MmdbError(f"section CLIP: clips do not tile [0, {F}) exactly (gap between clips)")
     if len({c.name for c in clips}) != len(clips):
@@ -323,8 +319,10 @@ def load(path_or_bytes) -> Database:
     tags = {}
     for t in range(count):
         name = cur.string(f"tag {t} name")
-        ranges = [(cur.u32(f"tag {name!r} start"), cur.u32(f"tag {name!r} end"))
-                  for _ in range(cur.u32(f"tag {name!r} range count"))]
+        ranges = [
+            (cur.u32(f"tag {name!r} start"), cur.u32(f"tag {name!r} end"))
+            for _ in range(cur.u32(f"tag {name!r} range count"))
+        ]
         _check_ranges(f"section TAGS: tag {name!r}", ranges, F)
         if name in tags:
             raise MmdbError(f"section TAGS: duplicate tag {name!r}")
@@ -339,14 +337,24 @@ def load(path_or_bytes) -> Database:
     groups, next_dim = [], 0
     for g in range(count):
         name = cur.string(f"group {g} name")
-        kind, trajectory, axes, _reserved = (cur.u8(f"group {name!r} {w}") for w in ("kind", "trajectory", "axes", "reserved"))
+        kind, trajectory, axes, _reserved = (
+            cur.u8(f"group {name!r} {w}") for w in ("kind", "trajectory", "axes", "reserved")
+        )
         joint = cur.i32(f"group {name!r} joint")
         direction = cur.vec3(f"group {name!r} direction")
         offsets_k = [cur.i32(f"group {name!r} offset") for _ in range(cur.u32(f"group {name!r} offset count"))]
-        grp = FeatureGroup(name, kind, bool(trajectory), axes, joint, direction, offsets_k,
-                           weight=cur.f32(f"group {name!r} weight"),
-                           first_dim=cur.u32(f"group {name!r} first_dim"),
-                           num_dims=cur.u32(f"group {name!r} num_dims"))
+        grp = FeatureGroup(
+            name,
+            kind,
+            bool(trajectory),
+            axes,
+            joint,
+            direction,
+            offsets_k,
+            weight=cur.f32(f"group {name!r} weight"),
+            first_dim=cur.u32(f"group {name!r} first_dim"),
+            num_dims=cur.u32(f"group {name!r} num_dims"),
+        )
         if kind not in (0, 1, 2) or axes not in (0, 1) or not 0 <= joint < J:
             raise MmdbError(f"section FDSC: group {name!r} has kind {kind}, axes {axes}, joint {joint} (invalid)")
         if grp.num_dims != len(offsets_k) * (3 if axes == AXES_XYZ else 2):
@@ -374,20 +382,28 @@ def load(path_or_bytes) -> Database:
         local_positions = _decode_panm(sections["PANM"], F, rest_offsets)
         local_rotations = _decode_qrot(sections["QROT"], F, J)
         local_velocities, local_angular_velocities = pose_velocities(
-            fps, [(c.start, c.end) for c in clips], local_positions, local_rotations)
+            fps, [(c.start, c.end) for c in clips], local_positions, local_rotations
+        )
         features = _decode_fshf(sections["FSHF"], F, D)
     db = Database(
-        version=version, fps=fps, num_frames=F, flags=flags, joint_names=names,
+        version=version,
+        fps=fps,
+        num_frames=F,
+        flags=flags,
+        joint_names=names,
         parents=np.array(parents, dtype=np.int32),
         rest_offsets=rest_offsets,
-        sites=sites, clips=clips, tags=tags,
+        sites=sites,
+        clips=clips,
+        tags=tags,
         local_positions=local_positions,
         local_rotations=local_rotations,
         local_velocities=local_velocities,
         local_angular_velocities=local_angular_velocities,
         contacts=_check_flags("CONT", _array(sections, "CONT", "u1", (F, 2))),
         feature_groups=groups,
-        feature_mean=fnrm[0].copy(), feature_scale=fnrm[1].copy(),
+        feature_mean=fnrm[0].copy(),
+        feature_scale=fnrm[1].copy(),
         features=features,
         valid=_check_flags("VALD", _array(sections, "VALD", "u1", (F,))),
         extra_sections={t: d for t, d in sections.items() if t not in REQUIRED_SECTIONS[version]},
@@ -396,6 +412,7 @@ def load(path_or_bytes) -> Database:
 
 
 # --- version 2 encodings -----------------------------------------------------------------------
+
 
 def _decode_panm(data: bytes, F: int, rest_offsets: np.ndarray) -> np.ndarray:
     """PANM: u32 A, A increasing joint indices, f32 F×A×3; other joints at their rest offsets."""
@@ -425,7 +442,7 @@ def _decode_qrot(data: bytes, F: int, J: int) -> np.ndarray:
     c = np.cumsum(deltas.astype(np.int64), axis=2)
     c = ((c + 32768) % 65536 - 32768).astype(np.float32)
     q = np.ascontiguousarray(c.transpose(2, 0, 1))  # (F, J, 4)
-    norm2 = np.einsum("fjc,fjc->fj", q.astype(np.float64), q.astype(np.float64)) / ROTATION_SCALE ** 2
+    norm2 = np.einsum("fjc,fjc->fj", q.astype(np.float64), q.astype(np.float64)) / ROTATION_SCALE**2
     bad = np.argwhere(np.abs(norm2 - 1.0) > QROT_NORM_TOLERANCE)
     if len(bad):
         f, j = bad[0]
@@ -473,16 +490,20 @@ def pose_velocities(fps: float, clips: list[tuple[int, int]], positions: np.ndar
 
 # --- quaternions (x, y, z, w), vectorized over leading axes ------------------------------------
 
+
 def quat_mul(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """Hamilton product a·b (apply b first, then a)."""
     ax, ay, az, aw = np.moveaxis(np.asarray(a), -1, 0)
     bx, by, bz, bw = np.moveaxis(np.asarray(b), -1, 0)
-    return np.stack([
-        aw * bx + ax * bw + ay * bz - az * by,
-        aw * by - ax * bz + ay * bw + az * bx,
-        aw * bz + ax * by - ay * bx + az * bw,
-        aw * bw - ax * bx - ay * by - az * bz,
-    ], axis=-1)
+    return np.stack(
+        [
+            aw * bx + ax * bw + ay * bz - az * by,
+            aw * by - ax * bz + ay * bw + az * bx,
+            aw * bz + ax * by - ay * bx + az * bw,
+            aw * bw - ax * bx - ay * by - az * bz,
+        ],
+        axis=-1,
+    )
 
 
 def quat_rotate(q: np.ndarray, v: np.ndarray) -> np.ndarray:

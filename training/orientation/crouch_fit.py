@@ -65,7 +65,9 @@ def load_frames(log=print) -> Frames:
         head = np.concatenate([pos[t, site["head"]] for t in takes])[::FRAME_STEP]
         hips = np.concatenate([pos[t, site["hips"]] for t in takes])[::FRAME_STEP]
         q = np.concatenate([rot[t, site["head"]] for t in takes])[::FRAME_STEP].astype(np.float64)
-        view = quat_rotate(quat_mul(q, np.broadcast_to(rig.hmd_align, q.shape)), np.broadcast_to([0.0, 0.0, -1.0], head.shape))
+        view = quat_rotate(
+            quat_mul(q, np.broadcast_to(rig.hmd_align, q.shape)), np.broadcast_to([0.0, 0.0, -1.0], head.shape)
+        )
         d = np.percentile(head[:, 1], 90) - head[:, 1]
         torso = hips - head
         length = np.linalg.norm(torso, axis=1)
@@ -123,16 +125,26 @@ def main(argv=None) -> int:
     f = load_frames()
     base = dict(deadband=c["CROUCH_DEADBAND"], max_bend=c["MAX_BEND"])
     start, gain = fit(f, **base)
-    print(f"{len(f.head_drop)} frames ({f.held_out.sum()} held out); {(f.head_drop > 0.05).sum()} with the head > 5 cm down")
-    print(f"fitted on the training subjects: bending starts at {np.degrees(start):.0f}°, gain {gain} "
-          f"(crouch.rs: {np.degrees(c['BEND_START_PITCH']):.0f}°, {c['BEND_GAIN']})\n")
-    print("| rule | hips drop error, head > 5 cm down: held-out / training | torso bend error: held-out all / > 5 cm down | bend p95 near standing |")
+    print(
+        f"{len(f.head_drop)} frames ({f.held_out.sum()} held out); {(f.head_drop > 0.05).sum()} with the head > 5 cm down"
+    )
+    print(
+        f"fitted on the training subjects: bending starts at {np.degrees(start):.0f}°, gain {gain} "
+        f"(crouch.rs: {np.degrees(c['BEND_START_PITCH']):.0f}°, {c['BEND_GAIN']})\n"
+    )
+    print(
+        "| rule | hips drop error, head > 5 cm down: held-out / training | torso bend error: held-out all / > 5 cm down | bend p95 near standing |"
+    )
     print("|---|---|---|---|")
-    for name, rule in (("hips take the whole drop (before)", dict(start_pitch=0.0, gain=0.0, bend=False)),
-                       ("crouch.rs", dict(start_pitch=c["BEND_START_PITCH"], gain=c["BEND_GAIN"]))):
+    for name, rule in (
+        ("hips take the whole drop (before)", dict(start_pitch=0.0, gain=0.0, bend=False)),
+        ("crouch.rs", dict(start_pitch=c["BEND_START_PITCH"], gain=c["BEND_GAIN"])),
+    ):
         s = score(f, **rule, **base)
-        print(f"| {name} | {100 * s['held_out_hips_low']:.1f} / {100 * s['training_hips_low']:.1f} cm | "
-              f"{np.degrees(s['held_out_bend']):.1f}° / {np.degrees(s['held_out_bend_low']):.1f}° | {np.degrees(s['upright_bend_p95']):.1f}° |")
+        print(
+            f"| {name} | {100 * s['held_out_hips_low']:.1f} / {100 * s['training_hips_low']:.1f} cm | "
+            f"{np.degrees(s['held_out_bend']):.1f}° / {np.degrees(s['held_out_bend_low']):.1f}° | {np.degrees(s['upright_bend_p95']):.1f}° |"
+        )
     print("\nper held-out subject, hips drop error with the head > 5 cm down (before → crouch.rs):")
     for subject in np.unique(f.subject[f.held_out]):
         m = (f.subject == subject) & (f.head_drop > 0.05)
@@ -140,7 +152,9 @@ def main(argv=None) -> int:
             continue
         before, _ = split(f.head_drop[m], f.pitch[m], f.torso[m], 0.0, 0.0, bend=False, **base)
         after, _ = split(f.head_drop[m], f.pitch[m], f.torso[m], c["BEND_START_PITCH"], c["BEND_GAIN"], **base)
-        print(f"  {subject}: {m.sum()} frames, {100 * np.abs(before - f.hips_drop[m]).mean():.1f} → {100 * np.abs(after - f.hips_drop[m]).mean():.1f} cm")
+        print(
+            f"  {subject}: {m.sum()} frames, {100 * np.abs(before - f.hips_drop[m]).mean():.1f} → {100 * np.abs(after - f.hips_drop[m]).mean():.1f} cm"
+        )
     return 0
 
 

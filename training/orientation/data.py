@@ -45,11 +45,27 @@ MODELS_DIR = TRAINING / "models"
 # Training: 16 and 127 (walks, runs, turns, side-steps, stops), 02 (bending down, arm activity),
 # 91 (slow walks with turnarounds), six cmu-daz walkers, and 100STYLE Angry (backward walking,
 # side-steps, forward walking, idle; the same performer as Akimbo, another arm style).
-TRAIN_SUBJECTS = (("cmu-asf", "16"), ("cmu-asf", "127"), ("cmu-asf", "02"), ("cmu-asf", "91"),
-                  ("cmu-daz", "02"), ("cmu-daz", "05"), ("cmu-daz", "06"), ("cmu-daz", "07"),
-                  ("cmu-daz", "10"), ("cmu-daz", "12"), ("100style", "Angry"))
-TEST_SUBJECTS = (("cmu-asf", "14"), ("cmu-asf", "69"), ("100style", "Akimbo"), ("cmu-asf", "03"),
-                 ("cmu-daz", "08"), ("cmu-daz", "09"))
+TRAIN_SUBJECTS = (
+    ("cmu-asf", "16"),
+    ("cmu-asf", "127"),
+    ("cmu-asf", "02"),
+    ("cmu-asf", "91"),
+    ("cmu-daz", "02"),
+    ("cmu-daz", "05"),
+    ("cmu-daz", "06"),
+    ("cmu-daz", "07"),
+    ("cmu-daz", "10"),
+    ("cmu-daz", "12"),
+    ("100style", "Angry"),
+)
+TEST_SUBJECTS = (
+    ("cmu-asf", "14"),
+    ("cmu-asf", "69"),
+    ("100style", "Akimbo"),
+    ("cmu-asf", "03"),
+    ("cmu-daz", "08"),
+    ("cmu-daz", "09"),
+)
 
 SOURCE_FPS = 120.0
 
@@ -73,8 +89,9 @@ def database_config(folder: str, subject: str, mocap_dir: Path, config_dir: Path
     bvh_dir = mocap_dir / folder
     pattern = file_pattern(folder, subject)
     if not any(bvh_dir.glob(pattern)):
-        raise DataError(f"no mocap files {bvh_dir / pattern} (is ../shared/mocap beside the repo? "
-                        f"MMDB_MOCAP_DIR overrides)")
+        raise DataError(
+            f"no mocap files {bvh_dir / pattern} (is ../shared/mocap beside the repo? MMDB_MOCAP_DIR overrides)"
+        )
     rel = os.path.relpath(bvh_dir, config_dir)
     config = {"fps": SOURCE_FPS, "mirror": True, "scale": "auto", "clips": [{"file": f"{rel}/{pattern}"}]}
     if (bvh_dir / "Frame_Cuts.csv").exists():
@@ -82,8 +99,9 @@ def database_config(folder: str, subject: str, mocap_dir: Path, config_dir: Path
     return config
 
 
-def ensure_database(folder: str, subject: str, data_dir: Path = DATA_DIR, mocap_dir: Path = MOCAP_DIR,
-                    cli: Path = MMDB_BIN, log=print) -> Path:
+def ensure_database(
+    folder: str, subject: str, data_dir: Path = DATA_DIR, mocap_dir: Path = MOCAP_DIR, cli: Path = MMDB_BIN, log=print
+) -> Path:
     """Path of the subject's `.mmdb`, (re)built with the CLI when missing or stale.
 
     Stale means: the config text changed, or the CLI binary or a source BVH is newer.
@@ -95,16 +113,18 @@ def ensure_database(folder: str, subject: str, data_dir: Path = DATA_DIR, mocap_
     if not config_path.exists() or config_path.read_text() != text:
         config_path.write_text(text)
     if not cli.is_file():
-        raise DataError(f"mmdb CLI not built at {cli} (run `npm run build` or "
-                        f"`cargo build --release` in wasm-core/)")
+        raise DataError(f"mmdb CLI not built at {cli} (run `npm run build` or `cargo build --release` in wasm-core/)")
     sources = list((mocap_dir / folder).glob(file_pattern(folder, subject)))
     newest = max([config_path.stat().st_mtime, cli.stat().st_mtime] + [p.stat().st_mtime for p in sources])
     if out.exists() and out.stat().st_mtime >= newest:
         return out
-    log(f"building {out.relative_to(data_dir.parent) if data_dir.parent in out.parents else out} "
-        f"from {len(sources)} takes")
-    proc = subprocess.run([str(cli), "build", "--config", str(config_path), "-o", str(out)],
-                          capture_output=True, text=True, timeout=300)
+    log(
+        f"building {out.relative_to(data_dir.parent) if data_dir.parent in out.parents else out} "
+        f"from {len(sources)} takes"
+    )
+    proc = subprocess.run(
+        [str(cli), "build", "--config", str(config_path), "-o", str(out)], capture_output=True, text=True, timeout=300
+    )
     if proc.returncode != 0:
         raise DataError(f"mmdb build --config {config_path} failed ({proc.returncode}):\n{proc.stderr}")
     return out
@@ -131,8 +151,7 @@ class Rig:
 
 def rig_of(db: mmdb.Database) -> Rig:
     site = {k: j for k, (j, _) in db.sites.items()}
-    need = ("head", "left_hand", "right_hand", "left_lower_arm", "right_lower_arm",
-            "left_upper_leg", "right_upper_leg")
+    need = ("head", "left_hand", "right_hand", "left_lower_arm", "right_lower_arm", "left_upper_leg", "right_upper_leg")
     missing = [k for k in need if site.get(k, -1) < 0]
     if missing:
         raise DataError(f"database skeleton lacks the role(s) {missing} needed to place trackers")
@@ -186,8 +205,14 @@ def calibrate_headset(clips: list["MocapClip"], log=print) -> Rig | None:
         if not walk.any():
             continue
         seconds += walk.sum() / c.fps
-        g = np.stack([np.sin(travel[walk]) * np.cos(WALKING_GAZE_PITCH), np.full(walk.sum(), np.sin(WALKING_GAZE_PITCH)),
-                      np.cos(travel[walk]) * np.cos(WALKING_GAZE_PITCH)], axis=-1)
+        g = np.stack(
+            [
+                np.sin(travel[walk]) * np.cos(WALKING_GAZE_PITCH),
+                np.full(walk.sum(), np.sin(WALKING_GAZE_PITCH)),
+                np.cos(travel[walk]) * np.cos(WALKING_GAZE_PITCH),
+            ],
+            axis=-1,
+        )
         inv = quat_conj(c.head_rot[walk])
         views.append(quat_rotate(inv, g))
         ups.append(quat_rotate(inv, np.broadcast_to([0.0, 1.0, 0.0], g.shape)))
@@ -197,8 +222,10 @@ def calibrate_headset(clips: list["MocapClip"], log=print) -> Rig | None:
     up = np.concatenate(ups).mean(axis=0)
     y = up - np.dot(up, view) * view / max(np.dot(view, view), 1e-12)
     if not (np.linalg.norm(view) > 0.5 and np.linalg.norm(y) > 0.1):
-        log(f"{clips[0].subject}: the head turns too much while walking to calibrate the headset; "
-            f"the rest pose's frame is kept")
+        log(
+            f"{clips[0].subject}: the head turns too much while walking to calibrate the headset; "
+            f"the rest pose's frame is kept"
+        )
         return None
     z = -view / np.linalg.norm(view)
     y /= np.linalg.norm(y)
@@ -254,13 +281,21 @@ def load_clips(path: Path, subject: str, mirrored: bool | None = None) -> list[M
         if mirrored is not None and c.mirrored != mirrored:
             continue
         sl = slice(c.start, c.end)
-        clips.append(MocapClip(
-            name=c.name, subject=subject, mirrored=c.mirrored, fps=float(db.fps),
-            body_yaw=np.unwrap(yaw_all[sl]), root_pos=db.local_positions[sl, 0].astype(np.float64),
-            head_pos=pos[sl, rig.head], head_rot=quat_hemisphere(rot[sl, rig.head]),
-            hand_pos=np.stack([pos[sl, j] for j in rig.hands]),
-            hand_rot=np.stack([quat_hemisphere(rot[sl, j]) for j in rig.hands]),
-            rig=rig))
+        clips.append(
+            MocapClip(
+                name=c.name,
+                subject=subject,
+                mirrored=c.mirrored,
+                fps=float(db.fps),
+                body_yaw=np.unwrap(yaw_all[sl]),
+                root_pos=db.local_positions[sl, 0].astype(np.float64),
+                head_pos=pos[sl, rig.head],
+                head_rot=quat_hemisphere(rot[sl, rig.head]),
+                hand_pos=np.stack([pos[sl, j] for j in rig.hands]),
+                hand_rot=np.stack([quat_hemisphere(rot[sl, j]) for j in rig.hands]),
+                rig=rig,
+            )
+        )
     for side in (False, True):
         group = [c for c in clips if c.mirrored == side]
         calibrated = calibrate_headset(group) if group else None

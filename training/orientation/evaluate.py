@@ -34,7 +34,16 @@ import numpy as np
 
 from . import data
 from .motion_classes import CLASSES
-from .predictors import dead_zone, hmd_forward, load_model, page_yaw, run_network, run_recurrent, sequence_features, yaw_error_deg
+from .predictors import (
+    dead_zone,
+    hmd_forward,
+    load_model,
+    page_yaw,
+    run_network,
+    run_recurrent,
+    sequence_features,
+    yaw_error_deg,
+)
 from .simulate import EVAL_AUGMENT, TrackerSequence, hanging_pose, simulate, without_look_around
 from .train import MODELS_DIR, PUBLIC_MODEL
 
@@ -56,6 +65,7 @@ def with_absent(seq: TrackerSequence, absent: tuple[int, ...]) -> TrackerSequenc
         pos[:, t], rot[:, t] = hanging_pose(seq.pos[:, 0], seq.rot[:, 0], t)
     return replace(seq, pos=pos, rot=rot)
 
+
 GRU_MODEL = data.GRU_MODEL
 PREDICTORS_MAIN = "network r=50"
 PREDICTORS = {
@@ -70,8 +80,9 @@ BASELINES = ("HMD forward", "dead zone 25°")
 PAGE = "VR page (both hands: network ⊕ GRU; fewer: GRU)"
 
 
-def held_out_sequences(look_around: bool, seed: int = EVAL_SEED, fps_list=EVAL_FPS, clips=None,
-                       log=print) -> list[TrackerSequence]:
+def held_out_sequences(
+    look_around: bool, seed: int = EVAL_SEED, fps_list=EVAL_FPS, clips=None, log=print
+) -> list[TrackerSequence]:
     clips = data.load_subjects(data.TEST_SUBJECTS, mirrored=False, log=log) if clips is None else clips
     aug = EVAL_AUGMENT if look_around else without_look_around(EVAL_AUGMENT)
     rng = np.random.default_rng(seed)
@@ -103,7 +114,9 @@ def stats(err: np.ndarray, times: np.ndarray, lengths: np.ndarray, where: np.nda
     return Result(e, float(v.mean()), float(np.median(v)), float(np.percentile(v, 95)))
 
 
-def evaluate(seqs: list[TrackerSequence], models: dict[str, object], absent: tuple[int, ...] = ()) -> tuple[dict[str, Result], dict]:
+def evaluate(
+    seqs: list[TrackerSequence], models: dict[str, object], absent: tuple[int, ...] = ()
+) -> tuple[dict[str, Result], dict]:
     """Errors of every predictor (name -> Result) on the sequences; also the padded arrays. With
     the committed network and the recurrent model among `models`, also the VR page's choice
     (`PAGE`) for the device set that leaves the controllers `absent`."""
@@ -119,7 +132,10 @@ def evaluate(seqs: list[TrackerSequence], models: dict[str, object], absent: tup
         times[b, :n] = np.cumsum(s.dt) - s.dt[0]
         if s.classes is not None:
             classes[b, :n] = s.classes
-    preds = {name: (run_recurrent if getattr(m, 'recurrent', False) else run_network)(m, feats, hmd) for name, m in models.items()}
+    preds = {
+        name: (run_recurrent if getattr(m, 'recurrent', False) else run_network)(m, feats, hmd)
+        for name, m in models.items()
+    }
     main, recurrent = PREDICTORS_MAIN, next((n for n, m in models.items() if getattr(m, "recurrent", False)), None)
     if main in preds and recurrent:
         preds[PAGE] = page_yaw(preds[main], preds[recurrent], dt, bool(absent))
@@ -134,7 +150,9 @@ def per_class(arrays: dict, names: list[str]) -> dict[str, dict[str, Result]]:
     out = {}
     for name in names:
         err = yaw_error_deg(arrays["preds"][name], arrays["truth"])
-        out[name] = {c: stats(err, arrays["times"], arrays["lengths"], arrays["classes"] == i) for i, c in enumerate(CLASSES)}
+        out[name] = {
+            c: stats(err, arrays["times"], arrays["lengths"], arrays["classes"] == i) for i, c in enumerate(CLASSES)
+        }
     return out
 
 
@@ -144,8 +162,10 @@ def class_table(arrays: dict, names: list[str]) -> str:
     mask = scored(arrays["times"], arrays["lengths"])
     dt = np.diff(arrays["times"], axis=1, prepend=0.0)
     secs = [float(dt[mask & (arrays["classes"] == i)].sum()) for i in range(len(CLASSES))]
-    rows = ["| predictor | " + " | ".join(f"{c} ({s:.0f} s)" for c, s in zip(CLASSES, secs)) + " |",
-            "|---|" + "---|" * len(CLASSES)]
+    rows = [
+        "| predictor | " + " | ".join(f"{c} ({s:.0f} s)" for c, s in zip(CLASSES, secs)) + " |",
+        "|---|" + "---|" * len(CLASSES),
+    ]
     for n in names:
         rows.append(f"| {n} | " + " | ".join(f"{res[n][c].mean:.1f}° / {res[n][c].p95:.1f}°" for c in CLASSES) + " |")
     return "\n".join(rows)
@@ -167,8 +187,10 @@ def per_subject(results: dict[str, dict[str, Result]], seqs: dict[str, list]) ->
     subjects = [data.subject_name(*s) for s in data.TEST_SUBJECTS]
     conds = list(results)
     names = list(next(iter(results.values())))
-    rows = ["| predictor | " + " | ".join(f"{c}: {s}" for c in conds for s in subjects) + " |",
-            "|---|" + "---|" * (len(conds) * len(subjects))]
+    rows = [
+        "| predictor | " + " | ".join(f"{c}: {s}" for c in conds for s in subjects) + " |",
+        "|---|" + "---|" * (len(conds) * len(subjects)),
+    ]
     for n in names:
         cells = []
         for c in conds:
@@ -187,25 +209,33 @@ def plots(results: dict[str, dict[str, Result]], arrays: dict[str, dict], seqs: 
 
     cond = "with look-around"
     res, arr = results[cond], arrays[cond]
-    colors = {"network r=50": "#1f77b4", "network r=1": "#ff7f0e",
-              "network r=50, trained without look-around": "#9467bd",
-              "GRU (the one-controller and headset-only model)": "#17becf", PAGE: "#000000",
-              "HMD forward": "#d62728", "dead zone 25°": "#2ca02c"}
+    colors = {
+        "network r=50": "#1f77b4",
+        "network r=1": "#ff7f0e",
+        "network r=50, trained without look-around": "#9467bd",
+        "GRU (the one-controller and headset-only model)": "#17becf",
+        PAGE: "#000000",
+        "HMD forward": "#d62728",
+        "dead zone 25°": "#2ca02c",
+    }
     written = []
 
     # 1. One long held-out take: per-frame error of each predictor, and the head's look-around.
     lengths = arr["lengths"]
     b = int(np.argmax(lengths))
     s = seqs[cond][b]
-    t = arr["times"][b, :lengths[b]]
+    t = arr["times"][b, : lengths[b]]
     fig, (ax0, ax1) = plt.subplots(2, 1, figsize=(10, 6), sharex=True, gridspec_kw={"height_ratios": [1, 2]})
     ax0.plot(t, np.degrees(s.look_yaw), color="gray")
     ax0.set_ylabel("head yaw added\nby look-around (°)")
     ax0.set_title(f"Held-out take {s.name}: body-yaw error over time")
     for name, r in res.items():
-        e = np.where(np.isnan(r.errors[b, :lengths[b]]), np.nan, r.errors[b, :lengths[b]])
-        raw = np.degrees(np.abs(((arr["preds"][name][b, :lengths[b]] - arr["truth"][b, :lengths[b]]) + np.pi)
-                                % (2 * np.pi) - np.pi))
+        e = np.where(np.isnan(r.errors[b, : lengths[b]]), np.nan, r.errors[b, : lengths[b]])
+        raw = np.degrees(
+            np.abs(
+                ((arr["preds"][name][b, : lengths[b]] - arr["truth"][b, : lengths[b]]) + np.pi) % (2 * np.pi) - np.pi
+            )
+        )
         ax1.plot(t, raw, label=f"{name} (mean {np.nanmean(e):.1f}°)", color=colors.get(name), lw=1)
     ax1.axvspan(0, WARMUP, color="0.9", label="warm-up (not scored)")
     ax1.set_xlabel("time (s)")
@@ -223,8 +253,15 @@ def plots(results: dict[str, dict[str, Result]], arrays: dict[str, dict], seqs: 
     bins = np.linspace(0, 90, 46)
     for name, r in res.items():
         v = r.errors[~np.isnan(r.errors)]
-        ax.hist(np.clip(v, 0, 90), bins=bins, histtype="step", lw=1.5, density=True, color=colors.get(name),
-                label=f"{name}: mean {r.mean:.1f}°, p95 {r.p95:.1f}°")
+        ax.hist(
+            np.clip(v, 0, 90),
+            bins=bins,
+            histtype="step",
+            lw=1.5,
+            density=True,
+            color=colors.get(name),
+            label=f"{name}: mean {r.mean:.1f}°, p95 {r.p95:.1f}°",
+        )
     ax.set_xlabel("|body yaw error| (°), errors above 90° in the last bin")
     ax.set_ylabel("share of frames (density)")
     ax.set_title("Held-out subjects, with look-around")
@@ -252,14 +289,18 @@ def run(quick: bool = False, make_plots: bool = True, models: dict[str, Path] | 
         seqs[cond] = held_out_sequences(look, clips=clips, log=log)
         results[cond], arrays[cond] = evaluate(seqs[cond], loaded)
     frames = int(sum((arrays[c]["times"] >= WARMUP).sum() for c in arrays))
-    log(f"held-out subjects {', '.join(data.subject_name(*s) for s in data.TEST_SUBJECTS)}: "
-        f"{len(clips)} takes × {len(EVAL_FPS)} frame rates × 2 conditions, {frames} scored frames")
+    log(
+        f"held-out subjects {', '.join(data.subject_name(*s) for s in data.TEST_SUBJECTS)}: "
+        f"{len(clips)} takes × {len(EVAL_FPS)} frame rates × 2 conditions, {frames} scored frames"
+    )
     written = plots(results, arrays, seqs) if make_plots else []
     nets = [PAGE] * (PAGE in arrays["with look-around"]["preds"]) + [n for n in loaded] + ["HMD forward"]
     # The page's per-set choice: the feed-back network with two controllers, the GRU with fewer.
     per_set = {n: m for n, m in loaded.items() if n == next(iter(loaded)) or getattr(m, "recurrent", False)}
-    sets = {name: evaluate([with_absent(q, absent) for q in seqs["with look-around"]], per_set, absent)[0]
-            for name, absent in DEVICE_SETS.items()}
+    sets = {
+        name: evaluate([with_absent(q, absent) for q in seqs["with look-around"]], per_set, absent)[0]
+        for name, absent in DEVICE_SETS.items()
+    }
     return results, written, per_subject(results, seqs), class_table(arrays["with look-around"], nets), sets
 
 
@@ -268,10 +309,18 @@ def main(argv=None) -> int:
     ap.add_argument("--quick", action="store_true", help="a quarter of the takes")
     ap.add_argument("--no-plots", action="store_true")
     ap.add_argument("--json", type=Path, help="also write the numbers here")
-    ap.add_argument("--model", action="append", metavar="NAME=PATH",
-                    help="evaluate these ONNX models instead of the committed ones (repeatable)")
-    ap.add_argument("--chromium", action=argparse.BooleanOptionalAction, default=Path("/usr/bin/chromium").exists(),
-                    help="also time the model in headless Chromium (default: when /usr/bin/chromium exists)")
+    ap.add_argument(
+        "--model",
+        action="append",
+        metavar="NAME=PATH",
+        help="evaluate these ONNX models instead of the committed ones (repeatable)",
+    )
+    ap.add_argument(
+        "--chromium",
+        action=argparse.BooleanOptionalAction,
+        default=Path("/usr/bin/chromium").exists(),
+        help="also time the model in headless Chromium (default: when /usr/bin/chromium exists)",
+    )
     args = ap.parse_args(argv)
     t0 = time.perf_counter()
     models = None
@@ -290,8 +339,15 @@ def main(argv=None) -> int:
     for p in written:
         print(f"wrote {p.relative_to(data.REPO)}")
     if args.json:
-        args.json.write_text(json.dumps({c: {n: {"mean": r.mean, "median": r.median, "p95": r.p95}
-                                             for n, r in res.items()} for c, res in results.items()}, indent=1))
+        args.json.write_text(
+            json.dumps(
+                {
+                    c: {n: {"mean": r.mean, "median": r.median, "p95": r.p95} for n, r in res.items()}
+                    for c, res in results.items()
+                },
+                indent=1,
+            )
+        )
     print(f"evaluation finished in {time.perf_counter() - t0:.0f} s")
     if args.chromium:
         # Inference time in the browser (and parity there): headless Chromium via playwright-core.

@@ -34,9 +34,24 @@ NUM_INPUTS = TRACKER_INPUTS + 6  # 42
 PREV = slice(36, 42)
 MAX_DT = 0.25  # s; a longer gap (paused session, lost frames) is a discontinuity, not motion
 
-FEATURE_NAMES = [f"{t}.{k}" for t in ("hmd", "left", "right")
-                 for k in ("rot.c0.x", "rot.c0.y", "rot.c0.z", "rot.c1.x", "rot.c1.y", "rot.c1.z",
-                           "vel.x", "vel.y", "vel.z", "angvel.x", "angvel.y", "angvel.z")]
+FEATURE_NAMES = [
+    f"{t}.{k}"
+    for t in ("hmd", "left", "right")
+    for k in (
+        "rot.c0.x",
+        "rot.c0.y",
+        "rot.c0.z",
+        "rot.c1.x",
+        "rot.c1.y",
+        "rot.c1.z",
+        "vel.x",
+        "vel.y",
+        "vel.z",
+        "angvel.x",
+        "angvel.y",
+        "angvel.z",
+    )
+]
 FEATURE_NAMES += ["prev.c0.x", "prev.c0.y", "prev.c0.z", "prev.c1.x", "prev.c1.y", "prev.c1.z"]
 
 
@@ -81,8 +96,9 @@ def tracker_features(pos: np.ndarray, rot: np.ndarray, dt: np.ndarray) -> tuple[
     pos, rot, dt = np.asarray(pos, np.float64), np.asarray(rot, np.float64), np.asarray(dt, np.float64)
     n = len(dt)
     if pos.shape != (n, NUM_TRACKERS, 3) or rot.shape != (n, NUM_TRACKERS, 4):
-        raise ValueError(f"expected pos (n, 3, 3) and rot (n, 3, 4) for n = {n} frames, "
-                         f"got {pos.shape} and {rot.shape}")
+        raise ValueError(
+            f"expected pos (n, 3, 3) and rot (n, 3, 4) for n = {n} frames, got {pos.shape} and {rot.shape}"
+        )
     check_dt(dt[1:])
     rot = rot / np.linalg.norm(rot, axis=-1, keepdims=True)
     yaw = hmd_yaw(rot[:, 0])
@@ -93,11 +109,14 @@ def tracker_features(pos: np.ndarray, rot: np.ndarray, dt: np.ndarray) -> tuple[
         vel[1:] = np.where(cont, (pos[1:] - pos[:-1]) / dt[1:, None, None], 0.0)
         ang[1:] = np.where(cont, quat_to_rotvec(quat_mul(rot[1:], quat_conj(rot[:-1]))) / dt[1:, None, None], 0.0)
     inv = quat_from_yaw(-yaw)[:, None, :]
-    out = np.concatenate([
-        _rot6(quat_mul(np.broadcast_to(inv, rot.shape), rot)),
-        rotate_y(vel, -yaw[:, None]),
-        rotate_y(ang, -yaw[:, None]),
-    ], axis=-1)  # (n, 3, 12)
+    out = np.concatenate(
+        [
+            _rot6(quat_mul(np.broadcast_to(inv, rot.shape), rot)),
+            rotate_y(vel, -yaw[:, None]),
+            rotate_y(ang, -yaw[:, None]),
+        ],
+        axis=-1,
+    )  # (n, 3, 12)
     return out.reshape(n, 36), yaw
 
 
@@ -137,14 +156,14 @@ class FeatureBuilder:
         inv = quat_from_yaw(-yaw)
         for k in range(3):
             base = 12 * k
-            self.x[base:base + 6] = _rot6(quat_mul(inv, rot[k]))
+            self.x[base : base + 6] = _rot6(quat_mul(inv, rot[k]))
             if moving:
                 v = (pos[k] - self._pos[k]) / dt
                 w = quat_to_rotvec(quat_mul(rot[k], quat_conj(self._rot[k]))) / dt
-                self.x[base + 6:base + 9] = rotate_y(v, -yaw)
-                self.x[base + 9:base + 12] = rotate_y(w, -yaw)
+                self.x[base + 6 : base + 9] = rotate_y(v, -yaw)
+                self.x[base + 9 : base + 12] = rotate_y(w, -yaw)
             else:
-                self.x[base + 6:base + 12] = 0.0
+                self.x[base + 6 : base + 12] = 0.0
         self._pos[:], self._rot[:] = pos, rot
         self._has_prev = True
         self.hmd_yaw = yaw

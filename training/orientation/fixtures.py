@@ -82,10 +82,15 @@ def build_fixture(onnx_path: Path, weights: Path) -> dict:
         "model_sha256": hashlib.sha256(onnx_path.read_bytes()).hexdigest(),
         "rows": {"inputs": _floats(rows), "outputs": _floats(row_out)},
         "sequence": {
-            "name": seq.name, "fps": seq.fps, "dt": _floats(dt),
-            "positions": _floats(pos.reshape(n, 9)), "quaternions": _floats(rot.reshape(n, 12)),
-            "inputs": _floats(np.array(inputs)), "outputs": _floats(np.array(outputs)),
-            "body_yaw": _floats(body), "hmd_yaw": _floats(hmd),
+            "name": seq.name,
+            "fps": seq.fps,
+            "dt": _floats(dt),
+            "positions": _floats(pos.reshape(n, 9)),
+            "quaternions": _floats(rot.reshape(n, 12)),
+            "inputs": _floats(np.array(inputs)),
+            "outputs": _floats(np.array(outputs)),
+            "body_yaw": _floats(body),
+            "hmd_yaw": _floats(hmd),
         },
     }
 
@@ -118,10 +123,15 @@ def build_gru_fixture(onnx_path: Path, step) -> dict:
         "model": str(onnx_path.relative_to(data.REPO)),
         "model_sha256": hashlib.sha256(onnx_path.read_bytes()).hexdigest(),
         "sequence": {
-            "name": seq.name, "fps": seq.fps, "dt": _floats(dt),
-            "positions": _floats(pos.reshape(len(dt), 9)), "quaternions": _floats(rot.reshape(len(dt), 12)),
-            "inputs": _floats(np.array(inputs)), "outputs": _floats(np.array(outputs)),
-            "body_yaw": _floats(body), "hmd_yaw": _floats(hmd),
+            "name": seq.name,
+            "fps": seq.fps,
+            "dt": _floats(dt),
+            "positions": _floats(pos.reshape(len(dt), 9)),
+            "quaternions": _floats(rot.reshape(len(dt), 12)),
+            "inputs": _floats(np.array(inputs)),
+            "outputs": _floats(np.array(outputs)),
+            "body_yaw": _floats(body),
+            "hmd_yaw": _floats(hmd),
         },
     }
 

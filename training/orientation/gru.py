@@ -73,8 +73,8 @@ class GruStep(nn.Module):
         gi = z @ g.weight_ih_l0.T + g.bias_ih_l0
         gh = h @ g.weight_hh_l0.T + g.bias_hh_l0
         r = torch.sigmoid(gi[:, :H] + gh[:, :H])
-        u = torch.sigmoid(gi[:, H:2 * H] + gh[:, H:2 * H])
-        c = torch.tanh(gi[:, 2 * H:] + r * gh[:, 2 * H:])
+        u = torch.sigmoid(gi[:, H : 2 * H] + gh[:, H : 2 * H])
+        c = torch.tanh(gi[:, 2 * H :] + r * gh[:, 2 * H :])
         h2 = (1 - u) * c + u * h
         return n.out(h2), h2
 
@@ -111,12 +111,12 @@ def train_gru(cfg: GruConfig, clips, log=print) -> GruNet:
         nb = min(len(order) // cfg.batch, cfg.max_batches_per_epoch)
         losses, errs = [], []
         for b in range(nb):
-            starts = order[b * cfg.batch:(b + 1) * cfg.batch]
+            starts = order[b * cfg.batch : (b + 1) * cfg.batch]
             idx = starts[:, None] + np.arange(cfg.window)
             x = torch.from_numpy(ep.feats[idx])
             target = torch.from_numpy(yaw_slot(ep.body_yaw[idx] - ep.hmd_yaw[idx]).astype(np.float32))
             out, _ = net(x)
-            out, target = out[:, cfg.burn_in:], target[:, cfg.burn_in:]
+            out, target = out[:, cfg.burn_in :], target[:, cfg.burn_in :]
             loss = torch.mean((out - target) ** 2)
             opt.zero_grad(set_to_none=True)
             loss.backward()
@@ -127,8 +127,10 @@ def train_gru(cfg: GruConfig, clips, log=print) -> GruNet:
                 e = torch.atan2(-out[..., 2], out[..., 0]) - torch.atan2(-target[..., 2], target[..., 0])
                 errs.append(np.degrees(np.abs(wrap_angle(e.numpy()))).mean())
         sched.step()
-        log(f"  epoch {epoch + 1:3d}/{cfg.epochs}  loss {np.mean(losses):.5f}  yaw error {np.mean(errs):5.2f}°  "
-            f"({nb} batches, {time.perf_counter() - t0:.0f} s)")
+        log(
+            f"  epoch {epoch + 1:3d}/{cfg.epochs}  loss {np.mean(losses):.5f}  yaw error {np.mean(errs):5.2f}°  "
+            f"({nb} batches, {time.perf_counter() - t0:.0f} s)"
+        )
     return net.eval()
 
 
@@ -139,9 +141,9 @@ def run_gru(net: GruNet, feats: np.ndarray, hmd_yaw: np.ndarray, chunk: int = 51
     h = None
     with torch.no_grad():
         for t0 in range(0, T, chunk):
-            out, h = net(torch.from_numpy(feats[:, t0:t0 + chunk]), h)
+            out, h = net(torch.from_numpy(feats[:, t0 : t0 + chunk]), h)
             phi, ok = relative_yaw_of_output(out.numpy())
-            body[:, t0:t0 + chunk] = hmd_yaw[:, t0:t0 + chunk] + np.where(ok, phi, 0.0)
+            body[:, t0 : t0 + chunk] = hmd_yaw[:, t0 : t0 + chunk] + np.where(ok, phi, 0.0)
     return body
 
 
@@ -176,15 +178,24 @@ def main(argv=None) -> int:
     ap.add_argument("--absent", type=float, default=GruConfig.absent_prob, help="Augment.absent_prob per controller")
     ap.add_argument("--save", help="write the weights (.pt) here")
     ap.add_argument("--load", help="score (and export) these weights (.pt) instead of training")
-    ap.add_argument("--export", action="store_true",
-                    help=f"write {GRU_MODEL.relative_to(data.REPO)}, its config in training/models "
-                         "and its parity fixture (the committed model: the defaults)")
+    ap.add_argument(
+        "--export",
+        action="store_true",
+        help=f"write {GRU_MODEL.relative_to(data.REPO)}, its config in training/models "
+        "and its parity fixture (the committed model: the defaults)",
+    )
     args = ap.parse_args(argv)
     if hasattr(sys.stdout, "reconfigure"):
         sys.stdout.reconfigure(line_buffering=True)
     quiet_exporter()
-    cfg = GruConfig(hidden=args.hidden, window=args.window, epochs=args.epochs, max_batches_per_epoch=args.max_batches, seed=args.seed,
-                    absent_prob=args.absent)
+    cfg = GruConfig(
+        hidden=args.hidden,
+        window=args.window,
+        epochs=args.epochs,
+        max_batches_per_epoch=args.max_batches,
+        seed=args.seed,
+        absent_prob=args.absent,
+    )
     print(f"GRU {cfg}")
     if args.load:
         net = GruNet(np.zeros(36), np.ones(36), cfg.hidden)  # the normalization is in the weights
@@ -204,8 +215,13 @@ def export(net: GruNet, cfg: GruConfig) -> None:
     """The browser's file (features and state in, 6D and the next state out), checked against
     PyTorch over a sequence, its config beside the other models, and its parity fixture."""
     step = GruStep(net).eval()
-    meta = {"model": "gru", "hidden": str(cfg.hidden), "window": str(cfg.window), "seed": str(cfg.seed),
-            "train_subjects": " ".join(data.subject_name(*s) for s in TrainConfig().subjects)}
+    meta = {
+        "model": "gru",
+        "hidden": str(cfg.hidden),
+        "window": str(cfg.window),
+        "seed": str(cfg.seed),
+        "train_subjects": " ".join(data.subject_name(*s) for s in TrainConfig().subjects),
+    }
     export_onnx(step, GRU_MODEL, meta, state_size=cfg.hidden)
     onnx_model = OnnxRecurrentModel(GRU_MODEL)
     x = np.random.default_rng(1).normal(0, 1, (50, 4, 36)).astype(np.float32)
@@ -215,9 +231,13 @@ def export(net: GruNet, cfg: GruConfig) -> None:
         for t in range(50):
             o_t, h_t = step(torch.from_numpy(x[t]), h_t)
             o_o, h_o = onnx_model(x[t], h_o)
-            worst = max(worst, float(np.abs(o_o - o_t.numpy()).max()), float(np.abs(o_t.numpy() - seq_out[:, t].numpy()).max()))
+            worst = max(
+                worst, float(np.abs(o_o - o_t.numpy()).max()), float(np.abs(o_t.numpy() - seq_out[:, t].numpy()).max())
+            )
     assert worst < 1e-4, f"exported GRU differs from PyTorch by {worst}"
-    print(f"wrote {GRU_MODEL.relative_to(data.REPO)} ({GRU_MODEL.stat().st_size / 1024:.1f} KiB; |ONNX − PyTorch| ≤ {worst:.1e})")
+    print(
+        f"wrote {GRU_MODEL.relative_to(data.REPO)} ({GRU_MODEL.stat().st_size / 1024:.1f} KiB; |ONNX − PyTorch| ≤ {worst:.1e})"
+    )
     MODELS_DIR.mkdir(parents=True, exist_ok=True)
     (MODELS_DIR / "orientation_gru.json").write_text(json.dumps({"config": asdict(cfg)}, indent=1) + "\n")
     fixture = build_gru_fixture(GRU_MODEL, step)

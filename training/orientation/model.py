@@ -23,8 +23,9 @@ INPUT_NAME, OUTPUT_NAME = "features", "orientation6d"
 
 
 class OrientationNet(nn.Module):
-    def __init__(self, mean: np.ndarray | None = None, std: np.ndarray | None = None,
-                 hidden: tuple[int, ...] = (HIDDEN, HIDDEN)):
+    def __init__(
+        self, mean: np.ndarray | None = None, std: np.ndarray | None = None, hidden: tuple[int, ...] = (HIDDEN, HIDDEN)
+    ):
         super().__init__()
         self.register_buffer("mean", torch.zeros(NUM_INPUTS))
         self.register_buffer("inv_std", torch.ones(NUM_INPUTS))
@@ -52,8 +53,9 @@ def _unit(v: torch.Tensor) -> torch.Tensor:
     return v * torch.rsqrt((v * v).sum(-1, keepdim=True) + 1e-8)
 
 
-def rollout(net: OrientationNet, feats: torch.Tensor, dyaw: torch.Tensor, prev0: torch.Tensor,
-            steps: int | None = None) -> tuple[torch.Tensor, torch.Tensor]:
+def rollout(
+    net: OrientationNet, feats: torch.Tensor, dyaw: torch.Tensor, prev0: torch.Tensor, steps: int | None = None
+) -> tuple[torch.Tensor, torch.Tensor]:
     """Run the network `r` frames feeding back its own prediction (thesis Fig. "Orientation
     Prediction Training"): the previous-orientation slot of step t is step t−1's prediction,
     reduced to its yaw and re-expressed in step t's HMD-yaw frame (exactly what the runtime
@@ -71,7 +73,7 @@ def rollout(net: OrientationNet, feats: torch.Tensor, dyaw: torch.Tensor, prev0:
     for t in range(r):
         if t > 0:
             # φ_t = φ_{t−1} − Δψ: rotate (cos, sin) by −Δψ.
-            c, s = torch.cos(dyaw[:, t:t + 1]), torch.sin(dyaw[:, t:t + 1])
+            c, s = torch.cos(dyaw[:, t : t + 1]), torch.sin(dyaw[:, t : t + 1])
             cs = torch.cat([cs[:, :1] * c + cs[:, 1:] * s, cs[:, 1:] * c - cs[:, :1] * s], dim=1)
         prev6 = torch.cat([cs[:, :1], zeros, -cs[:, 1:], zeros, ones, zeros], dim=1)
         out = net(torch.cat([feats[:, t], prev6], dim=1))
@@ -86,15 +88,16 @@ def state_to_numpy(net: OrientationNet) -> dict[str, np.ndarray]:
 
 def net_from_state(state: dict) -> OrientationNet:
     """The network of a saved state dict (hidden sizes read off the weight shapes)."""
-    weights = sorted((k for k in state if k.startswith("mlp.") and k.endswith(".weight")), key=lambda k: int(k.split(".")[1]))
+    weights = sorted(
+        (k for k in state if k.startswith("mlp.") and k.endswith(".weight")), key=lambda k: int(k.split(".")[1])
+    )
     hidden = tuple(int(np.asarray(state[k]).shape[0]) for k in weights[:-1])
     net = OrientationNet(hidden=hidden)
     net.load_state_dict({k: torch.as_tensor(np.asarray(v)) for k, v in state.items()})
     return net.eval()
 
 
-def export_onnx(net: nn.Module, path: Path, metadata: dict[str, str] | None = None,
-                state_size: int = 0) -> Path:
+def export_onnx(net: nn.Module, path: Path, metadata: dict[str, str] | None = None, state_size: int = 0) -> Path:
     """Write the model as one self-contained ONNX file (weights embedded, no `.onnx.data`),
     input `features` float32 [batch, 42] raw, output `orientation6d` float32 [batch, 6]. A
     recurrent model (`state_size` > 0: `gru.GruStep`) takes `features` [batch, 36] and `state`
@@ -110,9 +113,18 @@ def export_onnx(net: nn.Module, path: Path, metadata: dict[str, str] | None = No
         names, outputs, dims = [INPUT_NAME, "state"], [OUTPUT_NAME, "state_out"], ({0: batch}, {0: batch})
     else:
         example, names, outputs, dims = (torch.zeros(1, NUM_INPUTS),), [INPUT_NAME], [OUTPUT_NAME], ({0: batch},)
-    program = torch.onnx.export(net, example, input_names=names, output_names=outputs,
-                                dynamo=True, external_data=False, opset_version=18,
-                                dynamic_shapes=dims, verbose=False, report=False)
+    program = torch.onnx.export(
+        net,
+        example,
+        input_names=names,
+        output_names=outputs,
+        dynamo=True,
+        external_data=False,
+        opset_version=18,
+        dynamic_shapes=dims,
+        verbose=False,
+        report=False,
+    )
     model = program.model_proto
     # The exporter annotates every value and node (source locations, export bookkeeping): half
     # the file for a model this small, and nothing a runtime reads.
@@ -122,14 +134,19 @@ def export_onnx(net: nn.Module, path: Path, metadata: dict[str, str] | None = No
         node.doc_string = ""
     for value in list(model.graph.input) + list(model.graph.output) + list(model.graph.initializer):
         del value.metadata_props[:]
-    model.doc_string = ("Body-orientation network (docs/method.md §9). Input: 42 raw features "
-                        "(docs/orientation-model.md); output: 6D body rotation in the HMD-yaw frame."
-                        if not state_size else
-                        "Recurrent body-orientation network (docs/orientation-model.md). Inputs: the 36 "
-                        "raw tracker features and the state (zeros after a reset); outputs: 6D body "
-                        "rotation in the HMD-yaw frame and the next state.")
-    props = {"feature_order": ",".join(FEATURE_NAMES[:TRACKER_INPUTS] if state_size else FEATURE_NAMES),
-             "units": "m, s, rad; Y up; yaw 0 = +Z", **(metadata or {})}
+    model.doc_string = (
+        "Body-orientation network (docs/method.md §9). Input: 42 raw features "
+        "(docs/orientation-model.md); output: 6D body rotation in the HMD-yaw frame."
+        if not state_size
+        else "Recurrent body-orientation network (docs/orientation-model.md). Inputs: the 36 "
+        "raw tracker features and the state (zeros after a reset); outputs: 6D body "
+        "rotation in the HMD-yaw frame and the next state."
+    )
+    props = {
+        "feature_order": ",".join(FEATURE_NAMES[:TRACKER_INPUTS] if state_size else FEATURE_NAMES),
+        "units": "m, s, rad; Y up; yaw 0 = +Z",
+        **(metadata or {}),
+    }
     del model.metadata_props[:]
     for k, v in props.items():
         entry = model.metadata_props.add()

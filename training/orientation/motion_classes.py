@@ -48,8 +48,9 @@ def travel_of(root_pos: np.ndarray, fps: float) -> tuple[np.ndarray, np.ndarray]
     return np.hypot(v[:, 0], v[:, 1]), np.arctan2(v[:, 0], v[:, 1])
 
 
-def classify(root_pos: np.ndarray, body_yaw: np.ndarray, hand_pos: np.ndarray, head_pos: np.ndarray,
-             fps: float) -> np.ndarray:
+def classify(
+    root_pos: np.ndarray, body_yaw: np.ndarray, hand_pos: np.ndarray, head_pos: np.ndarray, fps: float
+) -> np.ndarray:
     """Class index per frame (into `CLASSES`, or `OTHER`).
 
     root_pos (n, 3) virtual-root position, body_yaw (n,) unwrapped facing (0 = +Z), hand_pos

@@ -57,8 +57,13 @@ class OnnxRecurrentModel:
         self.state_size = int(self.session.get_inputs()[1].shape[1])
 
     def __call__(self, x: np.ndarray, h: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        out, h2 = self.session.run(None, {self.inputs[0]: np.ascontiguousarray(x, dtype=np.float32),
-                                          self.inputs[1]: np.ascontiguousarray(h, dtype=np.float32)})
+        out, h2 = self.session.run(
+            None,
+            {
+                self.inputs[0]: np.ascontiguousarray(x, dtype=np.float32),
+                self.inputs[1]: np.ascontiguousarray(h, dtype=np.float32),
+            },
+        )
         return out, h2
 
 
@@ -89,14 +94,18 @@ def sequence_features(seqs: list[TrackerSequence]) -> tuple[np.ndarray, np.ndarr
     yaw = np.zeros((len(seqs), T))
     for b, s in enumerate(seqs):
         f, y = tracker_features(s.pos, s.rot, s.dt)
-        feats[b, :len(f)], yaw[b, :len(f)] = f, y
+        feats[b, : len(f)], yaw[b, : len(f)] = f, y
     return feats, yaw, lengths
 
 
-def run_network(model: Callable[[np.ndarray], np.ndarray], feats: np.ndarray, hmd_yaw: np.ndarray,
-                inject: dict[int, tuple[np.ndarray, np.ndarray]] | None = None,
-                finite: np.ndarray | None = None,
-                inject_yaw: dict[int, tuple[np.ndarray, np.ndarray]] | None = None) -> np.ndarray:
+def run_network(
+    model: Callable[[np.ndarray], np.ndarray],
+    feats: np.ndarray,
+    hmd_yaw: np.ndarray,
+    inject: dict[int, tuple[np.ndarray, np.ndarray]] | None = None,
+    finite: np.ndarray | None = None,
+    inject_yaw: dict[int, tuple[np.ndarray, np.ndarray]] | None = None,
+) -> np.ndarray:
     """Body yaw (B, T) predicted in the feedback loop from a reset at frame 0.
 
     `inject` maps a frame to (rows, values (len(rows), 6)) written into those rows' previous
@@ -177,8 +186,13 @@ def hmd_forward(hmd_yaw: np.ndarray) -> np.ndarray:
     return hmd_yaw.copy()
 
 
-def dead_zone(hmd_yaw: np.ndarray, dt: np.ndarray, threshold: float = DEAD_ZONE,
-              halflife: float = 0.15, settle: float = np.radians(2.0)) -> np.ndarray:
+def dead_zone(
+    hmd_yaw: np.ndarray,
+    dt: np.ndarray,
+    threshold: float = DEAD_ZONE,
+    halflife: float = 0.15,
+    settle: float = np.radians(2.0),
+) -> np.ndarray:
     """Baseline used by many VR apps: the body keeps its yaw until the head is more than
     `threshold` off; then it turns toward the head (exponential, `halflife` seconds) until
     within `settle`, and waits again. hmd_yaw (B, T), dt (B, T)."""

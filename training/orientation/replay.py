@@ -49,11 +49,21 @@ def network_yaw(model, rec: dict, recurrent=None) -> np.ndarray:
     feats, yaw = tracker_features(rec["_pos"], rec["_rot"], rec["_dt"])
     x = feats[None].astype(np.float32)
     body = run_network(model, x, yaw[None])[0]
-    return body if recurrent is None else page_yaw(body[None], run_recurrent(recurrent, x, yaw[None]), rec["_dt"][None], False)[0]
+    return (
+        body
+        if recurrent is None
+        else page_yaw(body[None], run_recurrent(recurrent, x, yaw[None]), rec["_dt"][None], False)[0]
+    )
 
 
-def replay(db: Path, rec_path: Path, yaw: np.ndarray | str, alpha: float, cli: Path = data.MMDB_BIN,
-           settings: str | None = None) -> dict:
+def replay(
+    db: Path,
+    rec_path: Path,
+    yaw: np.ndarray | str,
+    alpha: float,
+    cli: Path = data.MMDB_BIN,
+    settings: str | None = None,
+) -> dict:
     with tempfile.TemporaryDirectory() as tmp:
         if isinstance(yaw, str):
             source = yaw
@@ -83,7 +93,9 @@ def yaw_errors(pred: np.ndarray, rec: dict) -> dict:
     return out
 
 
-def run(recordings: list[Path], db: Path, alpha: float, model_path: Path, settings: str | None = None, log=print) -> list[dict]:
+def run(
+    recordings: list[Path], db: Path, alpha: float, model_path: Path, settings: str | None = None, log=print
+) -> list[dict]:
     model = OnnxModel(model_path)
     # The committed network is run as the page runs it: with the recurrent model beside it.
     recurrent = load_model(GRU_MODEL) if Path(model_path) == MODEL and GRU_MODEL.is_file() else None
@@ -103,9 +115,11 @@ def run(recordings: list[Path], db: Path, alpha: float, model_path: Path, settin
 
 
 def table(rows: list[dict]) -> str:
-    out = ["| recording | s | root distance cm mean / p95 (HMD-forward yaw) | clamped | skating cm/s (legacy toe-height) | corrective steps/s | "
-           "update ms median / p95 | yaw error ° network · HMD forward | network per class °  |",
-           "|---|---|---|---|---|---|---|---|---|"]
+    out = [
+        "| recording | s | root distance cm mean / p95 (HMD-forward yaw) | clamped | skating cm/s (legacy toe-height) | corrective steps/s | "
+        "update ms median / p95 | yaw error ° network · HMD forward | network per class °  |",
+        "|---|---|---|---|---|---|---|---|---|",
+    ]
     for r in rows:
         n, h = r["network"], r["hmd"]
         d = n["root_distance"]
@@ -115,16 +129,19 @@ def table(rows: list[dict]) -> str:
             f"| {r['recording']}{'' if not r['heldIn'] else ' (held in)'} | {r['seconds']:.1f} | "
             f"{100 * d['mean']:.1f} / {100 * d['p95']:.1f} ({100 * dh['mean']:.1f}) | {100 * n['clamped_share']:.0f}% | "
             f"{n['skating']:.1f} ({n['skating_toe_height']:.1f}) | {n['steps_per_second']:.2f} | {n['update_ms']['median']:.4f} / {n['update_ms']['p95']:.4f} | "
-            f"{r['yaw_network']['mean']:.1f} · {r['yaw_hmd']['mean']:.1f} | {classes} |")
+            f"{r['yaw_network']['mean']:.1f} · {r['yaw_hmd']['mean']:.1f} | {classes} |"
+        )
     held_out = [r for r in rows if not r["heldIn"]]
     if held_out:
         w = np.array([r["network"]["frames"] for r in held_out], dtype=float)
         mean = lambda key: float(np.average([key(r) for r in held_out], weights=w))  # noqa: E731
-        out.append(f"\nheld-out recordings (frame-weighted): root distance {100 * mean(lambda r: r['network']['root_distance']['mean']):.1f} cm, "
-                   f"skating {mean(lambda r: r['network']['skating']):.1f} cm/s (legacy {mean(lambda r: r['network']['skating_toe_height']):.1f}), "
-                   f"{mean(lambda r: r['network']['steps_per_second']):.2f} corrective steps/s, "
-                   f"update median {np.median([r['network']['update_ms']['median'] for r in held_out]):.4f} ms (native), "
-                   f"yaw error network {mean(lambda r: r['yaw_network']['mean']):.1f}° vs HMD forward {mean(lambda r: r['yaw_hmd']['mean']):.1f}°")
+        out.append(
+            f"\nheld-out recordings (frame-weighted): root distance {100 * mean(lambda r: r['network']['root_distance']['mean']):.1f} cm, "
+            f"skating {mean(lambda r: r['network']['skating']):.1f} cm/s (legacy {mean(lambda r: r['network']['skating_toe_height']):.1f}), "
+            f"{mean(lambda r: r['network']['steps_per_second']):.2f} corrective steps/s, "
+            f"update median {np.median([r['network']['update_ms']['median'] for r in held_out]):.4f} ms (native), "
+            f"yaw error network {mean(lambda r: r['yaw_network']['mean']):.1f}° vs HMD forward {mean(lambda r: r['yaw_hmd']['mean']):.1f}°"
+        )
     return "\n".join(out)
 
 

@@ -28,8 +28,17 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from .data import MocapClip
-from .geometry import (hmd_yaw, nlerp, quat_conj, quat_from_axis_angle, quat_from_rotvec, quat_from_yaw,
-                       quat_mul, quat_rotate, rotate_y)
+from .geometry import (
+    hmd_yaw,
+    nlerp,
+    quat_conj,
+    quat_from_axis_angle,
+    quat_from_rotvec,
+    quat_from_yaw,
+    quat_mul,
+    quat_rotate,
+    rotate_y,
+)
 
 DEG = np.pi / 180.0
 
@@ -47,6 +56,8 @@ def hanging_pose(head_pos: np.ndarray, head_rot: np.ndarray, tracker: int) -> tu
     pos = head_pos + rotate_y(local, yaw)
     pos[:, 1] = head_pos[:, 1] * HANG_HEIGHT
     return pos, quat_from_yaw(yaw + np.pi)  # the back of the hand outward, thumb forward
+
+
 TRACKERS = ("hmd", "left", "right")
 
 
@@ -101,8 +112,9 @@ class Augment:
 # 30.5° → 31.3° (≈ the heuristics, 30.2°; one seed: ±1–2° is noise).
 TRAIN_AUGMENT = Augment(look_yaw_max=90.0, arms_prob=1.0, arms_idle_prob=0.2, absent_prob=0.25)
 # Evaluation: real motion at its real speed, plausible noise, no devices put down.
-EVAL_AUGMENT = Augment(speed=(1.0, 1.0), dropped_frame_prob=0.01, frozen_prob=0.0,
-                       noise_pos=(0.0005, 0.0005), noise_rot=(0.1, 0.1))
+EVAL_AUGMENT = Augment(
+    speed=(1.0, 1.0), dropped_frame_prob=0.01, frozen_prob=0.0, noise_pos=(0.0005, 0.0005), noise_rot=(0.1, 0.1)
+)
 
 
 @dataclass
@@ -124,8 +136,15 @@ class TrackerSequence:
         return len(self.dt)
 
 
-def spring_process(times: np.ndarray, rng: np.random.Generator, low: float, high: float,
-                   hold: tuple[float, float], halflife: tuple[float, float], zero_prob: float) -> np.ndarray:
+def spring_process(
+    times: np.ndarray,
+    rng: np.random.Generator,
+    low: float,
+    high: float,
+    hold: tuple[float, float],
+    halflife: tuple[float, float],
+    zero_prob: float,
+) -> np.ndarray:
     """A smooth random signal in [low, high]: hold random targets for random durations and
     follow them with a critically damped spring (docs/method.md §4's exact step), as a person
     glances somewhere, holds, and looks elsewhere. Hold times are log-uniform in `hold`: quick
@@ -170,8 +189,9 @@ def _random_rotation(rng: np.random.Generator, sigma_deg: float) -> np.ndarray:
     return quat_from_rotvec(rng.normal(0.0, sigma_deg * DEG, 3))
 
 
-def simulate(clip: MocapClip, rng: np.random.Generator, aug: Augment = TRAIN_AUGMENT,
-             fps: float | None = None) -> TrackerSequence:
+def simulate(
+    clip: MocapClip, rng: np.random.Generator, aug: Augment = TRAIN_AUGMENT, fps: float | None = None
+) -> TrackerSequence:
     """One randomized tracker sequence from a clip (`fps` forces the frame rate)."""
     if clip.num_frames < 2:
         raise ValueError(f"clip {clip.name} has {clip.num_frames} frame(s); at least 2 are needed")
@@ -202,7 +222,8 @@ def simulate(clip: MocapClip, rng: np.random.Generator, aug: Augment = TRAIN_AUG
     for s in range(2):
         length = aug.controller_length + rng.uniform(-aug.controller_jitter, aug.controller_jitter)
         local = rig.hand_axis[s] * length + quat_rotate(
-            rig.grip_align[s], rng.uniform(-aug.controller_jitter, aug.controller_jitter, 3))
+            rig.grip_align[s], rng.uniform(-aug.controller_jitter, aug.controller_jitter, 3)
+        )
         pos.append(hand_pos[s] + quat_rotate(hand_rot[s], local))
         rot.append(quat_mul(quat_mul(hand_rot[s], rig.grip_align[s]), _random_rotation(rng, aug.controller_rot_jitter)))
     pos, rot = np.stack(pos, axis=1), np.stack(rot, axis=1)  # (n, 3, .)
@@ -213,9 +234,14 @@ def simulate(clip: MocapClip, rng: np.random.Generator, aug: Augment = TRAIN_AUG
             if rng.random() >= aug.arms_prob:
                 continue
             w = spring_process(t, rng, 0.0, 1.0, aug.arms_hold, aug.arms_halflife, aug.arms_idle_prob)
-            local = np.stack([spring_process(t, rng, lo, hi, aug.arms_hold, aug.arms_halflife, 0.0) for lo, hi in aug.arms_box], axis=1)
+            local = np.stack(
+                [spring_process(t, rng, lo, hi, aug.arms_hold, aug.arms_halflife, 0.0) for lo, hi in aug.arms_box],
+                axis=1,
+            )
             anchor = head_pos + rotate_y(local, body_yaw)
-            rv = np.stack([spring_process(t, rng, -np.pi, np.pi, aug.arms_hold, aug.arms_halflife, 0.0) for _ in range(3)], axis=1)
+            rv = np.stack(
+                [spring_process(t, rng, -np.pi, np.pi, aug.arms_hold, aug.arms_halflife, 0.0) for _ in range(3)], axis=1
+            )
             wander = quat_mul(quat_from_yaw(body_yaw), quat_from_rotvec(rv))
             pos[:, s] = pos[:, s] + w[:, None] * (anchor - pos[:, s])
             rot[:, s] = nlerp(rot[:, s], wander, w)
@@ -225,10 +251,12 @@ def simulate(clip: MocapClip, rng: np.random.Generator, aug: Augment = TRAIN_AUG
     if aug.look_around:
         m = aug.look_yaw_max * DEG
         look_yaw = spring_process(t, rng, -m, m, aug.look_hold, aug.look_halflife, aug.look_ahead_prob)
-        pitch = spring_process(t, rng, aug.look_pitch[0] * DEG, aug.look_pitch[1] * DEG,
-                               aug.look_hold, aug.look_halflife, 0.5)
-        new = quat_mul(quat_mul(quat_from_yaw(look_yaw), rot[:, 0]),
-                       quat_from_axis_angle(np.array([1.0, 0.0, 0.0]), pitch))
+        pitch = spring_process(
+            t, rng, aug.look_pitch[0] * DEG, aug.look_pitch[1] * DEG, aug.look_hold, aug.look_halflife, 0.5
+        )
+        new = quat_mul(
+            quat_mul(quat_from_yaw(look_yaw), rot[:, 0]), quat_from_axis_angle(np.array([1.0, 0.0, 0.0]), pitch)
+        )
         delta = quat_mul(new, quat_conj(rot[:, 0]))
         pos[:, 0] = head_pos + quat_rotate(delta, pos[:, 0] - head_pos)
         rot[:, 0] = new
@@ -258,9 +286,17 @@ def simulate(clip: MocapClip, rng: np.random.Generator, aug: Augment = TRAIN_AUG
         pos = pos + rng.normal(0.0, sp, pos.shape)
     if sr > 0:
         rot = quat_mul(rot, quat_from_rotvec(rng.normal(0.0, sr, (n, 3, 3))))
-    return TrackerSequence(name=f"{clip.name} @{fps:g}Hz x{speed:.2f}", fps=fps, dt=dt, pos=pos,
-                           rot=rot, body_yaw=body_yaw, look_yaw=look_yaw, classes=classes,
-                           subject=clip.subject)
+    return TrackerSequence(
+        name=f"{clip.name} @{fps:g}Hz x{speed:.2f}",
+        fps=fps,
+        dt=dt,
+        pos=pos,
+        rot=rot,
+        body_yaw=body_yaw,
+        look_yaw=look_yaw,
+        classes=classes,
+        subject=clip.subject,
+    )
 
 
 def without_look_around(aug: Augment) -> Augment:

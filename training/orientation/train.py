@@ -31,7 +31,6 @@ from __future__ import annotations
 import argparse
 import json
 import logging
-import os
 import sys
 import time
 import warnings
@@ -124,8 +123,9 @@ def normalization(ep: Epoch) -> tuple[np.ndarray, np.ndarray]:
     return mean, std
 
 
-def fast_rollout(net: OrientationNet, feats: torch.Tensor, dyaw: torch.Tensor, prev0: torch.Tensor,
-                 grad_through: bool = False) -> torch.Tensor:
+def fast_rollout(
+    net: OrientationNet, feats: torch.Tensor, dyaw: torch.Tensor, prev0: torch.Tensor, grad_through: bool = False
+) -> torch.Tensor:
     """`model.rollout`'s last output, computed with fewer operations (the training hot loop).
 
     The first layer's tracker part is one matmul for all r steps; of the previous-slot 6D
@@ -147,11 +147,12 @@ def fast_rollout(net: OrientationNet, feats: torch.Tensor, dyaw: torch.Tensor, p
         for layer in middle:
             h = torch.relu(torch.addmm(layer.bias, h, layer.weight.T))
         return h
+
     c, s = prev0[:, :1], prev0[:, 1:]
     r = feats.shape[1]
 
     def turn(c, s, t):
-        return c * cd[:, t:t + 1] + s * sd[:, t:t + 1], s * cd[:, t:t + 1] - c * sd[:, t:t + 1]
+        return c * cd[:, t : t + 1] + s * sd[:, t : t + 1], s * cd[:, t : t + 1] - c * sd[:, t : t + 1]
 
     with torch.set_grad_enabled(grad_through and torch.is_grad_enabled()):
         for t in range(r - 1):
@@ -190,8 +191,10 @@ def train(cfg: TrainConfig, clips=None, log=print, time_budget: float | None = N
     torch.set_num_threads(1)  # tiny matrices: threads only add overhead (and nondeterminism)
     rng = np.random.default_rng(cfg.seed)
     clips = data.load_subjects(cfg.subjects, mirrored=None, log=log) if clips is None else clips
-    log(f"training r={cfg.r} on {len(clips)} clips ({sum(c.seconds for c in clips):.0f} s of mocap "
-        f"incl. mirrored), {cfg.epochs} epochs, batch {cfg.batch}, seed {cfg.seed}")
+    log(
+        f"training r={cfg.r} on {len(clips)} clips ({sum(c.seconds for c in clips):.0f} s of mocap "
+        f"incl. mirrored), {cfg.epochs} epochs, batch {cfg.batch}, seed {cfg.seed}"
+    )
     ep = simulate_epoch(clips, rng, cfg)
     net = OrientationNet(*normalization(ep), hidden=cfg.hidden)
     opt = torch.optim.AdamW(net.parameters(), lr=cfg.lr, weight_decay=cfg.weight_decay)
@@ -206,7 +209,7 @@ def train(cfg: TrainConfig, clips=None, log=print, time_budget: float | None = N
             nb = min(nb, cfg.max_batches_per_epoch)
         losses, errs = [], []
         for b in range(nb):
-            feats, dyaw, prev0, target = batch_tensors(ep, order[b * cfg.batch:(b + 1) * cfg.batch], cfg, rng)
+            feats, dyaw, prev0, target = batch_tensors(ep, order[b * cfg.batch : (b + 1) * cfg.batch], cfg, rng)
             out = fast_rollout(net, feats, dyaw, prev0, cfg.grad_through)
             loss = torch.mean((out - target) ** 2)
             opt.zero_grad(set_to_none=True)
@@ -217,26 +220,38 @@ def train(cfg: TrainConfig, clips=None, log=print, time_budget: float | None = N
                 e = torch.atan2(-out[:, 2], out[:, 0]) - torch.atan2(-target[:, 2], target[:, 0])
                 errs.append(np.degrees(np.abs(wrap_angle(e.numpy()))).mean())
         sched.step()
-        h = {"epoch": epoch + 1, "loss": float(np.mean(losses)), "yaw_error_deg": float(np.mean(errs)),
-             "first_loss": float(np.mean(losses[:max(1, nb // 10)])), "batches": nb,
-             "lr": opt.param_groups[0]["lr"], "seconds": time.perf_counter() - t0}
+        h = {
+            "epoch": epoch + 1,
+            "loss": float(np.mean(losses)),
+            "yaw_error_deg": float(np.mean(errs)),
+            "first_loss": float(np.mean(losses[: max(1, nb // 10)])),
+            "batches": nb,
+            "lr": opt.param_groups[0]["lr"],
+            "seconds": time.perf_counter() - t0,
+        }
         history.append(h)
-        log(f"  epoch {h['epoch']:3d}/{cfg.epochs}  loss {h['loss']:.5f}  last-step yaw error "
-            f"{h['yaw_error_deg']:5.2f}°  ({nb} batches, {h['seconds']:.0f} s)")
+        log(
+            f"  epoch {h['epoch']:3d}/{cfg.epochs}  loss {h['loss']:.5f}  last-step yaw error "
+            f"{h['yaw_error_deg']:5.2f}°  ({nb} batches, {h['seconds']:.0f} s)"
+        )
         if time_budget is not None and h["seconds"] > time_budget:
             log(f"  time budget {time_budget:.0f} s reached, stopping")
             break
     return net.eval(), history
 
 
-def save(net: OrientationNet, cfg: TrainConfig, history: list, onnx_path: Path, side_dir: Path,
-         name: str) -> None:
+def save(net: OrientationNet, cfg: TrainConfig, history: list, onnx_path: Path, side_dir: Path, name: str) -> None:
     """The ONNX model, plus (in `side_dir`, not served) its weights as .npz for the PyTorch
     parity tests and its config and training history as .json."""
-    meta = {"model": name, "r": str(cfg.r), "seed": str(cfg.seed), "epochs": str(len(history)),
-            "hidden": "x".join(str(h) for h in cfg.hidden),
-            "look_around": str(cfg.augment.look_around), "train_subjects": " ".join(
-                data.subject_name(*s) for s in cfg.subjects)}
+    meta = {
+        "model": name,
+        "r": str(cfg.r),
+        "seed": str(cfg.seed),
+        "epochs": str(len(history)),
+        "hidden": "x".join(str(h) for h in cfg.hidden),
+        "look_around": str(cfg.augment.look_around),
+        "train_subjects": " ".join(data.subject_name(*s) for s in cfg.subjects),
+    }
     export_onnx(net, onnx_path, meta)
     side_dir.mkdir(parents=True, exist_ok=True)
     np.savez(side_dir / f"orientation_{name}.npz", **state_to_numpy(net))
@@ -255,8 +270,9 @@ def quiet_exporter() -> None:
 
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--only", choices=sorted(MODELS), action="append",
-                    help="train only this model (repeatable); default: all")
+    ap.add_argument(
+        "--only", choices=sorted(MODELS), action="append", help="train only this model (repeatable); default: all"
+    )
     ap.add_argument("--quick", action="store_true", help="tiny smoke run: one small subject, 3 short epochs")
     ap.add_argument("--epochs", type=int)
     ap.add_argument("--hidden", help="hidden layer sizes, e.g. 64,64 (an experiment: with --out-dir)")
@@ -277,8 +293,7 @@ def main(argv=None) -> int:
     for name in names:
         cfg = MODELS[name]
         if args.quick:
-            cfg = replace(cfg, subjects=(("cmu-daz", "05"),), epochs=3, variants_per_clip=8,
-                          max_batches_per_epoch=40)
+            cfg = replace(cfg, subjects=(("cmu-daz", "05"),), epochs=3, variants_per_clip=8, max_batches_per_epoch=40)
         if args.epochs:
             cfg = replace(cfg, epochs=args.epochs)
         if args.hidden:
@@ -307,6 +322,7 @@ def main(argv=None) -> int:
         print(f"wrote {path} ({path.stat().st_size / 1024:.1f} KiB)")
     if not args.out_dir and "main" in names:
         from .fixtures import write_fixtures
+
         write_fixtures(PUBLIC_MODEL, MODELS_DIR / "orientation_main.npz")
     print(f"training finished in {time.perf_counter() - t0:.0f} s")
     return 0

@@ -40,17 +40,19 @@ def mmdb_cli():
         pytest.skip(f"Rust CLI not built: {MMDB_BIN} does not exist (cargo build --release)")
 
     def run(*args, timeout: float = 120.0) -> subprocess.CompletedProcess:
-        return subprocess.run([str(MMDB_BIN), *map(str, args)], capture_output=True,
-                              text=True, timeout=timeout)
+        return subprocess.run([str(MMDB_BIN), *map(str, args)], capture_output=True, text=True, timeout=timeout)
+
     return run
 
 
 @pytest.fixture(scope="session")
 def build_db(mmdb_cli):
     """`build_db(out, *args)`: run `mmdb build ... -o out`, fail with its stderr if it fails."""
+
     def build(out, *args) -> Path:
         proc = mmdb_cli("build", *args, "-o", out)
         if proc.returncode != 0:
             pytest.fail(f"mmdb build {' '.join(map(str, args))} failed ({proc.returncode}):\n{proc.stderr}")
         return Path(out)
+
     return build

@@ -45,7 +45,7 @@ def refix_checksum(data: bytes) -> bytes:
 
 
 def patch(data: bytes, offset: int, new: bytes, refix: bool = True) -> bytes:
-    out = data[:offset] + new + data[offset + len(new):]
+    out = data[:offset] + new + data[offset + len(new) :]
     return refix_checksum(out) if refix else out
 
 
@@ -64,8 +64,7 @@ F, J, D = 4, 2, 3
 YAW = np.radians([0.0, 30.0, 60.0, 90.0])  # VirtualRoot yaw per frame
 
 
-def sample_sections(parents=(-1, 0), clips=((0, 4),), tag_ranges=((0, 4),),
-                    first_dim: int = 0) -> dict[str, bytes]:
+def sample_sections(parents=(-1, 0), clips=((0, 4),), tag_ranges=((0, 4),), first_dim: int = 0) -> dict[str, bytes]:
     """A valid database unless the arguments say otherwise."""
     root_rot = np.stack([np.zeros(F), np.sin(YAW / 2), np.zeros(F), np.cos(YAW / 2)], axis=1)
     lpos = np.zeros((F, J, 3))
@@ -73,15 +72,22 @@ def sample_sections(parents=(-1, 0), clips=((0, 4),), tag_ranges=((0, 4),),
     lpos[:, 1] = [0.0, 0.9, 0.5]
     lrot = np.zeros((F, J, 4))
     lrot[:, 0], lrot[:, 1] = root_rot, [0.0, 0.0, 0.0, 1.0]
-    skel = b"".join(string(n) + struct.pack("<i", p) + f32s(*o)
-                    for n, p, o in zip(("VirtualRoot", "Hips"), parents, ((0, 0, 0), (0, 0.9, 0))))
+    skel = b"".join(
+        string(n) + struct.pack("<i", p) + f32s(*o)
+        for n, p, o in zip(("VirtualRoot", "Hips"), parents, ((0, 0, 0), (0, 0.9, 0)))
+    )
     skel += struct.pack("<I", 2) + string("hips") + struct.pack("<i", 1) + f32s(0, 0, 0)
     skel += string("left_toe") + struct.pack("<i", -1) + f32s(0, 0, 0)
     clip = struct.pack("<I", len(clips)) + b"".join(
         string(f"walk{i}") + string("walk.bvh") + struct.pack("<IIB", s, e, 0) + f32s(120, 1, 1)
-        for i, (s, e) in enumerate(clips))
-    tags = struct.pack("<I", 1) + string("walk") + struct.pack("<I", len(tag_ranges)) + b"".join(
-        struct.pack("<II", s, e) for s, e in tag_ranges)
+        for i, (s, e) in enumerate(clips)
+    )
+    tags = (
+        struct.pack("<I", 1)
+        + string("walk")
+        + struct.pack("<I", len(tag_ranges))
+        + b"".join(struct.pack("<II", s, e) for s, e in tag_ranges)
+    )
     fdsc = struct.pack("<I", 1) + string("hips_position") + bytes([0, 0, 0, 0])
     fdsc += struct.pack("<i", 1) + f32s(0, 0, 1) + struct.pack("<Ii", 1, 0) + f32s(1.0)
     fdsc += struct.pack("<II", first_dim, D)
@@ -109,8 +115,11 @@ def sample_file(**kwargs) -> bytes:
 def encode_panm(lpos: np.ndarray, rest: np.ndarray) -> bytes:
     """PANM from docs/mmdb-format.md: the joints whose position ever differs from the rest offset."""
     animated = [j for j in range(lpos.shape[1]) if np.any(lpos[:, j].astype("<f4") != rest[j].astype("<f4"))]
-    return (struct.pack("<I", len(animated)) + struct.pack(f"<{len(animated)}I", *animated)
-            + lpos[:, animated].astype("<f4").tobytes())
+    return (
+        struct.pack("<I", len(animated))
+        + struct.pack(f"<{len(animated)}I", *animated)
+        + lpos[:, animated].astype("<f4").tobytes()
+    )
 
 
 def encode_qrot(lrot: np.ndarray) -> bytes:
@@ -134,11 +143,21 @@ def sample_sections_v2(clips=((0, 4),)) -> dict[str, bytes]:
     lrot = np.frombuffer(v1["LROT"], "<f4").reshape(F, J, 4)
     rest = np.array([[0, 0, 0], [0, 0.9, 0]], dtype=np.float32)
     clip = struct.pack("<I", len(clips)) + b"".join(
-        string(f"walk{i}") + string("walk.bvh") + struct.pack("<IIB", s, e, 0) + struct.pack("<d", 120.0)
-        + f32s(1, 1) + struct.pack("<I", 7 * i) for i, (s, e) in enumerate(clips))
+        string(f"walk{i}")
+        + string("walk.bvh")
+        + struct.pack("<IIB", s, e, 0)
+        + struct.pack("<d", 120.0)
+        + f32s(1, 1)
+        + struct.pack("<I", 7 * i)
+        for i, (s, e) in enumerate(clips)
+    )
     out = {k: v for k, v in v1.items() if k not in ("LPOS", "LROT", "LVEL", "LAVL", "FEAT")}
-    out.update(CLIP=clip, PANM=encode_panm(lpos, rest), QROT=encode_qrot(lrot),
-               FSHF=encode_fshf(np.frombuffer(v1["FEAT"], "<f4").reshape(F, D)))
+    out.update(
+        CLIP=clip,
+        PANM=encode_panm(lpos, rest),
+        QROT=encode_qrot(lrot),
+        FSHF=encode_fshf(np.frombuffer(v1["FEAT"], "<f4").reshape(F, D)),
+    )
     order = ("INFO", "SKEL", "CLIP", "TAGS", "PANM", "QROT", "CONT", "FDSC", "FNRM", "FSHF", "VALD")
     return {k: out[k] for k in order}
 

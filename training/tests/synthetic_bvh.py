@@ -56,9 +56,15 @@ def channel_values(name: str, channel: str, offset, t: np.ndarray, rng) -> np.nd
     return amplitude * wave + rng.uniform(-20.0, 20.0)
 
 
-def make_bvh(order: str = "ZXY", frames: int = 150, frame_time: str = "0.02",
-             channels: dict[str, list[str]] | None = None, newline: str = "\n",
-             indent: str = "  ", seed: int = 0) -> str:
+def make_bvh(
+    order: str = "ZXY",
+    frames: int = 150,
+    frame_time: str = "0.02",
+    channels: dict[str, list[str]] | None = None,
+    newline: str = "\n",
+    indent: str = "  ",
+    seed: int = 0,
+) -> str:
     """BVH text for SKELETON with the given per-joint channels (default: `default_channels`)."""
     chans = channels or default_channels(order)
     rng = np.random.default_rng(seed)
@@ -81,8 +87,14 @@ def make_bvh(order: str = "ZXY", frames: int = 150, frame_time: str = "0.02",
         for child in children[name]:
             write(child, depth + 1)
         if end is not None:
-            lines.extend([f"{pad}{indent}End Site", f"{pad}{indent}{{",
-                          f"{pad}{indent * 2}OFFSET {fmt(end)}", f"{pad}{indent}}}"])
+            lines.extend(
+                [
+                    f"{pad}{indent}End Site",
+                    f"{pad}{indent}{{",
+                    f"{pad}{indent * 2}OFFSET {fmt(end)}",
+                    f"{pad}{indent}}}",
+                ]
+            )
         lines.append(f"{pad}}}")
 
     write("Hips", 0)

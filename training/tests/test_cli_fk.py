@@ -30,8 +30,15 @@ def quantization_bound(db: mmdb.Database, world: np.ndarray) -> np.ndarray:
             a = db.parents[a]
     return bound * ROTATION_ERROR * 1.01
 
-MOCAP_CLIPS = ("cmu-asf/cmu_16_49.bvh", "cmu-asf/cmu_16_54.bvh", "cmu-asf/cmu_127_08.bvh",
-               "cmu-asf/cmu_03_03.bvh", "cmu-daz/cmu_09_03.bvh", "cmu-daz/cmu_02_01.bvh")
+
+MOCAP_CLIPS = (
+    "cmu-asf/cmu_16_49.bvh",
+    "cmu-asf/cmu_16_54.bvh",
+    "cmu-asf/cmu_127_08.bvh",
+    "cmu-asf/cmu_03_03.bvh",
+    "cmu-daz/cmu_09_03.bvh",
+    "cmu-daz/cmu_02_01.bvh",
+)
 
 
 def compare_fk(db: mmdb.Database, bvh_path, step: int, scale: float) -> None:
@@ -52,7 +59,8 @@ def compare_fk(db: mmdb.Database, bvh_path, step: int, scale: float) -> None:
     print(f"{bvh_path.name}: worst {err.max() * 1e3:.3f} mm (bound there {allowed.flat[np.argmax(err)] * 1e3:.3f} mm)")
     assert err[f, j] < allowed[f, j], (
         f"{bvh_path}: max |db FK - BVH FK| = {err[f, j]:.3g} m at db frame {f} (source frame "
-        f"{f * step}), joint {names[j]!r}: db {ours[f, j]} vs bvh {theirs[f, j]}")
+        f"{f * step}), joint {names[j]!r}: db {ours[f, j]} vs bvh {theirs[f, j]}"
+    )
 
 
 @pytest.mark.parametrize("fps", [120, 60])

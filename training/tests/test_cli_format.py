@@ -35,17 +35,23 @@ def test_round_trip_matches_dump_bit_for_bit(built, mmdb_cli):
     assert d["joint_names"] == db.joint_names
     assert np.array_equal(np.asarray(d["parents"], dtype=np.int32), db.parents)
     # Bit-exact: what version 2 stores exactly, and the linear velocities both derive from it.
-    for key, arr in [("local_positions", db.local_positions), ("local_velocities", db.local_velocities),
-                     ("features", db.features), ("feature_mean", db.feature_mean),
-                     ("feature_scale", db.feature_scale)]:
+    for key, arr in [
+        ("local_positions", db.local_positions),
+        ("local_velocities", db.local_velocities),
+        ("features", db.features),
+        ("feature_mean", db.feature_mean),
+        ("feature_scale", db.feature_scale),
+    ]:
         dumped = f32(d[key])
         assert dumped.size == arr.size, key
         assert np.array_equal(dumped, arr.ravel()), f"{key} differs at {np.flatnonzero(dumped != arr.ravel())[:5]}"
     # The rotations are decoded from the same integers by both; normalizing in f32 may round
     # the last bit differently (glam's summation order is not numpy's), and the angular
     # velocities derived from them move by that much times fps.
-    for key, arr, tol in [("local_rotations", db.local_rotations, 2.5e-7),
-                          ("local_angular_velocities", db.local_angular_velocities, 1e-4)]:
+    for key, arr, tol in [
+        ("local_rotations", db.local_rotations, 2.5e-7),
+        ("local_angular_velocities", db.local_angular_velocities, 1e-4),
+    ]:
         dumped = f32(d[key])
         assert dumped.size == arr.size, key
         worst = np.abs(dumped - arr.ravel()).max()
@@ -53,11 +59,34 @@ def test_round_trip_matches_dump_bit_for_bit(built, mmdb_cli):
         assert worst <= tol, f"{key} differs by {worst}"
     assert np.array_equal(np.asarray(d["contacts"], dtype=np.uint8), db.contacts.astype(np.uint8).ravel())
     assert np.array_equal(np.asarray(d["valid"], dtype=np.uint8), db.valid.astype(np.uint8).ravel())
-    ours = [(c.name, c.source, c.start, c.end, c.mirrored, c.source_fps, c.source_start,
-             np.float32(c.scale), np.float32(c.root_scale)) for c in db.clips]
-    theirs = [(c["name"], c["source"], c["start"], c["end"], bool(c["mirrored"]),
-               c["source_fps"], c["source_start"], np.float32(c["scale"]), np.float32(c["root_scale"]))
-              for c in d["clips"]]
+    ours = [
+        (
+            c.name,
+            c.source,
+            c.start,
+            c.end,
+            c.mirrored,
+            c.source_fps,
+            c.source_start,
+            np.float32(c.scale),
+            np.float32(c.root_scale),
+        )
+        for c in db.clips
+    ]
+    theirs = [
+        (
+            c["name"],
+            c["source"],
+            c["start"],
+            c["end"],
+            bool(c["mirrored"]),
+            c["source_fps"],
+            c["source_start"],
+            np.float32(c["scale"]),
+            np.float32(c["root_scale"]),
+        )
+        for c in d["clips"]
+    ]
     assert ours == theirs
     # defaults: 2 sources, each with a mirrored copy
     assert len(db.clips) == 4 and sum(c.mirrored for c in db.clips) == 2 and db.flags & 1
@@ -85,8 +114,11 @@ def corruptions(good: bytes):
         ("flipped byte", patch(good, mid, bytes([good[mid] ^ 0x5A]), refix=False), ("checksum", "crc")),
         ("wrong magic", b"\x89MMDC" + good[5:], ("magic",)),
         ("version 3", patch(good, 8, struct.pack("<I", 3)), ("version",)),
-        ("file_size field", patch(good, 16, struct.pack("<Q", size + 16), refix=False),
-         ("file size", "file_size", "size", "length")),
+        (
+            "file_size field",
+            patch(good, 16, struct.pack("<Q", size + 16), refix=False),
+            ("file size", "file_size", "size", "length"),
+        ),
         ("trailing bytes", good + b"\0" * 16, ("file size", "file_size", "size", "length")),
         ("section outside", patch(good, first_entry + 8, struct.pack("<Q", (size + 31) // 16 * 16)), OUTSIDE),
     ]
@@ -110,6 +142,7 @@ def test_corrupt_files_are_rejected_by_both_readers(built, mmdb_cli, tmp_path):
         if proc.returncode == 0:
             failures.append(f"{name}: `mmdb inspect` exited 0")
         elif "panicked" in err or not any(w in err for w in words):
-            failures.append(f"{name}: `mmdb inspect` exit {proc.returncode}, stderr {proc.stderr.strip()!r} "
-                            f"has none of {words}")
+            failures.append(
+                f"{name}: `mmdb inspect` exit {proc.returncode}, stderr {proc.stderr.strip()!r} has none of {words}"
+            )
     assert not failures, "\n".join(failures)

@@ -16,8 +16,9 @@ def frames():
 def test_the_runtime_uses_the_fitted_constants(frames):
     c = crouch_fit.rust_constants()
     start, gain = crouch_fit.fit(frames, deadband=c["CROUCH_DEADBAND"], max_bend=c["MAX_BEND"])
-    assert np.isclose(start, c["BEND_START_PITCH"], atol=1e-6) and gain == c["BEND_GAIN"], \
+    assert np.isclose(start, c["BEND_START_PITCH"], atol=1e-6) and gain == c["BEND_GAIN"], (
         f"the training subjects fit {np.degrees(start):.0f}° and {gain}; crouch.rs has {np.degrees(c['BEND_START_PITCH']):.0f}° and {c['BEND_GAIN']}"
+    )
 
 
 def test_held_out_people_bending_over_are_not_crouched(frames):
@@ -33,5 +34,7 @@ def test_held_out_people_bending_over_are_not_crouched(frames):
     # CMU 14 (bending over laughing, mopping) is where it matters.
     m = (frames.subject == "cmu-asf_14") & (frames.head_drop > 0.05)
     assert m.sum() > 1000
-    hips, _ = crouch_fit.split(frames.head_drop[m], frames.pitch[m], frames.torso[m], c["BEND_START_PITCH"], c["BEND_GAIN"], **base)
+    hips, _ = crouch_fit.split(
+        frames.head_drop[m], frames.pitch[m], frames.torso[m], c["BEND_START_PITCH"], c["BEND_GAIN"], **base
+    )
     assert np.abs(hips - frames.hips_drop[m]).mean() < 0.04

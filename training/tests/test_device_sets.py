@@ -12,7 +12,11 @@ from orientation.simulate import TrackerSequence
 def test_hanging_pose_matches_the_page():
     # The constants are the page's defaults (web/src/vr/trackers.ts), read from the source.
     ts = (data.REPO / "web" / "src" / "vr" / "trackers.ts").read_text()
-    for name, value in (("hangSide", simulate.HANG_SIDE), ("hangHeight", simulate.HANG_HEIGHT), ("hangForward", simulate.HANG_FORWARD)):
+    for name, value in (
+        ("hangSide", simulate.HANG_SIDE),
+        ("hangHeight", simulate.HANG_HEIGHT),
+        ("hangForward", simulate.HANG_FORWARD),
+    ):
         m = re.search(rf"^\s*{name}: ([0-9.]+),", ts, re.M)
         assert m and float(m.group(1)) == value, f"{name}: the page says {m and m.group(1)}, the evaluation {value}"
 

@@ -6,8 +6,17 @@ import numpy as np
 import pytest
 
 import mmdb
-from mmdb_writer import (F, YAW, assemble, patch, sample_file, sample_file_v2, sample_sections,
-                         sample_sections_v2, section_entries)
+from mmdb_writer import (
+    F,
+    YAW,
+    assemble,
+    patch,
+    sample_file,
+    sample_file_v2,
+    sample_sections,
+    sample_sections_v2,
+    section_entries,
+)
 
 
 def test_reads_every_field():
@@ -16,8 +25,7 @@ def test_reads_every_field():
     assert db.joint_names == ["VirtualRoot", "Hips"]
     assert db.parents.dtype == np.int32 and list(db.parents) == [-1, 0]
     assert db.sites["hips"][0] == 1 and db.sites["left_toe"][0] == -1
-    assert [(c.name, c.start, c.end, c.mirrored, c.source_fps) for c in db.clips] == [
-        ("walk0", 0, 4, False, 120.0)]
+    assert [(c.name, c.start, c.end, c.mirrored, c.source_fps) for c in db.clips] == [("walk0", 0, 4, False, 120.0)]
     assert db.tags == {"walk": [(0, 4)]}
     assert db.local_velocities.shape == (4, 2, 3) and db.local_velocities[3, 1, 2] == 23
     assert db.local_angular_velocities[0, 0, 1] == -1
@@ -25,15 +33,22 @@ def test_reads_every_field():
     assert db.valid.tolist() == [True, True, False, False]
     g = db.feature_groups[0]
     assert (g.name, g.kind, g.trajectory, g.axes, g.joint, g.offsets, g.first_dim, g.num_dims) == (
-        "hips_position", mmdb.KIND_POSITION, False, mmdb.AXES_XYZ, 1, [0], 0, 3)
+        "hips_position",
+        mmdb.KIND_POSITION,
+        False,
+        mmdb.AXES_XYZ,
+        1,
+        [0],
+        0,
+        3,
+    )
     assert db.feature_scale.tolist() == [2, 2, 2] and db.features.shape == (4, 3)
 
 
 def test_forward_kinematics_through_the_virtual_root():
     db = mmdb.load(sample_file())
     pos = mmdb.world_positions(db)
-    expected = np.stack([np.arange(F) * 0.1 + 0.5 * np.sin(YAW), np.full(F, 0.9),
-                         1.0 + 0.5 * np.cos(YAW)], axis=1)
+    expected = np.stack([np.arange(F) * 0.1 + 0.5 * np.sin(YAW), np.full(F, 0.9), 1.0 + 0.5 * np.cos(YAW)], axis=1)
     np.testing.assert_allclose(pos[:, 1], expected, atol=1e-6)
     p2, r2 = mmdb.world_transforms(db, 2)
     np.testing.assert_array_equal(p2, pos[2])
@@ -100,9 +115,17 @@ def _v2_corruptions():
     return [
         ("PANM order", assemble(list({**secs, "PANM": swapped}.items()), version=2), "must increase"),
         ("PANM length", assemble(list({**secs, "PANM": panm[:-4]}.items()), version=2), "section PANM: length"),
-        ("QROT not unit", assemble(list({**secs, "QROT": q.tobytes()}.items()), version=2), "frame 0 joint 0 is not a unit quaternion"),
+        (
+            "QROT not unit",
+            assemble(list({**secs, "QROT": q.tobytes()}.items()), version=2),
+            "frame 0 joint 0 is not a unit quaternion",
+        ),
         ("QROT length", assemble(list({**secs, "QROT": secs["QROT"][:-2]}.items()), version=2), "section QROT: length"),
-        ("FSHF length", assemble(list({**secs, "FSHF": secs["FSHF"] + b"\0" * 4}.items()), version=2), "section FSHF: length"),
+        (
+            "FSHF length",
+            assemble(list({**secs, "FSHF": secs["FSHF"] + b"\0" * 4}.items()), version=2),
+            "section FSHF: length",
+        ),
     ]
 
 
@@ -131,7 +154,11 @@ def _corruptions():
         ("empty", b"", "truncated"),
         ("magic", b"\x89MMDX" + good[5:], "magic"),
         ("version", patch(good, 8, struct.pack("<I", 3)), "unsupported version 3"),
-        ("version 2 with version 1 sections", patch(good, 8, struct.pack("<I", 2)), "missing required section(s) PANM, QROT, FSHF"),
+        (
+            "version 2 with version 1 sections",
+            patch(good, 8, struct.pack("<I", 2)),
+            "missing required section(s) PANM, QROT, FSHF",
+        ),
         ("truncated", good[:-1], "truncated"),
         ("file size field", patch(good, 16, struct.pack("<Q", size + 16), refix=False), "file size"),
         ("trailing bytes", good + b"\0" * 16, "file size"),

@@ -17,7 +17,7 @@ def _run(velocity, yaw_rate=0.0, hands_speed=0.0, seconds=4.0, fps=60.0):
     w = hands_speed / 0.15
     hands[0, :, 0] += 0.15 * np.cos(w * t)
     hands[0, :, 2] += 0.15 * np.sin(w * t)
-    return classify(root, yaw, hands, head, fps)[int(fps):-int(fps)]
+    return classify(root, yaw, hands, head, fps)[int(fps) : -int(fps)]
 
 
 def test_classes_follow_the_root_and_the_hands():

@@ -71,8 +71,9 @@ def _stitch(seqs: list[TrackerSequence]) -> TrackerSequence:
         rot.append(quat_mul(quat_from_yaw(np.full(s.rot.shape[:2], psi)), s.rot))
         dt.append(np.concatenate([[s.dt[1]], s.dt[1:]]))
         body.append(s.body_yaw + psi)
-    return TrackerSequence("stream", 90.0, np.concatenate(dt), np.concatenate(pos), np.concatenate(rot),
-                           np.concatenate(body))
+    return TrackerSequence(
+        "stream", 90.0, np.concatenate(dt), np.concatenate(pos), np.concatenate(rot), np.concatenate(body)
+    )
 
 
 def test_ten_minutes_of_feedback_never_nan_and_recovers_from_garbage(held_out):
@@ -107,9 +108,10 @@ def test_ten_minutes_of_feedback_never_nan_and_recovers_from_garbage(held_out):
     second = 90
     for k, t in enumerate(times):
         diff = np.degrees(np.abs(wrap_angle(body[k + 1] - body[0])))
-        assert diff[t + second:t + 10 * second].max() < 5.0, (
+        assert diff[t + second : t + 10 * second].max() < 5.0, (
             f"garbage {kinds[k % len(kinds)]!r} at {t / 90:.0f} s: still {diff[t + second]:.1f}° off the "
-            f"clean run 1 s later")
+            f"clean run 1 s later"
+        )
     err = np.degrees(np.abs(wrap_angle(clean - stream.body_yaw)))
     # The held-out people's level (README: 18.1° without looking around), not drifting off.
     assert err[90:].mean() < 25.0, err[90:].mean()
@@ -122,12 +124,16 @@ def test_a_nan_previous_body_yaw_is_a_reset(held_out):
     seq = simulate(max(held_out, key=lambda c: c.num_frames), rng, EVAL_AUGMENT, fps=90.0)
     feats, hmd, _ = sequence_features([seq])
     t = min(300, feats.shape[1] // 2)
-    body = run_network(OnnxModel(PUBLIC_MODEL), np.repeat(feats, 3, 0), np.repeat(hmd, 3, 0),
-                       inject_yaw={t: (np.array([1, 2]), np.array([np.nan, np.inf]))})
+    body = run_network(
+        OnnxModel(PUBLIC_MODEL),
+        np.repeat(feats, 3, 0),
+        np.repeat(hmd, 3, 0),
+        inject_yaw={t: (np.array([1, 2]), np.array([np.nan, np.inf]))},
+    )
     assert np.isfinite(body).all()
     for row in (1, 2):
         diff = np.degrees(np.abs(wrap_angle(body[row] - body[0])))
-        assert diff[t + 90:].max() < 5.0, (row, diff[t + 90:].max())
+        assert diff[t + 90 :].max() < 5.0, (row, diff[t + 90 :].max())
 
 
 def test_the_vr_pages_choice_per_device_set_is_the_better_one(held_out):
@@ -143,12 +149,16 @@ def test_the_vr_pages_choice_per_device_set_is_the_better_one(held_out):
         r["feed-back"] = r["network r=50"]
         if not absent:
             # Both hands: the mean of the two models beats either.
-            print(f"{name}: page {r[evaluate.PAGE].mean:.1f}°, feed-back {r['feed-back'].mean:.1f}°, recurrent {r['recurrent'].mean:.1f}°")
+            print(
+                f"{name}: page {r[evaluate.PAGE].mean:.1f}°, feed-back {r['feed-back'].mean:.1f}°, recurrent {r['recurrent'].mean:.1f}°"
+            )
             assert r[evaluate.PAGE].mean < min(r["feed-back"].mean, r["recurrent"].mean)
             continue
         # The page's yaw is the recurrent model's once it has warmed up (1.5 s after a reset).
         page = r[evaluate.PAGE].mean
-        print(f"{name}: page {page:.1f}°, recurrent {r['recurrent'].mean:.1f}°, feed-back {r['feed-back'].mean:.1f}°, HMD forward {r['HMD forward'].mean:.1f}°")
+        print(
+            f"{name}: page {page:.1f}°, recurrent {r['recurrent'].mean:.1f}°, feed-back {r['feed-back'].mean:.1f}°, HMD forward {r['HMD forward'].mean:.1f}°"
+        )
         assert abs(page - r["recurrent"].mean) < 0.5, name
         assert page < r["feed-back"].mean, name
         assert page < (0.9 if len(absent) == 1 else 1.0) * r["HMD forward"].mean, name

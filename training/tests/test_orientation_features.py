@@ -4,10 +4,18 @@ against the vectorized (training) one. No mocap needed: synthetic tracker motion
 import numpy as np
 import pytest
 
-from orientation.features import (MAX_DT, FeatureBuilder, relative_yaw_of_output, tracker_features,
-                                  yaw_slot)
-from orientation.geometry import (hmd_yaw, quat_from_axis_angle, quat_from_rotvec, quat_from_yaw,
-                                  quat_mul, quat_rotate, quat_to_rotvec, rotate_y, wrap_angle)
+from orientation.features import MAX_DT, FeatureBuilder, relative_yaw_of_output, tracker_features, yaw_slot
+from orientation.geometry import (
+    hmd_yaw,
+    quat_from_axis_angle,
+    quat_from_rotvec,
+    quat_from_yaw,
+    quat_mul,
+    quat_rotate,
+    quat_to_rotvec,
+    rotate_y,
+    wrap_angle,
+)
 
 X = np.array([1.0, 0.0, 0.0])
 

@@ -14,7 +14,9 @@ from orientation.simulate import EVAL_AUGMENT, simulate
 def test_a_short_gru_training_learns_and_runs_causally(mocap, mmdb_cli):
     clips = data.load_subjects((("cmu-daz", "05"),), mirrored=None)
     log = []
-    net = train_gru(GruConfig(hidden=16, window=60, burn_in=10, epochs=3, max_batches_per_epoch=40), clips, log=log.append)
+    net = train_gru(
+        GruConfig(hidden=16, window=60, burn_in=10, epochs=3, max_batches_per_epoch=40), clips, log=log.append
+    )
     losses = [float(line.split("loss ")[1].split()[0]) for line in log]
     assert losses[-1] < 0.8 * losses[0], losses
     seq = simulate(clips[0], np.random.default_rng(3), EVAL_AUGMENT, fps=90.0)

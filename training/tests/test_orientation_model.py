@@ -60,6 +60,7 @@ def test_normalization_is_inside_the_model():
 
 # ---------------------------------------------------------------- the committed model
 
+
 def _committed():
     if not PUBLIC_MODEL.is_file():
         pytest.fail(f"{PUBLIC_MODEL} missing: run `npm run train`")
@@ -89,8 +90,9 @@ def test_committed_onnx_equals_pytorch():
     _committed()
     net = net_from_state(dict(np.load(MODELS_DIR / "orientation_main.npz")))
     fixture = json.loads(FIXTURE.read_text())
-    assert fixture["model_sha256"] == hashlib.sha256(PUBLIC_MODEL.read_bytes()).hexdigest(), \
+    assert fixture["model_sha256"] == hashlib.sha256(PUBLIC_MODEL.read_bytes()).hexdigest(), (
         "fixture is stale: regenerate with `npm run train` (or python -m orientation.fixtures)"
+    )
     rows = np.array(fixture["rows"]["inputs"], dtype=np.float32)
     onnx_out = OnnxModel(PUBLIC_MODEL)(rows)
     torch_out = TorchModel(net)(rows)

@@ -12,9 +12,19 @@ from orientation.features import tracker_features
 from orientation.geometry import hmd_yaw, quat_mul, quat_rotate, rotate_y, wrap_angle
 from orientation.simulate import EVAL_AUGMENT, TRAIN_AUGMENT, Augment, simulate, spring_process
 
-QUIET = Augment(speed=(1.0, 1.0), dropped_frame_prob=0.0, look_around=False, global_yaw=False,
-                noise_pos=(0.0, 0.0), noise_rot=(0.0, 0.0), frozen_prob=0.0, hmd_jitter=0.0,
-                hmd_rot_jitter=0.0, controller_jitter=0.0, controller_rot_jitter=0.0)
+QUIET = Augment(
+    speed=(1.0, 1.0),
+    dropped_frame_prob=0.0,
+    look_around=False,
+    global_yaw=False,
+    noise_pos=(0.0, 0.0),
+    noise_rot=(0.0, 0.0),
+    frozen_prob=0.0,
+    hmd_jitter=0.0,
+    hmd_rot_jitter=0.0,
+    controller_jitter=0.0,
+    controller_rot_jitter=0.0,
+)
 
 
 @pytest.fixture(scope="module")
@@ -146,7 +156,7 @@ def test_global_yaw_does_not_change_features_and_frozen_controller_stops(clips):
     frozen = simulate(clips[1], np.random.default_rng(6), replace(QUIET, frozen_prob=1.0), fps=72.0)
     f, _ = tracker_features(frozen.pos, frozen.rot, frozen.dt)
     assert np.allclose(frozen.pos[-1, 1:], frozen.pos[-2, 1:])
-    assert np.allclose(f[-1, 12 + 6:12 + 12], 0.0) and np.allclose(f[-1, 24 + 6:24 + 12], 0.0)
+    assert np.allclose(f[-1, 12 + 6 : 12 + 12], 0.0) and np.allclose(f[-1, 24 + 6 : 24 + 12], 0.0)
 
 
 def test_noise_is_there_but_small(clips):

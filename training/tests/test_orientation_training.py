@@ -31,7 +31,10 @@ def test_short_training_reduces_the_loss(tmp_path, mocap, mmdb_cli, capsys):
 
     onnx_path = tmp_path / "orientation.onnx"
     assert sorted(p.name for p in tmp_path.iterdir()) == [
-        "orientation.onnx", "orientation_main.json", "orientation_main.npz"]
+        "orientation.onnx",
+        "orientation_main.json",
+        "orientation_main.npz",
+    ]
     net = net_from_state(dict(np.load(tmp_path / "orientation_main.npz")))
     x = np.random.default_rng(0).normal(0, 1, (17, 42)).astype(np.float32)
     assert np.abs(OnnxModel(onnx_path)(x) - TorchModel(net)(x)).max() < 1e-5

@@ -9,7 +9,8 @@ fn main() {
     let rounds: usize = std::env::args().nth(1).and_then(|a| a.parse().ok()).unwrap_or(15);
     let mocap = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../shared/mocap");
     let manifest: serde_json::Value =
-        serde_json::from_slice(&std::fs::read(mocap.join("manifest.json")).expect("../shared/mocap/manifest.json")).unwrap();
+        serde_json::from_slice(&std::fs::read(mocap.join("manifest.json")).expect("../shared/mocap/manifest.json"))
+            .unwrap();
     let files: Vec<(String, Vec<u8>)> = manifest
         .as_array()
         .unwrap()

@@ -58,7 +58,8 @@ fn main() {
     let db = mmcore::format::from_bytes(&std::fs::read(path).expect("readable .mmdb")).expect("a valid .mmdb");
     let index = SearchIndex::new(&db).expect("an index");
     let qs = queries(&db, &index, count);
-    let options = |source: usize| SearchOptions { exclude: Some((source.saturating_sub(20), source + 21)), ..Default::default() };
+    let options =
+        |source: usize| SearchOptions { exclude: Some((source.saturating_sub(20), source + 21)), ..Default::default() };
     let mut mismatches = 0;
     for (source, q) in &qs {
         let reference = index.search(SearchMethod::Simd, q, &options(*source), f32::INFINITY);
@@ -66,7 +67,11 @@ fn main() {
             mismatches += 1;
         }
     }
-    println!("{path}: {} frames × {} dims, {count} queries, {mismatches} AABB results differing from SIMD", db.num_frames, db.num_features());
+    println!(
+        "{path}: {} frames × {} dims, {count} queries, {mismatches} AABB results differing from SIMD",
+        db.num_frames,
+        db.num_features()
+    );
     for method in [SearchMethod::Simd, SearchMethod::Aabb] {
         let reps = if method == SearchMethod::Aabb { 20 } else { 2 };
         let mut best = vec![f64::INFINITY; qs.len()];

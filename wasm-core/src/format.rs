@@ -7,8 +7,9 @@ pub mod codec;
 use crate::database::{Axes, Clip, Database, FeatureGroup, FeatureKind, Site, Skeleton, Tag};
 use crate::error::{Error, Result};
 use crate::limits::{
-    check_feature_dims, num, quote, MAX_ABS_STORED, MAX_FEATURE_OFFSET, MAX_FEATURE_SCALE, MAX_FPS, MAX_FRAMES, MAX_ROOT_SCALE, MAX_SCALE, MAX_SOURCE_FPS,
-    MIN_FEATURE_SCALE, MIN_FPS, MIN_SCALE, MIN_SOURCE_FPS, QUAT_NORM_TOLERANCE,
+    check_feature_dims, num, quote, MAX_ABS_STORED, MAX_FEATURE_OFFSET, MAX_FEATURE_SCALE, MAX_FPS, MAX_FRAMES,
+    MAX_ROOT_SCALE, MAX_SCALE, MAX_SOURCE_FPS, MIN_FEATURE_SCALE, MIN_FPS, MIN_SCALE, MIN_SOURCE_FPS,
+    QUAT_NORM_TOLERANCE,
 };
 use glam::{Quat, Vec3};
 
@@ -24,7 +25,8 @@ const ENTRY_LEN: usize = 24;
 const ALIGN: usize = 16;
 
 /// Section tags in the order they are written.
-const TAGS: [&[u8; 4]; 11] = [b"INFO", b"SKEL", b"CLIP", b"TAGS", b"PANM", b"QROT", b"CONT", b"FDSC", b"FNRM", b"FSHF", b"VALD"];
+const TAGS: [&[u8; 4]; 11] =
+    [b"INFO", b"SKEL", b"CLIP", b"TAGS", b"PANM", b"QROT", b"CONT", b"FDSC", b"FNRM", b"FSHF", b"VALD"];
 
 /// Serializes a database.
 ///
@@ -192,7 +194,9 @@ pub fn from_bytes(bytes: &[u8]) -> Result<Database> {
     let stored_crc = le_u32(&bytes[24..28]);
     let crc = crc32fast::hash(&bytes[HEADER_LEN..]);
     if crc != stored_crc {
-        return Err(Error::format(format!("checksum mismatch (stored {stored_crc:08x}, computed {crc:08x}): the file is corrupt")));
+        return Err(Error::format(format!(
+            "checksum mismatch (stored {stored_crc:08x}, computed {crc:08x}): the file is corrupt"
+        )));
     }
     let table_end = count.checked_mul(ENTRY_LEN).and_then(|n| n.checked_add(HEADER_LEN)).filter(|&n| n <= bytes.len());
     let Some(table_end) = table_end else {
@@ -207,7 +211,9 @@ pub fn from_bytes(bytes: &[u8]) -> Result<Database> {
         let offset = u64::from_le_bytes(e[8..16].try_into().unwrap());
         let length = u64::from_le_bytes(e[16..24].try_into().unwrap());
         if offset < table_end as u64 || offset.checked_add(length).is_none_or(|end| end > file_size) {
-            return Err(Error::format(format!("section {name} (offset {offset}, length {length}) lies outside the file")));
+            return Err(Error::format(format!(
+                "section {name} (offset {offset}, length {length}) lies outside the file"
+            )));
         }
         if offset % ALIGN as u64 != 0 {
             return Err(Error::format(format!("section {name} starts at offset {offset}, not a multiple of {ALIGN}")));
@@ -229,9 +235,11 @@ pub fn from_bytes(bytes: &[u8]) -> Result<Database> {
         }
     }
     let section = |tag: &[u8; 4]| -> Result<Reader> {
-        sections.iter().find(|(t, _, _)| t == tag).map(|&(t, _, data)| Reader { data, pos: 0, tag: t }).ok_or_else(|| {
-            Error::format(format!("required section {} is missing", tag_name(tag)))
-        })
+        sections
+            .iter()
+            .find(|(t, _, _)| t == tag)
+            .map(|&(t, _, data)| Reader { data, pos: 0, tag: t })
+            .ok_or_else(|| Error::format(format!("required section {} is missing", tag_name(tag))))
     };
 
     let mut info = section(b"INFO")?;
@@ -282,7 +290,9 @@ pub fn from_bytes(bytes: &[u8]) -> Result<Database> {
         skeleton.names.push(r.string("joint name")?);
         let parent = r.i32("joint parent")?;
         if (j == 0 && parent != -1) || (j > 0 && !(0..j as i32).contains(&parent)) {
-            return Err(Error::format(format!("SKEL: joint {j} has parent {parent}; parents must precede their children and only joint 0 may be -1")));
+            return Err(Error::format(format!(
+                "SKEL: joint {j} has parent {parent}; parents must precede their children and only joint 0 may be -1"
+            )));
         }
         skeleton.parents.push(parent);
         skeleton.offsets.push(r.vec3("joint offset")?);
@@ -377,7 +387,8 @@ pub fn from_bytes(bytes: &[u8]) -> Result<Database> {
     let (local_positions, local_rotations, velocities) = if version == 1 {
         let local_positions = section(b"LPOS")?.vec3s(fj)?;
         let mut local_rotations: Vec<Quat> = section(b"LROT")?.pods(fj)?;
-        if let Some(i) = local_rotations.iter().position(|q| !(q.length_squared() - 1.0).abs().le(&QUAT_NORM_TOLERANCE)) {
+        if let Some(i) = local_rotations.iter().position(|q| !(q.length_squared() - 1.0).abs().le(&QUAT_NORM_TOLERANCE))
+        {
             return Err(Error::format(format!(
                 "LROT: frame {} joint {} is not a unit quaternion ({})",
                 i / num_joints,
@@ -391,11 +402,15 @@ pub fn from_bytes(bytes: &[u8]) -> Result<Database> {
         let velocities = (section(b"LVEL")?.vec3s(fj)?, section(b"LAVL")?.vec3s(fj)?);
         (local_positions, local_rotations, Some(velocities))
     } else {
-        let local_positions = codec::decode_positions(section(b"PANM")?.data, num_frames, &skeleton.offsets).map_err(Error::format)?;
-        let local_rotations = codec::decode_rotations(section(b"QROT")?.data, num_frames, num_joints, QUAT_NORM_TOLERANCE).map_err(Error::format)?;
+        let local_positions =
+            codec::decode_positions(section(b"PANM")?.data, num_frames, &skeleton.offsets).map_err(Error::format)?;
+        let local_rotations =
+            codec::decode_rotations(section(b"QROT")?.data, num_frames, num_joints, QUAT_NORM_TOLERANCE)
+                .map_err(Error::format)?;
         (local_positions, local_rotations, None)
     };
-    let contacts = section(b"CONT")?.flags(num_frames.checked_mul(2).ok_or_else(|| Error::format("INFO counts overflow"))?)?;
+    let contacts =
+        section(b"CONT")?.flags(num_frames.checked_mul(2).ok_or_else(|| Error::format("INFO counts overflow"))?)?;
 
     let mut r = section(b"FDSC")?;
     let n = r.count(40, "feature group count")?;
@@ -436,21 +451,39 @@ pub fn from_bytes(bytes: &[u8]) -> Result<Database> {
         let first_dim = r.u32("feature first dim")? as usize;
         let num = r.u32("feature dim count")? as usize;
         if first_dim != next_dim || num != offsets.len() * axes.num_dims() {
-            return Err(Error::format(format!("FDSC: feature '{quoted}' spans dims {first_dim}+{num}; groups must tile 0..{num_dims} in order")));
+            return Err(Error::format(format!(
+                "FDSC: feature '{quoted}' spans dims {first_dim}+{num}; groups must tile 0..{num_dims} in order"
+            )));
         }
         next_dim += num;
-        groups.push(FeatureGroup { name, kind, is_trajectory, axes, joint: joint as usize, axis, offsets, weight, first_dim, num_dims: num });
+        groups.push(FeatureGroup {
+            name,
+            kind,
+            is_trajectory,
+            axes,
+            joint: joint as usize,
+            axis,
+            offsets,
+            weight,
+            first_dim,
+            num_dims: num,
+        });
     }
     r.finish()?;
     if next_dim != num_dims {
         return Err(Error::format(format!("feature groups cover {next_dim} dims but INFO says {num_dims}")));
     }
-    let mut norm = section(b"FNRM")?.f32s(num_dims.checked_mul(2).ok_or_else(|| Error::format("INFO counts overflow"))?)?;
+    let mut norm =
+        section(b"FNRM")?.f32s(num_dims.checked_mul(2).ok_or_else(|| Error::format("INFO counts overflow"))?)?;
     let feature_scale = norm.split_off(num_dims);
     let feature_mean = norm;
     check_feature_scale(&feature_scale)?;
     let num_values = num_frames.checked_mul(num_dims).ok_or_else(|| Error::format("INFO counts overflow"))?;
-    let features = if version == 1 { section(b"FEAT")?.f32s(num_values)? } else { codec::unshuffle_features(section(b"FSHF")?.data, num_frames, num_dims).map_err(Error::format)? };
+    let features = if version == 1 {
+        section(b"FEAT")?.f32s(num_values)?
+    } else {
+        codec::unshuffle_features(section(b"FSHF")?.data, num_frames, num_dims).map_err(Error::format)?
+    };
     let valid = section(b"VALD")?.flags(num_frames)?;
 
     // Every other float, in one place: finite and within ±MAX_ABS_STORED.
@@ -499,9 +532,24 @@ pub fn from_bytes(bytes: &[u8]) -> Result<Database> {
 /// # Errors
 /// The first difference beyond those bounds.
 pub fn check_round_trip(original: &Database, loaded: &Database) -> std::result::Result<(), String> {
-    let exact = (&original.skeleton, original.fps, original.num_frames, &original.clips, &original.tags, &original.local_positions, &original.contacts)
-        == (&loaded.skeleton, loaded.fps, loaded.num_frames, &loaded.clips, &loaded.tags, &loaded.local_positions, &loaded.contacts)
-        && (&original.groups, &original.feature_mean, &original.feature_scale, &original.valid) == (&loaded.groups, &loaded.feature_mean, &loaded.feature_scale, &loaded.valid)
+    let exact = (
+        &original.skeleton,
+        original.fps,
+        original.num_frames,
+        &original.clips,
+        &original.tags,
+        &original.local_positions,
+        &original.contacts,
+    ) == (
+        &loaded.skeleton,
+        loaded.fps,
+        loaded.num_frames,
+        &loaded.clips,
+        &loaded.tags,
+        &loaded.local_positions,
+        &loaded.contacts,
+    ) && (&original.groups, &original.feature_mean, &original.feature_scale, &original.valid)
+        == (&loaded.groups, &loaded.feature_mean, &loaded.feature_scale, &loaded.valid)
         && original.features.iter().map(|f| f.to_bits()).eq(loaded.features.iter().map(|f| f.to_bits()));
     if !exact {
         return Err("the skeleton, clips, tags, positions, contacts, features or validity changed".into());
@@ -515,10 +563,18 @@ pub fn check_round_trip(original: &Database, loaded: &Database) -> std::result::
         }
     }
     // Against the velocities the original's own poses give: a version-1 file may store any.
-    let (velocities, angular_velocities) =
-        crate::database::pose_velocities(original.num_joints(), original.fps, &original.clips, &original.local_positions, &original.local_rotations);
+    let (velocities, angular_velocities) = crate::database::pose_velocities(
+        original.num_joints(),
+        original.fps,
+        &original.clips,
+        &original.local_positions,
+        &original.local_rotations,
+    );
     let angular = (2.0 * codec::MAX_ROTATION_ERROR * original.fps as f64) as f32 * 1.01;
-    let pairs = [(&velocities, &loaded.local_velocities, 1e-4, "velocity"), (&angular_velocities, &loaded.local_angular_velocities, angular, "angular velocity")];
+    let pairs = [
+        (&velocities, &loaded.local_velocities, 1e-4, "velocity"),
+        (&angular_velocities, &loaded.local_angular_velocities, angular, "angular velocity"),
+    ];
     for (a, b, bound, what) in pairs {
         if a.len() != b.len() {
             return Err(format!("the {what} count changed"));
@@ -558,9 +614,15 @@ pub fn check_database(db: &Database) -> Result<()> {
     check_floats("SKEL site offset", &db.skeleton.sites.iter().flat_map(|s| s.offset.to_array()).collect::<Vec<_>>())?;
     check_floats("FDSC feature axis", &db.groups.iter().flat_map(|g| g.axis.to_array()).collect::<Vec<_>>())?;
     check_floats("PANM", bytemuck::cast_slice(&db.local_positions))?;
-    if let Some(i) = db.local_rotations.iter().position(|q| !(q.length_squared() - 1.0).abs().le(&QUAT_NORM_TOLERANCE)) {
+    if let Some(i) = db.local_rotations.iter().position(|q| !(q.length_squared() - 1.0).abs().le(&QUAT_NORM_TOLERANCE))
+    {
         let j = db.num_joints().max(1);
-        return Err(Error::format(format!("QROT: frame {} joint {} is not a unit quaternion ({})", i / j, i % j, db.local_rotations[i])));
+        return Err(Error::format(format!(
+            "QROT: frame {} joint {} is not a unit quaternion ({})",
+            i / j,
+            i % j,
+            db.local_rotations[i]
+        )));
     }
     check_floats("FNRM mean", &db.feature_mean)?;
     check_floats("FSHF", &db.features)?;
@@ -570,27 +632,44 @@ pub fn check_database(db: &Database) -> Result<()> {
 fn check_clip_values(clip: &Clip) -> Result<()> {
     let name = quote(&clip.name);
     if !(MIN_SOURCE_FPS..=MAX_SOURCE_FPS).contains(&clip.source_fps) {
-        return Err(Error::format(format!("CLIP '{name}': source fps {} is outside {MIN_SOURCE_FPS}..{MAX_SOURCE_FPS}", num(clip.source_fps))));
+        return Err(Error::format(format!(
+            "CLIP '{name}': source fps {} is outside {MIN_SOURCE_FPS}..{MAX_SOURCE_FPS}",
+            num(clip.source_fps)
+        )));
     }
     if !(MIN_SCALE as f32..=MAX_SCALE as f32).contains(&clip.scale) {
-        return Err(Error::format(format!("CLIP '{name}': scale {} is outside {}..{}", num(clip.scale), num(MIN_SCALE), num(MAX_SCALE))));
+        return Err(Error::format(format!(
+            "CLIP '{name}': scale {} is outside {}..{}",
+            num(clip.scale),
+            num(MIN_SCALE),
+            num(MAX_SCALE)
+        )));
     }
     if !(1.0 / MAX_ROOT_SCALE..=MAX_ROOT_SCALE).contains(&clip.root_scale) {
-        return Err(Error::format(format!("CLIP '{name}': root scale {:e} is outside {:e}..{MAX_ROOT_SCALE:e}", clip.root_scale, 1.0 / MAX_ROOT_SCALE)));
+        return Err(Error::format(format!(
+            "CLIP '{name}': root scale {:e} is outside {:e}..{MAX_ROOT_SCALE:e}",
+            clip.root_scale,
+            1.0 / MAX_ROOT_SCALE
+        )));
     }
     Ok(())
 }
 
 fn check_offsets(quoted: &str, offsets: &[i32]) -> Result<()> {
     if let Some(o) = offsets.iter().find(|o| o.unsigned_abs() > MAX_FEATURE_OFFSET as u32) {
-        return Err(Error::format(format!("FDSC: feature '{quoted}' has frame offset {o}, beyond ±{MAX_FEATURE_OFFSET}")));
+        return Err(Error::format(format!(
+            "FDSC: feature '{quoted}' has frame offset {o}, beyond ±{MAX_FEATURE_OFFSET}"
+        )));
     }
     Ok(())
 }
 
 fn check_weight(quoted: &str, weight: f32) -> Result<()> {
     if !(1.0 / MAX_STORED_WEIGHT..=MAX_STORED_WEIGHT).contains(&weight) {
-        return Err(Error::format(format!("FDSC: feature '{quoted}' has weight {weight:e}, outside {:e}..{MAX_STORED_WEIGHT:e}", 1.0 / MAX_STORED_WEIGHT)));
+        return Err(Error::format(format!(
+            "FDSC: feature '{quoted}' has weight {weight:e}, outside {:e}..{MAX_STORED_WEIGHT:e}",
+            1.0 / MAX_STORED_WEIGHT
+        )));
     }
     Ok(())
 }
@@ -617,7 +696,10 @@ fn check_floats(what: &str, values: &[f32]) -> Result<()> {
     let bad = values.iter().fold(false, |bad, v| bad | (v.to_bits() & 0x7FFF_FFFF > bound));
     if bad {
         let i = values.iter().position(|v| v.to_bits() & 0x7FFF_FFFF > bound).unwrap_or(0);
-        return Err(Error::format(format!("{what}: value {i} is {}, not finite or beyond ±{MAX_ABS_STORED:e}", num(values[i]))));
+        return Err(Error::format(format!(
+            "{what}: value {i} is {}, not finite or beyond ±{MAX_ABS_STORED:e}",
+            num(values[i])
+        )));
     }
     Ok(())
 }
@@ -726,7 +808,8 @@ impl<'a> Reader<'a> {
     fn string(&mut self, field: &str) -> Result<String> {
         let n = self.u32(field)? as usize;
         let bytes = self.take(n, field)?;
-        String::from_utf8(bytes.to_vec()).map_err(|_| Error::format(format!("{} {field} is not UTF-8", tag_name(&self.tag))))
+        String::from_utf8(bytes.to_vec())
+            .map_err(|_| Error::format(format!("{} {field} is not UTF-8", tag_name(&self.tag))))
     }
     /// The whole section as exactly `n` bytes, each 0 or 1 (`CONT`, `VALD`).
     fn flags(&mut self, n: usize) -> Result<Vec<u8>> {
@@ -749,7 +832,9 @@ impl<'a> Reader<'a> {
     /// `n` plain-old-data values filling the whole section (copied, so alignment is free).
     fn pods<T: bytemuck::Pod>(&mut self, n: usize) -> Result<Vec<T>> {
         // Checked: on wasm32 `n · size` could wrap and match a short section.
-        let len = n.checked_mul(std::mem::size_of::<T>()).ok_or_else(|| Error::format(format!("{} size overflows", tag_name(&self.tag))))?;
+        let len = n
+            .checked_mul(std::mem::size_of::<T>())
+            .ok_or_else(|| Error::format(format!("{} size overflows", tag_name(&self.tag))))?;
         Ok(bytemuck::pod_collect_to_vec(self.exact(len)?))
     }
     fn f32s(&mut self, n: usize) -> Result<Vec<f32>> {
@@ -775,7 +860,17 @@ mod tests {
             },
             fps: 60.0,
             num_frames: 3,
-            clips: vec![Clip { name: "a".into(), source: "a.bvh".into(), start: 0, end: 3, mirrored: false, source_fps: 120.0, scale: 1.0, root_scale: 1.0, source_start: 0 }],
+            clips: vec![Clip {
+                name: "a".into(),
+                source: "a.bvh".into(),
+                start: 0,
+                end: 3,
+                mirrored: false,
+                source_fps: 120.0,
+                scale: 1.0,
+                root_scale: 1.0,
+                source_start: 0,
+            }],
             tags: vec![Tag { name: "walk".into(), ranges: vec![(0, 2)] }],
             local_positions: (0..6).map(|i| Vec3::splat(i as f32)).collect(),
             local_rotations: vec![Quat::IDENTITY; 6],
@@ -846,7 +941,8 @@ mod tests {
         let mut db = tiny();
         db.clips[0].name = "x".repeat(3);
         let mut b = to_bytes(&db);
-        let clip_offset = u64::from_le_bytes(b[HEADER_LEN + 2 * 24 + 8..HEADER_LEN + 2 * 24 + 16].try_into().unwrap()) as usize;
+        let clip_offset =
+            u64::from_le_bytes(b[HEADER_LEN + 2 * 24 + 8..HEADER_LEN + 2 * 24 + 16].try_into().unwrap()) as usize;
         b[clip_offset..clip_offset + 4].copy_from_slice(&u32::MAX.to_le_bytes());
         refix(&mut b);
         assert!(message(&b).contains("does not fit"));
@@ -881,19 +977,27 @@ mod tests {
             ("inf feature", Box::new(|db| db.features[5] = f32::INFINITY), "FSHF: value 5 is inf"),
             ("zero scale", Box::new(|db| db.feature_scale[1] = 0.0), "FNRM: scale of dim 1 is 0"),
             ("nan clip scale", Box::new(|db| db.clips[0].scale = f32::NAN), "CLIP 'a': scale NaN"),
-            ("not a unit quaternion", Box::new(|db| db.local_rotations[4] = Quat::from_xyzw(0.0, 0.0, 0.0, 0.5)), "QROT: frame 2 joint 0 is not a unit quaternion"),
+            (
+                "not a unit quaternion",
+                Box::new(|db| db.local_rotations[4] = Quat::from_xyzw(0.0, 0.0, 0.0, 0.5)),
+                "QROT: frame 2 joint 0 is not a unit quaternion",
+            ),
             ("contact byte 2", Box::new(|db| db.contacts[1] = 2), "section CONT: byte 1 is 2"),
             ("huge offset", Box::new(|db| db.groups[0].offsets[0] = i32::MIN), "frame offset -2147483648"),
             ("nan weight", Box::new(|db| db.groups[0].weight = f32::NAN), "weight NaN"),
             ("denormal weight", Box::new(|db| db.groups[0].weight = 1e-40), "weight 1e-40"),
             ("zero root scale", Box::new(|db| db.clips[0].root_scale = 0.0), "root scale 0e0"),
             ("nan site", Box::new(|db| db.skeleton.sites[0].offset.x = f32::NAN), "SKEL site offset"),
-            ("duplicate clip name", Box::new(|db| {
-                db.clips[0].end = 1;
-                let mut c = db.clips[0].clone();
-                (c.start, c.end) = (1, 3);
-                db.clips.push(c);
-            }), "two clips are named 'a'"),
+            (
+                "duplicate clip name",
+                Box::new(|db| {
+                    db.clips[0].end = 1;
+                    let mut c = db.clips[0].clone();
+                    (c.start, c.end) = (1, 3);
+                    db.clips.push(c);
+                }),
+                "two clips are named 'a'",
+            ),
         ];
         for (what, edit, expected) in cases {
             let mut db = tiny();
@@ -927,15 +1031,21 @@ mod tests {
             let mut db = tiny();
             edit(&mut db);
             let loader = message(&to_bytes(&db));
-            let builder = format!("invalid .mmdb: {}", check_database(&db).map(|_| "accepted".into()).unwrap_or_else(|e| match e {
-                Error::Format(m) => m,
-                other => other.to_string(),
-            }));
+            let builder = format!(
+                "invalid .mmdb: {}",
+                check_database(&db).map(|_| "accepted".into()).unwrap_or_else(|e| match e {
+                    Error::Format(m) => m,
+                    other => other.to_string(),
+                })
+            );
             assert_eq!(builder, loader, "{what}");
         }
         let mut db = tiny();
         db.local_rotations[2] = Quat::from_xyzw(0.0, 0.0, 0.0, 2.0);
-        assert!(check_database(&db).unwrap_err().to_string().contains("QROT: frame 1 joint 0 is not a unit quaternion"));
+        assert!(check_database(&db)
+            .unwrap_err()
+            .to_string()
+            .contains("QROT: frame 1 joint 0 is not a unit quaternion"));
     }
 
     /// A frame count past 2²⁴ in `INFO` is refused before anything is read (frame indices stay
@@ -986,7 +1096,12 @@ mod tests {
         let qrot: [u8; 8] = b[entry(b"QROT") + 8..entry(b"QROT") + 16].try_into().unwrap();
         b[entry(b"CONT") + 8..entry(b"CONT") + 16].copy_from_slice(&qrot);
         refix(&mut b);
-        assert!(message(&b).contains("sections QROT and CONT overlap") || message(&b).contains("sections CONT and QROT overlap"), "{}", message(&b));
+        assert!(
+            message(&b).contains("sections QROT and CONT overlap")
+                || message(&b).contains("sections CONT and QROT overlap"),
+            "{}",
+            message(&b)
+        );
         let mut b = bytes.clone();
         b[entry(b"INFO") + 8] += 4;
         refix(&mut b);
@@ -1007,7 +1122,10 @@ mod tests {
         let new = from_bytes(&v2).unwrap();
         assert_eq!(new.local_positions, old.local_positions);
         assert_eq!(new.features, old.features);
-        assert_eq!((&new.contacts, &new.valid, &new.clips, &new.skeleton), (&old.contacts, &old.valid, &old.clips, &old.skeleton));
+        assert_eq!(
+            (&new.contacts, &new.valid, &new.clips, &new.skeleton),
+            (&old.contacts, &old.valid, &old.clips, &old.skeleton)
+        );
         for (a, b) in old.local_rotations.iter().zip(&new.local_rotations) {
             assert!(codec::angle(*a, *b) <= codec::MAX_ROTATION_ERROR);
         }

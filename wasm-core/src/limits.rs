@@ -146,7 +146,12 @@ pub fn check_scale(scale: f64) -> std::result::Result<(), String> {
     if (MIN_SCALE..=MAX_SCALE).contains(&scale) {
         Ok(())
     } else {
-        Err(format!("scale must be between {} and {} metres per unit, found {}", num(MIN_SCALE), num(MAX_SCALE), num(scale)))
+        Err(format!(
+            "scale must be between {} and {} metres per unit, found {}",
+            num(MIN_SCALE),
+            num(MAX_SCALE),
+            num(scale)
+        ))
     }
 }
 
@@ -164,7 +169,9 @@ pub fn check_feature_dims(dims: usize) -> std::result::Result<(), String> {
     if (1..=MAX_FEATURE_DIMS).contains(&dims) {
         Ok(())
     } else {
-        Err(format!("{dims} feature dimensions; the search takes 1 to {MAX_FEATURE_DIMS} (fewer groups, offsets or axes)"))
+        Err(format!(
+            "{dims} feature dimensions; the search takes 1 to {MAX_FEATURE_DIMS} (fewer groups, offsets or axes)"
+        ))
     }
 }
 
@@ -356,7 +363,8 @@ mod tests {
         assert_eq!(resampled_frames(0, 120.0, 60.0), Some(0));
         assert_eq!(resampled_frames(MAX_FRAMES, 1.0, 1000.0), None);
         assert!(check_database_size(100_000, 32, 27).is_ok());
-        let e = check_database_size(resampled_frames(1_000_000, 1.0, 1000.0).unwrap_or(usize::MAX), 14, 27).unwrap_err();
+        let e =
+            check_database_size(resampled_frames(1_000_000, 1.0, 1000.0).unwrap_or(usize::MAX), 14, 27).unwrap_err();
         assert!(e.contains("frames") && e.len() < 200, "{e}");
     }
 }

@@ -53,7 +53,12 @@ impl Rng {
     /// A uniformly distributed rotation (normalized point of the 4-ball).
     pub fn quat(&mut self) -> Quat {
         loop {
-            let v = Vec4::new(self.uniform(-1.0, 1.0), self.uniform(-1.0, 1.0), self.uniform(-1.0, 1.0), self.uniform(-1.0, 1.0));
+            let v = Vec4::new(
+                self.uniform(-1.0, 1.0),
+                self.uniform(-1.0, 1.0),
+                self.uniform(-1.0, 1.0),
+                self.uniform(-1.0, 1.0),
+            );
             let l = v.length();
             if l > 0.1 && l <= 1.0 {
                 return Quat::from_vec4(v / l);

@@ -53,7 +53,10 @@ fn the_memory_estimate_bounds_what_a_build_holds() {
     let cases: Vec<(&str, Vec<Source>)> = vec![
         (r#"{}"#, vec![walk]),
         (r#"{"fps": 1000, "mirror": false}"#, vec![parsed("walk.bvh", &hostile::humanoid_bvh(600))]),
-        (r#"{"fps": 120, "reverse": true, "motion_tags": true}"#, vec![parsed("walk.bvh", &hostile::humanoid_bvh(600))]),
+        (
+            r#"{"fps": 120, "reverse": true, "motion_tags": true}"#,
+            vec![parsed("walk.bvh", &hostile::humanoid_bvh(600))],
+        ),
         (r#"{}"#, vec![source("cmu-asf/cmu_02_06.bvh")]),
         (r#"{"fps": 240, "mirror": false}"#, vec![cmu]),
         (r#"{"fps": 1000, "mirror": false}"#, vec![source("cmu-asf/cmu_02_06.bvh")]),
@@ -70,10 +73,19 @@ fn the_memory_estimate_bounds_what_a_build_holds() {
         let (footprint, peak) = measured(json, sources);
         let estimate = footprint.bytes() - footprint.source_bytes;
         let share = peak as f64 / estimate as f64;
-        eprintln!("{json:.40} {} frames: peak {:.1} MB, estimate {:.1} MB ({:.0} %)", footprint.frames, peak as f64 / 1e6, estimate as f64 / 1e6, 100.0 * share);
+        eprintln!(
+            "{json:.40} {} frames: peak {:.1} MB, estimate {:.1} MB ({:.0} %)",
+            footprint.frames,
+            peak as f64 / 1e6,
+            estimate as f64 / 1e6,
+            100.0 * share
+        );
         assert!(peak as u64 <= estimate, "{json}: the build held {peak} B, more than the {estimate} B estimated");
         // Past the fixed 48 MiB allowance for small things the estimate is within 2× of the peak.
-        assert!((estimate - (48 << 20)) as f64 <= 2.0 * peak as f64, "{json}: estimate {estimate} B for a peak of {peak} B");
+        assert!(
+            (estimate - (48 << 20)) as f64 <= 2.0 * peak as f64,
+            "{json}: estimate {estimate} B for a peak of {peak} B"
+        );
     }
 }
 
@@ -84,9 +96,15 @@ fn the_memory_estimate_bounds_what_a_build_holds() {
 fn a_600_frame_take_at_1_fps_built_at_1000_fps_is_refused_before_allocating() {
     let text = cut("cmu-asf/cmu_02_06.bvh", 600, "1");
     let slow = parsed("slow.bvh", &text);
-    let (result, peak) = alloc::measure(|| build(&config(r#"{"fps": 1000, "mirror": false}"#), std::slice::from_ref(&slow)).map(|_| ()));
+    let (result, peak) =
+        alloc::measure(|| build(&config(r#"{"fps": 1000, "mirror": false}"#), std::slice::from_ref(&slow)).map(|_| ()));
     let e = result.unwrap_err().to_string();
-    assert!(e.contains("the build would need about 3.9 GB of memory") && e.contains("599001 frames") && e.contains("more than the 3.2 GB a build may use"), "{e}");
+    assert!(
+        e.contains("the build would need about 3.9 GB of memory")
+            && e.contains("599001 frames")
+            && e.contains("more than the 3.2 GB a build may use"),
+        "{e}"
+    );
     assert!(peak < 64 << 20, "{peak} B held before refusing");
     // The same take at 100 fps is well inside (60,000 frames).
     let out = build(&config(r#"{"fps": 100, "mirror": false}"#), &[slow]).unwrap();
@@ -106,11 +124,24 @@ fn a_take_scaled_past_its_reach_is_refused_and_what_builds_loads() {
     let far: String = text
         .lines()
         .enumerate()
-        .map(|(i, l)| if i >= 76 { l.replacen("0.000000 0.950000", if (i - 76) / 2 % 2 == 0 { "10000000 0.950000" } else { "-10000000 0.950000" }, 1) } else { l.to_string() })
+        .map(|(i, l)| {
+            if i >= 76 {
+                l.replacen(
+                    "0.000000 0.950000",
+                    if (i - 76) / 2 % 2 == 0 { "10000000 0.950000" } else { "-10000000 0.950000" },
+                    1,
+                )
+            } else {
+                l.to_string()
+            }
+        })
         .collect::<Vec<_>>()
         .join("\n");
     let far = parsed("far.bvh", &far);
-    let e = build(&config(r#"{"scale": 1000, "fps": 1000, "mirror": false}"#), std::slice::from_ref(&far)).map(|_| ()).unwrap_err().to_string();
+    let e = build(&config(r#"{"scale": 1000, "fps": 1000, "mirror": false}"#), std::slice::from_ref(&far))
+        .map(|_| ())
+        .unwrap_err()
+        .to_string();
     assert!(e.contains("far.bvh: its values times the unit scale 1000 reach") && e.contains("at most 100000 m"), "{e}");
     // At 1 mm per unit the same take jumps 10 km: it builds, and loads.
     let out = build(&config(r#"{"scale": 0.001, "fps": 1000, "mirror": false}"#), &[far]).unwrap();
@@ -123,9 +154,19 @@ fn a_take_scaled_past_its_reach_is_refused_and_what_builds_loads() {
 #[test]
 fn a_leg_ratio_beyond_the_loader_s_root_scale_is_not_applied() {
     let walk = hostile::humanoid_bvh(60);
-    let tiny = walk.replace("OFFSET 0 -0.42 0", "OFFSET 0 -0.000042 0").replace("OFFSET 0 -0.41 0", "OFFSET 0 -0.000041 0").replace("OFFSET 0.1 -0.05 0", "OFFSET 0.1 -0.000005 0").replace("OFFSET -0.1 -0.05 0", "OFFSET -0.1 -0.000005 0");
-    let out = build(&config(r#"{"scale": 1, "mirror": false}"#), &[parsed("walk.bvh", &walk), parsed("tiny.bvh", &tiny)]).unwrap();
-    assert!(out.warnings.iter().any(|w| w.contains("tiny.bvh: legs of length") && w.contains("root motion not rescaled")), "{:?}", out.warnings);
+    let tiny = walk
+        .replace("OFFSET 0 -0.42 0", "OFFSET 0 -0.000042 0")
+        .replace("OFFSET 0 -0.41 0", "OFFSET 0 -0.000041 0")
+        .replace("OFFSET 0.1 -0.05 0", "OFFSET 0.1 -0.000005 0")
+        .replace("OFFSET -0.1 -0.05 0", "OFFSET -0.1 -0.000005 0");
+    let out =
+        build(&config(r#"{"scale": 1, "mirror": false}"#), &[parsed("walk.bvh", &walk), parsed("tiny.bvh", &tiny)])
+            .unwrap();
+    assert!(
+        out.warnings.iter().any(|w| w.contains("tiny.bvh: legs of length") && w.contains("root motion not rescaled")),
+        "{:?}",
+        out.warnings
+    );
     assert!(out.database.clips.iter().all(|c| c.root_scale == 1.0));
     format::from_bytes(&format::to_bytes(&out.database)).unwrap();
 }
@@ -139,7 +180,12 @@ fn a_database_with_more_dimensions_than_the_search_takes_is_refused() {
     let d = hostile::tiny_database().num_features();
     let dims = d + 128;
     let e = format::from_bytes(&format::to_bytes(&db)).unwrap_err().to_string();
-    assert_eq!(e, format!("invalid .mmdb: INFO: {dims} feature dimensions; the search takes 1 to 128 (fewer groups, offsets or axes)"));
+    assert_eq!(
+        e,
+        format!(
+            "invalid .mmdb: INFO: {dims} feature dimensions; the search takes 1 to 128 (fewer groups, offsets or axes)"
+        )
+    );
     let e = format::check_database(&db).unwrap_err().to_string();
     assert!(e.contains(&format!("{dims} feature dimensions")), "{e}");
 }

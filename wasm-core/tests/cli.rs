@@ -27,7 +27,14 @@ fn stdout_json(out: &Output) -> serde_json::Value {
 fn build_inspect_and_search() {
     let db = temp("two.mmdb");
     let db = db.to_str().unwrap();
-    let built = stdout_json(&mmdb(&["build", &mocap("cmu-asf/cmu_16_15.bvh"), &mocap("cmu-asf/cmu_16_17.bvh"), "-o", db, "--json"]));
+    let built = stdout_json(&mmdb(&[
+        "build",
+        &mocap("cmu-asf/cmu_16_15.bvh"),
+        &mocap("cmu-asf/cmu_16_17.bvh"),
+        "-o",
+        db,
+        "--json",
+    ]));
     let inspected = stdout_json(&mmdb(&["inspect", db, "--json"]));
     assert_eq!(built["num_frames"], inspected["num_frames"]);
     assert_eq!(inspected["clips"].as_array().unwrap().len(), 4, "2 takes + their mirrors");
@@ -47,9 +54,19 @@ fn build_inspect_and_search() {
     }
     // A query equal to frame 100's stored (normalized) features finds frame 100 at cost 0.
     let dump = stdout_json(&mmdb(&["dump", db]));
-    let row: Vec<String> = dump["features"].as_array().unwrap()[100 * 27..101 * 27].iter().map(|v| v.to_string()).collect();
+    let row: Vec<String> =
+        dump["features"].as_array().unwrap()[100 * 27..101 * 27].iter().map(|v| v.to_string()).collect();
     for method in ["aabb", "simd", "scalar"] {
-        let own = stdout_json(&mmdb(&["search", db, "--query", &row.join(","), "--normalized", "--method", method, "--json"]));
+        let own = stdout_json(&mmdb(&[
+            "search",
+            db,
+            "--query",
+            &row.join(","),
+            "--normalized",
+            "--method",
+            method,
+            "--json",
+        ]));
         assert_eq!(own["results"][0]["frame"], 100, "{method}");
         assert_eq!(own["results"][0]["cost"], 0.0);
     }
@@ -71,7 +88,8 @@ fn build_from_config_with_tags_and_ranges() {
     )
     .unwrap();
     let db = temp("config.mmdb");
-    let info = stdout_json(&mmdb(&["build", "--config", config.to_str().unwrap(), "-o", db.to_str().unwrap(), "--json"]));
+    let info =
+        stdout_json(&mmdb(&["build", "--config", config.to_str().unwrap(), "-o", db.to_str().unwrap(), "--json"]));
     assert_eq!(info["fps"], 30.0);
     let clips = info["clips"].as_array().unwrap();
     assert_eq!(clips.len(), 10, "cmu_16_11..19 via the wildcard + 16_27");
@@ -81,7 +99,8 @@ fn build_from_config_with_tags_and_ranges() {
     // 120 source frames at 120 fps = 1 s = 30 frames at 30 fps, in each of the 9 walk clips.
     assert_eq!(info["tags"][0]["frames"], 9 * 30);
     // The tag restricts the search.
-    let found = stdout_json(&mmdb(&["search", db.to_str().unwrap(), "--frame", "5", "--tag", "turn", "-k", "5", "--json"]));
+    let found =
+        stdout_json(&mmdb(&["search", db.to_str().unwrap(), "--frame", "5", "--tag", "turn", "-k", "5", "--json"]));
     let turn = &clips.last().unwrap();
     for r in found["results"].as_array().unwrap() {
         let f = r["frame"].as_u64().unwrap();
@@ -92,7 +111,8 @@ fn build_from_config_with_tags_and_ranges() {
 #[test]
 fn bad_input_exits_non_zero_with_a_clear_message() {
     let bad = temp("bad.bvh");
-    std::fs::write(&bad, "HIERARCHY\nROOT hips\n{\n  OFFSET 0 0 0\n  CHANNELS 3 Xrotation Yrotation Wrotation\n}\n").unwrap();
+    std::fs::write(&bad, "HIERARCHY\nROOT hips\n{\n  OFFSET 0 0 0\n  CHANNELS 3 Xrotation Yrotation Wrotation\n}\n")
+        .unwrap();
     let out = mmdb(&["build", bad.to_str().unwrap(), "-o", temp("x.mmdb").to_str().unwrap()]);
     assert_eq!(out.status.code(), Some(1));
     let err = String::from_utf8_lossy(&out.stderr);

@@ -20,7 +20,8 @@ static ALLOCATOR: alloc::Counting = alloc::Counting;
 
 /// A walk whose first 100 source frames are tagged `idle`, so characters have an idle mask.
 fn database(json: &str) -> Database {
-    let source = Source { name: "walk.bvh".into(), bvh: Bvh::parse("walk.bvh", hostile::humanoid_bvh(400).as_bytes()).unwrap() };
+    let source =
+        Source { name: "walk.bvh".into(), bvh: Bvh::parse("walk.bvh", hostile::humanoid_bvh(400).as_bytes()).unwrap() };
     build(&BuildConfig::from_json(json).unwrap(), &[source]).unwrap().database
 }
 
@@ -61,10 +62,23 @@ fn a_crowd_is_sized_by_its_first_update_and_its_memory() {
     let db = database("{}");
     let most = Crowd::max_characters(&db);
     let per_search = (db.num_frames * db.num_features()) as u64;
-    assert_eq!(most as u64, (CROWD_SEARCH_BUDGET / per_search).min(CROWD_MEMORY_BUDGET / character_bytes(&db) as u64).min(MAX_CROWD as u64));
-    assert!(most as u64 * per_search <= CROWD_SEARCH_BUDGET && most as u64 * character_bytes(&db) as u64 <= CROWD_MEMORY_BUDGET);
+    assert_eq!(
+        most as u64,
+        (CROWD_SEARCH_BUDGET / per_search).min(CROWD_MEMORY_BUDGET / character_bytes(&db) as u64).min(MAX_CROWD as u64)
+    );
+    assert!(
+        most as u64 * per_search <= CROWD_SEARCH_BUDGET
+            && most as u64 * character_bytes(&db) as u64 <= CROWD_MEMORY_BUDGET
+    );
     let e = Crowd::new(&db, 100_000, &CharacterSettings::default()).err().unwrap();
-    assert!(e.starts_with(&format!("crowd: 100000 characters asked for; at most {most} on this database ({} frames × {} feature dims", db.num_frames, db.num_features())), "{e}");
+    assert!(
+        e.starts_with(&format!(
+            "crowd: 100000 characters asked for; at most {most} on this database ({} frames × {} feature dims",
+            db.num_frames,
+            db.num_features()
+        )),
+        "{e}"
+    );
     assert!(Crowd::new(&db, most + 1, &CharacterSettings::default()).is_err());
     // The locomotion database's size (24,688 frames × 27 dims): 6,443 characters, ~1 s of search.
     assert_eq!(CROWD_SEARCH_BUDGET / (24_688 * 27), 6443);
@@ -94,7 +108,11 @@ fn a_character_holds_less_than_character_bytes() {
     for db in [database("{}"), database(wide), cmu] {
         let (c, bytes) = alloc::measure(|| Character::new(&db, CharacterSettings::default()));
         let bound = character_bytes(&db) - std::mem::size_of::<Character>() - std::mem::size_of::<Input>();
-        eprintln!("{} joints, {} dims: a character holds {bytes} B on the heap (bound {bound} B)", db.num_joints(), db.num_features());
+        eprintln!(
+            "{} joints, {} dims: a character holds {bytes} B on the heap (bound {bound} B)",
+            db.num_joints(),
+            db.num_features()
+        );
         assert!(bytes <= bound, "{bytes} B > {bound} B");
         drop(c);
     }

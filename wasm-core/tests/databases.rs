@@ -6,8 +6,8 @@ use glam::{Quat, Vec2, Vec3};
 use mmcore::character::{Character, CharacterSettings, Tracked};
 use mmcore::config::BuildConfig;
 use mmcore::controller::Input;
-use mmcore::search::SearchIndex;
 use mmcore::naturalness::{self, Motion};
+use mmcore::search::SearchIndex;
 use mmcore::{build, format, quality, vr_replay, Bvh, Database, Source};
 use std::path::Path;
 use std::sync::OnceLock;
@@ -15,7 +15,8 @@ use std::sync::OnceLock;
 /// Builds `databases/<name>.json` as `mmdb build --config` does (its files are plain paths).
 fn build_default(name: &str) -> (Database, Vec<String>) {
     let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../databases");
-    let mut config = BuildConfig::from_json(&std::fs::read_to_string(dir.join(format!("{name}.json"))).unwrap()).unwrap();
+    let mut config =
+        BuildConfig::from_json(&std::fs::read_to_string(dir.join(format!("{name}.json"))).unwrap()).unwrap();
     if let Some(csv) = &config.frame_cuts {
         config.cuts = mmcore::frame_cuts::parse(&std::fs::read_to_string(dir.join(csv)).unwrap()).unwrap();
     }
@@ -24,7 +25,8 @@ fn build_default(name: &str) -> (Database, Vec<String>) {
         .iter()
         .map(|c| {
             let path = dir.join(&c.file);
-            let bytes = std::fs::read(&path).unwrap_or_else(|e| panic!("{}: {e} (is ../shared beside the repo?)", path.display()));
+            let bytes = std::fs::read(&path)
+                .unwrap_or_else(|e| panic!("{}: {e} (is ../shared beside the repo?)", path.display()));
             Source { name: c.file.clone(), bvh: Bvh::parse(&c.file, &bytes).unwrap() }
         })
         .collect();
@@ -44,7 +46,10 @@ fn vr() -> &'static (Database, Vec<String>) {
 }
 
 fn seconds_tagged(db: &Database, tag: &str) -> f32 {
-    db.tags.iter().find(|t| t.name == tag).map_or(0.0, |t| t.ranges.iter().map(|(s, e)| (e - s) as f32).sum::<f32>() / db.fps)
+    db.tags
+        .iter()
+        .find(|t| t.name == tag)
+        .map_or(0.0, |t| t.ranges.iter().map(|(s, e)| (e - s) as f32).sum::<f32>() / db.fps)
 }
 
 /// Every page loads the desktop database: it stays near its size (19,474 frames before it gained
@@ -54,7 +59,12 @@ fn seconds_tagged(db: &Database, tag: &str) -> f32 {
 #[test]
 fn the_default_databases_hold_every_way_of_moving() {
     for (name, (db, notes), max_frames, tags) in [
-        ("locomotion", locomotion(), 36_000, &["walk", "run", "turn", "backward", "sidestep", "idle", "turn_in_place"][..]),
+        (
+            "locomotion",
+            locomotion(),
+            36_000,
+            &["walk", "run", "turn", "backward", "sidestep", "idle", "turn_in_place"][..],
+        ),
         ("vr", vr(), 27_000, &["walk", "backward", "sidestep", "idle", "turn_in_place", "gesture"][..]),
     ] {
         println!("{name}: {} frames, {} clips", db.num_frames, db.clips.len());
@@ -113,11 +123,22 @@ fn the_foot_lock_holds_while_strafing_and_overall() {
     let (mut locked, mut unlocked) = (0.0, 0.0);
     for script in quality::scripts() {
         let r = quality::run(db, &settings, &script, 60.0, 1.0 / 60.0);
-        println!("{:<16} root {:.3} m, skating {:.2} / {:.2} cm/s", r.script, r.mean_distance, 100.0 * r.skating, 100.0 * r.skating_without_lock);
+        println!(
+            "{:<16} root {:.3} m, skating {:.2} / {:.2} cm/s",
+            r.script,
+            r.mean_distance,
+            100.0 * r.skating,
+            100.0 * r.skating_without_lock
+        );
         locked += r.skating;
         unlocked += r.skating_without_lock;
         if r.script == "strafe" {
-            assert!(r.skating <= 0.5 * r.skating_without_lock, "strafe: {} vs {} without the lock", r.skating, r.skating_without_lock);
+            assert!(
+                r.skating <= 0.5 * r.skating_without_lock,
+                "strafe: {} vs {} without the lock",
+                r.skating,
+                r.skating_without_lock
+            );
         }
         if r.script == "back-pedal" || r.script == "strafe" {
             assert!(r.mean_distance < 0.06, "{}: root {} m behind the simulation", r.script, r.mean_distance);
@@ -136,7 +157,15 @@ fn the_tracked_drive_follows_a_straight_walk_at_every_speed() {
     let db = &vr().0;
     let index = SearchIndex::new(db).unwrap();
     let alpha = 0.2;
-    let variants = [vr_replay::vr_settings(), CharacterSettings { adjustment_max_ratio: 0.5, adjustment_min_speed: 0.0, beta_trajectory: 1.0, ..vr_replay::vr_settings() }];
+    let variants = [
+        vr_replay::vr_settings(),
+        CharacterSettings {
+            adjustment_max_ratio: 0.5,
+            adjustment_min_speed: 0.0,
+            beta_trajectory: 1.0,
+            ..vr_replay::vr_settings()
+        },
+    ];
     for (v, base) in variants.iter().enumerate() {
         for (direction, hz) in [(0.0f32, 72.0f32), (2.3, 90.0)] {
             for speed in [0.3f32, 0.45, 0.6, 0.8, 1.0, 1.2, 1.4, 1.6, 1.8, 2.0] {
@@ -160,7 +189,10 @@ fn the_tracked_drive_follows_a_straight_walk_at_every_speed() {
                 }
                 let mean = sum / count as f32;
                 println!("settings {v}, direction {direction}, {hz} Hz, {speed} m/s: mean {mean:.3} m, max {max:.3} m");
-                assert!(mean < 0.05 && max < 0.8 * alpha, "settings {v}, {speed} m/s at {hz} Hz: mean {mean} m, max {max} m behind the head");
+                assert!(
+                    mean < 0.05 && max < 0.8 * alpha,
+                    "settings {v}, {speed} m/s at {hz} Hz: mean {mean} m, max {max} m behind the head"
+                );
             }
         }
     }
@@ -178,9 +210,11 @@ fn format_version_2_keeps_the_default_database() {
     let bytes = format::to_bytes(db);
     let loaded = format::from_bytes(&bytes).unwrap();
     format::check_round_trip(db, &loaded).unwrap();
-    let worst_rotation = db.local_rotations.iter().zip(&loaded.local_rotations).map(|(a, b)| codec::angle(*a, *b)).fold(0.0, f64::max);
+    let worst_rotation =
+        db.local_rotations.iter().zip(&loaded.local_rotations).map(|(a, b)| codec::angle(*a, *b)).fold(0.0, f64::max);
     let j = db.num_joints();
-    let (mut p0, mut r0, mut p1, mut r1) = (vec![Vec3::ZERO; j], vec![glam::Quat::IDENTITY; j], vec![Vec3::ZERO; j], vec![glam::Quat::IDENTITY; j]);
+    let (mut p0, mut r0, mut p1, mut r1) =
+        (vec![Vec3::ZERO; j], vec![glam::Quat::IDENTITY; j], vec![Vec3::ZERO; j], vec![glam::Quat::IDENTITY; j]);
     let mut worst_position = 0.0f32;
     for f in 0..db.num_frames {
         db.forward_kinematics(f, &mut p0, &mut r0);
@@ -195,8 +229,15 @@ fn format_version_2_keeps_the_default_database() {
         let source = rng.below(db.num_frames);
         let noise = [0.0, 0.1, 1.0][rng.below(3)];
         query.iter_mut().zip(db.feature(source)).for_each(|(q, &x)| *q = x + noise * rng.normal());
-        let options = SearchOptions { beta_pose: rng.uniform(0.0, 2.0), beta_trajectory: rng.uniform(0.0, 2.0), ..Default::default() };
-        let (x, y) = (a.search(SearchMethod::Aabb, &query, &options, f32::INFINITY), b.search(SearchMethod::Aabb, &query, &options, f32::INFINITY));
+        let options = SearchOptions {
+            beta_pose: rng.uniform(0.0, 2.0),
+            beta_trajectory: rng.uniform(0.0, 2.0),
+            ..Default::default()
+        };
+        let (x, y) = (
+            a.search(SearchMethod::Aabb, &query, &options, f32::INFINITY),
+            b.search(SearchMethod::Aabb, &query, &options, f32::INFINITY),
+        );
         assert_eq!(x.map(|(f, c)| (f, c.to_bits())), y.map(|(f, c)| (f, c.to_bits())));
         same += 1;
     }
@@ -218,12 +259,25 @@ fn format_version_2_keeps_the_default_database() {
 #[test]
 fn the_default_character_is_neutral_and_styles_are_opt_in() {
     let dt = 1.0 / 60.0;
-    for (name, db, settings) in [("locomotion", &locomotion().0, CharacterSettings::default()), ("vr", &vr().0, vr_replay::vr_settings())] {
-        let reports: Vec<_> = Motion::ALL.iter().map(|&m| naturalness::measure(db, &settings, m, 60.0, dt).unwrap()).collect();
+    for (name, db, settings) in
+        [("locomotion", &locomotion().0, CharacterSettings::default()), ("vr", &vr().0, vr_replay::vr_settings())]
+    {
+        let reports: Vec<_> =
+            Motion::ALL.iter().map(|&m| naturalness::measure(db, &settings, m, 60.0, dt).unwrap()).collect();
         println!("{name}, default settings:\n{}", naturalness::table(&reports));
         for r in &reports {
-            assert!(r.other_style_share <= 0.02, "{name} {}: {:.1} % of frames stylized", r.motion.name(), 100.0 * r.other_style_share);
-            assert!(r.hands_above_hips_mean < 0.0, "{name} {}: hands {:.2} m above the hips", r.motion.name(), r.hands_above_hips_mean);
+            assert!(
+                r.other_style_share <= 0.02,
+                "{name} {}: {:.1} % of frames stylized",
+                r.motion.name(),
+                100.0 * r.other_style_share
+            );
+            assert!(
+                r.hands_above_hips_mean < 0.0,
+                "{name} {}: hands {:.2} m above the hips",
+                r.motion.name(),
+                r.hands_above_hips_mean
+            );
         }
         let idle = &reports[0];
         assert!(idle.head_pitch_mean.abs() <= 15.0, "{name} idle: head pitch {:.1}°", idle.head_pitch_mean);

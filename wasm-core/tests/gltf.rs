@@ -19,7 +19,12 @@ static ALLOCATOR: alloc::Counting = alloc::Counting;
 
 /// A fixed rotation per bone: the GLB's bone axes differ from the BVH's by it.
 fn axes(j: usize) -> DQuat {
-    DQuat::from_euler(glam::EulerRot::XYZ, 0.3 * (j % 5) as f64 - 0.6, 0.7 * (j % 3) as f64 - 0.7, 0.45 * (j % 4) as f64 - 0.6)
+    DQuat::from_euler(
+        glam::EulerRot::XYZ,
+        0.3 * (j % 5) as f64 - 0.6,
+        0.7 * (j % 3) as f64 - 0.7,
+        0.45 * (j % 4) as f64 - 0.6,
+    )
 }
 
 /// The BVH as a GLB: one node per joint (rest rotation `axes(j)`, the motion re-expressed so the
@@ -79,10 +84,10 @@ fn glb_from(bvh: &Bvh) -> Vec<u8> {
         "animations": [{"name": "walk", "samplers": samplers, "channels": channels}],
     });
     let mut text = serde_json::to_vec(&doc).unwrap();
-    while text.len() % 4 != 0 {
+    while !text.len().is_multiple_of(4) {
         text.push(b' ');
     }
-    while bin.len() % 4 != 0 {
+    while !bin.len().is_multiple_of(4) {
         bin.push(0);
     }
     let total = 12 + 8 + text.len() + 8 + bin.len();
@@ -135,7 +140,11 @@ fn a_glb_reads_back_as_the_bvh_motion_and_builds() {
     // f32 storage in the GLB: micrometres.
     assert!(worst < 1e-4, "largest joint gap {worst} m");
     // The rest pose is the file's (identity rotations: the BVH convention).
-    let rest_gap = bvh.joints.iter().map(|j| (j.offset - back.joints.iter().find(|k| k.name == j.name).unwrap().offset).length()).fold(0.0, f64::max);
+    let rest_gap = bvh
+        .joints
+        .iter()
+        .map(|j| (j.offset - back.joints.iter().find(|k| k.name == j.name).unwrap().offset).length())
+        .fold(0.0, f64::max);
     assert!(rest_gap < 1e-5, "{rest_gap}");
     let out = build(&BuildConfig::default(), &[Source { name: "humanoid.glb".into(), bvh: back.clone() }]).unwrap();
     assert!(out.database.num_frames > 100);
@@ -148,14 +157,15 @@ fn a_vrm_humanoid_map_names_the_roles() {
     // Rename every node and add the map: the hips and the left foot.
     let json_len = u32::from_le_bytes(glb[12..16].try_into().unwrap()) as usize;
     let mut doc: serde_json::Value = serde_json::from_slice(&glb[20..20 + json_len]).unwrap();
-    let names: Vec<String> = doc["nodes"].as_array().unwrap().iter().map(|n| n["name"].as_str().unwrap().to_string()).collect();
+    let names: Vec<String> =
+        doc["nodes"].as_array().unwrap().iter().map(|n| n["name"].as_str().unwrap().to_string()).collect();
     for (i, node) in doc["nodes"].as_array_mut().unwrap().iter_mut().enumerate() {
         node["name"] = json!(format!("Bone{i}"));
     }
     let foot = names.iter().position(|n| n == "lfoot").unwrap();
     doc["extensions"] = json!({"VRMC_vrm_animation": {"specVersion": "1.0", "humanoid": {"humanBones": {"hips": {"node": 0}, "leftFoot": {"node": foot}, "jaw": {"node": 1}}}}});
     let mut text = serde_json::to_vec(&doc).unwrap();
-    while text.len() % 4 != 0 {
+    while !text.len().is_multiple_of(4) {
         text.push(b' ');
     }
     let mut out = glb[..12].to_vec();

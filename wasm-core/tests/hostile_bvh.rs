@@ -49,12 +49,16 @@ fn check(case: &Case) -> Option<String> {
             if m.chars().count() > MAX_MESSAGE_CHARS + FILE.len() + 20 {
                 return Some(format!("{name}: message of {} chars", m.chars().count()));
             }
-            let located = m.starts_with(&format!("{FILE}:")) && (m.starts_with(&format!("{FILE}: end of file: ")) || m[FILE.len() + 1..].split(':').next().is_some_and(|l| l.parse::<usize>().is_ok_and(|l| l > 0)));
+            let located = m.starts_with(&format!("{FILE}:"))
+                && (m.starts_with(&format!("{FILE}: end of file: "))
+                    || m[FILE.len() + 1..].split(':').next().is_some_and(|l| l.parse::<usize>().is_ok_and(|l| l > 0)));
             if !located {
                 return Some(format!("{name}: message does not name file and line: {m}"));
             }
             match want {
-                Expect::Error(w) if !m.contains(w.as_str()) => Some(format!("{name}: got {m:?}, expected it to contain {w:?}")),
+                Expect::Error(w) if !m.contains(w.as_str()) => {
+                    Some(format!("{name}: got {m:?}, expected it to contain {w:?}"))
+                }
                 _ => None,
             }
         }
@@ -69,8 +73,15 @@ fn check_all(cases: &[Case]) {
 #[test]
 fn malformed_bvh_cases_give_clear_errors() {
     let cases = hostile::bvh_cases();
-    let (ok, err) = (cases.iter().filter(|c| c.expect == Expect::Ok).count(), cases.iter().filter(|c| matches!(c.expect, Expect::Error(_))).count());
-    println!("{} BVH cases: {ok} valid, {err} errors with an expected message, {} either", cases.len(), cases.len() - ok - err);
+    let (ok, err) = (
+        cases.iter().filter(|c| c.expect == Expect::Ok).count(),
+        cases.iter().filter(|c| matches!(c.expect, Expect::Error(_))).count(),
+    );
+    println!(
+        "{} BVH cases: {ok} valid, {err} errors with an expected message, {} either",
+        cases.len(),
+        cases.len() - ok - err
+    );
     assert!(err >= 60, "the issue asks for at least 60 malformed cases ({err})");
     check_all(&cases);
 }
@@ -110,7 +121,11 @@ fn committed_corpus_replays() {
     for dir in ["corpus/bvh", "corpus/build", "regressions/bvh", "regressions/build"] {
         let Ok(entries) = std::fs::read_dir(root.join(dir)) else { continue };
         for e in entries.flatten() {
-            cases.push(Case { name: format!("{dir}/{}", e.file_name().to_string_lossy()), bytes: std::fs::read(e.path()).unwrap(), expect: Expect::Either });
+            cases.push(Case {
+                name: format!("{dir}/{}", e.file_name().to_string_lossy()),
+                bytes: std::fs::read(e.path()).unwrap(),
+                expect: Expect::Either,
+            });
         }
     }
     println!("{} committed BVH corpus files", cases.len());
@@ -123,7 +138,11 @@ fn committed_corpus_replays() {
 #[test]
 fn bounded_random_mutation_run() {
     // Valid inputs only (mutants of errors stay errors), the humanoid three times over.
-    let mut seeds: Vec<Vec<u8>> = hostile::bvh_cases().into_iter().filter(|c| c.bytes.len() <= 64 << 10 && c.expect == Expect::Ok).map(|c| c.bytes).collect();
+    let mut seeds: Vec<Vec<u8>> = hostile::bvh_cases()
+        .into_iter()
+        .filter(|c| c.bytes.len() <= 64 << 10 && c.expect == Expect::Ok)
+        .map(|c| c.bytes)
+        .collect();
     seeds.extend([12, 30, 60].map(|f| hostile::humanoid_bvh(f).into_bytes()));
     let mut rng = hostile::Rng(0x5EED_B7B5_0000_0001);
     let config = BuildConfig { fps: 30.0, mirror: false, ..BuildConfig::default() };
@@ -157,5 +176,10 @@ fn bounded_random_mutation_run() {
         }
     }
     println!("20000 mutations: {parsed} parsed, {built} built");
-    assert!(failures.is_empty(), "{} failures:\n{}", failures.len(), failures.iter().take(30).cloned().collect::<Vec<_>>().join("\n"));
+    assert!(
+        failures.is_empty(),
+        "{} failures:\n{}",
+        failures.len(),
+        failures.iter().take(30).cloned().collect::<Vec<_>>().join("\n")
+    );
 }

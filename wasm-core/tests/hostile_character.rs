@@ -9,7 +9,8 @@ mod character;
 use mmcore::rng::Rng;
 use std::path::Path;
 
-const NASTY: [f32; 12] = [f32::NAN, f32::INFINITY, f32::NEG_INFINITY, 1e38, -1e38, 0.0, -0.0, -1.0, 1e-40, 1e9, 0.25, 1.0 / 60.0];
+const NASTY: [f32; 12] =
+    [f32::NAN, f32::INFINITY, f32::NEG_INFINITY, 1e38, -1e38, 0.0, -0.0, -1.0, 1e-40, 1e9, 0.25, 1.0 / 60.0];
 
 #[test]
 fn committed_character_corpus_replays() {
@@ -39,7 +40,11 @@ fn random_call_sequences_keep_the_character_finite_and_near_its_simulation() {
             for _ in 0..12 {
                 // Mostly whole floats (troublemakers or ordinary values), sometimes raw bytes.
                 let x = rng.uniform(0.0, 1.0);
-                let v = if x < 0.5 { NASTY[(rng.uniform(0.0, NASTY.len() as f32) as usize).min(NASTY.len() - 1)] } else { rng.uniform(-3.0, 3.0) };
+                let v = if x < 0.5 {
+                    NASTY[(rng.uniform(0.0, NASTY.len() as f32) as usize).min(NASTY.len() - 1)]
+                } else {
+                    rng.uniform(-3.0, 3.0)
+                };
                 if x < 0.9 {
                     bytes.extend(v.to_le_bytes());
                 } else {

@@ -47,10 +47,20 @@ fn out_of_range_flags_are_usage_errors() {
 fn extreme_values_fail_the_build_naming_the_line() {
     let text = hostile::humanoid_bvh(60);
     for (what, from, to, expected) in [
-        ("1e308", "0.000000 0.950000", "1e308 0.950000", "bad.bvh:77: frame 0: value 1e308 at column 1 is out of range"),
+        (
+            "1e308",
+            "0.000000 0.950000",
+            "1e308 0.950000",
+            "bad.bvh:77: frame 0: value 1e308 at column 1 is out of range",
+        ),
         ("1e39", "0.000000 0.950000", "1e39 0.950000", "bad.bvh:77: frame 0: value 1e39"),
         ("offset 1e300", "OFFSET 0 -0.42 0", "OFFSET 0 -1e300 0", "bad.bvh:12: OFFSET y is -1e300, out of range"),
-        ("frame time", "Frame Time: 0.00833333", "Frame Time: 1e-300", "bad.bvh:76: 'Frame Time:' must be 0.0001 to 1 seconds"),
+        (
+            "frame time",
+            "Frame Time: 0.00833333",
+            "Frame Time: 1e-300",
+            "bad.bvh:76: 'Frame Time:' must be 0.0001 to 1 seconds",
+        ),
     ] {
         let bad = temp("bad.bvh");
         std::fs::write(&bad, text.replacen(from, to, 1)).unwrap();
@@ -66,7 +76,17 @@ fn search_flags_are_bounded() {
     let path = temp("tiny.mmdb");
     std::fs::write(&path, mmcore::format::to_bytes(&hostile::tiny_database())).unwrap();
     let p = path.to_str().unwrap();
-    let out = mmdb(&["search", p, "--frame", "0", "-k", "18446744073709551615", "--exclude-radius", "18446744073709551615", "--json"]);
+    let out = mmdb(&[
+        "search",
+        p,
+        "--frame",
+        "0",
+        "-k",
+        "18446744073709551615",
+        "--exclude-radius",
+        "18446744073709551615",
+        "--json",
+    ]);
     assert!(out.status.success(), "{}", stderr(&out));
     for (flag, value) in [("--beta-pose", "nan"), ("--beta-trajectory", "-1"), ("--beta-pose", "inf")] {
         let out = mmdb(&["search", p, "--frame", "0", flag, value]);
@@ -99,7 +119,9 @@ fn a_flipped_fps_bit_is_refused_by_inspect() {
 fn a_take_with_zero_length_legs_is_refused_or_builds_a_loadable_database() {
     let a = hostile::humanoid_bvh(40);
     let mut b = a.clone();
-    for offset in ["OFFSET 0.1 -0.05 0", "OFFSET -0.1 -0.05 0", "OFFSET 0 -0.42 0", "OFFSET 0 -0.41 0", "OFFSET 0 -0.05 0.12"] {
+    for offset in
+        ["OFFSET 0.1 -0.05 0", "OFFSET -0.1 -0.05 0", "OFFSET 0 -0.42 0", "OFFSET 0 -0.41 0", "OFFSET 0 -0.05 0.12"]
+    {
         b = b.replace(offset, "OFFSET 0 0 0");
     }
     let (pa, pb, db) = (temp("a.bvh"), temp("b.bvh"), temp("ab.mmdb"));
@@ -154,8 +176,16 @@ fn replay_validates_recordings_as_the_page_does() {
     let back = |v: &mut serde_json::Value| v["time"][5] = 0.0.into();
     let text = |v: &mut serde_json::Value| v["time"][3] = "0.05".into();
     for (what, edit, expected) in [
-        ("zero quaternion", &zero as &dyn Fn(&mut serde_json::Value), "rec.json: rotation of frame 1, tracker 0 is not a unit quaternion (length 0.0000)"),
-        ("1e300 quaternion", &huge, "rec.json: rotation of frame 1, tracker 0 is not a unit quaternion (length Infinity)"),
+        (
+            "zero quaternion",
+            &zero as &dyn Fn(&mut serde_json::Value),
+            "rec.json: rotation of frame 1, tracker 0 is not a unit quaternion (length 0.0000)",
+        ),
+        (
+            "1e300 quaternion",
+            &huge,
+            "rec.json: rotation of frame 1, tracker 0 is not a unit quaternion (length Infinity)",
+        ),
         ("time going back", &back, "rec.json: time must increase: time[5] = 0 after 0.06666666666666667"),
         ("a string in time", &text, "rec.json: \"time\"[3] is not a number"),
     ] {
@@ -181,19 +211,35 @@ fn replay_validates_recordings_as_the_page_does() {
 fn builds_the_search_or_the_loader_would_refuse_are_refused_by_the_build() {
     let bvh = temp("limits-walk.bvh");
     std::fs::write(&bvh, hostile::humanoid_bvh(120)).unwrap();
-    let group = |i: usize| format!(r#"{{"name": "g{i}", "kind": "position", "joint": "hips", "offsets": [0, 10, 20]}}"#);
+    let group =
+        |i: usize| format!(r#"{{"name": "g{i}", "kind": "position", "joint": "hips", "offsets": [0, 10, 20]}}"#);
     let config = temp("wide.json");
-    std::fs::write(&config, format!(r#"{{"clips": [{{"file": "limits-walk.bvh"}}], "features": [{}]}}"#, (0..300).map(group).collect::<Vec<_>>().join(","))).unwrap();
+    std::fs::write(
+        &config,
+        format!(
+            r#"{{"clips": [{{"file": "limits-walk.bvh"}}], "features": [{}]}}"#,
+            (0..300).map(group).collect::<Vec<_>>().join(",")
+        ),
+    )
+    .unwrap();
     let db = temp("limits.mmdb");
     let out = mmdb(&["build", "--config", config.to_str().unwrap(), "-o", db.to_str().unwrap()]);
-    assert!(!out.status.success() && stderr(&out).contains("features: 2700 feature dimensions; the search takes 1 to 128"), "{}", stderr(&out));
+    assert!(
+        !out.status.success() && stderr(&out).contains("features: 2700 feature dimensions; the search takes 1 to 128"),
+        "{}",
+        stderr(&out)
+    );
     // A file with 133 dimensions (written by hand): refused by every command that loads it.
     let wide = temp("wide.mmdb");
     std::fs::write(&wide, mmcore::format::to_bytes(&hostile::wide_database(128))).unwrap();
     for command in ["quality", "inspect"] {
         let out = mmdb(&[command, wide.to_str().unwrap()]);
         assert_eq!(out.status.code(), Some(1), "{command}: {}", stderr(&out));
-        assert!(stderr(&out).contains("INFO: 133 feature dimensions; the search takes 1 to 128"), "{command}: {}", stderr(&out));
+        assert!(
+            stderr(&out).contains("INFO: 133 feature dimensions; the search takes 1 to 128"),
+            "{command}: {}",
+            stderr(&out)
+        );
     }
     // Every value ≤ 10⁷, the root jumping ±10⁷ units every other frame at 1,000 fps, built at
     // 1,000 m per unit and 1,000 fps: exit 0 and "FNRM: scale of dim 6 is 3.3e12" on load before.
@@ -201,12 +247,27 @@ fn builds_the_search_or_the_loader_would_refuse_are_refused_by_the_build() {
         .replace("Frame Time: 0.00833333", "Frame Time: 0.001")
         .lines()
         .enumerate()
-        .map(|(i, l)| if i >= 76 { l.replacen("0.000000 0.950000", if (i - 76) / 2 % 2 == 0 { "10000000 0.950000" } else { "-10000000 0.950000" }, 1) } else { l.to_string() })
+        .map(|(i, l)| {
+            if i >= 76 {
+                l.replacen(
+                    "0.000000 0.950000",
+                    if (i - 76) / 2 % 2 == 0 { "10000000 0.950000" } else { "-10000000 0.950000" },
+                    1,
+                )
+            } else {
+                l.to_string()
+            }
+        })
         .collect::<Vec<_>>()
         .join("\n");
     let far = temp("far.bvh");
     std::fs::write(&far, text).unwrap();
     let out = mmdb(&["build", far.to_str().unwrap(), "-o", db.to_str().unwrap(), "--scale", "1000", "--fps", "1000"]);
     assert_eq!(out.status.code(), Some(1), "{}", stderr(&out));
-    assert!(stderr(&out).contains("its values times the unit scale 1000 reach") && stderr(&out).contains("at most 100000 m — check the unit scale (--scale)"), "{}", stderr(&out));
+    assert!(
+        stderr(&out).contains("its values times the unit scale 1000 reach")
+            && stderr(&out).contains("at most 100000 m — check the unit scale (--scale)"),
+        "{}",
+        stderr(&out)
+    );
 }

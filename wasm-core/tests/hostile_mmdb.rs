@@ -22,14 +22,26 @@ fn seeds() -> Vec<(String, Vec<u8>)> {
     let humanoid = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/corpus/mmdb/humanoid.mmdb");
     vec![
         ("tiny".into(), format::to_bytes(&hostile::tiny_database())),
-        ("humanoid".into(), std::fs::read(&humanoid).unwrap_or_else(|e| panic!("{}: {e} (write it with `cargo run --release --bin mmdb-cases -- --seeds fuzz/corpus`)", humanoid.display()))),
+        (
+            "humanoid".into(),
+            std::fs::read(&humanoid).unwrap_or_else(|e| {
+                panic!(
+                    "{}: {e} (write it with `cargo run --release --bin mmdb-cases -- --seeds fuzz/corpus`)",
+                    humanoid.display()
+                )
+            }),
+        ),
     ]
 }
 
 /// What a loaded database must allow: the summary, an index and a search, a character
 /// playing it for half a second, a round trip within the quantization bound. Returns what went wrong.
 fn exercise(db: &Database) -> Option<String> {
-    if !((MIN_FPS as f32..=MAX_FPS as f32).contains(&db.fps) && db.num_frames >= 1 && !db.groups.is_empty() && db.num_features() >= 1) {
+    if !((MIN_FPS as f32..=MAX_FPS as f32).contains(&db.fps)
+        && db.num_frames >= 1
+        && !db.groups.is_empty()
+        && db.num_features() >= 1)
+    {
         return Some("loaded a database outside the documented limits".into());
     }
     let started = Instant::now();
@@ -51,7 +63,9 @@ fn exercise(db: &Database) -> Option<String> {
     match run {
         Err(_) => Some("the runtime panicked on a database the loader accepted".into()),
         Ok(Err(e)) => Some(e),
-        Ok(Ok(_)) if started.elapsed() > Duration::from_secs(2) => Some(format!("playing took {:?}", started.elapsed())),
+        Ok(Ok(_)) if started.elapsed() > Duration::from_secs(2) => {
+            Some(format!("playing took {:?}", started.elapsed()))
+        }
         Ok(Ok(_)) => None,
     }
 }
@@ -79,7 +93,9 @@ fn check(case: &Case) -> Option<String> {
                 return Some(format!("{name}: unclear message: {m}"));
             }
             match want {
-                Expect::Error(w) if !m.contains(w.as_str()) => Some(format!("{name}: got {m:?}, expected it to contain {w:?}")),
+                Expect::Error(w) if !m.contains(w.as_str()) => {
+                    Some(format!("{name}: got {m:?}, expected it to contain {w:?}"))
+                }
                 _ => None,
             }
         }
@@ -117,7 +133,12 @@ fn mutations_are_clear_errors_or_playable_databases() {
     }
     println!("{total} .mmdb mutations: {loaded} loaded (and played), {} rejected", total - loaded);
     assert!(total >= 2000, "the issue asks for at least 2,000 mutations ({total})");
-    assert!(failures.is_empty(), "{} of {total} mutations failed:\n{}", failures.len(), failures.iter().take(40).cloned().collect::<Vec<_>>().join("\n"));
+    assert!(
+        failures.is_empty(),
+        "{} of {total} mutations failed:\n{}",
+        failures.len(),
+        failures.iter().take(40).cloned().collect::<Vec<_>>().join("\n")
+    );
 }
 
 /// The fuzzers' seed corpus and saved findings (`fuzz/corpus/mmdb`, `fuzz/regressions/mmdb`),
@@ -135,7 +156,11 @@ fn committed_corpus_replays() {
             hostile::refix(&mut fixed);
             for (kind, b) in [("raw", bytes), ("fixed", fixed)] {
                 n += 1;
-                failures.extend(check(&Case { name: format!("{dir}/{}.{kind}", e.file_name().to_string_lossy()), bytes: b, expect: Expect::Either }));
+                failures.extend(check(&Case {
+                    name: format!("{dir}/{}.{kind}", e.file_name().to_string_lossy()),
+                    bytes: b,
+                    expect: Expect::Either,
+                }));
             }
         }
     }

@@ -24,13 +24,29 @@ fn renamed(bvh: &Bvh, name: impl Fn(usize, &str) -> String) -> Bvh {
 /// The same motion written with other offsets and local transforms: `offset(j, o)` and
 /// `end(j, e)` map the rest skeleton, `local(j, t, q)` each frame's local transform. Every joint
 /// gets `Zrotation Yrotation Xrotation` (joints with position channels keep all three).
-fn rewritten(bvh: &Bvh, offset: impl Fn(usize, DVec3) -> DVec3, end: impl Fn(usize, DVec3) -> DVec3, local: impl Fn(usize, DVec3, DQuat) -> (DVec3, DQuat)) -> Bvh {
+fn rewritten(
+    bvh: &Bvh,
+    offset: impl Fn(usize, DVec3) -> DVec3,
+    end: impl Fn(usize, DVec3) -> DVec3,
+    local: impl Fn(usize, DVec3, DQuat) -> (DVec3, DQuat),
+) -> Bvh {
     let mut joints = Vec::new();
     let mut first = 0;
     for (j, b) in bvh.joints.iter().enumerate() {
         let positions = b.channels.iter().any(|c| matches!(c, Channel::PosX | Channel::PosY | Channel::PosZ));
-        let channels = if positions { vec![Channel::PosX, Channel::PosY, Channel::PosZ, Channel::RotZ, Channel::RotY, Channel::RotX] } else { vec![Channel::RotZ, Channel::RotY, Channel::RotX] };
-        joints.push(BvhJoint { name: b.name.clone(), parent: b.parent, offset: offset(j, b.offset), first_channel: first, end_site: b.end_site.map(|e| end(j, e)), channels });
+        let channels = if positions {
+            vec![Channel::PosX, Channel::PosY, Channel::PosZ, Channel::RotZ, Channel::RotY, Channel::RotX]
+        } else {
+            vec![Channel::RotZ, Channel::RotY, Channel::RotX]
+        };
+        joints.push(BvhJoint {
+            name: b.name.clone(),
+            parent: b.parent,
+            offset: offset(j, b.offset),
+            first_channel: first,
+            end_site: b.end_site.map(|e| end(j, e)),
+            channels,
+        });
         first += joints[j].channels.len();
     }
     let mut values = Vec::with_capacity(bvh.num_frames * first);
@@ -45,7 +61,14 @@ fn rewritten(bvh: &Bvh, offset: impl Fn(usize, DVec3) -> DVec3, end: impl Fn(usi
             values.extend([z.to_degrees(), y.to_degrees(), x.to_degrees()]);
         }
     }
-    let out = Bvh { joints, num_channels: first, num_frames: bvh.num_frames, frame_time: bvh.frame_time, values, role_hints: Vec::new() };
+    let out = Bvh {
+        joints,
+        num_channels: first,
+        num_frames: bvh.num_frames,
+        frame_time: bvh.frame_time,
+        values,
+        role_hints: Vec::new(),
+    };
     // The writer's Euler convention is the reader's: a frame reads back as written.
     let (t, q) = out.local_transform(7, 3);
     let (t0, q0) = bvh.local_transform(7, 3);
@@ -82,7 +105,17 @@ fn a_100style_file_builds_with_no_config() {
     assert!(!out.warnings.iter().any(|w| w.contains("hip height") || w.contains("contact")), "{:?}", out.warnings);
     assert_eq!(db.clips[0].scale, 0.01);
     let name = |role: Role| db.skeleton.names[site(db, role) as usize].clone();
-    for (role, joint) in [(Role::Hips, "Hips"), (Role::LeftUpperLeg, "LeftHip"), (Role::LeftLowerLeg, "LeftKnee"), (Role::LeftFoot, "LeftAnkle"), (Role::LeftToe, "LeftToe"), (Role::RightFoot, "RightAnkle"), (Role::Head, "Head"), (Role::LeftHand, "LeftWrist"), (Role::RightUpperArm, "RightShoulder")] {
+    for (role, joint) in [
+        (Role::Hips, "Hips"),
+        (Role::LeftUpperLeg, "LeftHip"),
+        (Role::LeftLowerLeg, "LeftKnee"),
+        (Role::LeftFoot, "LeftAnkle"),
+        (Role::LeftToe, "LeftToe"),
+        (Role::RightFoot, "RightAnkle"),
+        (Role::Head, "Head"),
+        (Role::LeftHand, "LeftWrist"),
+        (Role::RightUpperArm, "RightShoulder"),
+    ] {
         assert_eq!(name(role), joint, "{}", role.name());
     }
 }
@@ -154,14 +187,19 @@ fn units_and_up_axis_come_from_the_motion() {
     for (axis, rotation) in [("Z", DQuat::from_rotation_x(half_pi)), ("X", DQuat::from_rotation_z(-half_pi))] {
         let s = Source { name: format!("{axis}-up.bvh"), bvh: turned(rotation) };
         let out = build(&config(r#"{"mirror": false}"#), &[s]).unwrap();
-        assert!(out.warnings.iter().any(|w| w.contains(&format!("the motion is {axis}-up; rotated to Y-up"))), "{:?}", out.warnings);
+        assert!(
+            out.warnings.iter().any(|w| w.contains(&format!("the motion is {axis}-up; rotated to Y-up"))),
+            "{:?}",
+            out.warnings
+        );
         let d = max_distance(&world(&out.database), &expected);
         assert!(d < 1e-4, "{axis}-up: {d} m from the Y-up build");
     }
     // Legs up at rest, centimetres: below each upper leg offsets flip (F = 180° about X) and
     // rotations compensate, so every frame's world pose is the original's.
     let flip = DQuat::from_rotation_x(std::f64::consts::PI);
-    let legs: Vec<usize> = ["lfemur", "rfemur"].iter().map(|n| bvh.joints.iter().position(|j| j.name == *n).unwrap()).collect();
+    let legs: Vec<usize> =
+        ["lfemur", "rfemur"].iter().map(|n| bvh.joints.iter().position(|j| j.name == *n).unwrap()).collect();
     let below = |j: usize| {
         let mut k = j;
         while let Some(p) = bvh.joints[k].parent {
@@ -201,7 +239,11 @@ fn units_and_up_axis_come_from_the_motion() {
 fn a_mixed_skeleton_database_builds_with_bounded_error() {
     let mut cfg = config(r#"{"clips": [{"file": "Angry_BW.bvh", "tags": ["backward"]}]}"#);
     cfg.cuts.insert("Angry_BW.bvh".into(), [535, 1500]);
-    let out = build(&cfg, &[source("cmu-asf/cmu_16_15.bvh"), source("100style/Angry_BW.bvh"), source("cmu-daz/cmu_02_01.bvh")]).unwrap();
+    let out = build(
+        &cfg,
+        &[source("cmu-asf/cmu_16_15.bvh"), source("100style/Angry_BW.bvh"), source("cmu-daz/cmu_02_01.bvh")],
+    )
+    .unwrap();
     for note in out.retarget_notes() {
         println!("{note}");
     }
@@ -221,13 +263,17 @@ fn a_mixed_skeleton_database_builds_with_bounded_error() {
     let (s, e) = (clip.start as usize, clip.end as usize);
     assert_eq!(e - s, 965);
     let j = db.num_joints();
-    let back: f32 = (s..e).map(|f| (db.local_rotations[f * j].inverse() * db.local_velocities[f * j]).z).sum::<f32>() / (e - s) as f32;
+    let back: f32 = (s..e).map(|f| (db.local_rotations[f * j].inverse() * db.local_velocities[f * j]).z).sum::<f32>()
+        / (e - s) as f32;
     assert!(back < -0.6, "the backward walk moves at {back} m/s along its facing");
     for side in 0..2 {
         let share = (s..e).filter(|&f| db.contacts[2 * f + side] != 0).count() as f32 / (e - s) as f32;
         assert!((0.3..0.75).contains(&share), "100STYLE contact share {share}");
     }
-    assert!(db.tags.iter().any(|t| t.name == "backward" && t.ranges.iter().any(|&(a, b)| a <= s as u32 && b >= e as u32)));
+    assert!(db
+        .tags
+        .iter()
+        .any(|t| t.name == "backward" && t.ranges.iter().any(|&(a, b)| a <= s as u32 && b >= e as u32)));
     // What the .mmdb keeps of a retargeted database: everything `check_round_trip` requires.
     format::check_round_trip(db, &format::from_bytes(&format::to_bytes(db)).unwrap()).unwrap();
 }
@@ -236,7 +282,9 @@ fn a_mixed_skeleton_database_builds_with_bounded_error() {
 /// velocities negated, contacts recomputed (and equal, reversed: the rule is on toe speed).
 #[test]
 fn reversed_copies_play_the_take_backward() {
-    let cfg = config(r#"{"mirror": false, "clips": [{"file": "*", "reverse": true, "tags": ["walk"], "reverse_tags": ["backward"]}]}"#);
+    let cfg = config(
+        r#"{"mirror": false, "clips": [{"file": "*", "reverse": true, "tags": ["walk"], "reverse_tags": ["backward"]}]}"#,
+    );
     let db = build(&cfg, &[source("cmu-asf/cmu_16_15.bvh")]).unwrap().database;
     assert_eq!(db.clips.len(), 2);
     assert_eq!(db.clips[1].name, "cmu_16_15 (reversed)");
@@ -257,7 +305,10 @@ fn reversed_copies_play_the_take_backward() {
     let loaded = format::from_bytes(&format::to_bytes(&db)).unwrap();
     format::check_round_trip(&db, &loaded).unwrap();
     assert_eq!(loaded.clips[1].name, "cmu_16_15 (reversed)");
-    assert_eq!((loaded.clips[1].source_start, loaded.clips[1].source_fps), (db.clips[0].source_start, db.clips[0].source_fps));
+    assert_eq!(
+        (loaded.clips[1].source_start, loaded.clips[1].source_fps),
+        (db.clips[0].source_start, db.clips[0].source_fps)
+    );
     for f in 0..n {
         let g = n + (n - 1 - f);
         let (v, w) = (loaded.local_velocities[f * j + 1], loaded.local_velocities[g * j + 1]);

@@ -21,14 +21,16 @@ fn world_positions(db: &Database, frame: usize) -> Vec<Vec3> {
 fn every_shared_bvh_imports_and_builds_alone() {
     // Every file the shared manifest lists (it grows: never a fixed count), with the unit scale
     // its `units` field states: metres for CMU ASF, centimetre-like for Daz and 100STYLE.
-    let manifest: serde_json::Value = serde_json::from_slice(&std::fs::read(mocap().join("manifest.json")).unwrap()).unwrap();
+    let manifest: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(mocap().join("manifest.json")).unwrap()).unwrap();
     let entries = manifest.as_array().expect("manifest.json is a list");
     assert!(!entries.is_empty());
     for entry in entries {
         let (folder, name) = (entry["folder"].as_str().unwrap(), entry["file"].as_str().unwrap());
         let units = entry["units"].as_str().unwrap_or_default();
         let s = source(&format!("{folder}/{name}"));
-        let out = build(&config(r#"{"mirror": false}"#), std::slice::from_ref(&s)).unwrap_or_else(|e| panic!("{name}: {e}"));
+        let out =
+            build(&config(r#"{"mirror": false}"#), std::slice::from_ref(&s)).unwrap_or_else(|e| panic!("{name}: {e}"));
         assert!(
             !out.warnings.iter().any(|w| w.contains("hip height")),
             "{name}: auto scale should find a plausible unit: {:?}",
@@ -37,7 +39,8 @@ fn every_shared_bvh_imports_and_builds_alone() {
         let expected_scale = if units.contains("centimetres") || units.contains("Daz") { 0.01 } else { 1.0 };
         assert_eq!(out.database.clips[0].scale, expected_scale, "{name} ({units})");
         // Round trip through bytes.
-        format::check_round_trip(&out.database, &format::from_bytes(&format::to_bytes(&out.database)).unwrap()).unwrap_or_else(|e| panic!("{name}: {e}"));
+        format::check_round_trip(&out.database, &format::from_bytes(&format::to_bytes(&out.database)).unwrap())
+            .unwrap_or_else(|e| panic!("{name}: {e}"));
     }
     println!("{} shared files built", entries.len());
 }
@@ -46,7 +49,16 @@ fn every_shared_bvh_imports_and_builds_alone() {
 /// foot-flat to toe-off (~45–50%). The builder's toe-speed rule must agree.
 #[test]
 fn walking_contacts_are_plausible() {
-    let walks = ["cmu-asf/cmu_16_15.bvh", "cmu-asf/cmu_16_16.bvh", "cmu-asf/cmu_16_21.bvh", "cmu-asf/cmu_16_22.bvh", "cmu-asf/cmu_16_31.bvh", "cmu-asf/cmu_16_32.bvh", "cmu-asf/cmu_16_47.bvh", "cmu-asf/cmu_16_58.bvh"];
+    let walks = [
+        "cmu-asf/cmu_16_15.bvh",
+        "cmu-asf/cmu_16_16.bvh",
+        "cmu-asf/cmu_16_21.bvh",
+        "cmu-asf/cmu_16_22.bvh",
+        "cmu-asf/cmu_16_31.bvh",
+        "cmu-asf/cmu_16_32.bvh",
+        "cmu-asf/cmu_16_47.bvh",
+        "cmu-asf/cmu_16_58.bvh",
+    ];
     let sources: Vec<Source> = walks.iter().map(|w| source(w)).collect();
     let db = build(&config(r#"{"mirror": false}"#), &sources).unwrap().database;
     let summary = inspect::summary(&db, None);
@@ -56,19 +68,24 @@ fn walking_contacts_are_plausible() {
         assert!((0.40..0.65).contains(&share), "contact share {share}");
     }
     // Double support exists but is short; flight (no contact) almost never happens in a walk.
-    let none = (0..db.num_frames).filter(|&f| db.contacts[2 * f] == 0 && db.contacts[2 * f + 1] == 0).count() as f64 / db.num_frames as f64;
+    let none = (0..db.num_frames).filter(|&f| db.contacts[2 * f] == 0 && db.contacts[2 * f + 1] == 0).count() as f64
+        / db.num_frames as f64;
     assert!(none < 0.1, "walking with neither foot down {none}");
 }
 
 fn both_share(db: &Database) -> f64 {
-    (0..db.num_frames).filter(|&f| db.contacts[2 * f] == 1 && db.contacts[2 * f + 1] == 1).count() as f64 / db.num_frames as f64
+    (0..db.num_frames).filter(|&f| db.contacts[2 * f] == 1 && db.contacts[2 * f + 1] == 1).count() as f64
+        / db.num_frames as f64
 }
 
 /// Running has a flight phase and short stances (~8 frames at 60 fps): contacts must exist
 /// (a too-wide median filter erases them) and be well below walking.
 #[test]
 fn running_has_less_contact_than_walking() {
-    let db = build(&config(r#"{"mirror": false}"#), &[source("cmu-asf/cmu_16_35.bvh"), source("cmu-asf/cmu_16_36.bvh")]).unwrap().database;
+    let db =
+        build(&config(r#"{"mirror": false}"#), &[source("cmu-asf/cmu_16_35.bvh"), source("cmu-asf/cmu_16_36.bvh")])
+            .unwrap()
+            .database;
     let share = db.contacts.iter().filter(|&&c| c == 1).count() as f64 / db.contacts.len() as f64;
     println!("running contact share {share:.3}");
     assert!((0.1..0.35).contains(&share), "running contact share {share}");
@@ -126,7 +143,9 @@ fn resampling_is_exact_at_integer_ratios() {
 /// and root motion scaled by the leg-length ratio; another topology is retargeted (tests/import.rs).
 #[test]
 fn bone_lengths_are_normalized_and_topology_checked() {
-    let out = build(&config(r#"{"mirror": false}"#), &[source("cmu-asf/cmu_16_15.bvh"), source("cmu-asf/cmu_127_03.bvh")]).unwrap();
+    let out =
+        build(&config(r#"{"mirror": false}"#), &[source("cmu-asf/cmu_16_15.bvh"), source("cmu-asf/cmu_127_03.bvh")])
+            .unwrap();
     let db = &out.database;
     assert_eq!(db.clips[0].root_scale, 1.0);
     let ratio = db.clips[1].root_scale;
@@ -137,7 +156,8 @@ fn bone_lengths_are_normalized_and_topology_checked() {
     let f = db.clips[1].start as usize + 10;
     assert!((db.local_positions[f * db.num_joints() + femur].length() - rest).abs() < 1e-6);
 
-    let out = build(&BuildConfig::default(), &[source("cmu-asf/cmu_16_15.bvh"), source("cmu-daz/cmu_02_01.bvh")]).unwrap();
+    let out =
+        build(&BuildConfig::default(), &[source("cmu-asf/cmu_16_15.bvh"), source("cmu-daz/cmu_02_01.bvh")]).unwrap();
     assert_eq!(out.retargeted.len(), 1);
     assert_eq!(out.retargeted[0].0, "cmu-daz/cmu_02_01.bvh");
 }
@@ -152,7 +172,10 @@ fn virtual_root_follows_the_hips_on_the_floor() {
         let root = db.local_positions[f * j];
         assert_eq!(root.y, 0.0);
         let hip_offset = db.local_positions[f * j + hips];
-        assert!(Vec3::new(hip_offset.x, 0.0, hip_offset.z).length() < 0.15, "frame {f}: hips {hip_offset} from the root");
+        assert!(
+            Vec3::new(hip_offset.x, 0.0, hip_offset.z).length() < 0.15,
+            "frame {f}: hips {hip_offset} from the root"
+        );
         assert!((0.75..1.05).contains(&hip_offset.y), "hip height {}", hip_offset.y);
     }
     // A straight walk: the trajectory features point forward (+z in character space).
@@ -165,7 +188,9 @@ fn virtual_root_follows_the_hips_on_the_floor() {
 /// Golden summary of a small two-subject database: fails when the builder's output moves.
 #[test]
 fn golden_summary() {
-    let db = build(&BuildConfig::default(), &[source("cmu-asf/cmu_16_15.bvh"), source("cmu-asf/cmu_127_14.bvh")]).unwrap().database;
+    let db = build(&BuildConfig::default(), &[source("cmu-asf/cmu_16_15.bvh"), source("cmu-asf/cmu_127_14.bvh")])
+        .unwrap()
+        .database;
     let mut summary = inspect::summary(&db, None);
     summary.as_object_mut().unwrap().remove("size_bytes");
     let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/golden/summary_16_15_127_14.json");
@@ -176,7 +201,12 @@ fn golden_summary() {
     let golden: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&path).unwrap()).unwrap();
     let mut diffs = Vec::new();
     compare("", &golden, &summary, &mut diffs);
-    assert!(diffs.is_empty(), "builder output differs from {} (UPDATE_GOLDEN=1 to accept):\n{}", path.display(), diffs.join("\n"));
+    assert!(
+        diffs.is_empty(),
+        "builder output differs from {} (UPDATE_GOLDEN=1 to accept):\n{}",
+        path.display(),
+        diffs.join("\n")
+    );
 }
 
 /// Structural equality with a relative float tolerance (libm differs slightly across hosts).
@@ -189,7 +219,9 @@ fn compare(at: &str, a: &serde_json::Value, b: &serde_json::Value, diffs: &mut V
                 diffs.push(format!("{at}: {x} → {y}"));
             }
         }
-        (Array(x), Array(y)) if x.len() == y.len() => x.iter().zip(y).enumerate().for_each(|(i, (x, y))| compare(&format!("{at}[{i}]"), x, y, diffs)),
+        (Array(x), Array(y)) if x.len() == y.len() => {
+            x.iter().zip(y).enumerate().for_each(|(i, (x, y))| compare(&format!("{at}[{i}]"), x, y, diffs))
+        }
         (Object(x), Object(y)) if x.len() == y.len() => {
             for (k, v) in x {
                 match y.get(k) {
@@ -208,17 +240,22 @@ fn compare(at: &str, a: &serde_json::Value, b: &serde_json::Value, diffs: &mut V
 #[test]
 fn search_weights_and_masks() {
     use mmcore::search::{brute_force, SearchOptions};
-    let db = build(&BuildConfig::default(), &[source("cmu-asf/cmu_16_15.bvh"), source("cmu-asf/cmu_16_35.bvh")]).unwrap().database;
+    let db = build(&BuildConfig::default(), &[source("cmu-asf/cmu_16_15.bvh"), source("cmu-asf/cmu_16_35.bvh")])
+        .unwrap()
+        .database;
     let query = db.feature(40).to_vec();
     let cost = |f: usize, bq: f32, br: f32| -> f32 {
         db.groups
             .iter()
-            .flat_map(|g| (g.first_dim..g.first_dim + g.num_dims).map(move |d| (d, if g.is_trajectory { br } else { bq })))
+            .flat_map(|g| {
+                (g.first_dim..g.first_dim + g.num_dims).map(move |d| (d, if g.is_trajectory { br } else { bq }))
+            })
             .map(|(d, w)| w * (query[d] - db.feature(f)[d]).powi(2))
             .sum()
     };
     for (bq, br) in [(1.0, 1.0), (0.0, 1.0), (1.0, 0.0), (2.5, 0.5)] {
-        let options = SearchOptions { beta_pose: bq, beta_trajectory: br, exclude: Some((20, 61)), ..Default::default() };
+        let options =
+            SearchOptions { beta_pose: bq, beta_trajectory: br, exclude: Some((20, 61)), ..Default::default() };
         let best = brute_force(&db, &query, &options, 10);
         assert_eq!(best.len(), 10);
         let expected = (0..db.num_frames)
@@ -227,7 +264,9 @@ fn search_weights_and_masks() {
             .fold(f32::INFINITY, f32::min);
         assert!((best[0].1 - expected).abs() <= 1e-5 * expected.max(1.0), "β=({bq},{br}): {} vs {expected}", best[0].1);
         assert!(best.windows(2).all(|w| w[0].1 <= w[1].1));
-        assert!(best.iter().all(|&(f, c)| db.valid[f] == 1 && !(20..61).contains(&f) && (c - cost(f, bq, br)).abs() <= 1e-4 * c.max(1.0)));
+        assert!(best.iter().all(|&(f, c)| db.valid[f] == 1
+            && !(20..61).contains(&f)
+            && (c - cost(f, bq, br)).abs() <= 1e-4 * c.max(1.0)));
     }
     // A mask keeps results inside it.
     let run = &db.clips[2];

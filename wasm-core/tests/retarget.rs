@@ -18,7 +18,10 @@ fn database() -> Database {
     let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../shared/mocap/cmu-asf");
     let sources: Vec<Source> = ["cmu_16_15.bvh", "cmu_16_35.bvh"]
         .iter()
-        .map(|name| Source { bvh: Bvh::parse(name, &std::fs::read(dir.join(name)).unwrap()).unwrap(), name: name.to_string() })
+        .map(|name| Source {
+            bvh: Bvh::parse(name, &std::fs::read(dir.join(name)).unwrap()).unwrap(),
+            name: name.to_string(),
+        })
         .collect();
     build(&BuildConfig::default(), &sources).unwrap().database
 }
@@ -61,7 +64,13 @@ fn copy(db: &Database, order: &[usize], scale: f32, twist: impl Fn(usize) -> Qua
 }
 
 fn retargeter(db: &Database, c: &Copy, align: bool) -> Retargeter {
-    let target = TargetSkeleton { parents: &c.parents, rest_local_rotations: &c.rotations, rest_local_positions: &c.positions, roles: c.roles, root_parent_rotation: Quat::IDENTITY };
+    let target = TargetSkeleton {
+        parents: &c.parents,
+        rest_local_rotations: &c.rotations,
+        rest_local_positions: &c.positions,
+        roles: c.roles,
+        root_parent_rotation: Quat::IDENTITY,
+    };
     Retargeter::new(db, &target, align).unwrap()
 }
 
@@ -81,7 +90,8 @@ fn avatar_world(c: &Copy, local: &[Quat], hips_joint: usize, hips: Vec3) -> Vec<
     for (i, &k) in order.iter().enumerate() {
         position[k] = i;
     }
-    let parents: Vec<i32> = order.iter().map(|&k| if c.parents[k] < 0 { -1 } else { position[c.parents[k] as usize] as i32 }).collect();
+    let parents: Vec<i32> =
+        order.iter().map(|&k| if c.parents[k] < 0 { -1 } else { position[c.parents[k] as usize] as i32 }).collect();
     let mut lp: Vec<Vec3> = order.iter().map(|&k| c.positions[k]).collect();
     lp[position[hips_joint]] = hips;
     let lr: Vec<Quat> = order.iter().map(|&k| local[k]).collect();
@@ -93,7 +103,10 @@ fn avatar_world(c: &Copy, local: &[Quat], hips_joint: usize, hips: Vec3) -> Vec<
 /// Whether an ancestor of database joint `j` (below the hips) has no role and turns in the data.
 fn below_a_moving_unmapped_joint(db: &Database, c: &Copy, j: usize) -> bool {
     let mapped = |k: usize| c.roles.iter().any(|(_, a)| Some(a) == c.of_db[k]);
-    let moves = |k: usize| (1..db.num_frames).any(|f| db.local_rotations[f * db.num_joints() + k].dot(db.local_rotations[k]).abs() < 1.0 - 1e-6);
+    let moves = |k: usize| {
+        (1..db.num_frames)
+            .any(|f| db.local_rotations[f * db.num_joints() + k].dot(db.local_rotations[k]).abs() < 1.0 - 1e-6)
+    };
     let mut k = db.skeleton.parents[j];
     while k > 1 {
         if !mapped(k as usize) && moves(k as usize) {
@@ -112,7 +125,9 @@ fn a_twisted_reordered_copy_of_the_skeleton_gets_the_same_pose_scaled() {
     // Reverse the joint order where allowed (children listed before parents) and give every
     // bone a different rest rotation.
     let order: Vec<usize> = (0..n).rev().collect();
-    let twist = |j: usize| Quat::from_euler(glam::EulerRot::YXZ, 0.3 * j as f32, -0.2 * (j % 5) as f32, 0.7 - 0.1 * j as f32).normalize();
+    let twist = |j: usize| {
+        Quat::from_euler(glam::EulerRot::YXZ, 0.3 * j as f32, -0.2 * (j % 5) as f32, 0.7 - 0.1 * j as f32).normalize()
+    };
     for scale in [1.0f32, 0.8] {
         let c = copy(&db, &order, scale, twist);
         // Plain T-pose method: on the same geometry, alignment changes nothing anyway.
@@ -122,7 +137,11 @@ fn a_twisted_reordered_copy_of_the_skeleton_gets_the_same_pose_scaled() {
         let mut local = vec![Quat::IDENTITY; n];
         let mut worst = 0.0f32;
         for step in 0..600 {
-            let input = Input { direction: glam::Vec2::new((step as f32 * 0.01).sin(), 1.0), run: step > 300, ..Input::default() };
+            let input = Input {
+                direction: glam::Vec2::new((step as f32 * 0.01).sin(), 1.0),
+                run: step > 300,
+                ..Input::default()
+            };
             character.update(&db, &index, &input, 1.0 / 60.0);
             let world = character.world_positions();
             let hips = world[r.source_hips];
@@ -174,7 +193,13 @@ fn a_bent_elbow_bends_only_the_avatar_forearm() {
     r.apply(&pose, Vec3::new(0.0, 1.0, 0.0), 0.0, &mut local);
     for k in 0..n {
         let changed = local[k].dot(rest_local[k]).abs() < 1.0 - 1e-6;
-        assert_eq!(changed, k == c.of_db[elbow].unwrap(), "joint {} ({}) changed: {changed}", k, db.skeleton.names[k + 1]);
+        assert_eq!(
+            changed,
+            k == c.of_db[elbow].unwrap(),
+            "joint {} ({}) changed: {changed}",
+            k,
+            db.skeleton.names[k + 1]
+        );
     }
 }
 

@@ -45,7 +45,8 @@ fn random_builds_load_and_play() {
             }
             Ok(Verdict::Refused(e)) => {
                 refused += 1;
-                let reason: String = e.split(|c: char| c.is_ascii_digit()).next().unwrap_or("").chars().take(50).collect();
+                let reason: String =
+                    e.split(|c: char| c.is_ascii_digit()).next().unwrap_or("").chars().take(50).collect();
                 *reasons.entry(reason).or_default() += 1;
             }
             Err(_) => panic!("case {i} broke the round trip: {:?}", roundtrip::generate(&bytes).config),

@@ -129,7 +129,13 @@ fn quality_harness_is_sane() {
         unlocked += r.skating_without_lock;
         if matches!(r.script.as_str(), "straight walk" | "run") {
             // Where the data can follow the input, the lock holds planted toes almost still.
-            assert!(r.skating <= 0.1 * r.skating_without_lock, "{}: skating {} vs {} without the lock", r.script, r.skating, r.skating_without_lock);
+            assert!(
+                r.skating <= 0.1 * r.skating_without_lock,
+                "{}: skating {} vs {} without the lock",
+                r.script,
+                r.skating,
+                r.skating_without_lock
+            );
         }
         assert!(r.skating <= 1.05 * r.skating_without_lock + 1e-4, "{}: foot lock made skating worse", r.script);
         assert!(r.mean_distance < settings.clamp_distance, "{}: mean distance {}", r.script, r.mean_distance);
@@ -140,9 +146,19 @@ fn quality_harness_is_sane() {
         if r.script != "turn on the spot" {
             assert!(r.travelled > 5.0, "{}: the character hardly moved ({} m)", r.script, r.travelled);
         }
-        assert!(r.searches_per_second >= 5.0 && r.searches_per_second < 30.0, "{}: {} searches/s", r.script, r.searches_per_second);
+        assert!(
+            r.searches_per_second >= 5.0 && r.searches_per_second < 30.0,
+            "{}: {} searches/s",
+            r.script,
+            r.searches_per_second
+        );
         let limit = 2.0 * quality::joint_max_angular_speeds(db).into_iter().fold(0.0, f32::max);
-        assert!(r.max_angular_speed < limit, "{}: a joint turned at {} rad/s (limit {limit})", r.script, r.max_angular_speed);
+        assert!(
+            r.max_angular_speed < limit,
+            "{}: a joint turned at {} rad/s (limit {limit})",
+            r.script,
+            r.max_angular_speed
+        );
     }
     // Overall the lock cuts planted-toe sliding to ~0.7×: what is left is the clamp dragging
     // the root where the database cannot follow the input (strafing with no walking
@@ -159,10 +175,14 @@ fn switching_databases_is_inertialized() {
     let walk = db();
     let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../shared/mocap/cmu-asf");
     // Subject 127 runs and side-steps: another database, the same (normalized) skeleton.
-    let sources: Vec<Source> = ["cmu_16_15.bvh", "cmu_127_03.bvh", "cmu_127_13.bvh", "cmu_127_14.bvh", "cmu_127_17.bvh"]
-        .iter()
-        .map(|name| Source { bvh: Bvh::parse(name, &std::fs::read(dir.join(name)).unwrap()).unwrap(), name: name.to_string() })
-        .collect();
+    let sources: Vec<Source> =
+        ["cmu_16_15.bvh", "cmu_127_03.bvh", "cmu_127_13.bvh", "cmu_127_14.bvh", "cmu_127_17.bvh"]
+            .iter()
+            .map(|name| Source {
+                bvh: Bvh::parse(name, &std::fs::read(dir.join(name)).unwrap()).unwrap(),
+                name: name.to_string(),
+            })
+            .collect();
     let other = build(&BuildConfig::default(), &sources).unwrap().database;
     assert_eq!(other.skeleton.names, walk.skeleton.names);
     let other_index = SearchIndex::new(&other).unwrap();
@@ -182,7 +202,12 @@ fn switching_databases_is_inertialized() {
         assert!(a.dot(*b).abs() > 1.0 - 1e-5, "rotation {a} → {b}");
     }
     for step in 0..300 {
-        c.update(&other, &other_index, &Input { direction: Vec2::new(0.0, 1.0), run: true, ..Default::default() }, 1.0 / 60.0);
+        c.update(
+            &other,
+            &other_index,
+            &Input { direction: Vec2::new(0.0, 1.0), run: true, ..Default::default() },
+            1.0 / 60.0,
+        );
         assert!(c.frame() < other.num_frames, "step {step}");
     }
     // A mask made for one database, then updates with another without `switch_database`: the
@@ -202,7 +227,10 @@ fn switching_databases_is_inertialized() {
 #[test]
 fn a_locked_foot_stays_put() {
     let db = db();
-    let toes: Vec<(usize, Vec3)> = ["left_toe", "right_toe"].iter().map(|n| db.skeleton.site(n).map(|s| (s.joint as usize, s.offset)).unwrap()).collect();
+    let toes: Vec<(usize, Vec3)> = ["left_toe", "right_toe"]
+        .iter()
+        .map(|n| db.skeleton.site(n).map(|s| (s.joint as usize, s.offset)).unwrap())
+        .collect();
     let mut c = Character::new(db, CharacterSettings::default());
     let (mut previous, mut was_locked) = ([Vec3::ZERO; 2], [false; 2]);
     let (mut locked_frames, mut worst) = (0, 0.0f32);
@@ -234,7 +262,8 @@ fn a_tracked_user_is_followed() {
     let db = db();
     let alpha = 0.3;
     let clamp_angle = 0.35;
-    let settings = CharacterSettings { clamp_distance: alpha, clamp_angle, adjustment_min_speed: 0.15, ..Default::default() };
+    let settings =
+        CharacterSettings { clamp_distance: alpha, clamp_angle, adjustment_min_speed: 0.15, ..Default::default() };
     let mut c = Character::new(db, settings);
     let dt = 1.0 / 72.0; // Quest Browser's lowest refresh rate
     let (mut head, mut yaw) = (Vec3::ZERO, 0.0f32);
@@ -254,7 +283,11 @@ fn a_tracked_user_is_followed() {
         // The head bobs sideways each step; the smoothed trajectory must not care.
         let sway = Vec3::new(0.03 * (t * 6.0).sin(), 0.0, 0.0);
         head += velocity * dt;
-        c.set_tracked(Tracked { position: head + sway, velocity: velocity + Vec3::new(0.18 * (t * 6.0).cos(), 0.0, 0.0), yaw });
+        c.set_tracked(Tracked {
+            position: head + sway,
+            velocity: velocity + Vec3::new(0.18 * (t * 6.0).cos(), 0.0, 0.0),
+            yaw,
+        });
         c.update(db, index(), &Input::default(), dt);
         let r = c.root_position();
         let d = Vec2::new(r.x - head.x - sway.x, r.z - head.z - sway.z).length();
@@ -271,9 +304,15 @@ fn a_tracked_user_is_followed() {
     }
     let facing = c.root_rotation() * Vec3::Z;
     let final_yaw = facing.x.atan2(facing.z);
-    assert!((final_yaw - std::f32::consts::FRAC_PI_2).abs() <= clamp_angle + 0.02, "turned in place to {final_yaw} rad");
+    assert!(
+        (final_yaw - std::f32::consts::FRAC_PI_2).abs() <= clamp_angle + 0.02,
+        "turned in place to {final_yaw} rad"
+    );
     assert!(c.root_position().x < -0.9, "side-stepped to x = {}", c.root_position().x);
-    println!("tracked: root↔head distance mean {:.3} m, max {max_distance:.3} m; final yaw {final_yaw:.3} rad", sum_distance / (72.0 * 11.0));
+    println!(
+        "tracked: root↔head distance mean {:.3} m, max {max_distance:.3} m; final yaw {final_yaw:.3} rad",
+        sum_distance / (72.0 * 11.0)
+    );
 }
 
 /// VR crouching without a crouch database: a hips drop lowers the hips by that much while the
@@ -283,9 +322,11 @@ fn a_hips_drop_crouches_with_feet_planted() {
     let db = db();
     let j = db.num_joints();
     let world = |c: &Character| c.world_positions().to_vec();
-    let toes: Vec<usize> = ["left_toe", "right_toe"].iter().map(|n| db.skeleton.site(n).unwrap().joint as usize).collect();
+    let toes: Vec<usize> =
+        ["left_toe", "right_toe"].iter().map(|n| db.skeleton.site(n).unwrap().joint as usize).collect();
     let hips = (0..j).find(|&k| db.skeleton.parents[k] == 0).unwrap();
-    let (mut a, mut b) = (Character::new(db, CharacterSettings::default()), Character::new(db, CharacterSettings::default()));
+    let (mut a, mut b) =
+        (Character::new(db, CharacterSettings::default()), Character::new(db, CharacterSettings::default()));
     let mut max_toe_gap = 0.0f32;
     for step in 0..600 {
         let t = step as f32 / 60.0;
@@ -297,7 +338,11 @@ fn a_hips_drop_crouches_with_feet_planted() {
         let (pa, pb) = (world(&a), world(&b));
         assert!(pb.iter().all(|p| p.is_finite()), "NaN at step {step}");
         if t >= 1.0 {
-            assert!((pa[hips].y - pb[hips].y - 0.35).abs() < 1e-4, "hips dropped {} m at step {step}", pa[hips].y - pb[hips].y);
+            assert!(
+                (pa[hips].y - pb[hips].y - 0.35).abs() < 1e-4,
+                "hips dropped {} m at step {step}",
+                pa[hips].y - pb[hips].y
+            );
             for &k in &toes {
                 max_toe_gap = max_toe_gap.max(pa[k].distance(pb[k]));
             }
@@ -317,7 +362,8 @@ fn a_tracked_user_bending_over_bends_the_torso_not_the_knees() {
     let db = db();
     let hips = (0..db.num_joints()).find(|&k| db.skeleton.parents[k] == 0).unwrap();
     let head = db.skeleton.site("head").unwrap().joint as usize;
-    let settings = CharacterSettings { clamp_distance: 0.3, clamp_angle: 0.35, adjustment_min_speed: 0.15, ..Default::default() };
+    let settings =
+        CharacterSettings { clamp_distance: 0.3, clamp_angle: 0.35, adjustment_min_speed: 0.15, ..Default::default() };
     // Standing still at the origin, facing +Z: upright, crouching, bending over.
     let run = |pitch: Option<f32>| {
         let mut c = Character::new(db, settings.clone());
@@ -342,7 +388,11 @@ fn a_tracked_user_bending_over_bends_the_torso_not_the_knees() {
         head_bent.z - root_bent.z, head_up.z - root_up.z, root_up.z - root_bent.z
     );
     assert_eq!(crouched.bend, 0.0);
-    assert!((hips_up.y - hips_crouched.y - 0.33).abs() < 0.02, "crouching: hips {} m down", hips_up.y - hips_crouched.y);
+    assert!(
+        (hips_up.y - hips_crouched.y - 0.33).abs() < 0.02,
+        "crouching: hips {} m down",
+        hips_up.y - hips_crouched.y
+    );
     assert!(bent.bend > 30f32.to_radians() && bent.hips_drop < 0.031, "{bent:?}");
     assert!(hips_up.y - hips_bent.y < 0.05, "bending over: hips {} m down", hips_up.y - hips_bent.y);
     assert!((head_up.y - head_bent.y - 0.33).abs() < 0.06, "bending over: head {} m down", head_up.y - head_bent.y);
@@ -350,8 +400,16 @@ fn a_tracked_user_bending_over_bends_the_torso_not_the_knees() {
     // head is still over the user's (the origin).
     let forward = (head_bent.z - root_bent.z) - (head_up.z - root_up.z);
     assert!(forward > 0.2, "the bend moved the head {forward} m forward");
-    assert!(root_up.z - root_bent.z > 0.6 * forward, "the root moved {} m back for a head {forward} m forward", root_up.z - root_bent.z);
-    assert!((head_bent.z - head_up.z).abs() < 0.4 * forward, "the head ended {} m from where the upright one is", head_bent.z - head_up.z);
+    assert!(
+        root_up.z - root_bent.z > 0.6 * forward,
+        "the root moved {} m back for a head {forward} m forward",
+        root_up.z - root_bent.z
+    );
+    assert!(
+        (head_bent.z - head_up.z).abs() < 0.4 * forward,
+        "the head ended {} m from where the upright one is",
+        head_bent.z - head_up.z
+    );
 }
 
 /// The world pose the runtime hands out is the forward kinematics of its shown local pose on
@@ -404,7 +462,11 @@ fn a_copy_placed_playing_the_senders_frame_keeps_up() {
         worst_playing = worst_playing.max((playing.root_position() - sender.root_position()).length());
         worst_rest = worst_rest.max((rest.root_position() - sender.root_position()).length());
     }
-    println!("copy placed mid-walk, worst root distance over 1 s: playing the frame {:.1} cm, from rest {:.1} cm", worst_playing * 100.0, worst_rest * 100.0);
+    println!(
+        "copy placed mid-walk, worst root distance over 1 s: playing the frame {:.1} cm, from rest {:.1} cm",
+        worst_playing * 100.0,
+        worst_rest * 100.0
+    );
     assert!(worst_playing < 0.1, "playing the sender's frame: {worst_playing} m");
     assert!(worst_playing < 0.5 * worst_rest, "playing {worst_playing} m vs from rest {worst_rest} m");
     // An out-of-range frame is a plain teleport, not a panic.
@@ -416,7 +478,16 @@ fn a_copy_placed_playing_the_senders_frame_keeps_up() {
 /// Bit patterns of everything a character shows: root, simulation and the world pose.
 fn fingerprint(c: &Character) -> Vec<u32> {
     let (sp, sq) = c.simulation_transform();
-    let mut bits: Vec<u32> = [c.root_position().to_array().to_vec(), c.root_rotation().to_array().to_vec(), sp.to_array().to_vec(), sq.to_array().to_vec()].concat().iter().map(|x| x.to_bits()).collect();
+    let mut bits: Vec<u32> = [
+        c.root_position().to_array().to_vec(),
+        c.root_rotation().to_array().to_vec(),
+        sp.to_array().to_vec(),
+        sq.to_array().to_vec(),
+    ]
+    .concat()
+    .iter()
+    .map(|x| x.to_bits())
+    .collect();
     bits.extend(c.world_positions().iter().flat_map(|p| p.to_array()).map(f32::to_bits));
     bits.extend(c.world_rotations().iter().flat_map(|q| q.to_array()).map(f32::to_bits));
     bits.push(c.frame() as u32);
@@ -431,12 +502,23 @@ fn a_copy_loaded_with_the_senders_state_is_the_sender() {
     let dt = 1.0 / 72.0;
     // Each drive mode, saved mid-motion (turning, a foot locked, inertialization offsets live).
     for mode in ["input", "path", "tracked"] {
-        let polyline = || Polyline::new(&[Vec3::ZERO, Vec3::new(0.0, 0.0, 4.0), Vec3::new(3.0, 0.0, 5.0), Vec3::new(4.0, 0.0, 1.0)], &[1.2, 1.0, 1.5, 1.1], true).unwrap();
+        let polyline = || {
+            Polyline::new(
+                &[Vec3::ZERO, Vec3::new(0.0, 0.0, 4.0), Vec3::new(3.0, 0.0, 5.0), Vec3::new(4.0, 0.0, 1.0)],
+                &[1.2, 1.0, 1.5, 1.1],
+                true,
+            )
+            .unwrap()
+        };
         let drive = |c: &mut Character, step: usize| {
             let t = step as f32 * dt;
             if mode == "tracked" {
                 let yaw = 0.8 * (t * 0.7).sin();
-                c.set_tracked(Tracked { position: Vec3::new(0.9 * (t * 0.5).sin(), 0.0, 0.6 * t), velocity: Vec3::new(0.45 * (t * 0.5).cos(), 0.0, 0.6), yaw });
+                c.set_tracked(Tracked {
+                    position: Vec3::new(0.9 * (t * 0.5).sin(), 0.0, 0.6 * t),
+                    velocity: Vec3::new(0.45 * (t * 0.5).cos(), 0.0, 0.6),
+                    yaw,
+                });
                 c.set_hips_drop(0.1 * (t * 0.9).sin().max(0.0));
             }
             input_at(t)
@@ -467,7 +549,11 @@ fn a_copy_loaded_with_the_senders_state_is_the_sender() {
             step += 1;
             assert_eq!(fingerprint(&copy), fingerprint(&sender), "{mode}: the copy diverged at step {step}");
         }
-        println!("{mode}: runtime state {} bytes ({} joints); the copy matched the sender bit for bit over 10 s", state.len(), db.num_joints());
+        println!(
+            "{mode}: runtime state {} bytes ({} joints); the copy matched the sender bit for bit over 10 s",
+            state.len(),
+            db.num_joints()
+        );
     }
 }
 

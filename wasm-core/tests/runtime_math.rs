@@ -3,9 +3,9 @@
 //! feet during contacts.
 
 use glam::{Quat, Vec3};
+use mmcore::character::root::RootMotion;
 use mmcore::config::BuildConfig;
 use mmcore::ik::{knee_bend_direction, leg_ik, FootLock, LegJoints};
-use mmcore::character::root::RootMotion;
 use mmcore::inertialize::Inertializer;
 use mmcore::kinematics::local_to_model;
 use mmcore::{build, Bvh, Database, Source};
@@ -16,8 +16,8 @@ fn walk_database() -> Database {
         .iter()
         .map(|rel| {
             let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../shared/mocap").join(rel);
-            let bytes =
-                std::fs::read(&path).unwrap_or_else(|e| panic!("{}: {e} (is ../shared beside the repo?)", path.display()));
+            let bytes = std::fs::read(&path)
+                .unwrap_or_else(|e| panic!("{}: {e} (is ../shared beside the repo?)", path.display()));
             Source { name: rel.to_string(), bvh: Bvh::parse(rel, &bytes).unwrap() }
         })
         .collect();
@@ -34,7 +34,12 @@ struct Pose {
 
 impl Pose {
     fn new(n: usize) -> Pose {
-        Pose { pos: vec![Vec3::ZERO; n], vel: vec![Vec3::ZERO; n], rot: vec![Quat::IDENTITY; n], angvel: vec![Vec3::ZERO; n] }
+        Pose {
+            pos: vec![Vec3::ZERO; n],
+            vel: vec![Vec3::ZERO; n],
+            rot: vec![Quat::IDENTITY; n],
+            angvel: vec![Vec3::ZERO; n],
+        }
     }
 }
 
@@ -94,7 +99,18 @@ fn inertialized_playback_is_continuous_across_random_jumps() {
                 inert.transition(sp, sv, sr, sw, dp, dv, dr, dw);
                 root.transition(&db, dst, true);
                 // Key invariant on real data: at the transition the output does not move.
-                inert.update(dp, dv, dr, dw, halflife, 0.0, &mut check.pos, &mut check.vel, &mut check.rot, &mut check.angvel);
+                inert.update(
+                    dp,
+                    dv,
+                    dr,
+                    dw,
+                    halflife,
+                    0.0,
+                    &mut check.pos,
+                    &mut check.vel,
+                    &mut check.rot,
+                    &mut check.angvel,
+                );
                 for i in 1..n {
                     assert!((check.pos[i] - out.pos[i]).length() < 1e-5, "joint {i} moved at a transition");
                     assert!(1.0 - check.rot[i].dot(out.rot[i]).abs() < 1e-6, "joint {i} turned at a transition");
@@ -145,8 +161,10 @@ fn foot_lock_and_leg_ik_plant_the_feet_on_real_walks() {
     let db = walk_database();
     let (n, parents) = (db.num_joints(), &db.skeleton.parents);
     let dt = 1.0 / db.fps;
-    let legs =
-        [LegJoints::from_skeleton(&db.skeleton, "left").unwrap(), LegJoints::from_skeleton(&db.skeleton, "right").unwrap()];
+    let legs = [
+        LegJoints::from_skeleton(&db.skeleton, "left").unwrap(),
+        LegJoints::from_skeleton(&db.skeleton, "right").unwrap(),
+    ];
     let (mut gp, mut gr) = (vec![Vec3::ZERO; n], vec![Quat::IDENTITY; n]);
     let mut rot = vec![Quat::IDENTITY; n];
     let toe_of = |leg: &LegJoints, gp: &[Vec3], gr: &[Quat]| gp[leg.toe] + gr[leg.toe] * leg.toe_offset;

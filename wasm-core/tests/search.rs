@@ -4,11 +4,11 @@
 //! (`npm run build`), else builds a smaller database from `../shared/mocap`.
 
 use mmcore::config::BuildConfig;
+use mmcore::rng::Rng;
 use mmcore::search::{self, SearchIndex, SearchMethod, SearchOptions};
+use mmcore::tag_query::TagQuery;
 use mmcore::{build, format, Bvh, Database, Source};
 use std::path::Path;
-use mmcore::rng::Rng;
-use mmcore::tag_query::TagQuery;
 use std::time::Instant;
 
 fn database() -> (Database, &'static str) {
@@ -22,7 +22,8 @@ fn database() -> (Database, &'static str) {
         .iter()
         .map(|f| {
             let p = root.join("../shared/mocap/cmu-asf").join(f);
-            let bytes = std::fs::read(&p).unwrap_or_else(|e| panic!("{}: {e} (is ../shared beside the repo?)", p.display()));
+            let bytes =
+                std::fs::read(&p).unwrap_or_else(|e| panic!("{}: {e} (is ../shared beside the repo?)", p.display()));
             Source { name: f.to_string(), bvh: Bvh::parse(f, &bytes).unwrap() }
         })
         .collect();
@@ -99,7 +100,12 @@ fn aabb_and_simd_equal_brute_force_on_10000_random_queries() {
         let num_tags = db.tags.len().min(64);
         if num_tags > 0 {
             let bit = |rng: &mut Rng| if rng.below(2) == 0 { 1u64 << rng.below(num_tags) } else { 0 };
-            tags = TagQuery { require: bit(&mut rng), exclude: bit(&mut rng), prefer: bit(&mut rng), bias: [0.0, 0.5, 2.0, 20.0][rng.below(4)] };
+            tags = TagQuery {
+                require: bit(&mut rng),
+                exclude: bit(&mut rng),
+                prefer: bit(&mut rng),
+                bias: [0.0, 0.5, 2.0, 20.0][rng.below(4)],
+            };
         }
         let exclude_recent = (rng.below(3) == 0).then(|| {
             let a = rng.below(f);
@@ -140,7 +146,11 @@ fn aabb_and_simd_equal_brute_force_on_10000_random_queries() {
 fn index_build_time() {
     let (db, what) = database();
     let (_, median) = min_and_median_ms(&mut || drop(std::hint::black_box(SearchIndex::new(&db).unwrap())));
-    println!("SearchIndex::new on {what} ({} frames × {} dims): median {median:.2} ms", db.num_frames, db.num_features());
+    println!(
+        "SearchIndex::new on {what} ({} frames × {} dims): median {median:.2} ms",
+        db.num_frames,
+        db.num_features()
+    );
     // Generous: the point is "a few ms, rebuild at load" (see aabb.rs).
     assert!(median < 100.0, "index build took {median} ms");
 }

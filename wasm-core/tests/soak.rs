@@ -97,8 +97,7 @@ const FAULTS: [Fault; 17] = [
 fn an_hour_of_random_input_with_faults_never_nan_recovers_within_a_second_allocates_nothing() {
     let db = database();
     let index = SearchIndex::new(&db).unwrap();
-    let mut settings = CharacterSettings::default();
-    settings.clamp_distance = 0.2;
+    let settings = CharacterSettings { clamp_distance: 0.2, ..CharacterSettings::default() };
     let alpha = settings.clamp_distance;
     let mut c = Character::new(&db, settings);
     c.set_toe_floor(db.toe_height_in_contact());
@@ -170,7 +169,9 @@ fn an_hour_of_random_input_with_faults_never_nan_recovers_within_a_second_alloca
                     c.set_torso_bend(if rng.uniform(0.0, 1.0) < 0.5 { f32::NAN } else { -1e9 });
                     let _ = c.set_crouch(if rng.uniform(0.0, 1.0) < 0.5 { f32::INFINITY } else { 1e9 }, f32::NAN);
                 }
-                Fault::BadPath => assert!(Path::new(&[Vec3::ZERO, Vec3::new(f32::NAN, 0.0, 1.0)], &[1.0], false).is_err()),
+                Fault::BadPath => {
+                    assert!(Path::new(&[Vec3::ZERO, Vec3::new(f32::NAN, 0.0, 1.0)], &[1.0], false).is_err())
+                }
             }
             pending = Some((step, fault, c.stats.searches));
         }
@@ -262,7 +263,11 @@ fn each_probe_failure_is_refused_or_recovered_at_once() {
         c.update(&db, &index, &walk, 1.0 / 60.0);
         let searches = c.stats.searches;
         for k in 0..60 {
-            c.set_tracked(Tracked { position: Vec3::new(0.0, 0.0, 0.02 * k as f32), velocity: Vec3::new(0.0, 0.0, 1.2), yaw: 0.0 });
+            c.set_tracked(Tracked {
+                position: Vec3::new(0.0, 0.0, 0.02 * k as f32),
+                velocity: Vec3::new(0.0, 0.0, 1.2),
+                yaw: 0.0,
+            });
             c.update(&db, &index, &walk, 1.0 / 60.0);
         }
         assert!(finite(&c) && c.stats.searches > searches && c.stats.best_cost.is_finite(), "{bad:?}");

@@ -16,7 +16,8 @@ use std::sync::OnceLock;
 fn database() -> &'static (Database, SearchIndex) {
     static DB: OnceLock<(Database, SearchIndex)> = OnceLock::new();
     DB.get_or_init(|| {
-        let db = format::from_bytes(include_bytes!("../../tests/corpus/mmdb/humanoid.mmdb")).expect("the committed humanoid.mmdb loads");
+        let db = format::from_bytes(include_bytes!("../../tests/corpus/mmdb/humanoid.mmdb"))
+            .expect("the committed humanoid.mmdb loads");
         let index = SearchIndex::new(&db).expect("its index");
         (db, index)
     })
@@ -44,8 +45,16 @@ impl Reader<'_> {
 }
 
 /// Settings a page may patch at run time (any value: the patch is refused or applied whole).
-const SETTINGS: [&str; 8] =
-    ["clamp_distance", "playback_speed", "search_interval", "inertialization_halflife", "clamp_angle", "adjustment_max_ratio", "foot_lock_unlock_radius", "exclude_radius"];
+const SETTINGS: [&str; 8] = [
+    "clamp_distance",
+    "playback_speed",
+    "search_interval",
+    "inertialization_halflife",
+    "clamp_angle",
+    "adjustment_max_ratio",
+    "foot_lock_unlock_radius",
+    "exclude_radius",
+];
 
 /// Runs the calls `data` encodes (at most 256) on a fresh character; panics if a property breaks.
 pub fn check_character(data: &[u8]) {
@@ -110,7 +119,8 @@ pub fn check_character(data: &[u8]) {
             }
             7 => {
                 let (len, bits) = (db.num_frames + (r.byte() % 3) as usize - 1, r.byte());
-                let mask = (bits & 1 != 0).then(|| (0..len).map(|f| (f as u8).wrapping_mul(bits) & 0x80 != 0).collect());
+                let mask =
+                    (bits & 1 != 0).then(|| (0..len).map(|f| (f as u8).wrapping_mul(bits) & 0x80 != 0).collect());
                 let _ = c.set_mask(db, mask);
                 false
             }
@@ -151,7 +161,11 @@ pub fn check_character(data: &[u8]) {
             // 1.1 mm past α; two steps of the larger coordinate bound that rounding.
             let far = c.root_position().abs().max_element().max(sim.abs().max_element());
             let rounding = 2.0 * far * f32::EPSILON;
-            assert!(gap <= c.settings.clamp_distance + 1e-3 + rounding, "root {gap} m from the simulation (α {})", c.settings.clamp_distance);
+            assert!(
+                gap <= c.settings.clamp_distance + 1e-3 + rounding,
+                "root {gap} m from the simulation (α {})",
+                c.settings.clamp_distance
+            );
         }
     }
 }

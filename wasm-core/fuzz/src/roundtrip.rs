@@ -85,7 +85,11 @@ fn take(r: &mut Reader, no_arms: bool, fps: f64) -> String {
     let legs = if r.chance(24) { r.log(1e-4, 1e4) } else { r.range(0.7, 1.4) };
     let z_up = r.chance(24);
     let frames = if r.chance(16) { 1 + r.byte() as usize * 8 } else { 2 + r.byte() as usize % 160 };
-    let frame_time = if r.chance(32) { r.pick(&[1.0, 0.5, 1e-4, 1e-3, 0.04]) } else { r.pick(&[1.0 / 120.0, 1.0 / 60.0, 1.0 / 30.0, 0.00833333, 1.0 / 24.0]) };
+    let frame_time = if r.chance(32) {
+        r.pick(&[1.0, 0.5, 1e-4, 1e-3, 0.04])
+    } else {
+        r.pick(&[1.0 / 120.0, 1.0 / 60.0, 1.0 / 30.0, 0.00833333, 1.0 / 24.0])
+    };
     // A slow source resampled to 1,000 fps grows 1,000-fold: keep such takes short, so that a
     // case stays a fraction of a second (`tests/build_limits.rs` has the big builds).
     let frames = if frame_time >= 0.5 { frames.min(30) } else { frames };
@@ -112,8 +116,21 @@ fn take(r: &mut Reader, no_arms: bool, fps: f64) -> String {
         let k = if (1..=8).contains(&j) { legs } else { 1.0 };
         let o = up([offset[0] * unit * k, offset[1] * unit * k, offset[2] * unit * k]);
         let pad = "  ".repeat(depth(j));
-        s += &format!("{pad}{} {name}\n{pad}{{\n{pad}  OFFSET {} {} {}\n", if parent < 0 { "ROOT" } else { "JOINT" }, v(o[0]), v(o[1]), v(o[2]));
-        s += &format!("{pad}  CHANNELS {}\n", if parent < 0 { "6 Xposition Yposition Zposition Zrotation Yrotation Xrotation" } else { "3 Zrotation Yrotation Xrotation" });
+        s += &format!(
+            "{pad}{} {name}\n{pad}{{\n{pad}  OFFSET {} {} {}\n",
+            if parent < 0 { "ROOT" } else { "JOINT" },
+            v(o[0]),
+            v(o[1]),
+            v(o[2])
+        );
+        s += &format!(
+            "{pad}  CHANNELS {}\n",
+            if parent < 0 {
+                "6 Xposition Yposition Zposition Zrotation Yrotation Xrotation"
+            } else {
+                "3 Zrotation Yrotation Xrotation"
+            }
+        );
         let leaf = joints.get(i + 1).is_none_or(|&n| JOINTS[n].1 != j as i32);
         if leaf {
             s += &format!("{pad}  End Site\n{pad}  {{\n{pad}    OFFSET 0 {} 0\n{pad}  }}\n", v(0.05 * unit));
@@ -166,22 +183,47 @@ fn take(r: &mut Reader, no_arms: bool, fps: f64) -> String {
 /// A feature group spec (JSON) anywhere around the configuration's limits.
 fn feature(r: &mut Reader, i: usize) -> String {
     let kind = r.pick(&["position", "velocity", "direction"]);
-    let joint = r.pick(&["root", "root", "hips", "left_foot", "right_foot", "left_toe", "head", "ltibia", "VirtualRoot", "nose"]);
+    let joint = r.pick(&[
+        "root",
+        "root",
+        "hips",
+        "left_foot",
+        "right_foot",
+        "left_toe",
+        "head",
+        "ltibia",
+        "VirtualRoot",
+        "nose",
+    ]);
     let count = if r.chance(16) { 1 + r.byte() as usize % 80 } else { 1 + r.byte() as usize % 4 };
     let offsets: Vec<String> = (0..count)
-        .map(|_| if r.chance(16) { r.range(-10_000.0, 10_000.0).round() as i64 } else { r.range(-30.0, 60.0).round() as i64 }.to_string())
+        .map(|_| {
+            if r.chance(16) { r.range(-10_000.0, 10_000.0).round() as i64 } else { r.range(-30.0, 60.0).round() as i64 }
+                .to_string()
+        })
         .collect();
     let axes = r.pick(&["", r#", "axes": "xz""#, r#", "axes": "xyz""#]);
     let weight = if r.chance(8) { r.pick(&[0.0, 1e-4, 2e3]) } else { r.log(1e-3, 1e3) };
-    let axis = if r.chance(32) { format!(r#", "axis": [{}, {}, {}]"#, r.range(-1e3, 1e3), r.range(-2.0, 2.0), r.range(-2.0, 2.0)) } else { String::new() };
-    format!(r#"{{"name": "g{i}", "kind": "{kind}", "joint": "{joint}", "offsets": [{}]{axes}, "weight": {weight}{axis}}}"#, offsets.join(", "))
+    let axis = if r.chance(32) {
+        format!(r#", "axis": [{}, {}, {}]"#, r.range(-1e3, 1e3), r.range(-2.0, 2.0), r.range(-2.0, 2.0))
+    } else {
+        String::new()
+    };
+    format!(
+        r#"{{"name": "g{i}", "kind": "{kind}", "joint": "{joint}", "offsets": [{}]{axes}, "weight": {weight}{axis}}}"#,
+        offsets.join(", ")
+    )
 }
 
 /// The case `data` encodes.
 pub fn generate(data: &[u8]) -> Case {
     let mut r = Reader(data);
     let mut keys: Vec<String> = Vec::new();
-    let fps = if r.chance(48) { r.pick(&[1.0, 2.0, 1000.0, 999.5, 240.0]) } else { r.pick(&[30.0, 60.0, 60.0, 24.0, 120.0, 90.0]) };
+    let fps = if r.chance(48) {
+        r.pick(&[1.0, 2.0, 1000.0, 999.5, 240.0])
+    } else {
+        r.pick(&[30.0, 60.0, 60.0, 24.0, 120.0, 90.0])
+    };
     keys.push(format!(r#""fps": {fps}"#));
     keys.push(format!(r#""mirror": {}"#, r.chance(100)));
     if r.chance(48) {
@@ -269,30 +311,49 @@ pub fn run(case: &Case) -> Verdict {
     };
     let built = out.database;
     let bytes = format::to_bytes(&built);
-    let db = format::from_bytes(&bytes).unwrap_or_else(|e| panic!("the builder wrote a database its loader refuses: {e}\nconfig: {}", case.config));
-    assert_eq!((db.num_frames, db.num_joints(), db.num_features(), &db.clips, &db.tags), (built.num_frames, built.num_joints(), built.num_features(), &built.clips, &built.tags));
+    let db = format::from_bytes(&bytes)
+        .unwrap_or_else(|e| panic!("the builder wrote a database its loader refuses: {e}\nconfig: {}", case.config));
+    assert_eq!(
+        (db.num_frames, db.num_joints(), db.num_features(), &db.clips, &db.tags),
+        (built.num_frames, built.num_joints(), built.num_features(), &built.clips, &built.tags)
+    );
     // What loaded is stable: written and read again it is the same within the format's
     // quantization. (Against the builder's unquantized rotations, an angular velocity of half
     // a turn per frame — a capture glitch — may flip its sign: the same rotation rate.)
-    let again = format::from_bytes(&format::to_bytes(&db)).unwrap_or_else(|e| panic!("a loaded database written again is refused: {e}"));
+    let again = format::from_bytes(&format::to_bytes(&db))
+        .unwrap_or_else(|e| panic!("a loaded database written again is refused: {e}"));
     format::check_round_trip(&db, &again).unwrap_or_else(|e| panic!("the round trip changed the database: {e}"));
-    let index = SearchIndex::new(&db).unwrap_or_else(|e| panic!("a loaded database the search refuses: {e}\nconfig: {}", case.config));
+    let index = SearchIndex::new(&db)
+        .unwrap_or_else(|e| panic!("a loaded database the search refuses: {e}\nconfig: {}", case.config));
     let mut c = Character::new(&db, CharacterSettings::default());
     c.set_toe_floor(db.toe_height_in_contact());
     let alpha = c.settings.clamp_distance;
     for step in 0..120 {
         let phase = step / 30;
         let a = step as f32 * 0.05;
-        let input = Input { direction: Vec2::new(a.sin(), a.cos()) * [1.0, 0.6, 0.0, 1.0][phase % 4], facing: Vec2::new(a.cos(), -a.sin()), run: phase == 3, strafe: phase == 1 };
+        let input = Input {
+            direction: Vec2::new(a.sin(), a.cos()) * [1.0, 0.6, 0.0, 1.0][phase % 4],
+            facing: Vec2::new(a.cos(), -a.sin()),
+            run: phase == 3,
+            strafe: phase == 1,
+        };
         c.update(&db, &index, &input, 1.0 / 60.0);
-        assert!(c.world_positions().iter().all(|p| p.is_finite()), "non-finite pose at step {step}\nconfig: {}", case.config);
+        assert!(
+            c.world_positions().iter().all(|p| p.is_finite()),
+            "non-finite pose at step {step}\nconfig: {}",
+            case.config
+        );
         assert!(c.world_rotations().iter().all(|q| q.is_finite()), "non-finite rotation at step {step}");
         assert!(c.root_position().is_finite() && c.root_rotation().is_finite(), "non-finite root at step {step}");
         assert!(c.frame() < db.num_frames, "frame {} of {}", c.frame(), db.num_frames);
         let (sim, _) = c.simulation_transform();
         let gap = Vec2::new(c.root_position().x - sim.x, c.root_position().z - sim.z).length();
         let far = c.root_position().abs().max_element().max(sim.abs().max_element());
-        assert!(gap <= alpha + 1e-3 + 2.0 * far * f32::EPSILON, "root {gap} m from the simulation at step {step} (α {alpha})\nconfig: {}", case.config);
+        assert!(
+            gap <= alpha + 1e-3 + 2.0 * far * f32::EPSILON,
+            "root {gap} m from the simulation at step {step} (α {alpha})\nconfig: {}",
+            case.config
+        );
     }
     Verdict::Played { frames: db.num_frames }
 }

@@ -29,7 +29,10 @@ fn main() {
     let args: Vec<String> = std::env::args().skip(1).collect();
     let result = match args.as_slice() {
         [flag, dir] if flag == "--seeds" => seeds(Path::new(dir)),
-        [flag, dir, n] if flag == "--roundtrip" => n.parse().map_err(|_| format!("--roundtrip: {n} is not a count")).and_then(|n| round_trip_cases(Path::new(dir), n)),
+        [flag, dir, n] if flag == "--roundtrip" => n
+            .parse()
+            .map_err(|_| format!("--roundtrip: {n} is not a count"))
+            .and_then(|n| round_trip_cases(Path::new(dir), n)),
         [dir] if !dir.starts_with('-') => cases(Path::new(dir)),
         _ => Err("usage: mmdb-cases OUT_DIR | mmdb-cases --seeds DIR | mmdb-cases --roundtrip DIR N".to_string()),
     };
@@ -54,7 +57,10 @@ fn humanoid_seed() -> Result<Vec<u8>, String> {
     if let Ok(bytes) = std::fs::read(&path) {
         return Ok(bytes);
     }
-    let source = mmcore::Source { name: "humanoid.bvh".into(), bvh: Bvh::parse("humanoid.bvh", hostile::humanoid_bvh(80).as_bytes()).map_err(|e| e.to_string())? };
+    let source = mmcore::Source {
+        name: "humanoid.bvh".into(),
+        bvh: Bvh::parse("humanoid.bvh", hostile::humanoid_bvh(80).as_bytes()).map_err(|e| e.to_string())?,
+    };
     let config = mmcore::BuildConfig::from_json(r#"{"mirror": false}"#).map_err(|e| e.to_string())?;
     let db = mmcore::build(&config, &[source]).map_err(|e| e.to_string())?.database;
     let bytes = format::to_bytes(&db);

@@ -121,7 +121,11 @@ fn parse_sources(path: &Path, keep: &dyn Fn(&str) -> bool) -> Result<Vec<Source>
     if matches!(ext.as_str(), "glb" | "gltf" | "vrma") || (ext != "bvh" && mmcore::gltf::looks_like_gltf(&bytes)) {
         let takes = mmcore::gltf::parse(&name, &bytes)?;
         let single = takes.len() == 1;
-        return Ok(takes.into_iter().map(|t| Source { name: if single { name.clone() } else { format!("{name}#{}", t.clip) }, bvh: t.bvh }).filter(|s| keep(&s.name)).collect());
+        return Ok(takes
+            .into_iter()
+            .map(|t| Source { name: if single { name.clone() } else { format!("{name}#{}", t.clip) }, bvh: t.bvh })
+            .filter(|s| keep(&s.name))
+            .collect());
     }
     Ok(vec![Source { bvh: Bvh::parse(&name, &bytes)?, name }])
 }
@@ -143,7 +147,11 @@ fn config_files(config: &BuildConfig, dir: &Path) -> Result<Vec<PathBuf>, Error>
             vec![pattern.clone()]
         };
         if matched.is_empty() {
-            return Err(Error::config(format!("clip file pattern '{}' matches no file in {}", clip.file, parent.display())));
+            return Err(Error::config(format!(
+                "clip file pattern '{}' matches no file in {}",
+                clip.file,
+                parent.display()
+            )));
         }
         matched.sort();
         for m in matched {
@@ -156,7 +164,11 @@ fn config_files(config: &BuildConfig, dir: &Path) -> Result<Vec<PathBuf>, Error>
 }
 
 fn build(args: &[String]) -> CliResult {
-    let a = Args::parse(args, &["-o", "--output", "--config", "--fps", "--scale"], &["--no-mirror", "--no-repair", "--json"])?;
+    let a = Args::parse(
+        args,
+        &["-o", "--output", "--config", "--fps", "--scale"],
+        &["--no-mirror", "--no-repair", "--json"],
+    )?;
     let output = a.get("-o").or(a.get("--output")).ok_or_else(|| Usage("build needs -o OUT.mmdb".into()))?;
     let (mut config, files) = match a.get("--config") {
         Some(path) => {
@@ -193,7 +205,8 @@ fn build(args: &[String]) -> CliResult {
         config.scale = if s == "auto" {
             Scale::Auto(AutoScale::Auto)
         } else {
-            let v: f64 = s.parse().map_err(|_| Usage(format!("--scale: '{}' is not a number or 'auto'", limits::quote(s))))?;
+            let v: f64 =
+                s.parse().map_err(|_| Usage(format!("--scale: '{}' is not a number or 'auto'", limits::quote(s))))?;
             limits::check_scale(v).map_err(|m| Usage(format!("--scale: {m}")))?;
             Scale::Fixed(v)
         };
@@ -208,7 +221,13 @@ fn build(args: &[String]) -> CliResult {
     let started = Instant::now();
     let from_config = a.get("--config").is_some();
     let keep = |name: &str| !from_config || config.clip_spec(name).is_some();
-    let sources = files.iter().map(|f| parse_sources(f, &keep)).collect::<Result<Vec<_>, _>>()?.into_iter().flatten().collect::<Vec<_>>();
+    let sources = files
+        .iter()
+        .map(|f| parse_sources(f, &keep))
+        .collect::<Result<Vec<_>, _>>()?
+        .into_iter()
+        .flatten()
+        .collect::<Vec<_>>();
     let parsed = started.elapsed();
     let out = mmcore::build(&config, &sources)?;
     let bytes = format::to_bytes(&out.database);
@@ -286,21 +305,37 @@ fn search_cmd(args: &[String]) -> CliResult {
     let (query, exclude) = match (a.number::<usize>("--frame")?, a.get("--query")) {
         (Some(f), None) => {
             if f >= db.num_frames {
-                return Err(Usage(format!("--frame {f} is out of range (database has {} frames)", db.num_frames)).into());
+                return Err(
+                    Usage(format!("--frame {f} is out of range (database has {} frames)", db.num_frames)).into()
+                );
             }
             (db.feature(f).to_vec(), Some((f.saturating_sub(radius), f + radius + 1)))
         }
         (None, Some(q)) => {
-            let values = q.split(',').map(|v| v.trim().parse::<f32>()).collect::<Result<Vec<_>, _>>().map_err(|_| Usage(format!("--query: '{q}' is not a comma-separated list of numbers")))?;
+            let values = q
+                .split(',')
+                .map(|v| v.trim().parse::<f32>())
+                .collect::<Result<Vec<_>, _>>()
+                .map_err(|_| Usage(format!("--query: '{q}' is not a comma-separated list of numbers")))?;
             if values.len() != db.num_features() {
-                return Err(Usage(format!("--query has {} values, the database has {} feature dims", values.len(), db.num_features())).into());
+                return Err(Usage(format!(
+                    "--query has {} values, the database has {} feature dims",
+                    values.len(),
+                    db.num_features()
+                ))
+                .into());
             }
             (if a.has("--normalized") { values } else { search::normalize_query(&db, &values) }, None)
         }
         _ => return Err(Usage("search needs exactly one of --frame N or --query".into()).into()),
     };
     let mask = match a.get("--tag") {
-        Some(t) => Some(db.tag_mask(t).ok_or_else(|| Error::config(format!("no tag '{t}' (tags: {})", db.tags.iter().map(|t| t.name.as_str()).collect::<Vec<_>>().join(", "))))?),
+        Some(t) => Some(db.tag_mask(t).ok_or_else(|| {
+            Error::config(format!(
+                "no tag '{t}' (tags: {})",
+                db.tags.iter().map(|t| t.name.as_str()).collect::<Vec<_>>().join(", ")
+            ))
+        })?),
         None => None,
     };
     let beta = |flag: &str| -> Result<f32, Usage> {
@@ -346,7 +381,13 @@ fn search_cmd(args: &[String]) -> CliResult {
     } else {
         println!("{method_name} search over {} frames in {elapsed:.4} ms", db.num_frames);
         for r in &results {
-            println!("  frame {:>6}  cost {:>10.4}  {} +{}", r["frame"], r["cost"].as_f64().unwrap(), r["clip"].as_str().unwrap(), r["clip_frame"]);
+            println!(
+                "  frame {:>6}  cost {:>10.4}  {} +{}",
+                r["frame"],
+                r["cost"].as_f64().unwrap(),
+                r["clip"].as_str().unwrap(),
+                r["clip_frame"]
+            );
         }
     }
     Ok(())
@@ -378,7 +419,10 @@ fn bench(args: &[String]) -> CliResult {
         a.positional.iter().map(|p| read(Path::new(p)).map(|b| (p.clone(), b))).collect::<Result<_, _>>()?;
     let megabytes = files.iter().map(|(_, b)| b.len()).sum::<usize>() as f64 / 1e6;
     // Parse and build once outside the clock: a bad file is an error, not a panic mid-timing.
-    let sources: Vec<Source> = files.iter().map(|(n, b)| Bvh::parse(n, b).map(|bvh| Source { name: n.clone(), bvh })).collect::<Result<_, _>>()?;
+    let sources: Vec<Source> = files
+        .iter()
+        .map(|(n, b)| Bvh::parse(n, b).map(|bvh| Source { name: n.clone(), bvh }))
+        .collect::<Result<_, _>>()?;
     let config = BuildConfig::default();
     let mut output_frames = mmcore::build(&config, &sources)?.database.num_frames;
     let (parse, parse_runs) = median_seconds(seconds, || {
@@ -434,7 +478,12 @@ fn bench_runtime(args: &[String]) -> CliResult {
         let t = step as f32 / 60.0;
         let phase = (t / 2.0) as usize % 4;
         Input {
-            direction: [glam::Vec2::new(0.7, 0.7), glam::Vec2::new(-0.7, 0.7), glam::Vec2::new(0.0, -1.0), glam::Vec2::ZERO][phase],
+            direction: [
+                glam::Vec2::new(0.7, 0.7),
+                glam::Vec2::new(-0.7, 0.7),
+                glam::Vec2::new(0.0, -1.0),
+                glam::Vec2::ZERO,
+            ][phase],
             run: phase == 2,
             ..Default::default()
         }
@@ -511,11 +560,16 @@ fn scripted(args: &[String], command: &str) -> Result<Scripted, CliError> {
 fn quality(args: &[String]) -> CliResult {
     use mmcore::quality;
     let Scripted { path, db, seconds, settings, json } = scripted(args, "quality")?;
-    let reports: Vec<quality::Report> = quality::scripts().iter().map(|s| quality::run(&db, &settings, s, seconds, 1.0 / 60.0)).collect();
+    let reports: Vec<quality::Report> =
+        quality::scripts().iter().map(|s| quality::run(&db, &settings, s, seconds, 1.0 / 60.0)).collect();
     if json {
         println!("{}", serde_json::to_string_pretty(&reports).unwrap());
     } else {
-        print!("{path}: {seconds} s per script at 60 Hz, α = {} m\n{}", settings.clamp_distance, quality::table(&reports));
+        print!(
+            "{path}: {seconds} s per script at 60 Hz, α = {} m\n{}",
+            settings.clamp_distance,
+            quality::table(&reports)
+        );
     }
     Ok(())
 }
@@ -533,7 +587,12 @@ fn naturalness(args: &[String]) -> CliResult {
     if json {
         println!("{}", serde_json::to_string_pretty(&reports).unwrap());
     } else {
-        print!("{path}: {seconds} s per motion at 60 Hz, style '{}' (bias {})\n{}", settings.style, settings.style_bias, naturalness::table(&reports));
+        print!(
+            "{path}: {seconds} s per motion at 60 Hz, style '{}' (bias {})\n{}",
+            settings.style,
+            settings.style_bias,
+            naturalness::table(&reports)
+        );
     }
     Ok(())
 }
@@ -541,19 +600,27 @@ fn naturalness(args: &[String]) -> CliResult {
 fn coverage(args: &[String]) -> CliResult {
     use mmcore::quality;
     let a = Args::parse(args, &["--tag"], &["--json"])?;
-    let [path, other_path] = a.positional.as_slice() else { return Err(Usage("coverage needs DB.mmdb and OTHER.mmdb".into()).into()) };
+    let [path, other_path] = a.positional.as_slice() else {
+        return Err(Usage("coverage needs DB.mmdb and OTHER.mmdb".into()).into());
+    };
     let (db, _) = load(path)?;
     let (other, _) = load(other_path)?;
     let mask = match a.get("--tag") {
         Some(t) => Some(other.tag_mask(t).ok_or_else(|| Usage(format!("{other_path} has no tag '{t}'")))?),
         None => None,
     };
-    let costs = quality::coverage(&db, &other, mask.as_deref()).map_err(|e| Error::config(e))?;
+    let costs = quality::coverage(&db, &other, mask.as_deref()).map_err(Error::config)?;
     let c = quality::summarize(&costs);
     if a.has("--json") {
         println!("{}", serde_json::json!({"frames": costs.len(), "mean": c.0, "median": c.1, "p90": c.2}));
     } else {
-        println!("{path} on {} frames of {other_path}: best cost mean {:.3}, median {:.3}, p90 {:.3}", costs.len(), c.0, c.1, c.2);
+        println!(
+            "{path} on {} frames of {other_path}: best cost mean {:.3}, median {:.3}, p90 {:.3}",
+            costs.len(),
+            c.0,
+            c.1,
+            c.2
+        );
     }
     Ok(())
 }
@@ -562,12 +629,18 @@ fn replay(args: &[String]) -> CliResult {
     use mmcore::recording::Recording;
     use mmcore::vr_replay;
     let a = Args::parse(args, &["--alpha", "--yaw", "--settings"], &["--json"])?;
-    let [path, rec_path] = a.positional.as_slice() else { return Err(Usage("replay needs DB.mmdb and REC.json".into()).into()) };
+    let [path, rec_path] = a.positional.as_slice() else {
+        return Err(Usage("replay needs DB.mmdb and REC.json".into()).into());
+    };
     let (db, _) = load(path)?;
     let text = String::from_utf8_lossy(&read(Path::new(rec_path))?).into_owned();
     let rec = Recording::from_json(&text).map_err(|e| Error::config(format!("{rec_path}: {e}")))?;
     if rec.num_frames() < 2 {
-        return Err(Error::config(format!("{rec_path}: a replay needs at least 2 frames, the recording has {}", rec.num_frames())).into());
+        return Err(Error::config(format!(
+            "{rec_path}: a replay needs at least 2 frames, the recording has {}",
+            rec.num_frames()
+        ))
+        .into());
     }
     let alpha = a.number::<f32>("--alpha")?.unwrap_or(0.3);
     if !(alpha > 0.0 && alpha <= 10.0) {
@@ -575,10 +648,14 @@ fn replay(args: &[String]) -> CliResult {
     }
     let n = rec.num_frames();
     let yaw: Vec<f32> = match a.get("--yaw").unwrap_or("truth") {
-        "truth" => rec.truth_yaw.clone().ok_or_else(|| Usage(format!("{rec_path} has no truth.bodyYaw: use --yaw hmd or a file")))?,
+        "truth" => rec
+            .truth_yaw
+            .clone()
+            .ok_or_else(|| Usage(format!("{rec_path} has no truth.bodyYaw: use --yaw hmd or a file")))?,
         "hmd" => rec.head_rotation.iter().map(|&q| vr_replay::heading_yaw(q)).collect(),
         file => {
-            let v: Vec<f32> = serde_json::from_slice(&read(Path::new(file))?).map_err(|e| Error::config(format!("{file}: {e}")))?;
+            let v: Vec<f32> =
+                serde_json::from_slice(&read(Path::new(file))?).map_err(|e| Error::config(format!("{file}: {e}")))?;
             if v.len() != n {
                 return Err(Usage(format!("{file}: {} yaws for {n} frames", v.len())).into());
             }

@@ -23,7 +23,13 @@ impl RawBuilder {
     #[wasm_bindgen(constructor)]
     pub fn new(config_json: &str) -> Result<RawBuilder, JsError> {
         let config = BuildConfig::from_json(config_json).map_err(js_error)?;
-        Ok(RawBuilder { config, sources: Vec::new(), warnings: Vec::new(), footprint: None, _live: LiveToken::new(Kind::Builder) })
+        Ok(RawBuilder {
+            config,
+            sources: Vec::new(),
+            warnings: Vec::new(),
+            footprint: None,
+            _live: LiveToken::new(Kind::Builder),
+        })
     }
 
     /// Parses a BVH file now, so a bad file is reported (file:line) when it is added.
@@ -58,7 +64,10 @@ impl RawBuilder {
     /// What the last successful build was estimated to need before it started, as JSON:
     /// `{"bytes": …, "frames": …, "limit": …}` (`limits::BuildFootprint`), or `null`.
     pub fn footprint_json(&self) -> String {
-        self.footprint.map_or("null".into(), |f| serde_json::json!({"bytes": f.bytes(), "frames": f.frames, "limit": crate::limits::MAX_BUILD_BYTES}).to_string())
+        self.footprint.map_or("null".into(), |f| {
+            serde_json::json!({"bytes": f.bytes(), "frames": f.frames, "limit": crate::limits::MAX_BUILD_BYTES})
+                .to_string()
+        })
     }
 
     /// Warnings of the last build, as a JSON array of strings.

@@ -34,7 +34,12 @@ impl RawCharacter {
         let settings = CharacterSettings::default().patched(settings_json).map_err(|e| JsError::new(&e))?;
         let mut character = Character::new(&shared.db, settings);
         character.set_toe_floor(shared.toe_floor);
-        let points = shared.db.groups.iter().find(|g| g.is_trajectory && g.kind == FeatureKind::Position).map_or(0, |g| g.offsets.len());
+        let points = shared
+            .db
+            .groups
+            .iter()
+            .find(|g| g.is_trajectory && g.kind == FeatureKind::Position)
+            .map_or(0, |g| g.offsets.len());
         let mut c = RawCharacter {
             shared,
             character,
@@ -59,7 +64,7 @@ impl RawCharacter {
     /// segment (one fewer than the points, or as many when `looped`). Throws with the reason on
     /// a bad path; the character keeps its current drive then.
     pub fn set_path(&mut self, points: &[f32], speeds: &[f32], looped: bool) -> Result<(), JsError> {
-        if points.len() % 2 != 0 {
+        if !points.len().is_multiple_of(2) {
             return Err(JsError::new(&format!("path points must be x, z pairs, got {} numbers", points.len())));
         }
         let points: Vec<Vec3> = points.chunks_exact(2).map(|p| Vec3::new(p[0], 0.0, p[1])).collect();
@@ -77,7 +82,11 @@ impl RawCharacter {
     /// floor (m); `velocity_x, velocity_z`: its raw ground velocity (m/s); `yaw`: the predicted
     /// body yaw (rad, 0 = +Z). The runtime smooths velocity and yaw.
     pub fn set_tracked(&mut self, head_x: f32, head_z: f32, velocity_x: f32, velocity_z: f32, yaw: f32) {
-        self.character.set_tracked(Tracked { position: Vec3::new(head_x, 0.0, head_z), velocity: Vec3::new(velocity_x, 0.0, velocity_z), yaw });
+        self.character.set_tracked(Tracked {
+            position: Vec3::new(head_x, 0.0, head_z),
+            velocity: Vec3::new(velocity_x, 0.0, velocity_z),
+            yaw,
+        });
     }
 
     /// Lowers the hips `drop` m below the animation, legs bent by IK to keep the feet planted.
@@ -203,8 +212,10 @@ impl RawCharacter {
         let (p, q) = (self.character.root_position(), self.character.root_rotation());
         let f = db.feature(self.character.frame());
         let raw = |d: usize| f[d] * db.feature_scale[d] + db.feature_mean[d];
-        let position = db.groups.iter().find(|g| g.is_trajectory && g.kind == FeatureKind::Position && g.axes == Axes::Xz);
-        let direction = db.groups.iter().find(|g| g.is_trajectory && g.kind == FeatureKind::Direction && g.axes == Axes::Xz);
+        let position =
+            db.groups.iter().find(|g| g.is_trajectory && g.kind == FeatureKind::Position && g.axes == Axes::Xz);
+        let direction =
+            db.groups.iter().find(|g| g.is_trajectory && g.kind == FeatureKind::Direction && g.axes == Axes::Xz);
         if let Some(g) = position {
             for k in 0..g.offsets.len().min(self.matched.len() / 4) {
                 let d = g.first_dim + 2 * k;

@@ -27,9 +27,21 @@ impl RawRetargeter {
     /// `role_names_json`), the rotation of whatever carries the root joints (4), and whether
     /// to direction-align limb bones. Throws on inconsistent input.
     #[wasm_bindgen(constructor)]
-    pub fn new(database: &RawDatabase, parents: &[i32], rest_rotations: &[f32], rest_positions: &[f32], roles: &[i32], root_parent_rotation: &[f32], align_bones: bool) -> Result<RawRetargeter, JsError> {
+    pub fn new(
+        database: &RawDatabase,
+        parents: &[i32],
+        rest_rotations: &[f32],
+        rest_positions: &[f32],
+        roles: &[i32],
+        root_parent_rotation: &[f32],
+        align_bones: bool,
+    ) -> Result<RawRetargeter, JsError> {
         let t = parents.len();
-        if rest_rotations.len() != 4 * t || rest_positions.len() != 3 * t || roles.len() != NUM_ROLES || root_parent_rotation.len() != 4 {
+        if rest_rotations.len() != 4 * t
+            || rest_positions.len() != 3 * t
+            || roles.len() != NUM_ROLES
+            || root_parent_rotation.len() != 4
+        {
             return Err(JsError::new(&format!(
                 "retarget: {t} joints need {} rest rotation and {} rest position floats and {NUM_ROLES} roles; got {}, {}, {}",
                 4 * t,
@@ -54,7 +66,13 @@ impl RawRetargeter {
         };
         let retargeter = Retargeter::new(&database.shared.db, &target, align_bones).map_err(|e| JsError::new(&e))?;
         let source_joints = database.shared.db.num_joints();
-        Ok(RawRetargeter { retargeter, source_joints, local_rotations: vec![Quat::IDENTITY; t], hips_position: [0.0; 3], _live: LiveToken::new(Kind::Retargeter) })
+        Ok(RawRetargeter {
+            retargeter,
+            source_joints,
+            local_rotations: vec![Quat::IDENTITY; t],
+            hips_position: [0.0; 3],
+            _live: LiveToken::new(Kind::Retargeter),
+        })
     }
 
     /// Retargets `character`'s current world pose, lifting the hips `lift` (avatar units; the

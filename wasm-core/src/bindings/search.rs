@@ -92,8 +92,18 @@ impl RawSearchIndex {
     /// `exclude_to <= exclude_from`); β's below 0 count as 0. Returns the best frame whose cost
     /// is strictly below `bar` (`Infinity` for the overall best) and stores its cost for
     /// `last_cost()`, or returns -1 (and `last_cost()` is NaN) when there is none.
-    pub fn search(&mut self, method: u32, beta_pose: f32, beta_trajectory: f32, exclude_from: i32, exclude_to: i32, bar: f32) -> Result<i32, JsError> {
-        let method = SearchMethod::from_index(method).ok_or_else(|| JsError::new(&format!("search method {method}: expected 0 (scalar), 1 (simd) or 2 (aabb)")))?;
+    pub fn search(
+        &mut self,
+        method: u32,
+        beta_pose: f32,
+        beta_trajectory: f32,
+        exclude_from: i32,
+        exclude_to: i32,
+        bar: f32,
+    ) -> Result<i32, JsError> {
+        let method = SearchMethod::from_index(method).ok_or_else(|| {
+            JsError::new(&format!("search method {method}: expected 0 (scalar), 1 (simd) or 2 (aabb)"))
+        })?;
         let options = self.options(beta_pose, beta_trajectory, exclude_from, exclude_to);
         let found = self.index.search(method, &self.query, &options, bar);
         self.last_cost = found.map_or(f32::NAN, |(_, cost)| cost);

@@ -31,7 +31,10 @@ pub fn angle(a: Quat, b: Quat) -> f64 {
 /// Joints whose local position differs (bit for bit) from `offsets[j]` in some frame.
 pub fn animated_joints(positions: &[Vec3], offsets: &[Vec3]) -> Vec<u32> {
     let j = offsets.len();
-    (0..j).filter(|&k| positions.iter().skip(k).step_by(j.max(1)).any(|p| p.to_array() != offsets[k].to_array())).map(|k| k as u32).collect()
+    (0..j)
+        .filter(|&k| positions.iter().skip(k).step_by(j.max(1)).any(|p| p.to_array() != offsets[k].to_array()))
+        .map(|k| k as u32)
+        .collect()
 }
 
 /// `PANM`: `u32` count `A`, `A` strictly increasing `u32` joint indices, then `F×A×3` f32.
@@ -68,7 +71,11 @@ pub fn decode_positions(data: &[u8], frames: usize, offsets: &[Vec3]) -> Result<
     }
     let expected = frames.checked_mul(count).and_then(|n| n.checked_mul(12)).and_then(|n| n.checked_add(4 + 4 * count));
     if expected != Some(data.len()) {
-        return Err(format!("PANM is {} bytes; {count} animated joints over {frames} frames need {}", data.len(), 4 + 4 * count + 12 * frames * count));
+        return Err(format!(
+            "PANM is {} bytes; {count} animated joints over {frames} frames need {}",
+            data.len(),
+            4 + 4 * count + 12 * frames * count
+        ));
     }
     let mut animated = Vec::with_capacity(count);
     for i in 0..count {
@@ -117,7 +124,11 @@ pub fn encode_rotations(rotations: &[Quat], joints: usize) -> Vec<u8> {
 pub fn decode_rotations(data: &[u8], frames: usize, joints: usize, tolerance: f32) -> Result<Vec<Quat>, String> {
     let n = frames.checked_mul(joints).ok_or("QROT: counts overflow")?;
     if n.checked_mul(8) != Some(data.len()) {
-        return Err(format!("QROT is {} bytes; {frames} frames × {joints} joints need {}", data.len(), n.saturating_mul(8)));
+        return Err(format!(
+            "QROT is {} bytes; {frames} frames × {joints} joints need {}",
+            data.len(),
+            n.saturating_mul(8)
+        ));
     }
     // Frame-outer: the 4·J running sums advance together, so the output is written in order
     // while the input is read as 4·J sequential streams (the planar order is for compression,
@@ -147,7 +158,10 @@ pub fn decode_rotations(data: &[u8], frames: usize, joints: usize, tolerance: f3
             }
             let q = Quat::from_array(c);
             if (q.length_squared() / scale2 - 1.0).abs() > tolerance {
-                return Err(format!("QROT: frame {f} joint {k} is not a unit quaternion ({:?} / 32767)", c.map(|x| x as i16)));
+                return Err(format!(
+                    "QROT: frame {f} joint {k} is not a unit quaternion ({:?} / 32767)",
+                    c.map(|x| x as i16)
+                ));
             }
             rotations.push(q.normalize());
         }
@@ -179,7 +193,11 @@ pub fn shuffle_features(features: &[f32], dims: usize) -> Vec<u8> {
 pub fn unshuffle_features(data: &[u8], frames: usize, dims: usize) -> Result<Vec<f32>, String> {
     let n = frames.checked_mul(dims).ok_or("FSHF: counts overflow")?;
     if n.checked_mul(4) != Some(data.len()) {
-        return Err(format!("FSHF is {} bytes; {frames} frames × {dims} dims need {}", data.len(), n.saturating_mul(4)));
+        return Err(format!(
+            "FSHF is {} bytes; {frames} frames × {dims} dims need {}",
+            data.len(),
+            n.saturating_mul(4)
+        ));
     }
     let mut features = vec![0.0f32; n];
     for d in 0..dims {
@@ -201,7 +219,15 @@ mod tests {
         let mut rng = Rng(7);
         let (frames, joints) = (50, 3);
         let rotations: Vec<Quat> = (0..frames * joints)
-            .map(|_| Quat::from_xyzw(rng.uniform(-1.0, 1.0), rng.uniform(-1.0, 1.0), rng.uniform(-1.0, 1.0), rng.uniform(-1.0, 1.0)).normalize())
+            .map(|_| {
+                Quat::from_xyzw(
+                    rng.uniform(-1.0, 1.0),
+                    rng.uniform(-1.0, 1.0),
+                    rng.uniform(-1.0, 1.0),
+                    rng.uniform(-1.0, 1.0),
+                )
+                .normalize()
+            })
             .collect();
         let decoded = decode_rotations(&encode_rotations(&rotations, joints), frames, joints, 1e-3).unwrap();
         for (a, b) in rotations.iter().zip(&decoded) {
@@ -220,7 +246,8 @@ mod tests {
 
     #[test]
     fn features_round_trip_bit_exact() {
-        let features: Vec<f32> = (0..35).map(|i| (i as f32 * 0.37).sin() * 1e3).chain([f32::MIN_POSITIVE, -0.0]).collect();
+        let features: Vec<f32> =
+            (0..35).map(|i| (i as f32 * 0.37).sin() * 1e3).chain([f32::MIN_POSITIVE, -0.0]).collect();
         assert_eq!(unshuffle_features(&shuffle_features(&features, 37), 1, 37).unwrap(), features);
         let features: Vec<f32> = (0..36).map(|i| i as f32 - 7.5).collect();
         assert_eq!(unshuffle_features(&shuffle_features(&features, 4), 9, 4).unwrap(), features);

@@ -42,7 +42,12 @@ impl Motion {
         match self {
             Motion::Idle => Input::default(),
             Motion::Walk => Input { direction: Vec2::Y, ..Input::default() },
-            Motion::Strafe => Input { direction: if (t / 3.0) as i32 % 2 == 0 { Vec2::X } else { -Vec2::X }, facing: Vec2::Y, strafe: true, run: false },
+            Motion::Strafe => Input {
+                direction: if (t / 3.0) as i32 % 2 == 0 { Vec2::X } else { -Vec2::X },
+                facing: Vec2::Y,
+                strafe: true,
+                run: false,
+            },
             Motion::Backward => Input { direction: -Vec2::Y, facing: Vec2::Y, strafe: true, run: false },
         }
     }
@@ -71,17 +76,29 @@ pub struct Report {
 ///
 /// # Errors
 /// A database that cannot be searched or lacks the head, hands or hips roles.
-pub fn measure(db: &Database, settings: &CharacterSettings, motion: Motion, seconds: f32, dt: f32) -> Result<Report, String> {
+pub fn measure(
+    db: &Database,
+    settings: &CharacterSettings,
+    motion: Motion,
+    seconds: f32,
+    dt: f32,
+) -> Result<Report, String> {
     let index = SearchIndex::new(db).map_err(|e| e.to_string())?;
     let site = |role: &str| db.skeleton.site_joint(role).ok_or_else(|| format!("the skeleton has no {role} role"));
     let (head, hips, hands) = (site("head")?, site("hips")?, [site("left_hand")?, site("right_hand")?]);
     let bits = frame_tag_bits(db);
-    let styles: u64 = db.tags.iter().filter(|t| t.name.starts_with(STYLE_PREFIX)).filter_map(|t| tag_bit(db, &t.name)).fold(0, |a, b| a | b);
+    let styles: u64 = db
+        .tags
+        .iter()
+        .filter(|t| t.name.starts_with(STYLE_PREFIX))
+        .filter_map(|t| tag_bit(db, &t.name))
+        .fold(0, |a, b| a | b);
     let own = tag_bit(db, &format!("{STYLE_PREFIX}{}", settings.style)).unwrap_or(0);
     let mut character = Character::new(db, settings.clone());
     character.set_toe_floor(db.toe_height_in_contact());
     let steps = (seconds / dt).round().max(1.0) as usize;
-    let (mut other, mut same, mut pitch, mut hands_distance, mut hands_height) = (0usize, 0usize, 0.0f64, 0.0f64, 0.0f64);
+    let (mut other, mut same, mut pitch, mut hands_distance, mut hands_height) =
+        (0usize, 0usize, 0.0f64, 0.0f64, 0.0f64);
     for step in 0..steps {
         character.update(db, &index, &motion.input(step as f32 * dt), dt);
         let frame_bits = bits[character.frame()];

@@ -45,14 +45,24 @@ pub fn scripts() -> Vec<Script> {
         },
         Script {
             name: "back-pedal",
-            input: |t| Input { direction: if t % 6.0 < 4.0 { -Vec2::Y } else { Vec2::ZERO }, facing: Vec2::Y, strafe: true, run: false },
+            input: |t| Input {
+                direction: if t % 6.0 < 4.0 { -Vec2::Y } else { Vec2::ZERO },
+                facing: Vec2::Y,
+                strafe: true,
+                run: false,
+            },
             path: None,
         },
         Script {
             name: "turn on the spot",
             input: |t| {
                 let quarter = (t / 2.0).floor() * std::f32::consts::FRAC_PI_2;
-                Input { direction: Vec2::ZERO, facing: Vec2::new(quarter.sin(), quarter.cos()), strafe: true, run: false }
+                Input {
+                    direction: Vec2::ZERO,
+                    facing: Vec2::new(quarter.sin(), quarter.cos()),
+                    strafe: true,
+                    run: false,
+                }
             },
             path: None,
         },
@@ -60,7 +70,8 @@ pub fn scripts() -> Vec<Script> {
             name: "path square",
             input: |_| Input::default(),
             path: Some(|| {
-                let square = [Vec3::ZERO, Vec3::new(0.0, 0.0, 4.0), Vec3::new(-4.0, 0.0, 4.0), Vec3::new(-4.0, 0.0, 0.0)];
+                let square =
+                    [Vec3::ZERO, Vec3::new(0.0, 0.0, 4.0), Vec3::new(-4.0, 0.0, 4.0), Vec3::new(-4.0, 0.0, 0.0)];
                 Path::new(&square, &[1.5; 4], true).unwrap()
             }),
         },
@@ -118,7 +129,8 @@ fn simulate(db: &Database, settings: &CharacterSettings, script: &Script, second
     let joint_limits = joint_max_angular_speeds(db);
     let mut pop_ratio = 0.0f32;
     let steps = (seconds / dt).round() as usize;
-    let (mut sum_distance, mut max_distance, mut max_path, mut max_speed, mut travelled) = (0.0, 0.0f32, 0.0f32, 0.0f32, 0.0);
+    let (mut sum_distance, mut max_distance, mut max_path, mut max_speed, mut travelled) =
+        (0.0, 0.0f32, 0.0f32, 0.0f32, 0.0);
     let mut last_root = character.root_position();
     for step in 0..steps {
         let t = step as f32 * dt;
@@ -203,7 +215,11 @@ pub fn table(reports: &[Report]) -> String {
 /// The two databases' feature layouts differ.
 pub fn coverage(db: &Database, other: &Database, mask: Option<&[bool]>) -> Result<Vec<f32>, String> {
     let same = db.groups.len() == other.groups.len()
-        && db.groups.iter().zip(&other.groups).all(|(a, b)| a.name == b.name && a.num_dims == b.num_dims && a.first_dim == b.first_dim);
+        && db
+            .groups
+            .iter()
+            .zip(&other.groups)
+            .all(|(a, b)| a.name == b.name && a.num_dims == b.num_dims && a.first_dim == b.first_dim);
     if !same {
         return Err("coverage: the databases' feature layouts differ".into());
     }

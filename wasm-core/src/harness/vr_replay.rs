@@ -14,10 +14,10 @@
 
 use crate::character::{Character, CharacterSettings, Tracked};
 use crate::controller::Input;
-use crate::skating::ON_FLOOR;
 use crate::database::Database;
 use crate::recording::Recording;
 use crate::search::SearchIndex;
+use crate::skating::ON_FLOOR;
 use glam::{Quat, Vec2, Vec3};
 
 /// HMD (eyes) → head centre, m backward along the heading (`HMD_TO_HEAD_CENTRE` of the page).
@@ -33,7 +33,9 @@ const VR_SETTINGS_JSON: &str = include_str!("../../../settings/vr-settings.json"
 
 /// The VR page's runtime settings, α apart.
 pub fn vr_settings() -> CharacterSettings {
-    CharacterSettings::default().patched(VR_SETTINGS_JSON).expect("settings/vr-settings.json is valid settings (tested)")
+    CharacterSettings::default()
+        .patched(VR_SETTINGS_JSON)
+        .expect("settings/vr-settings.json is valid settings (tested)")
 }
 
 /// Heading yaw of an HMD rotation: where its view (−Z) points on the floor, the up axis filling
@@ -94,7 +96,14 @@ pub struct ReplayReport {
 
 /// Replays `recording` on `db` at α = `alpha` (room m) with the body yaw `yaw[f]` per frame
 /// (radians, 0 = +Z; NaN keeps the previous one) and `settings` (α is set from `alpha`).
-pub fn replay(db: &Database, index: &SearchIndex, recording: &Recording, yaw: &[f32], alpha: f32, settings: &CharacterSettings) -> ReplayReport {
+pub fn replay(
+    db: &Database,
+    index: &SearchIndex,
+    recording: &Recording,
+    yaw: &[f32],
+    alpha: f32,
+    settings: &CharacterSettings,
+) -> ReplayReport {
     let n = recording.num_frames();
     assert_eq!(yaw.len(), n, "one yaw per frame");
     // Calibration: the avatar's eyes at the user's (the database skeleton's head joint height at
@@ -106,7 +115,11 @@ pub fn replay(db: &Database, index: &SearchIndex, recording: &Recording, yaw: &[
     let mut c = Character::new(db, settings);
     let toe_floor = db.toe_height_in_contact().unwrap_or(0.0);
     c.set_toe_floor(db.toe_height_in_contact());
-    let toes: Vec<(usize, Vec3)> = ["left_toe", "right_toe"].iter().filter_map(|r| db.skeleton.site(r)).map(|s| (s.joint as usize, s.offset)).collect();
+    let toes: Vec<(usize, Vec3)> = ["left_toe", "right_toe"]
+        .iter()
+        .filter_map(|r| db.skeleton.site(r))
+        .map(|s| (s.joint as usize, s.offset))
+        .collect();
 
     let head_floor = |f: usize| {
         let p = recording.head_position[f];
@@ -144,7 +157,11 @@ pub fn replay(db: &Database, index: &SearchIndex, recording: &Recording, yaw: &[
         let centre = recording.head_position[f].y + HMD_TO_HEAD_CENTRE * up;
         let pitch = (-up).clamp(-1.0, 1.0).asin();
         let started = std::time::Instant::now();
-        c.set_tracked(Tracked { position: Vec3::new(floor.x / scale, 0.0, floor.y / scale), velocity: Vec3::new(velocity.x, 0.0, velocity.z) / scale, yaw: body_yaw });
+        c.set_tracked(Tracked {
+            position: Vec3::new(floor.x / scale, 0.0, floor.y / scale),
+            velocity: Vec3::new(velocity.x, 0.0, velocity.z) / scale,
+            yaw: body_yaw,
+        });
         c.set_crouch((eye - centre) / scale, pitch);
         c.update(db, index, &Input::default(), dt);
         times.push(started.elapsed().as_secs_f32() * 1e3);
@@ -165,7 +182,14 @@ pub fn replay(db: &Database, index: &SearchIndex, recording: &Recording, yaw: &[
                 let h = floor - truth[f];
                 eprintln!(
                     "t {:5.2} root-truth fwd {:+.2} lat {:+.2} | head-truth fwd {:+.2} lat {:+.2} | v {:.2} {} [{}]",
-                    recording.time[f], e.dot(fw), e.dot(lt), h.dot(fw), h.dot(lt), velocity.length(), clip.name, c.frame()
+                    recording.time[f],
+                    e.dot(fw),
+                    e.dot(lt),
+                    h.dot(fw),
+                    h.dot(lt),
+                    velocity.length(),
+                    clip.name,
+                    c.frame()
                 );
             }
         }
@@ -177,7 +201,8 @@ pub fn replay(db: &Database, index: &SearchIndex, recording: &Recording, yaw: &[
             for k in 0..2 {
                 let h = (now[k].y - toe_floor * scale).max(0.0);
                 if h < ON_FLOOR {
-                    legacy += Vec2::new(now[k].x - before[k].x, now[k].z - before[k].z).length() * (2.0 - (h / ON_FLOOR).exp2());
+                    legacy += Vec2::new(now[k].x - before[k].x, now[k].z - before[k].z).length()
+                        * (2.0 - (h / ON_FLOOR).exp2());
                 }
             }
         }

@@ -8,7 +8,9 @@
 //! joint count, nesting depth, name length, frame count, frame time and value magnitude.
 
 use crate::error::{Error, Result};
-use crate::limits::{quote, MAX_ABS_BVH_VALUE, MAX_DEPTH, MAX_FRAMES, MAX_FRAME_TIME, MAX_JOINTS, MAX_NAME_BYTES, MIN_FRAME_TIME};
+use crate::limits::{
+    quote, MAX_ABS_BVH_VALUE, MAX_DEPTH, MAX_FRAMES, MAX_FRAME_TIME, MAX_JOINTS, MAX_NAME_BYTES, MIN_FRAME_TIME,
+};
 use glam::{DQuat, DVec3};
 use std::borrow::Cow;
 
@@ -109,7 +111,11 @@ impl Bvh {
     pub fn heap_bytes(&self) -> usize {
         self.values.capacity() * std::mem::size_of::<f64>()
             + self.joints.capacity() * std::mem::size_of::<BvhJoint>()
-            + self.joints.iter().map(|j| j.name.capacity() + j.channels.capacity() * std::mem::size_of::<Channel>()).sum::<usize>()
+            + self
+                .joints
+                .iter()
+                .map(|j| j.name.capacity() + j.channels.capacity() * std::mem::size_of::<Channel>())
+                .sum::<usize>()
     }
 
     /// Frames per second (`1 / Frame Time`).
@@ -236,9 +242,12 @@ impl<'a> Parser<'a> {
     /// A finite number within ±[`MAX_ABS_BVH_VALUE`].
     fn number(&mut self, what: &str) -> Result<f64> {
         let (token, line) = self.expect_token(what)?;
-        let value = parse_finite(token).ok_or_else(|| self.error_at(line, format!("expected {what}, found '{}'", quote(token))))?;
+        let value = parse_finite(token)
+            .ok_or_else(|| self.error_at(line, format!("expected {what}, found '{}'", quote(token))))?;
         if value.abs() > MAX_ABS_BVH_VALUE {
-            return Err(self.error_at(line, format!("{what} is {value:e}, out of range (magnitude ≤ {MAX_ABS_BVH_VALUE:e})")));
+            return Err(
+                self.error_at(line, format!("{what} is {value:e}, out of range (magnitude ≤ {MAX_ABS_BVH_VALUE:e})"))
+            );
         }
         Ok(value)
     }
@@ -262,7 +271,10 @@ impl<'a> Parser<'a> {
         let (token, _) = self.expect_token("the frame count after 'Frames:'")?;
         let frames = parse_finite(token).unwrap_or(f64::NAN);
         if !(frames >= 0.0 && frames.fract() == 0.0 && frames <= MAX_FRAMES as f64) {
-            return Err(self.error_at(frames_line, format!("'Frames:' must be a whole number from 0 to {MAX_FRAMES}, found '{}'", quote(token))));
+            return Err(self.error_at(
+                frames_line,
+                format!("'Frames:' must be a whole number from 0 to {MAX_FRAMES}, found '{}'", quote(token)),
+            ));
         }
         let num_frames = frames as usize;
         let time_line = self.expect_keyword("Frame")?;
@@ -275,7 +287,10 @@ impl<'a> Parser<'a> {
         if !(MIN_FRAME_TIME..=MAX_FRAME_TIME).contains(&frame_time) {
             return Err(self.error_at(
                 time_line,
-                format!("'Frame Time:' must be {MIN_FRAME_TIME} to {MAX_FRAME_TIME} seconds (10000 to 1 fps), found '{}'", quote(token)),
+                format!(
+                    "'Frame Time:' must be {MIN_FRAME_TIME} to {MAX_FRAME_TIME} seconds (10000 to 1 fps), found '{}'",
+                    quote(token)
+                ),
             ));
         }
         let values = self.motion(num_frames, num_channels, frames_line)?;
@@ -301,7 +316,8 @@ impl<'a> Parser<'a> {
                 open.last_mut().unwrap().1 = true;
             } else if token.eq_ignore_ascii_case("CHANNELS") {
                 if !joints[index].channels.is_empty() {
-                    return Err(self.error_at(line, format!("joint '{}' has a second CHANNELS line", quote(&joints[index].name))));
+                    return Err(self
+                        .error_at(line, format!("joint '{}' has a second CHANNELS line", quote(&joints[index].name))));
                 }
                 let count = self.number("the channel count after 'CHANNELS'")?;
                 if !(0.0..=6.0).contains(&count) || count.fract() != 0.0 {
@@ -311,10 +327,16 @@ impl<'a> Parser<'a> {
                 for _ in 0..count as usize {
                     let (channel, cline) = self.expect_token("a channel name")?;
                     let channel = Channel::from_name(channel).ok_or_else(|| {
-                        self.error_at(cline, format!("expected a channel name (Xposition … Zrotation), found '{}'", quote(channel)))
+                        self.error_at(
+                            cline,
+                            format!("expected a channel name (Xposition … Zrotation), found '{}'", quote(channel)),
+                        )
                     })?;
                     if channels.contains(&channel) {
-                        return Err(self.error_at(cline, format!("channel {channel:?} listed twice for joint '{}'", quote(&joints[index].name))));
+                        return Err(self.error_at(
+                            cline,
+                            format!("channel {channel:?} listed twice for joint '{}'", quote(&joints[index].name)),
+                        ));
                     }
                     channels.push(channel);
                 }
@@ -322,7 +344,10 @@ impl<'a> Parser<'a> {
                 joints[index].channels = channels;
             } else if token.eq_ignore_ascii_case("JOINT") {
                 if !seen_offset {
-                    return Err(self.error_at(line, format!("joint '{}' needs an OFFSET before its children", quote(&joints[index].name))));
+                    return Err(self.error_at(
+                        line,
+                        format!("joint '{}' needs an OFFSET before its children", quote(&joints[index].name)),
+                    ));
                 }
                 if open.len() >= MAX_DEPTH {
                     return Err(self.error_at(line, format!("the hierarchy is nested deeper than {MAX_DEPTH} joints")));
@@ -352,7 +377,11 @@ impl<'a> Parser<'a> {
             } else {
                 return Err(self.error_at(
                     line,
-                    format!("expected OFFSET, CHANNELS, JOINT, End Site or '}}' in joint '{}', found '{}'", quote(&joints[index].name), quote(token)),
+                    format!(
+                        "expected OFFSET, CHANNELS, JOINT, End Site or '}}' in joint '{}', found '{}'",
+                        quote(&joints[index].name),
+                        quote(token)
+                    ),
                 ));
             }
         }
@@ -361,7 +390,13 @@ impl<'a> Parser<'a> {
 
     /// Reads the name and opening brace of a `ROOT`/`JOINT` whose keyword was just read at
     /// `line`, and appends the joint.
-    fn open_joint(&mut self, parent: Option<usize>, line: usize, joints: &mut Vec<BvhJoint>, first_channel: usize) -> Result<()> {
+    fn open_joint(
+        &mut self,
+        parent: Option<usize>,
+        line: usize,
+        joints: &mut Vec<BvhJoint>,
+        first_channel: usize,
+    ) -> Result<()> {
         let mut name = self.rest_of_line();
         let mut brace_on_line = false;
         if let Some(stripped) = name.strip_suffix('{') {
@@ -372,7 +407,9 @@ impl<'a> Parser<'a> {
             return Err(self.error_at(line, "joint has no name"));
         }
         if name.len() > MAX_NAME_BYTES {
-            return Err(self.error_at(line, format!("joint name '{}' is longer than {MAX_NAME_BYTES} bytes", quote(name))));
+            return Err(
+                self.error_at(line, format!("joint name '{}' is longer than {MAX_NAME_BYTES} bytes", quote(name)))
+            );
         }
         if joints.iter().any(|j| j.name == name) {
             return Err(self.error_at(line, format!("duplicate joint name '{}'", quote(name))));
@@ -380,7 +417,14 @@ impl<'a> Parser<'a> {
         if !brace_on_line {
             self.expect_keyword("{")?;
         }
-        joints.push(BvhJoint { name: name.to_string(), parent, offset: DVec3::ZERO, channels: Vec::new(), first_channel, end_site: None });
+        joints.push(BvhJoint {
+            name: name.to_string(),
+            parent,
+            offset: DVec3::ZERO,
+            channels: Vec::new(),
+            first_channel,
+            end_site: None,
+        });
         Ok(())
     }
 
@@ -407,7 +451,13 @@ impl<'a> Parser<'a> {
         // allocation there is a trap that takes every object of the page with it.
         let mut values = Vec::new();
         values.try_reserve_exact(capacity).map_err(|_| {
-            self.error_at(frames_line, format!("out of memory: the motion's {capacity} values ({:.1} MB) could not be allocated", (capacity * 8) as f64 / 1e6))
+            self.error_at(
+                frames_line,
+                format!(
+                    "out of memory: the motion's {capacity} values ({:.1} MB) could not be allocated",
+                    (capacity * 8) as f64 / 1e6
+                ),
+            )
         })?;
         let mut pos = self.pos;
         let mut frame = 0;
@@ -436,7 +486,11 @@ impl<'a> Parser<'a> {
                         let end = pos + bytes[pos..].iter().position(|b| b.is_ascii_whitespace()).unwrap_or(n - pos);
                         let token = &self.text[pos..end];
                         let v = parse_finite(token).ok_or_else(|| {
-                            self.error(format!("frame {frame}: expected a number, found '{}' (column {})", quote(token), pos - line_start + 1))
+                            self.error(format!(
+                                "frame {frame}: expected a number, found '{}' (column {})",
+                                quote(token),
+                                pos - line_start + 1
+                            ))
                         })?;
                         (v, end)
                     }
@@ -466,7 +520,9 @@ impl<'a> Parser<'a> {
             return Err(Error::bvh(
                 self.file,
                 0,
-                format!("'Frames:' on line {frames_line} declares {num_frames} frames but only {frame} frame lines follow"),
+                format!(
+                    "'Frames:' on line {frames_line} declares {num_frames} frames but only {frame} frame lines follow"
+                ),
             ));
         }
         Ok(values)
@@ -479,7 +535,8 @@ impl<'a> Parser<'a> {
 /// 1990). Anything else (exponents, long mantissas, junk) returns `None` for the slow path.
 fn parse_decimal(bytes: &[u8], start: usize) -> Option<(f64, usize)> {
     const POW10: [f64; 23] = [
-        1e0, 1e1, 1e2, 1e3, 1e4, 1e5, 1e6, 1e7, 1e8, 1e9, 1e10, 1e11, 1e12, 1e13, 1e14, 1e15, 1e16, 1e17, 1e18, 1e19, 1e20, 1e21, 1e22,
+        1e0, 1e1, 1e2, 1e3, 1e4, 1e5, 1e6, 1e7, 1e8, 1e9, 1e10, 1e11, 1e12, 1e13, 1e14, 1e15, 1e16, 1e17, 1e18, 1e19,
+        1e20, 1e21, 1e22,
     ];
     let mut i = start;
     let negative = match bytes[i] {
@@ -631,7 +688,9 @@ mod tests {
             }
         }
         assert!(fast > 150_000, "the fast path should take most plain decimals ({fast})");
-        for odd in ["1e5", "1.5E-3", "12345678901234567890.5", "0.12345678901234567890123", "--1", "1.2.3", "nan", "inf", "."] {
+        for odd in
+            ["1e5", "1.5E-3", "12345678901234567890.5", "0.12345678901234567890123", "--1", "1.2.3", "nan", "inf", "."]
+        {
             assert!(parse_decimal(odd.as_bytes(), 0).is_none(), "{odd} must take the slow path");
         }
         assert_eq!(parse_decimal(b"-0.000000\n", 0), Some((-0.0, 9)));

@@ -3,7 +3,10 @@
 
 use crate::database::{Axes, FeatureKind};
 use crate::error::{Error, Result};
-use crate::limits::{check_feature_dims, check_fps, check_scale, num, quote, MAX_FEATURE_OFFSET, MAX_SPEED, MAX_WEIGHT, MAX_WINDOW_FRAMES, MAX_WINDOW_SECONDS, MIN_WEIGHT};
+use crate::limits::{
+    check_feature_dims, check_fps, check_scale, num, quote, MAX_FEATURE_OFFSET, MAX_SPEED, MAX_WEIGHT,
+    MAX_WINDOW_FRAMES, MAX_WINDOW_SECONDS, MIN_WEIGHT,
+};
 use serde::Deserialize;
 use std::collections::HashMap;
 
@@ -223,7 +226,11 @@ impl BuildConfig {
                 return Err(Error::config(format!("{key} must be 0 to {max}, found {}", num(v))));
             }
         }
-        for (key, v) in [("contact_filter", self.contact_filter), ("root_position_window", self.root_position_window), ("root_facing_window", self.root_facing_window)] {
+        for (key, v) in [
+            ("contact_filter", self.contact_filter),
+            ("root_position_window", self.root_position_window),
+            ("root_facing_window", self.root_facing_window),
+        ] {
             if v * self.fps > MAX_WINDOW_FRAMES {
                 return Err(Error::config(format!(
                     "{key} of {} s is {} frames at {} fps; at most {MAX_WINDOW_FRAMES} frames",
@@ -235,26 +242,35 @@ impl BuildConfig {
         }
         if let Some(r) = self.min_head_height {
             if !(r > 0.0 && r <= 1.0) {
-                return Err(Error::config(format!("min_head_height must be above 0 and at most 1 (a share of the standing head height), found {}", num(r))));
+                return Err(Error::config(format!(
+                    "min_head_height must be above 0 and at most 1 (a share of the standing head height), found {}",
+                    num(r)
+                )));
             }
         }
         for f in self.features.iter().flatten() {
             let name = quote(&f.name);
             if !(MIN_WEIGHT..=MAX_WEIGHT).contains(&f.weight) {
-                return Err(Error::config(format!("feature '{name}': weight must be {MIN_WEIGHT} to {MAX_WEIGHT}, found {}", num(f.weight))));
+                return Err(Error::config(format!(
+                    "feature '{name}': weight must be {MIN_WEIGHT} to {MAX_WEIGHT}, found {}",
+                    num(f.weight)
+                )));
             }
             if f.offsets.is_empty() {
                 return Err(Error::config(format!("feature '{name}': offsets must not be empty")));
             }
             if let Some(o) = f.offsets.iter().find(|o| o.unsigned_abs() > MAX_FEATURE_OFFSET as u32) {
-                return Err(Error::config(format!("feature '{name}': offset {o} is beyond ±{MAX_FEATURE_OFFSET} frames")));
+                return Err(Error::config(format!(
+                    "feature '{name}': offset {o} is beyond ±{MAX_FEATURE_OFFSET} frames"
+                )));
             }
             if !f.axis.iter().all(|a| a.is_finite() && a.abs() <= 1e3) {
                 return Err(Error::config(format!("feature '{name}': axis must be finite, found {:?}", f.axis)));
             }
         }
         if let Some(features) = &self.features {
-            check_feature_dims(features.iter().map(FeatureSpec::num_dims).fold(0usize, usize::saturating_add)).map_err(|m| Error::config(format!("features: {m}")))?;
+            check_feature_dims(features.iter().map(FeatureSpec::num_dims).fold(0usize, usize::saturating_add))
+                .map_err(|m| Error::config(format!("features: {m}")))?;
         }
         for c in &self.clips {
             if let Some(Scale::Fixed(s)) = c.scale {
@@ -267,13 +283,22 @@ impl BuildConfig {
             }
             if let Some(w) = c.root_position_window {
                 if !(0.0..=MAX_WINDOW_SECONDS).contains(&w) {
-                    return Err(Error::config(format!("clip '{}': root_position_window must be 0 to {MAX_WINDOW_SECONDS}, found {}", quote(&c.file), num(w))));
+                    return Err(Error::config(format!(
+                        "clip '{}': root_position_window must be 0 to {MAX_WINDOW_SECONDS}, found {}",
+                        quote(&c.file),
+                        num(w)
+                    )));
                 }
             }
             if let Some(style) = &c.style {
-                let ok = (1..=64).contains(&style.len()) && style.bytes().all(|b| b.is_ascii_lowercase() || b.is_ascii_digit() || b == b'_' || b == b'-');
+                let ok = (1..=64).contains(&style.len())
+                    && style.bytes().all(|b| b.is_ascii_lowercase() || b.is_ascii_digit() || b == b'_' || b == b'-');
                 if !ok {
-                    return Err(Error::config(format!("clip '{}': style '{}' must be 1 to 64 of a-z, 0-9, '_' and '-'", quote(&c.file), quote(style))));
+                    return Err(Error::config(format!(
+                        "clip '{}': style '{}' must be 1 to 64 of a-z, 0-9, '_' and '-'",
+                        quote(&c.file),
+                        quote(style)
+                    )));
                 }
             }
         }
@@ -284,7 +309,8 @@ impl BuildConfig {
     /// configuration has a style.
     pub fn style_tag(&self, file_name: &str) -> Option<String> {
         self.clips.iter().any(|c| c.style.is_some()).then(|| {
-            let style = self.clip_spec(file_name).and_then(|c| c.style.as_deref()).unwrap_or(crate::tag_query::NEUTRAL_STYLE);
+            let style =
+                self.clip_spec(file_name).and_then(|c| c.style.as_deref()).unwrap_or(crate::tag_query::NEUTRAL_STYLE);
             format!("{}{style}", crate::tag_query::STYLE_PREFIX)
         })
     }
@@ -349,7 +375,9 @@ mod tests {
 
     #[test]
     fn parses_and_rejects_typos() {
-        let c = BuildConfig::from_json(r#"{"fps": 30, "scale": "auto", "clips": [{"file": "a/*.bvh", "tags": ["walk"]}]}"#).unwrap();
+        let c =
+            BuildConfig::from_json(r#"{"fps": 30, "scale": "auto", "clips": [{"file": "a/*.bvh", "tags": ["walk"]}]}"#)
+                .unwrap();
         assert_eq!(c.fps, 30.0);
         assert!(c.mirror);
         assert!(c.clip_spec("x/y/a_1.bvh").is_some());
@@ -364,17 +392,24 @@ mod tests {
     /// a database that loaded but could not be searched.
     #[test]
     fn feature_dimensions_beyond_the_search_are_refused() {
-        let group = |i: usize| format!(r#"{{"name": "g{i}", "kind": "position", "joint": "hips", "offsets": [0, 10, 20]}}"#);
+        let group =
+            |i: usize| format!(r#"{{"name": "g{i}", "kind": "position", "joint": "hips", "offsets": [0, 10, 20]}}"#);
         let many = format!(r#"{{"features": [{}]}}"#, (0..300).map(group).collect::<Vec<_>>().join(","));
         let e = BuildConfig::from_json(&many).unwrap_err().to_string();
         assert!(e.contains("features: 2700 feature dimensions; the search takes 1 to 128"), "{e}");
         let offsets: Vec<String> = (0..10_000).map(|o| (o % 10_000).to_string()).collect();
-        let long = format!(r#"{{"features": [{{"name": "t", "kind": "position", "joint": "root", "offsets": [{}]}}]}}"#, offsets.join(","));
+        let long = format!(
+            r#"{{"features": [{{"name": "t", "kind": "position", "joint": "root", "offsets": [{}]}}]}}"#,
+            offsets.join(",")
+        );
         let e = BuildConfig::from_json(&long).unwrap_err().to_string();
         assert!(e.contains("20000 feature dimensions"), "{e}");
         // 128 exactly is fine: 64 root offsets × xz.
         let offsets: Vec<String> = (0..64).map(|o| o.to_string()).collect();
-        let edge = format!(r#"{{"features": [{{"name": "t", "kind": "position", "joint": "root", "offsets": [{}]}}]}}"#, offsets.join(","));
+        let edge = format!(
+            r#"{{"features": [{{"name": "t", "kind": "position", "joint": "root", "offsets": [{}]}}]}}"#,
+            offsets.join(",")
+        );
         assert!(BuildConfig::from_json(&edge).is_ok());
     }
 
@@ -398,15 +433,33 @@ mod tests {
             (r#"{"contact_speed": -1}"#, "contact_speed must be 0 to"),
             (r#"{"min_head_height": 0}"#, "min_head_height must be above 0 and at most 1"),
             (r#"{"min_head_height": 1.5}"#, "min_head_height must be above 0 and at most 1"),
-            (r#"{"features": [{"name": "a", "kind": "position", "joint": "root", "weight": 1e30}]}"#, "feature 'a': weight must be"),
-            (r#"{"features": [{"name": "a", "kind": "position", "joint": "root", "offsets": []}]}"#, "offsets must not be empty"),
-            (r#"{"features": [{"name": "a", "kind": "position", "joint": "root", "offsets": [2147483647]}]}"#, "beyond ±10000"),
+            (
+                r#"{"features": [{"name": "a", "kind": "position", "joint": "root", "weight": 1e30}]}"#,
+                "feature 'a': weight must be",
+            ),
+            (
+                r#"{"features": [{"name": "a", "kind": "position", "joint": "root", "offsets": []}]}"#,
+                "offsets must not be empty",
+            ),
+            (
+                r#"{"features": [{"name": "a", "kind": "position", "joint": "root", "offsets": [2147483647]}]}"#,
+                "beyond ±10000",
+            ),
             (r#"{"clips": [{"file": "a.bvh", "scale": 0}]}"#, "clip 'a.bvh': scale must be between"),
-            (r#"{"fps": 1000, "root_facing_window": 60}"#, "root_facing_window of 60 s is 60000 frames at 1000 fps; at most 1000 frames"),
+            (
+                r#"{"fps": 1000, "root_facing_window": 60}"#,
+                "root_facing_window of 60 s is 60000 frames at 1000 fps; at most 1000 frames",
+            ),
             (r#"{"fps": 1000, "contact_filter": 2}"#, "contact_filter of 2 s is 2000 frames"),
-            (r#"{"clips": [{"file": "a.bvh", "style": "Angry"}]}"#, "clip 'a.bvh': style 'Angry' must be 1 to 64 of a-z"),
+            (
+                r#"{"clips": [{"file": "a.bvh", "style": "Angry"}]}"#,
+                "clip 'a.bvh': style 'Angry' must be 1 to 64 of a-z",
+            ),
             (r#"{"clips": [{"file": "a.bvh", "style": ""}]}"#, "style '' must be 1 to 64"),
-            (r#"{"clips": [{"file": "a.bvh", "root_position_window": 61}]}"#, "clip 'a.bvh': root_position_window must be 0 to 60"),
+            (
+                r#"{"clips": [{"file": "a.bvh", "root_position_window": 61}]}"#,
+                "clip 'a.bvh': root_position_window must be 0 to 60",
+            ),
         ] {
             let e = BuildConfig::from_json(json).unwrap_err().to_string();
             assert!(e.contains(expected), "{json}: {e}");

@@ -22,8 +22,15 @@ pub fn parse(text: &str) -> Result<HashMap<String, [usize; 2]>> {
     let mut types = Vec::new();
     for pair in columns[1..].chunks(2) {
         match pair {
-            [a, b] if a.strip_suffix("_START").is_some() && a.strip_suffix("_START") == b.strip_suffix("_STOP") => types.push(a.strip_suffix("_START").unwrap()),
-            _ => return Err(Error::config(format!("Frame_Cuts.csv: expected <TYPE>_START,<TYPE>_STOP column pairs, found '{}'", quote(&pair.join(","))))),
+            [a, b] if a.strip_suffix("_START").is_some() && a.strip_suffix("_START") == b.strip_suffix("_STOP") => {
+                types.push(a.strip_suffix("_START").unwrap())
+            }
+            _ => {
+                return Err(Error::config(format!(
+                    "Frame_Cuts.csv: expected <TYPE>_START,<TYPE>_STOP column pairs, found '{}'",
+                    quote(&pair.join(","))
+                )))
+            }
         }
     }
     let mut cuts = HashMap::new();
@@ -32,7 +39,9 @@ pub fn parse(text: &str) -> Result<HashMap<String, [usize; 2]>> {
         let number = |k: usize| -> Result<Option<usize>> {
             match cells.get(k).copied().unwrap_or("N/A") {
                 "N/A" | "" => Ok(None),
-                v => v.parse().map(Some).map_err(|_| Error::config(format!("Frame_Cuts.csv:{}: '{}' is not a frame number", i + 1, quote(v)))),
+                v => v.parse().map(Some).map_err(|_| {
+                    Error::config(format!("Frame_Cuts.csv:{}: '{}' is not a frame number", i + 1, quote(v)))
+                }),
             }
         };
         for (t, kind) in types.iter().enumerate() {

@@ -68,7 +68,11 @@ pub fn parse(file: &str, bytes: &[u8]) -> Result<Vec<GltfTake>> {
     let mut names: Vec<String> = Vec::new();
     let mut takes = Vec::with_capacity(animations.len());
     for (i, animation) in animations.iter().enumerate() {
-        let mut clip = animation.get("name").and_then(Value::as_str).filter(|n| !n.is_empty()).map_or_else(|| format!("animation{i}"), |n| truncate(n, 64));
+        let mut clip = animation
+            .get("name")
+            .and_then(Value::as_str)
+            .filter(|n| !n.is_empty())
+            .map_or_else(|| format!("animation{i}"), |n| truncate(n, 64));
         if names.contains(&clip) {
             clip = format!("{clip}.{i}");
         }
@@ -82,8 +86,11 @@ pub fn parse(file: &str, bytes: &[u8]) -> Result<Vec<GltfTake>> {
 /// The JSON and the GLB binary chunk (none for `.gltf` text).
 fn container(bytes: &[u8]) -> std::result::Result<(Value, Option<&[u8]>), String> {
     if bytes.starts_with(GLB_MAGIC) {
-        let word = |at: usize| -> Option<u32> { bytes.get(at..at + 4).map(|b| u32::from_le_bytes([b[0], b[1], b[2], b[3]])) };
-        let (Some(version), Some(length)) = (word(4), word(8)) else { return Err(format!("truncated GLB header: {} bytes, a header has 12", bytes.len())) };
+        let word =
+            |at: usize| -> Option<u32> { bytes.get(at..at + 4).map(|b| u32::from_le_bytes([b[0], b[1], b[2], b[3]])) };
+        let (Some(version), Some(length)) = (word(4), word(8)) else {
+            return Err(format!("truncated GLB header: {} bytes, a header has 12", bytes.len()));
+        };
         if version != 2 {
             return Err(format!("GLB version {version}: only glTF 2.0 is read"));
         }
@@ -93,9 +100,16 @@ fn container(bytes: &[u8]) -> std::result::Result<(Value, Option<&[u8]>), String
         let end = length as usize;
         let (mut at, mut json, mut bin) = (12usize, None, None);
         while at < end {
-            let (Some(len), Some(kind)) = (word(at), word(at + 4)) else { return Err(format!("truncated GLB: a chunk header at byte {at} runs past the end")) };
+            let (Some(len), Some(kind)) = (word(at), word(at + 4)) else {
+                return Err(format!("truncated GLB: a chunk header at byte {at} runs past the end"));
+            };
             let start = at + 8;
-            let stop = start.checked_add(len as usize).filter(|&s| s <= end).ok_or_else(|| format!("truncated GLB: the chunk at byte {at} says {len} bytes, {} are left", end.saturating_sub(start)))?;
+            let stop = start.checked_add(len as usize).filter(|&s| s <= end).ok_or_else(|| {
+                format!(
+                    "truncated GLB: the chunk at byte {at} says {len} bytes, {} are left",
+                    end.saturating_sub(start)
+                )
+            })?;
             match kind {
                 CHUNK_JSON if json.is_none() => json = Some(&bytes[start..stop]),
                 CHUNK_BIN if bin.is_none() && json.is_some() => bin = Some(&bytes[start..stop]),
@@ -161,7 +175,10 @@ fn vector<const N: usize>(v: Option<&Value>, default: [f64; N], what: &str) -> R
     let a = v.as_array().filter(|a| a.len() == N).ok_or_else(|| format!("{what} is not {N} numbers"))?;
     let mut out = [0.0; N];
     for (o, x) in out.iter_mut().zip(a) {
-        *o = x.as_f64().filter(|x| x.is_finite() && x.abs() <= MAX_ABS_BVH_VALUE).ok_or_else(|| format!("{what} has a value that is not a finite number"))?;
+        *o = x
+            .as_f64()
+            .filter(|x| x.is_finite() && x.abs() <= MAX_ABS_BVH_VALUE)
+            .ok_or_else(|| format!("{what} has a value that is not a finite number"))?;
     }
     Ok(out)
 }
@@ -181,9 +198,19 @@ impl<'a> Document<'a> {
         }
         let version = json.pointer("/asset/version").and_then(Value::as_str).unwrap_or("");
         if !version.starts_with("2.") {
-            return Err(format!("asset.version {}: only glTF 2.0 is read", quote(if version.is_empty() { "(missing)" } else { version })));
+            return Err(format!(
+                "asset.version {}: only glTF 2.0 is read",
+                quote(if version.is_empty() { "(missing)" } else { version })
+            ));
         }
-        let mut doc = Document { json, bin, nodes: Vec::new(), humanoid: Vec::new(), skin_joints: Vec::new(), budget: MIN_VALUE_BUDGET.max(2 * input_bytes) };
+        let mut doc = Document {
+            json,
+            bin,
+            nodes: Vec::new(),
+            humanoid: Vec::new(),
+            skin_joints: Vec::new(),
+            budget: MIN_VALUE_BUDGET.max(2 * input_bytes),
+        };
         doc.read_nodes()?;
         doc.read_humanoid()?;
         for (s, skin) in doc.array("skins").iter().enumerate() {
@@ -203,7 +230,11 @@ impl<'a> Document<'a> {
         let mut used: Vec<String> = Vec::with_capacity(raw.len());
         for (i, n) in raw.iter().enumerate() {
             let what = |f: &str| format!("node {i} {f}");
-            let mut name = n.get("name").and_then(Value::as_str).filter(|s| !s.trim().is_empty()).map_or_else(|| format!("node{i}"), |s| truncate(s.trim(), MAX_NAME_BYTES - 8));
+            let mut name = n
+                .get("name")
+                .and_then(Value::as_str)
+                .filter(|s| !s.trim().is_empty())
+                .map_or_else(|| format!("node{i}"), |s| truncate(s.trim(), MAX_NAME_BYTES - 8));
             if used.contains(&name) {
                 name = format!("{name}.{i}");
             }
@@ -212,7 +243,10 @@ impl<'a> Document<'a> {
                 let m: [f64; 16] = vector(Some(m), [0.0; 16], &what("matrix"))?;
                 let (s, r, t) = DMat4::from_cols_array(&m).to_scale_rotation_translation();
                 if !(s.is_finite() && r.is_finite()) || s.min_element() <= 0.0 {
-                    return Err(format!("node {} has a matrix that is not a rotation, translation and positive scale", quote(&name)));
+                    return Err(format!(
+                        "node {} has a matrix that is not a rotation, translation and positive scale",
+                        quote(&name)
+                    ));
                 }
                 (t, r.normalize(), s)
             } else {
@@ -235,7 +269,12 @@ impl<'a> Document<'a> {
         for p in 0..self.nodes.len() {
             for c in self.nodes[p].children.clone() {
                 if let Some(other) = self.nodes[c].parent {
-                    return Err(format!("node {} is a child of both {} and {}", quote(&self.nodes[c].name), quote(&self.nodes[other].name), quote(&self.nodes[p].name)));
+                    return Err(format!(
+                        "node {} is a child of both {} and {}",
+                        quote(&self.nodes[c].name),
+                        quote(&self.nodes[other].name),
+                        quote(&self.nodes[p].name)
+                    ));
                 }
                 self.nodes[c].parent = Some(p);
             }
@@ -247,7 +286,10 @@ impl<'a> Document<'a> {
                 n = p;
                 steps += 1;
                 if steps > self.nodes.len() {
-                    return Err(format!("node {} is its own ancestor (the hierarchy has a cycle)", quote(&self.nodes[start].name)));
+                    return Err(format!(
+                        "node {} is its own ancestor (the hierarchy has a cycle)",
+                        quote(&self.nodes[start].name)
+                    ));
                 }
             }
         }
@@ -269,8 +311,12 @@ impl<'a> Document<'a> {
             return Ok(());
         };
         match bones {
-            Value::Object(o) => map.extend(o.iter().map(|(k, v)| (k.clone(), v.get("node").cloned().unwrap_or(Value::Null)))),
-            Value::Array(a) => map.extend(a.iter().filter_map(|b| Some((b.get("bone")?.as_str()?.to_string(), b.get("node").cloned().unwrap_or(Value::Null))))),
+            Value::Object(o) => {
+                map.extend(o.iter().map(|(k, v)| (k.clone(), v.get("node").cloned().unwrap_or(Value::Null))))
+            }
+            Value::Array(a) => map.extend(a.iter().filter_map(|b| {
+                Some((b.get("bone")?.as_str()?.to_string(), b.get("node").cloned().unwrap_or(Value::Null)))
+            })),
             _ => return Err(format!("{source} humanoid: humanBones is neither an object nor a list")),
         }
         for (bone, node) in map {
@@ -285,17 +331,27 @@ impl<'a> Document<'a> {
     fn buffer(&self, i: usize) -> R<Cow<'a, [u8]>> {
         let buffers = self.array("buffers");
         let b = buffers.get(i).ok_or_else(|| format!("buffer {i} does not exist (there are {})", buffers.len()))?;
-        let declared = b.get("byteLength").and_then(Value::as_u64).ok_or_else(|| format!("buffer {i} has no byteLength"))? as usize;
+        let declared =
+            b.get("byteLength").and_then(Value::as_u64).ok_or_else(|| format!("buffer {i} has no byteLength"))?
+                as usize;
         let bytes: Cow<'a, [u8]> = match b.get("uri").and_then(Value::as_str) {
             None => match (i, self.bin) {
                 (0, Some(bin)) => Cow::Borrowed(bin),
                 _ => return Err(format!("buffer {i} has no uri and the file has no GLB binary chunk for it")),
             },
             Some(uri) if uri.starts_with("data:") => {
-                let data = uri.split_once(";base64,").map(|(_, d)| d).ok_or_else(|| format!("buffer {i}: a data: URI that is not base64"))?;
+                let data = uri
+                    .split_once(";base64,")
+                    .map(|(_, d)| d)
+                    .ok_or_else(|| format!("buffer {i}: a data: URI that is not base64"))?;
                 Cow::Owned(base64(data).ok_or_else(|| format!("buffer {i}: its data: URI is not valid base64"))?)
             }
-            Some(uri) => return Err(format!("buffer {i} is the external file {}: embed it (a .glb, or a data: URI in the .gltf)", quote(uri))),
+            Some(uri) => {
+                return Err(format!(
+                    "buffer {i} is the external file {}: embed it (a .glb, or a data: URI in the .gltf)",
+                    quote(uri)
+                ))
+            }
         };
         if bytes.len() < declared {
             return Err(format!("buffer {i} says {declared} bytes but holds {}", bytes.len()));
@@ -306,7 +362,9 @@ impl<'a> Document<'a> {
     /// An accessor's elements as f64 (normalized integers scaled), `components` per element.
     fn accessor(&self, i: usize, components: &[usize], what: &str) -> R<(Vec<f64>, usize)> {
         let accessors = self.array("accessors");
-        let a = accessors.get(i).ok_or_else(|| format!("{what}: accessor {i} does not exist (there are {})", accessors.len()))?;
+        let a = accessors
+            .get(i)
+            .ok_or_else(|| format!("{what}: accessor {i} does not exist (there are {})", accessors.len()))?;
         let at = |m: String| format!("{what} (accessor {i}): {m}");
         if a.get("sparse").is_some() {
             return Err(at("sparse accessors are not read; export without sparse storage".into()));
@@ -341,16 +399,32 @@ impl<'a> Document<'a> {
         };
         let views = self.array("bufferViews");
         let v = index(view, &at("bufferView".into()), views.len()).map(|k| &views[k])?;
-        let buffer = self.buffer(index(v.get("buffer").unwrap_or(&Value::Null), &at("its buffer view's buffer".into()), self.array("buffers").len())?)?;
+        let buffer = self.buffer(index(
+            v.get("buffer").unwrap_or(&Value::Null),
+            &at("its buffer view's buffer".into()),
+            self.array("buffers").len(),
+        )?)?;
         let view_offset = v.get("byteOffset").and_then(Value::as_u64).unwrap_or(0) as usize;
-        let view_length = v.get("byteLength").and_then(Value::as_u64).ok_or_else(|| at("its buffer view has no byteLength".into()))? as usize;
-        let view_bytes = view_offset.checked_add(view_length).and_then(|end| buffer.get(view_offset..end)).ok_or_else(|| at(format!("its buffer view (bytes {view_offset}..+{view_length}) runs past its buffer ({} bytes)", buffer.len())))?;
+        let view_length =
+            v.get("byteLength").and_then(Value::as_u64).ok_or_else(|| at("its buffer view has no byteLength".into()))?
+                as usize;
+        let view_bytes =
+            view_offset.checked_add(view_length).and_then(|end| buffer.get(view_offset..end)).ok_or_else(|| {
+                at(format!(
+                    "its buffer view (bytes {view_offset}..+{view_length}) runs past its buffer ({} bytes)",
+                    buffer.len()
+                ))
+            })?;
         let stride = v.get("byteStride").and_then(Value::as_u64).map_or(element, |s| s as usize);
         if stride < element {
             return Err(at(format!("byteStride {stride} is less than an element ({element} bytes)")));
         }
         let offset = a.get("byteOffset").and_then(Value::as_u64).unwrap_or(0) as usize;
-        let needed = if count == 0 { 0 } else { (count - 1).checked_mul(stride).and_then(|x| x.checked_add(offset + element)).unwrap_or(usize::MAX) };
+        let needed = if count == 0 {
+            0
+        } else {
+            (count - 1).checked_mul(stride).and_then(|x| x.checked_add(offset + element)).unwrap_or(usize::MAX)
+        };
         if needed > view_bytes.len() {
             return Err(at(format!("{count} elements need {needed} bytes, its buffer view has {}", view_bytes.len())));
         }
@@ -379,7 +453,9 @@ impl<'a> Document<'a> {
                     x
                 };
                 if !x.is_finite() || x.abs() > MAX_ABS_BVH_VALUE {
-                    return Err(at(format!("element {e} has a value that is not a finite number below {MAX_ABS_BVH_VALUE:e}")));
+                    return Err(at(format!(
+                        "element {e} has a value that is not a finite number below {MAX_ABS_BVH_VALUE:e}"
+                    )));
                 }
                 out.push(x);
             }
@@ -447,7 +523,12 @@ impl<'a> Document<'a> {
                 continue; // the first channel of a node and path wins
             }
             let s = index(ch.get("sampler").unwrap_or(&Value::Null), &format!("{what}'s sampler"), samplers.len())?;
-            tracks.push(self.track(&samplers[s], node, path, &format!("{what} (node {}, {})", quote(&self.nodes[node].name), path.name()))?);
+            tracks.push(self.track(
+                &samplers[s],
+                node,
+                path,
+                &format!("{what} (node {}, {})", quote(&self.nodes[node].name), path.name()),
+            )?);
         }
         if tracks.is_empty() {
             return Err("no channel moves a node".into());
@@ -474,7 +555,10 @@ impl<'a> Document<'a> {
                 }
             }
             if joints.len() > MAX_JOINTS {
-                return Err(format!("the skeleton under {} has more than {MAX_JOINTS} nodes", quote(&self.nodes[root].name)));
+                return Err(format!(
+                    "the skeleton under {} has more than {MAX_JOINTS} nodes",
+                    quote(&self.nodes[root].name)
+                ));
             }
             k += 1;
         }
@@ -488,13 +572,24 @@ impl<'a> Document<'a> {
         for &n in chain.iter().chain(&joints) {
             let s = self.nodes[n].scale;
             if (s - DVec3::splat(s.x)).abs().max_element() > 1e-4 * s.x.abs() || s.x <= 0.0 {
-                return Err(format!("node {} has the scale [{}, {}, {}]: a skeleton takes only a positive uniform scale", quote(&self.nodes[n].name), s.x, s.y, s.z));
+                return Err(format!(
+                    "node {} has the scale [{}, {}, {}]: a skeleton takes only a positive uniform scale",
+                    quote(&self.nodes[n].name),
+                    s.x,
+                    s.y,
+                    s.z
+                ));
             }
         }
-        for t in tracks.iter().filter(|t| t.path == Path::Scale && (chain.contains(&t.node) || joints.contains(&t.node))) {
+        for t in
+            tracks.iter().filter(|t| t.path == Path::Scale && (chain.contains(&t.node) || joints.contains(&t.node)))
+        {
             let rest = self.nodes[t.node].scale.x;
             if t.values.iter().any(|&v| (v - rest).abs() > 1e-3 * rest) {
-                return Err(format!("node {} has its scale animated: only rotation and translation are taken", quote(&self.nodes[t.node].name)));
+                return Err(format!(
+                    "node {} has its scale animated: only rotation and translation are taken",
+                    quote(&self.nodes[t.node].name)
+                ));
             }
         }
 
@@ -507,7 +602,16 @@ impl<'a> Document<'a> {
         }
         let fps = key_rate(&tracks);
         let frames = (duration * fps + 1e-6).floor() as usize + 1;
-        let translated: Vec<bool> = joints.iter().enumerate().map(|(k, &j)| k == 0 || tracks.iter().any(|t| t.node == j && t.path == Path::Translation && t.moves(self.nodes[j].translation))).collect();
+        let translated: Vec<bool> = joints
+            .iter()
+            .enumerate()
+            .map(|(k, &j)| {
+                k == 0
+                    || tracks
+                        .iter()
+                        .any(|t| t.node == j && t.path == Path::Translation && t.moves(self.nodes[j].translation))
+            })
+            .collect();
         let num_channels: usize = translated.iter().map(|&t| if t { 6 } else { 3 }).sum();
         if frames > MAX_FRAMES || frames.saturating_mul(num_channels) > self.budget {
             return Err(format!("{duration:.1} s at {fps:.0} fps is {frames} frames of {num_channels} values: more than the file can hold"));
@@ -556,18 +660,29 @@ impl<'a> Document<'a> {
             }
             let mut chain_now = Xform::IDENTITY;
             for &c in &chain {
-                chain_now = chain_now.then(&Xform { translation: local_t[c], rotation: local_r[c], scale: self.nodes[c].scale.x });
+                chain_now = chain_now.then(&Xform {
+                    translation: local_t[c],
+                    rotation: local_r[c],
+                    scale: self.nodes[c].scale.x,
+                });
             }
             for (k, &j) in joints.iter().enumerate() {
                 let (rotation, translation) = match parent_of[k] {
                     None => {
-                        let world = chain_now.then(&Xform { translation: local_t[j], rotation: local_r[j], scale: self.nodes[j].scale.x });
+                        let world = chain_now.then(&Xform {
+                            translation: local_t[j],
+                            rotation: local_r[j],
+                            scale: self.nodes[j].scale.x,
+                        });
                         if f == 0 {
                             root_offset = chain_rest.then(&self.nodes[j].rest()).translation;
                         }
                         (world.rotation * world_rotation[k].inverse(), world.translation)
                     }
-                    Some(p) => (world_rotation[p] * local_r[j] * world_rotation[k].inverse(), world_rotation[p] * (world_scale[p] * local_t[j])),
+                    Some(p) => (
+                        world_rotation[p] * local_r[j] * world_rotation[k].inverse(),
+                        world_rotation[p] * (world_scale[p] * local_t[j]),
+                    ),
                 };
                 if translated[k] {
                     values.extend([translation.x, translation.y, translation.z]);
@@ -577,7 +692,10 @@ impl<'a> Document<'a> {
             }
         }
         if let Some(bad) = values.iter().position(|v| !v.is_finite() || v.abs() > MAX_ABS_BVH_VALUE) {
-            return Err(format!("frame {} has a value that is not a finite number below {MAX_ABS_BVH_VALUE:e}", bad / num_channels));
+            return Err(format!(
+                "frame {} has a value that is not a finite number below {MAX_ABS_BVH_VALUE:e}",
+                bad / num_channels
+            ));
         }
 
         let mut bvh_joints = Vec::with_capacity(joints.len());
@@ -593,10 +711,22 @@ impl<'a> Document<'a> {
                 channels.extend([Channel::PosX, Channel::PosY, Channel::PosZ]);
             }
             channels.extend([Channel::RotZ, Channel::RotY, Channel::RotX]);
-            bvh_joints.push(BvhJoint { name: node.name.clone(), parent: parent_of[k], offset, first_channel, channels, end_site: None });
+            bvh_joints.push(BvhJoint {
+                name: node.name.clone(),
+                parent: parent_of[k],
+                offset,
+                first_channel,
+                channels,
+                end_site: None,
+            });
             first_channel += if translated[k] { 6 } else { 3 };
         }
-        let role_hints = self.humanoid.iter().filter(|(_, n)| joints.contains(n)).map(|&(r, n)| (r.name().to_string(), self.nodes[n].name.clone())).collect();
+        let role_hints = self
+            .humanoid
+            .iter()
+            .filter(|(_, n)| joints.contains(n))
+            .map(|&(r, n)| (r.name().to_string(), self.nodes[n].name.clone()))
+            .collect();
         Ok(Bvh { joints: bvh_joints, num_channels, num_frames: frames, frame_time: 1.0 / fps, values, role_hints })
     }
 
@@ -607,18 +737,44 @@ impl<'a> Document<'a> {
             "CUBICSPLINE" => Interpolation::Cubic,
             i => return Err(format!("{what}: interpolation {} is not LINEAR, STEP or CUBICSPLINE", quote(i))),
         };
-        let (times, _) = self.accessor(index(sampler.get("input").unwrap_or(&Value::Null), &format!("{what}: the sampler's input"), self.array("accessors").len())?, &[1], &format!("{what}: key times"))?;
+        let (times, _) = self.accessor(
+            index(
+                sampler.get("input").unwrap_or(&Value::Null),
+                &format!("{what}: the sampler's input"),
+                self.array("accessors").len(),
+            )?,
+            &[1],
+            &format!("{what}: key times"),
+        )?;
         let width = if path == Path::Rotation { 4 } else { 3 };
-        let (values, _) = self.accessor(index(sampler.get("output").unwrap_or(&Value::Null), &format!("{what}: the sampler's output"), self.array("accessors").len())?, &[width], &format!("{what}: values"))?;
+        let (values, _) = self.accessor(
+            index(
+                sampler.get("output").unwrap_or(&Value::Null),
+                &format!("{what}: the sampler's output"),
+                self.array("accessors").len(),
+            )?,
+            &[width],
+            &format!("{what}: values"),
+        )?;
         if times.is_empty() {
             return Err(format!("{what}: no keys"));
         }
         if let Some(k) = times.windows(2).position(|w| w[1] < w[0]) {
-            return Err(format!("{what}: key times go back at key {} ({} s after {} s)", k + 1, times[k + 1], times[k]));
+            return Err(format!(
+                "{what}: key times go back at key {} ({} s after {} s)",
+                k + 1,
+                times[k + 1],
+                times[k]
+            ));
         }
         let per_key = if interpolation == Interpolation::Cubic { 3 * width } else { width };
         if values.len() != times.len() * per_key {
-            return Err(format!("{what}: {} keys but {} values (expected {})", times.len(), values.len() / width, times.len() * per_key / width));
+            return Err(format!(
+                "{what}: {} keys but {} values (expected {})",
+                times.len(),
+                values.len() / width,
+                times.len() * per_key / width
+            ));
         }
         if times[0] < -1e6 || *times.last().unwrap() > 1e6 {
             return Err(format!("{what}: key times beyond ±10⁶ s"));
@@ -626,10 +782,13 @@ impl<'a> Document<'a> {
         if path == Path::Rotation {
             for k in 0..values.len() / 4 {
                 let q = &values[4 * k..4 * k + 4];
-                if interpolation != Interpolation::Cubic || k % 3 == 1 {
-                    if (q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3]).sqrt() < 1e-6 {
-                        return Err(format!("{what}: key {} is a zero quaternion", if interpolation == Interpolation::Cubic { k / 3 } else { k }));
-                    }
+                if (interpolation != Interpolation::Cubic || k % 3 == 1)
+                    && (q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3]).sqrt() < 1e-6
+                {
+                    return Err(format!(
+                        "{what}: key {} is a zero quaternion",
+                        if interpolation == Interpolation::Cubic { k / 3 } else { k }
+                    ));
                 }
             }
         }
@@ -672,7 +831,11 @@ struct Track {
 
 impl Track {
     fn width(&self) -> usize {
-        if self.path == Path::Rotation { 4 } else { 3 }
+        if self.path == Path::Rotation {
+            4
+        } else {
+            3
+        }
     }
 
     /// Key `k`'s value (`part` 0 in-tangent, 1 value, 2 out-tangent for CUBICSPLINE).
@@ -687,7 +850,11 @@ impl Track {
         let w = self.width();
         let n = self.times.len();
         let after = self.times.partition_point(|&t| t <= time);
-        if after == 0 || after == n || self.interpolation == Interpolation::Step || self.times[after] <= self.times[after - 1] {
+        if after == 0
+            || after == n
+            || self.interpolation == Interpolation::Step
+            || self.times[after] <= self.times[after - 1]
+        {
             let k = if after == 0 { 0 } else { after - 1 };
             out[..w].copy_from_slice(self.key(k, 1));
             return false;
@@ -700,7 +867,10 @@ impl Track {
                 let (p0, m0, p1, m1) = (self.key(k0, 1), self.key(k0, 2), self.key(k1, 1), self.key(k1, 0));
                 let (s2, s3) = (s * s, s * s * s);
                 for c in 0..w {
-                    out[c] = (2.0 * s3 - 3.0 * s2 + 1.0) * p0[c] + (s3 - 2.0 * s2 + s) * dt * m0[c] + (-2.0 * s3 + 3.0 * s2) * p1[c] + (s3 - s2) * dt * m1[c];
+                    out[c] = (2.0 * s3 - 3.0 * s2 + 1.0) * p0[c]
+                        + (s3 - 2.0 * s2 + s) * dt * m0[c]
+                        + (-2.0 * s3 + 3.0 * s2) * p1[c]
+                        + (s3 - s2) * dt * m1[c];
                 }
                 false
             }
@@ -728,7 +898,9 @@ impl Track {
             let (k0, k1) = (after - 1, after);
             let s = (time - self.times[k0]) / (self.times[k1] - self.times[k0]);
             let (a, b) = (self.key(k0, 1), self.key(k1, 1));
-            return DQuat::from_xyzw(a[0], a[1], a[2], a[3]).normalize().slerp(DQuat::from_xyzw(b[0], b[1], b[2], b[3]).normalize(), s);
+            return DQuat::from_xyzw(a[0], a[1], a[2], a[3])
+                .normalize()
+                .slerp(DQuat::from_xyzw(b[0], b[1], b[2], b[3]).normalize(), s);
         }
         DQuat::from_xyzw(v[0], v[1], v[2], v[3]).normalize()
     }
@@ -756,7 +928,11 @@ impl Xform {
 
     /// `self` applied after `child` (the child's world transform under `self`).
     fn then(&self, child: &Xform) -> Xform {
-        Xform { translation: self.translation + self.rotation * (self.scale * child.translation), rotation: (self.rotation * child.rotation).normalize(), scale: self.scale * child.scale }
+        Xform {
+            translation: self.translation + self.rotation * (self.scale * child.translation),
+            rotation: (self.rotation * child.rotation).normalize(),
+            scale: self.scale * child.scale,
+        }
     }
 }
 

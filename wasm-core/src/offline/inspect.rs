@@ -16,7 +16,9 @@ pub fn summary(db: &Database, size_bytes: Option<usize>) -> Value {
             hi[i] = hi[i].max(row[i]);
         }
     }
-    let share = |side: usize| db.contacts.iter().skip(side).step_by(2).filter(|&&c| c != 0).count() as f64 / db.num_frames.max(1) as f64;
+    let share = |side: usize| {
+        db.contacts.iter().skip(side).step_by(2).filter(|&&c| c != 0).count() as f64 / db.num_frames.max(1) as f64
+    };
     json!({
         "format_version": crate::format::VERSION,
         "num_frames": db.num_frames,
@@ -47,7 +49,6 @@ pub fn summary(db: &Database, size_bytes: Option<usize>) -> Value {
         "toe_height_in_contact": db.toe_height_in_contact(),
     })
 }
-
 
 /// Every array of the database as JSON (for cross-language tests). f32 values print as the
 /// shortest decimal that reads back to the same f32.
@@ -81,7 +82,12 @@ pub fn text(db: &Database, size_bytes: Option<usize>) -> String {
     let s = summary(db, size_bytes);
     let mut out = format!(
         "frames {} ({} valid) at {} fps = {:.1} s · {} joints · {} feature dims",
-        db.num_frames, s["num_valid_frames"], db.fps, db.duration(), db.num_joints(), db.num_features()
+        db.num_frames,
+        s["num_valid_frames"],
+        db.fps,
+        db.duration(),
+        db.num_joints(),
+        db.num_features()
     );
     if let Some(b) = size_bytes {
         out += &format!(" · {:.2} MB", b as f64 / 1e6);
@@ -101,16 +107,34 @@ pub fn text(db: &Database, size_bytes: Option<usize>) -> String {
     for (g, f) in db.groups.iter().zip(s["features"].as_array().unwrap()) {
         out += &format!(
             "  {:<24} {:<9} {:<12} offsets {:?} weight {} dims {}..{}\n",
-            g.name, f["kind"].as_str().unwrap_or(""), db.skeleton.names[g.joint], g.offsets, g.weight, g.first_dim, g.first_dim + g.num_dims
+            g.name,
+            f["kind"].as_str().unwrap_or(""),
+            db.skeleton.names[g.joint],
+            g.offsets,
+            g.weight,
+            g.first_dim,
+            g.first_dim + g.num_dims
         );
     }
     out += &format!("clips ({}):\n", db.clips.len());
     for c in &db.clips {
-        out += &format!("  {:<28} frames {:>6}..{:<6} ({:.1} s){}\n", c.name, c.start, c.end, (c.end - c.start) as f32 / db.fps, if c.mirrored { " mirrored" } else { "" });
+        out += &format!(
+            "  {:<28} frames {:>6}..{:<6} ({:.1} s){}\n",
+            c.name,
+            c.start,
+            c.end,
+            (c.end - c.start) as f32 / db.fps,
+            if c.mirrored { " mirrored" } else { "" }
+        );
     }
     out += &format!("tags ({}):\n", db.tags.len());
     for t in &db.tags {
-        out += &format!("  {:<12} {} frames in {} ranges\n", t.name, t.ranges.iter().map(|(s, e)| e - s).sum::<u32>(), t.ranges.len());
+        out += &format!(
+            "  {:<12} {} frames in {} ranges\n",
+            t.name,
+            t.ranges.iter().map(|(s, e)| e - s).sum::<u32>(),
+            t.ranges.len()
+        );
     }
     out
 }

@@ -9,7 +9,7 @@
 pub fn savitzky_golay(values: &mut [f64], dim: usize, window: usize, order: usize) {
     let len = values.len() / dim;
     let mut window = window.min(len);
-    if window % 2 == 0 {
+    if window.is_multiple_of(2) {
         window = window.saturating_sub(1);
     }
     if window < order + 2 {
@@ -18,11 +18,15 @@ pub fn savitzky_golay(values: &mut [f64], dim: usize, window: usize, order: usiz
     let half = window / 2;
     // weights[t][i]: the fitted polynomial's value at window position t, as a linear
     // combination of the window's samples i. Cached: every clip uses the same few windows.
+    type Weights = std::rc::Rc<Vec<Vec<f64>>>;
     thread_local! {
-        static CACHE: std::cell::RefCell<std::collections::HashMap<(usize, usize), std::rc::Rc<Vec<Vec<f64>>>>> = Default::default();
+        static CACHE: std::cell::RefCell<std::collections::HashMap<(usize, usize), Weights>> = Default::default();
     }
     let weights = CACHE.with(|c| {
-        c.borrow_mut().entry((window, order)).or_insert_with(|| std::rc::Rc::new((0..window).map(|t| fit_weights(window, order, t)).collect())).clone()
+        c.borrow_mut()
+            .entry((window, order))
+            .or_insert_with(|| std::rc::Rc::new((0..window).map(|t| fit_weights(window, order, t)).collect()))
+            .clone()
     });
     let source = values.to_vec();
     for frame in 0..len {

@@ -69,11 +69,16 @@ impl BoxBounds {
         let d = num_dims;
         assert!(d > 0 && lanes.len().is_multiple_of(d), "lanes must be blocks × num_dims");
         let num_frames = 4 * lanes.len() / d;
-        assert!(num_frames.is_multiple_of(PADDING) && num_frames == valid.len(), "frames must be padded to {PADDING} and match valid");
+        assert!(
+            num_frames.is_multiple_of(PADDING) && num_frames == valid.len(),
+            "frames must be padded to {PADDING} and match valid"
+        );
         // Per block of 4 frames: +∞ in the lanes of invalid frames, 0 elsewhere. Adding it
         // (−it for the max) takes an invalid frame out of a min (max) and leaves a valid one
         // unchanged (finite features; −0 may become +0, which no bound can tell apart).
-        let exclusion = |block: usize| F32x4::from_array(std::array::from_fn(|l| if valid[4 * block + l] { 0.0 } else { f32::INFINITY }));
+        let exclusion = |block: usize| {
+            F32x4::from_array(std::array::from_fn(|l| if valid[4 * block + l] { 0.0 } else { f32::INFINITY }))
+        };
         // Leaves: each 16-frame box is the lanes of its four blocks, reduced.
         let leaves = num_frames / BOX_FRAMES[0];
         let (mut min0, mut max0) = (Vec::with_capacity(leaves / 4 * d), Vec::with_capacity(leaves / 4 * d));
@@ -187,7 +192,9 @@ mod tests {
         let valid: Vec<bool> = (0..padded).map(|i| i < n && valid(i)).collect();
         let lanes: Vec<F32x4> = (0..padded / 4)
             .flat_map(|b| (0..3).map(move |d| (b, d)))
-            .map(|(b, d)| F32x4::from_array(std::array::from_fn(|l| features.get((4 * b + l) * 3 + d).copied().unwrap_or(0.0))))
+            .map(|(b, d)| {
+                F32x4::from_array(std::array::from_fn(|l| features.get((4 * b + l) * 3 + d).copied().unwrap_or(0.0)))
+            })
             .collect();
         (BoxBounds::from_lanes(&lanes, &valid, 3), features, valid)
     }
@@ -248,12 +255,17 @@ mod tests {
                 }
                 if level > 0 {
                     for (c, &child) in b.lower_bounds(level - 1, index, &q, &w).to_array().iter().enumerate() {
-                        assert!(bound <= child || child.is_infinite(), "level {level} box {index} bound {bound} > child {c} bound {child}");
+                        assert!(
+                            bound <= child || child.is_infinite(),
+                            "level {level} box {index} bound {bound} > child {c} bound {child}"
+                        );
                     }
                 }
                 let size = BOX_FRAMES[level];
                 for frame in (index * size..index * size + size).filter(|&f| valid[f]) {
-                    let cost: f32 = (0..3).map(|d| wv[d] * (qv[d] - features[frame * 3 + d]) * (qv[d] - features[frame * 3 + d])).sum();
+                    let cost: f32 = (0..3)
+                        .map(|d| wv[d] * (qv[d] - features[frame * 3 + d]) * (qv[d] - features[frame * 3 + d]))
+                        .sum();
                     assert!(bound <= cost, "level {level} frame {frame}: bound {bound} > cost {cost}");
                 }
             }

@@ -3,8 +3,8 @@
 //! them; the same springs, integrated analytically, predict where it will be at the feature
 //! offsets (+20/40/60 frames). A path mode drives the simulated character along a polyline.
 
-use crate::spring::{spring_character_update, spring_damper_exact_quat};
 use crate::persist::{Persist, Visitor};
+use crate::spring::{spring_character_update, spring_damper_exact_quat};
 use glam::{Quat, Vec2, Vec3};
 
 /// What the user asks for this frame, on the ground plane in world space.
@@ -86,7 +86,13 @@ impl Persist for Input {
 
 impl Default for Simulation {
     fn default() -> Self {
-        Simulation { position: Vec3::ZERO, velocity: Vec3::ZERO, acceleration: Vec3::ZERO, rotation: Quat::IDENTITY, angular_velocity: Vec3::ZERO }
+        Simulation {
+            position: Vec3::ZERO,
+            velocity: Vec3::ZERO,
+            acceleration: Vec3::ZERO,
+            rotation: Quat::IDENTITY,
+            angular_velocity: Vec3::ZERO,
+        }
     }
 }
 
@@ -102,7 +108,8 @@ pub fn desired_velocity(input: &Input, facing: Quat, settings: &ControllerSettin
     let d = Vec3::new(input.direction.x, 0.0, input.direction.y).clamp_length_max(1.0);
     let speeds = if input.run { settings.run } else { settings.walk };
     let local = facing.inverse() * d;
-    let local = Vec3::new(local.x * speeds.side, 0.0, local.z * if local.z > 0.0 { speeds.forward } else { speeds.backward });
+    let local =
+        Vec3::new(local.x * speeds.side, 0.0, local.z * if local.z > 0.0 { speeds.forward } else { speeds.backward });
     facing * local
 }
 
@@ -120,8 +127,21 @@ pub fn desired_rotation(input: &Input, desired_velocity: Vec3, current: Quat) ->
 impl Simulation {
     /// Moves the simulated character `dt` seconds toward the desired velocity and rotation.
     pub fn update(&mut self, desired_velocity: Vec3, desired_rotation: Quat, settings: &ControllerSettings, dt: f32) {
-        spring_character_update(&mut self.position, &mut self.velocity, &mut self.acceleration, desired_velocity, settings.velocity_halflife, dt);
-        spring_damper_exact_quat(&mut self.rotation, &mut self.angular_velocity, desired_rotation, settings.rotation_halflife, dt);
+        spring_character_update(
+            &mut self.position,
+            &mut self.velocity,
+            &mut self.acceleration,
+            desired_velocity,
+            settings.velocity_halflife,
+            dt,
+        );
+        spring_damper_exact_quat(
+            &mut self.rotation,
+            &mut self.angular_velocity,
+            desired_rotation,
+            settings.rotation_halflife,
+            dt,
+        );
     }
 
     /// Predicts positions and rotations after each of `times` (seconds, ascending) if the
@@ -201,12 +221,23 @@ impl Path {
         if points.len() > MAX_PATH_POINTS {
             return Err(format!("a path has at most {MAX_PATH_POINTS} points, got {}", points.len()));
         }
-        if let Some((i, p)) = points.iter().enumerate().find(|(_, p)| !(p.x.abs() <= MAX_PATH_COORDINATE && p.z.abs() <= MAX_PATH_COORDINATE)) {
-            return Err(format!("path point {i} is ({}, {}): coordinates must be finite and within ±{MAX_PATH_COORDINATE} m", p.x, p.z));
+        if let Some((i, p)) = points
+            .iter()
+            .enumerate()
+            .find(|(_, p)| !(p.x.abs() <= MAX_PATH_COORDINATE && p.z.abs() <= MAX_PATH_COORDINATE))
+        {
+            return Err(format!(
+                "path point {i} is ({}, {}): coordinates must be finite and within ±{MAX_PATH_COORDINATE} m",
+                p.x, p.z
+            ));
         }
         let segments = if looped { points.len() } else { points.len() - 1 };
         if speeds.len() != segments {
-            return Err(format!("a path with {} points needs {segments} segment speeds, got {}", points.len(), speeds.len()));
+            return Err(format!(
+                "a path with {} points needs {segments} segment speeds, got {}",
+                points.len(),
+                speeds.len()
+            ));
         }
         if let Some(s) = speeds.iter().find(|s| !(**s > 0.0 && **s <= 100.0)) {
             return Err(format!("segment speeds must be in (0, 100] m/s, got {s}"));
@@ -245,7 +276,11 @@ impl Path {
             .map(|i| {
                 let (a, b) = (self.points[i], self.points[(i + 1) % self.points.len()]);
                 let ab = b - a;
-                let u = if ab.length_squared() > 0.0 { ((p - a).dot(ab) / ab.length_squared()).clamp(0.0, 1.0) } else { 0.0 };
+                let u = if ab.length_squared() > 0.0 {
+                    ((p - a).dot(ab) / ab.length_squared()).clamp(0.0, 1.0)
+                } else {
+                    0.0
+                };
                 (a + ab * u - p).length()
             })
             .fold(f32::INFINITY, f32::min)

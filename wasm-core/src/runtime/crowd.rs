@@ -67,5 +67,9 @@ impl Crowd {
 /// and its per-joint and per-dimension buffers (measured against a counting allocator by
 /// `tests/crowd_cost.rs`), and its input.
 pub fn character_bytes(db: &Database) -> usize {
-    std::mem::size_of::<Character>() + std::mem::size_of::<Input>() + 1024 + 256 * db.num_joints() + 32 * db.num_features()
+    std::mem::size_of::<Character>()
+        + std::mem::size_of::<Input>()
+        + 1024
+        + 256 * db.num_joints()
+        + 32 * db.num_features()
 }

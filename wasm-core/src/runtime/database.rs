@@ -198,7 +198,8 @@ impl Database {
     /// builder and the `.mmdb` reader, so a stored and a derived velocity cannot disagree.
     /// A one-frame clip has zero velocities.
     pub fn compute_velocities(&mut self) {
-        (self.local_velocities, self.local_angular_velocities) = pose_velocities(self.num_joints(), self.fps, &self.clips, &self.local_positions, &self.local_rotations);
+        (self.local_velocities, self.local_angular_velocities) =
+            pose_velocities(self.num_joints(), self.fps, &self.clips, &self.local_positions, &self.local_rotations);
     }
 
     /// World positions and rotations of every joint at `frame` (the one FK,
@@ -209,7 +210,15 @@ impl Database {
     pub fn forward_kinematics(&self, frame: usize, positions: &mut [Vec3], rotations: &mut [Quat]) {
         let j = self.num_joints();
         let r = frame * j..(frame + 1) * j;
-        local_to_model(&self.skeleton.parents, 0..j, None, &self.local_positions[r.clone()], &self.local_rotations[r], positions, rotations);
+        local_to_model(
+            &self.skeleton.parents,
+            0..j,
+            None,
+            &self.local_positions[r.clone()],
+            &self.local_rotations[r],
+            positions,
+            rotations,
+        );
     }
 
     /// World positions of every joint in the rest pose (identity rotations, the skeleton's
@@ -263,7 +272,13 @@ impl Database {
 }
 
 /// The velocities [`Database::compute_velocities`] describes, of `F×J` poses cut into `clips`.
-pub fn pose_velocities(joints: usize, fps: f32, clips: &[Clip], positions: &[Vec3], rotations: &[Quat]) -> (Vec<Vec3>, Vec<Vec3>) {
+pub fn pose_velocities(
+    joints: usize,
+    fps: f32,
+    clips: &[Clip],
+    positions: &[Vec3],
+    rotations: &[Quat],
+) -> (Vec<Vec3>, Vec<Vec3>) {
     let n = positions.len().min(rotations.len());
     let (mut velocities, mut angular) = (vec![Vec3::ZERO; n], vec![Vec3::ZERO; n]);
     let fps = fps as f64;
@@ -302,7 +317,8 @@ pub fn scaled_axis(q: DQuat) -> DVec3 {
     if x < 0.1 {
         let x2 = x * x;
         // 2·atan(x)/s = (2/w)·atan(x)/x
-        let series = 1.0 - x2 * (1.0 / 3.0 - x2 * (1.0 / 5.0 - x2 * (1.0 / 7.0 - x2 * (1.0 / 9.0 - x2 * (1.0 / 11.0)))));
+        let series =
+            1.0 - x2 * (1.0 / 3.0 - x2 * (1.0 / 5.0 - x2 * (1.0 / 7.0 - x2 * (1.0 / 9.0 - x2 * (1.0 / 11.0)))));
         v * (2.0 * inv_w * series)
     } else {
         v * (2.0 * s.atan2(q.w) / s)

@@ -263,7 +263,11 @@ pub fn leg_ik(
         if toe_end.y < floor_height && dy.abs() < r {
             let horizontal = (toe_end - c_new).with_y(0.0);
             let h = (r * r - dy * dy).sqrt();
-            let dir = if horizontal.length() > TINY { horizontal.normalize() } else { toe_rel.with_y(0.0).normalize_or_zero() };
+            let dir = if horizontal.length() > TINY {
+                horizontal.normalize()
+            } else {
+                toe_rel.with_y(0.0).normalize_or_zero()
+            };
             aim = c_new + dir * h + Vec3::Y * dy;
         }
     }
@@ -380,7 +384,14 @@ impl FootLock {
     /// Unlocks and puts the target on the animated toe `(position, velocity)` (e.g. when foot
     /// locking is switched on or the character teleports). A contact in the next `update` locks.
     pub fn reset(&mut self, position: Vec3, velocity: Vec3) {
-        *self = FootLock { initialized: true, position, velocity, floor: self.floor, may_step: self.may_step, ..FootLock::new() };
+        *self = FootLock {
+            initialized: true,
+            position,
+            velocity,
+            floor: self.floor,
+            may_step: self.may_step,
+            ..FootLock::new()
+        };
     }
 
     pub fn is_locked(&self) -> bool {
@@ -526,7 +537,8 @@ mod tests {
             let (b, c, a_gr, b_gr) = self.fk(self.a_lr, self.b_lr);
             let (r_a, r_b) = two_bone_ik(self.a, b, c, target, pole, eps);
             let a_gr_new = r_a * a_gr;
-            let (a_lr, b_lr) = ((self.parent_gr.inverse() * a_gr_new).normalize(), (a_gr_new.inverse() * (r_b * b_gr)).normalize());
+            let (a_lr, b_lr) =
+                ((self.parent_gr.inverse() * a_gr_new).normalize(), (a_gr_new.inverse() * (r_b * b_gr)).normalize());
             assert!((a_lr.length() - 1.0).abs() < 1e-5 && (b_lr.length() - 1.0).abs() < 1e-5);
             let (b, c, _, _) = self.fk(a_lr, b_lr);
             (b, c)
@@ -723,7 +735,10 @@ mod tests {
             ],
         };
         let leg = LegJoints::from_skeleton(&skeleton, "left").unwrap();
-        assert_eq!(leg, LegJoints { upper_leg: 2, lower_leg: 3, foot: 4, toe: 5, toe_offset: Vec3::new(0.0, 0.0, 0.05) });
+        assert_eq!(
+            leg,
+            LegJoints { upper_leg: 2, lower_leg: 3, foot: 4, toe: 5, toe_offset: Vec3::new(0.0, 0.0, 0.05) }
+        );
         assert_eq!(LegJoints::from_skeleton(&skeleton, "right"), None);
         skeleton.sites[2].joint = 1; // foot not below the knee
         assert_eq!(LegJoints::from_skeleton(&skeleton, "left"), None);
@@ -792,7 +807,11 @@ mod tests {
             steps += (lock.is_stepping() && !was_stepping) as usize;
             was_stepping = lock.is_stepping();
             let moved = Vec3::new(target.x - prev.x, 0.0, target.z - prev.z).length();
-            if target.y < 0.033 { on_floor += moved } else { in_air += moved }
+            if target.y < 0.033 {
+                on_floor += moved
+            } else {
+                in_air += moved
+            }
             peak = peak.max(target.y);
             max_step = max_step.max((target - prev).length());
             prev = target;
@@ -860,5 +879,4 @@ mod tests {
         lock.update(true, toe, slide, DT, 0.2, 0.12);
         assert!(lock.is_locked() && lock.lock_position() == at);
     }
-
 }

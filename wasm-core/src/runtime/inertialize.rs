@@ -58,7 +58,14 @@ pub use crate::spring::quat_abs;
 /// source `(src, src_vel)` to the target `(dst, dst_vel)` into the offset:
 /// `d' = (d + s) − t`, `d_v' = (d_v + s_v) − t_v`.
 #[inline]
-pub fn inertialize_transition_vec3(offset: &mut Vec3, offset_vel: &mut Vec3, src: Vec3, src_vel: Vec3, dst: Vec3, dst_vel: Vec3) {
+pub fn inertialize_transition_vec3(
+    offset: &mut Vec3,
+    offset_vel: &mut Vec3,
+    src: Vec3,
+    src_vel: Vec3,
+    dst: Vec3,
+    dst_vel: Vec3,
+) {
     *offset = (*offset + src) - dst;
     *offset_vel = (*offset_vel + src_vel) - dst_vel;
 }
@@ -87,7 +94,14 @@ pub fn inertialize_update_vec3(
 ///
 /// Preconditions: `src` and `dst` are unit quaternions (`offset` is kept unit by this module).
 #[inline]
-pub fn inertialize_transition_quat(offset: &mut Quat, offset_vel: &mut Vec3, src: Quat, src_vel: Vec3, dst: Quat, dst_vel: Vec3) {
+pub fn inertialize_transition_quat(
+    offset: &mut Quat,
+    offset_vel: &mut Vec3,
+    src: Quat,
+    src_vel: Vec3,
+    dst: Quat,
+    dst_vel: Vec3,
+) {
     // Normalizing costs little and keeps repeated transitions from accumulating drift.
     let new_offset = quat_abs((*offset * src * dst.inverse()).normalize());
     *offset_vel = (*offset_vel + *offset * src_vel) - new_offset * dst_vel;
@@ -338,7 +352,12 @@ mod tests {
             }
         }
         fn zeroed(n: usize) -> Pose {
-            Pose { pos: vec![Vec3::ZERO; n], vel: vec![Vec3::ZERO; n], rot: vec![Quat::IDENTITY; n], angvel: vec![Vec3::ZERO; n] }
+            Pose {
+                pos: vec![Vec3::ZERO; n],
+                vel: vec![Vec3::ZERO; n],
+                rot: vec![Quat::IDENTITY; n],
+                angvel: vec![Vec3::ZERO; n],
+            }
         }
     }
 
@@ -484,7 +503,8 @@ mod tests {
         for _ in 0..20 {
             let clips: Vec<Pose> = (0..3).map(|_| Pose::random(&mut rng, n)).collect();
             let mut inert = Inertializer::new(n);
-            let (mut input, mut prev, mut out, mut dst) = (Pose::zeroed(n), Pose::zeroed(n), Pose::zeroed(n), Pose::zeroed(n));
+            let (mut input, mut prev, mut out, mut dst) =
+                (Pose::zeroed(n), Pose::zeroed(n), Pose::zeroed(n), Pose::zeroed(n));
             let (mut clip, mut t) = (0usize, 0.0f32);
             animate(&clips[clip], t, &mut input);
             update(&mut inert, &input, h, 0.0, &mut prev);
@@ -587,5 +607,4 @@ mod tests {
         let q = Pose::zeroed(2);
         inert.transition(&p.pos, &p.vel, &p.rot, &p.angvel, &p.pos, &p.vel, &q.rot, &p.angvel);
     }
-
 }

@@ -149,7 +149,7 @@ impl F32x4 {
         #[cfg(not(any(all(target_arch = "wasm32", target_feature = "simd128"), target_arch = "x86_64")))]
         {
             let (a, b) = (self.to_array(), rhs.to_array());
-            return Mask4((0..4).fold(0, |m, i| m | (((a[i] < b[i]) as u32) << i)));
+            Mask4((0..4).fold(0, |m, i| m | (((a[i] < b[i]) as u32) << i)))
         }
     }
 
@@ -165,7 +165,7 @@ impl F32x4 {
         #[cfg(not(any(all(target_arch = "wasm32", target_feature = "simd128"), target_arch = "x86_64")))]
         {
             let (a, b) = (self.to_array(), rhs.to_array());
-            return Mask4((0..4).fold(0, |m, i| m | (((a[i] <= b[i]) as u32) << i)));
+            Mask4((0..4).fold(0, |m, i| m | (((a[i] <= b[i]) as u32) << i)))
         }
     }
 
@@ -305,7 +305,8 @@ mod tests {
         // flush to zero), including subnormal results.
         let xs = [0.1f32, 1.0e-20, 3.3333333, 7.0e-39];
         let ys = [0.7f32, 3.0e-19, 1.1, 0.5];
-        let v = (F32x4::from_array(xs) - F32x4::from_array(ys)) * F32x4::from_array(xs) * F32x4::from_array(ys) + F32x4::splat(1e-30);
+        let v = (F32x4::from_array(xs) - F32x4::from_array(ys)) * F32x4::from_array(xs) * F32x4::from_array(ys)
+            + F32x4::splat(1e-30);
         let scalar: Vec<f32> = (0..4).map(|i| (xs[i] - ys[i]) * xs[i] * ys[i] + 1e-30).collect();
         for (l, s) in v.to_array().iter().zip(&scalar) {
             assert_eq!(l.to_bits(), s.to_bits());

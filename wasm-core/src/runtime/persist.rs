@@ -168,7 +168,9 @@ impl<'a> StateReader<'a> {
     pub fn finish(self) -> Result<(), String> {
         match self.problem {
             Some(p) => Err(p),
-            None if self.at != self.bytes.len() => Err(format!("the state has {} bytes after its end (byte {})", self.bytes.len() - self.at, self.at)),
+            None if self.at != self.bytes.len() => {
+                Err(format!("the state has {} bytes after its end (byte {})", self.bytes.len() - self.at, self.at))
+            }
             None => Ok(()),
         }
     }
@@ -179,7 +181,8 @@ impl Visitor for StateReader<'_> {
         if let Some(b) = self.take4(what) {
             let value = f32::from_le_bytes(b);
             if !(value.abs() <= MAX_STATE_VALUE) {
-                self.problem = Some(format!("{what} is {value} at byte {} (finite, within ±{MAX_STATE_VALUE:e})", self.at - 4));
+                self.problem =
+                    Some(format!("{what} is {value} at byte {} (finite, within ±{MAX_STATE_VALUE:e})", self.at - 4));
                 return;
             }
             *x = value;
@@ -206,7 +209,11 @@ impl Visitor for StateReader<'_> {
         if self.problem.is_none() {
             let read = Quat::from_array(a);
             if (read.length() - 1.0).abs() > 1e-3 {
-                self.problem = Some(format!("{what} is not a unit quaternion (length {}) at byte {}", read.length(), self.at - 16));
+                self.problem = Some(format!(
+                    "{what} is not a unit quaternion (length {}) at byte {}",
+                    read.length(),
+                    self.at - 16
+                ));
                 return;
             }
             *q = read;
@@ -226,7 +233,8 @@ mod tests {
 
     #[test]
     fn values_round_trip_bit_exact() {
-        let mut a = (1.0f32 / 3.0, Vec3::new(-0.1, 2e5, 7.0), Quat::from_rotation_y(0.3), vec![Vec3::ONE; 3], true, 9usize);
+        let mut a =
+            (1.0f32 / 3.0, Vec3::new(-0.1, 2e5, 7.0), Quat::from_rotation_y(0.3), vec![Vec3::ONE; 3], true, 9usize);
         let mut w = StateWriter::default();
         let visit = |v: &mut dyn Visitor, a: &mut (f32, Vec3, Quat, Vec<Vec3>, bool, usize)| {
             a.0.persist(v, "a");

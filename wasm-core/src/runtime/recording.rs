@@ -50,8 +50,13 @@ impl Recording {
             Some(t) => {
                 let t = t.as_object().ok_or("\"truth\" must be an object")?;
                 let arr = |name: &str| -> Result<Vec<f64>, String> {
-                    let a = t.get(name).and_then(Value::as_array).ok_or(format!("\"truth.{name}\" must be an array of numbers"))?;
-                    a.iter().map(|x| x.as_f64().ok_or(format!("\"truth.{name}\" must be an array of numbers"))).collect()
+                    let a = t
+                        .get(name)
+                        .and_then(Value::as_array)
+                        .ok_or(format!("\"truth.{name}\" must be an array of numbers"))?;
+                    a.iter()
+                        .map(|x| x.as_f64().ok_or(format!("\"truth.{name}\" must be an array of numbers")))
+                        .collect()
                 };
                 Some((arr("bodyYaw")?, arr("root")?))
             }
@@ -59,7 +64,8 @@ impl Recording {
         let time = numbers("time")?;
         let p = numbers("position")?;
         let r = numbers("rotation")?;
-        let tracked: Vec<u8> = numbers("tracked")?.into_iter().map(|t| if t == 0.0 || t == 1.0 { t as u8 } else { 255 }).collect();
+        let tracked: Vec<u8> =
+            numbers("tracked")?.into_iter().map(|t| if t == 0.0 || t == 1.0 { t as u8 } else { 255 }).collect();
         validate(frames, &time, &p, &r, &tracked, truth.as_ref().map(|(y, r)| (y.as_slice(), r.as_slice())))?;
         let n = time.len();
         if n > crate::limits::MAX_FRAMES {
@@ -67,8 +73,15 @@ impl Recording {
         }
         Ok(Recording {
             time,
-            head_position: (0..n).map(|f| Vec3::new(p[9 * f] as f32, p[9 * f + 1] as f32, p[9 * f + 2] as f32)).collect(),
-            head_rotation: (0..n).map(|f| Quat::from_xyzw(r[12 * f] as f32, r[12 * f + 1] as f32, r[12 * f + 2] as f32, r[12 * f + 3] as f32).normalize()).collect(),
+            head_position: (0..n)
+                .map(|f| Vec3::new(p[9 * f] as f32, p[9 * f + 1] as f32, p[9 * f + 2] as f32))
+                .collect(),
+            head_rotation: (0..n)
+                .map(|f| {
+                    Quat::from_xyzw(r[12 * f] as f32, r[12 * f + 1] as f32, r[12 * f + 2] as f32, r[12 * f + 3] as f32)
+                        .normalize()
+                })
+                .collect(),
             eye_height: o.get("meta").and_then(|m| m["eyeHeight"].as_f64()).map(|e| e as f32),
             truth_yaw: truth.as_ref().map(|(y, _)| y.iter().map(|&x| x as f32).collect()),
             truth_root: truth.as_ref().map(|(_, r)| r.chunks(2).map(|c| Vec2::new(c[0] as f32, c[1] as f32)).collect()),
@@ -93,13 +106,23 @@ pub const NUM_TRACKERS: usize = 3;
 ///
 /// # Errors
 /// The first thing wrong, as the page says it.
-pub fn validate(frames: f64, time: &[f64], position: &[f64], rotation: &[f64], tracked: &[u8], truth: Option<(&[f64], &[f64])>) -> Result<(), String> {
+pub fn validate(
+    frames: f64,
+    time: &[f64],
+    position: &[f64],
+    rotation: &[f64],
+    tracked: &[u8],
+    truth: Option<(&[f64], &[f64])>,
+) -> Result<(), String> {
     if !(frames >= 1.0 && frames.fract() == 0.0 && frames <= 9_007_199_254_740_991.0) {
         return Err(format!("frames must be a positive integer (got {})", js_number(frames)));
     }
     let expect = |name: &str, length: usize, per: usize| -> Result<(), String> {
         if length as f64 != frames * per as f64 {
-            return Err(format!("{name} has {length} values, expected frames × {per} = {}", js_number(frames * per as f64)));
+            return Err(format!(
+                "{name} has {length} values, expected frames × {per} = {}",
+                js_number(frames * per as f64)
+            ));
         }
         Ok(())
     };
@@ -122,7 +145,11 @@ pub fn validate(frames: f64, time: &[f64], position: &[f64], rotation: &[f64], t
             return Err(format!("time[{f}] is not a finite number"));
         }
         if f > 0 && !(time[f] > time[f - 1]) {
-            return Err(format!("time must increase: time[{f}] = {} after {}", js_number(time[f]), js_number(time[f - 1])));
+            return Err(format!(
+                "time must increase: time[{f}] = {} after {}",
+                js_number(time[f]),
+                js_number(time[f - 1])
+            ));
         }
         for t in 0..NUM_TRACKERS {
             let k = f * NUM_TRACKERS + t;
@@ -138,7 +165,10 @@ pub fn validate(frames: f64, time: &[f64], position: &[f64], rotation: &[f64], t
             }
             let length = q.iter().map(|v| v * v).sum::<f64>().sqrt();
             if !((length - 1.0).abs() <= 1e-3) {
-                return Err(format!("rotation of frame {f}, tracker {t} is not a unit quaternion (length {})", js_fixed4(length)));
+                return Err(format!(
+                    "rotation of frame {f}, tracker {t} is not a unit quaternion (length {})",
+                    js_fixed4(length)
+                ));
             }
         }
     }
@@ -151,7 +181,11 @@ fn js_number(x: f64) -> String {
     if x.is_nan() {
         "NaN".into()
     } else if x.is_infinite() {
-        if x > 0.0 { "Infinity".into() } else { "-Infinity".into() }
+        if x > 0.0 {
+            "Infinity".into()
+        } else {
+            "-Infinity".into()
+        }
     } else {
         crate::limits::num(x)
     }
@@ -174,7 +208,8 @@ mod tests {
     /// expected 345" of a string in `time`.
     #[test]
     fn recordings_are_read_as_the_page_reads_them() {
-        let doc: serde_json::Value = serde_json::from_str(include_str!("../../tests/corpus/recordings/cases.json")).unwrap();
+        let doc: serde_json::Value =
+            serde_json::from_str(include_str!("../../tests/corpus/recordings/cases.json")).unwrap();
         let cases = doc["cases"].as_array().unwrap();
         assert!(cases.len() >= 20);
         for c in cases {

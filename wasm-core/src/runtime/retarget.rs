@@ -111,7 +111,12 @@ fn hips_height(positions: &[Vec3], hips: usize) -> f32 {
 /// Hips height over the toes (mean of both legs) of the avatar at rest and of the source
 /// standing with its leg bones along the avatar's rest bones; and the avatar's rest toe height.
 /// `None` unless both skeletons have hips, upper/lower leg, foot and toe on both sides.
-fn standing_heights(source: &[Vec3], source_roles: &Roles, target: &[Vec3], target_roles: &Roles) -> Option<(f32, f32, f32)> {
+fn standing_heights(
+    source: &[Vec3],
+    source_roles: &Roles,
+    target: &[Vec3],
+    target_roles: &Roles,
+) -> Option<(f32, f32, f32)> {
     let chains = [
         [Role::Hips, Role::LeftUpperLeg, Role::LeftLowerLeg, Role::LeftFoot, Role::LeftToe],
         [Role::Hips, Role::RightUpperLeg, Role::RightLowerLeg, Role::RightFoot, Role::RightToe],
@@ -154,13 +159,22 @@ impl Retargeter {
         // A rest pose read from a broken file must not poison every later frame.
         let bad_rotation = |q: &Quat| !q.is_finite() || q.length() < 1e-6;
         if let Some(j) = target.rest_local_rotations.iter().position(bad_rotation) {
-            return Err(format!("retarget: avatar joint {j}'s rest rotation is not a rotation ({:?})", target.rest_local_rotations[j]));
+            return Err(format!(
+                "retarget: avatar joint {j}'s rest rotation is not a rotation ({:?})",
+                target.rest_local_rotations[j]
+            ));
         }
         if let Some(j) = target.rest_local_positions.iter().position(|p| !p.is_finite()) {
-            return Err(format!("retarget: avatar joint {j}'s rest position is not finite ({:?})", target.rest_local_positions[j]));
+            return Err(format!(
+                "retarget: avatar joint {j}'s rest position is not finite ({:?})",
+                target.rest_local_positions[j]
+            ));
         }
         if bad_rotation(&target.root_parent_rotation) {
-            return Err(format!("retarget: the avatar's root parent rotation is not a rotation ({:?})", target.root_parent_rotation));
+            return Err(format!(
+                "retarget: the avatar's root parent rotation is not a rotation ({:?})",
+                target.root_parent_rotation
+            ));
         }
         let mut source_roles = Roles::default();
         for site in &db.skeleton.sites {
@@ -185,12 +199,23 @@ impl Retargeter {
         for (k, &j) in order.iter().enumerate() {
             position_of[j] = k;
         }
-        let parents_in_order: Vec<i32> = order.iter().map(|&j| if target.parents[j] < 0 { -1 } else { position_of[target.parents[j] as usize] as i32 }).collect();
+        let parents_in_order: Vec<i32> = order
+            .iter()
+            .map(|&j| if target.parents[j] < 0 { -1 } else { position_of[target.parents[j] as usize] as i32 })
+            .collect();
         let rest_local: Vec<Quat> = order.iter().map(|&j| target.rest_local_rotations[j].normalize()).collect();
         let rest_positions: Vec<Vec3> = order.iter().map(|&j| target.rest_local_positions[j]).collect();
         let (mut rest_world_p, mut rest_world_r) = (vec![Vec3::ZERO; t_count], vec![Quat::IDENTITY; t_count]);
         let root_parent = target.root_parent_rotation.normalize();
-        local_to_model(&parents_in_order, 0..t_count, Some((Vec3::ZERO, root_parent)), &rest_positions, &rest_local, &mut rest_world_p, &mut rest_world_r);
+        local_to_model(
+            &parents_in_order,
+            0..t_count,
+            Some((Vec3::ZERO, root_parent)),
+            &rest_positions,
+            &rest_local,
+            &mut rest_world_p,
+            &mut rest_world_r,
+        );
         // Avatar-order roles, and avatar rest world positions indexed like the avatar's joints.
         let mut roles_in_order = Roles::default();
         for (role, j) in target.roles.iter() {
@@ -201,7 +226,12 @@ impl Retargeter {
         let mut source_rest_rotations = vec![Quat::IDENTITY; db.num_joints()];
         if align_bones {
             for (role, child) in LIMB_BONES {
-                let (Some(s), Some(sc), Some(t), Some(tc)) = (source_roles.get(role), source_roles.get(child), roles_in_order.get(role), roles_in_order.get(child)) else {
+                let (Some(s), Some(sc), Some(t), Some(tc)) = (
+                    source_roles.get(role),
+                    source_roles.get(child),
+                    roles_in_order.get(role),
+                    roles_in_order.get(child),
+                ) else {
                     continue;
                 };
                 // q_s0' = R(d_s → d_t) · q_s0: the source rotation at which its bone lies along
@@ -222,7 +252,9 @@ impl Retargeter {
         let source_height = hips_height(&source_rest, source_hips);
         let target_height = hips_height(&rest_world_p, position_of[target_hips]);
         if !(source_height > 0.0 && target_height > 0.0) {
-            return Err(format!("retarget: hips heights must be positive (database {source_height}, avatar {target_height})"));
+            return Err(format!(
+                "retarget: hips heights must be positive (database {source_height}, avatar {target_height})"
+            ));
         }
         let mut hips_scale = target_height / source_height;
         let (mut source_floor, mut target_floor) = (0.0, 0.0);
@@ -238,7 +270,8 @@ impl Retargeter {
             }
         }
         let hp = parents_in_order[position_of[target_hips]];
-        let (hips_parent_rotation, hips_parent_position) = if hp < 0 { (root_parent, Vec3::ZERO) } else { (rest_world_r[hp as usize], rest_world_p[hp as usize]) };
+        let (hips_parent_rotation, hips_parent_position) =
+            if hp < 0 { (root_parent, Vec3::ZERO) } else { (rest_world_r[hp as usize], rest_world_p[hp as usize]) };
         Ok(Retargeter {
             hips_scale,
             source_floor,
@@ -261,7 +294,13 @@ impl Retargeter {
     /// source hips' world position (`lift` metres of the avatar's units added to its height, the
     /// avatar's grounding) → the avatar's local rotations (indexed like its joints) and the
     /// hips' local translation in its parent's rest frame, returned.
-    pub fn apply(&mut self, source_world_rotations: &[Quat], source_hips: Vec3, lift: f32, local_rotations: &mut [Quat]) -> Vec3 {
+    pub fn apply(
+        &mut self,
+        source_world_rotations: &[Quat],
+        source_hips: Vec3,
+        lift: f32,
+        local_rotations: &mut [Quat],
+    ) -> Vec3 {
         for k in 0..self.order.len() {
             let p = self.parents_in_order[k];
             let parent = if p < 0 { self.root_parent } else { self.world[p as usize] };
@@ -279,7 +318,11 @@ impl Retargeter {
             }
         }
         let s = self.hips_scale;
-        let v = Vec3::new(source_hips.x * s, (source_hips.y - self.source_floor) * s + self.target_floor + lift, source_hips.z * s) - self.hips_parent_position;
+        let v = Vec3::new(
+            source_hips.x * s,
+            (source_hips.y - self.source_floor) * s + self.target_floor + lift,
+            source_hips.z * s,
+        ) - self.hips_parent_position;
         self.hips_parent_rotation.inverse() * v
     }
 }

@@ -158,13 +158,69 @@ fn candidates(role: Role) -> &'static [&'static str] {
         UpperChest => &["thorax", "upperchest", "spine2", "spine03", "t8", "jbipcupperchest", "chest3", "chest4"],
         Neck => &["lowerneck", "neck", "neck01", "neck1", "jbipcneck"],
         Head => &["head", "jbipchead"],
-        LeftUpperLeg | RightUpperLeg => &["{s}femur", "{s}thigh", "{side}upperleg", "{side}upleg", "thigh{s}", "{side}thigh", "{s}upleg", "jbip{s}upperleg", "{side}hip"],
-        LeftLowerLeg | RightLowerLeg => &["{s}tibia", "{s}shin", "{side}lowerleg", "{side}leg", "calf{s}", "{side}shin", "{s}leg", "jbip{s}lowerleg", "{side}knee"],
+        LeftUpperLeg | RightUpperLeg => &[
+            "{s}femur",
+            "{s}thigh",
+            "{side}upperleg",
+            "{side}upleg",
+            "thigh{s}",
+            "{side}thigh",
+            "{s}upleg",
+            "jbip{s}upperleg",
+            "{side}hip",
+        ],
+        LeftLowerLeg | RightLowerLeg => &[
+            "{s}tibia",
+            "{s}shin",
+            "{side}lowerleg",
+            "{side}leg",
+            "calf{s}",
+            "{side}shin",
+            "{s}leg",
+            "jbip{s}lowerleg",
+            "{side}knee",
+        ],
         LeftFoot | RightFoot => &["{s}foot", "{side}foot", "foot{s}", "jbip{s}foot", "{side}ankle", "{s}ankle"],
-        LeftToe | RightToe => &["{s}toes", "{s}toe", "{side}toe", "{side}toebase", "{side}toes", "ball{s}", "toe{s}", "toes{s}", "{side}toe0", "jbip{s}toebase"],
-        LeftShoulder | RightShoulder => &["{s}clavicle", "{s}collar", "{side}collar", "{side}clavicle", "clavicle{s}", "jbip{s}shoulder", "{side}shoulder"],
-        LeftUpperArm | RightUpperArm => &["{s}humerus", "{s}shldr", "{side}upperarm", "{side}arm", "upperarm{s}", "jbip{s}upperarm", "{side}shoulder", "{s}shoulder"],
-        LeftLowerArm | RightLowerArm => &["{s}radius", "{s}forearm", "{side}forearm", "{side}lowerarm", "lowerarm{s}", "jbip{s}lowerarm", "{side}elbow"],
+        LeftToe | RightToe => &[
+            "{s}toes",
+            "{s}toe",
+            "{side}toe",
+            "{side}toebase",
+            "{side}toes",
+            "ball{s}",
+            "toe{s}",
+            "toes{s}",
+            "{side}toe0",
+            "jbip{s}toebase",
+        ],
+        LeftShoulder | RightShoulder => &[
+            "{s}clavicle",
+            "{s}collar",
+            "{side}collar",
+            "{side}clavicle",
+            "clavicle{s}",
+            "jbip{s}shoulder",
+            "{side}shoulder",
+        ],
+        LeftUpperArm | RightUpperArm => &[
+            "{s}humerus",
+            "{s}shldr",
+            "{side}upperarm",
+            "{side}arm",
+            "upperarm{s}",
+            "jbip{s}upperarm",
+            "{side}shoulder",
+            "{s}shoulder",
+        ],
+        LeftLowerArm | RightLowerArm => &[
+            "{s}radius",
+            "{s}forearm",
+            "{side}forearm",
+            "{side}lowerarm",
+            "lowerarm{s}",
+            "jbip{s}lowerarm",
+            "{side}elbow",
+        ],
         LeftHand | RightHand => &["{s}wrist", "{s}hand", "{side}hand", "hand{s}", "jbip{s}hand", "{side}wrist"],
     }
 }
@@ -245,7 +301,9 @@ impl std::fmt::Display for OverrideError {
                 let known: Vec<&str> = Role::ALL.iter().map(|r| r.name()).collect();
                 write!(f, "unknown role '{r}' (known: {})", known.join(", "))
             }
-            OverrideError::UnknownJoint { role, joint } => write!(f, "'{role}' names joint '{joint}', which the skeleton does not have"),
+            OverrideError::UnknownJoint { role, joint } => {
+                write!(f, "'{role}' names joint '{joint}', which the skeleton does not have")
+            }
         }
     }
 }
@@ -255,7 +313,11 @@ impl std::fmt::Display for OverrideError {
 ///
 /// # Errors
 /// An override naming an unknown role or a joint the skeleton does not have.
-pub fn find_roles<S: AsRef<str>>(names: &[S], parents: &[i32], overrides: &HashMap<String, String>) -> Result<Roles, OverrideError> {
+pub fn find_roles<S: AsRef<str>>(
+    names: &[S],
+    parents: &[i32],
+    overrides: &HashMap<String, String>,
+) -> Result<Roles, OverrideError> {
     find_roles_in(names, parents, None, overrides)
 }
 
@@ -274,7 +336,12 @@ pub fn find_roles<S: AsRef<str>>(names: &[S], parents: &[i32], overrides: &HashM
 ///
 /// # Errors
 /// An override naming an unknown role or a joint the skeleton does not have.
-pub fn find_roles_in<S: AsRef<str>>(names: &[S], parents: &[i32], shape: Option<&Shape>, overrides: &HashMap<String, String>) -> Result<Roles, OverrideError> {
+pub fn find_roles_in<S: AsRef<str>>(
+    names: &[S],
+    parents: &[i32],
+    shape: Option<&Shape>,
+    overrides: &HashMap<String, String>,
+) -> Result<Roles, OverrideError> {
     let normalized: Vec<String> = names.iter().map(|n| normalize_name(n.as_ref())).collect();
     let mut roles = Roles::default();
     let mut used = vec![false; names.len()];
@@ -346,7 +413,8 @@ fn names_agree(by_name: &Roles, humanoid: &Humanoid, parents: &[i32]) -> bool {
         let joints: Option<Vec<usize>> = roles.iter().map(|&r| by_name.get(r)).collect();
         joints.is_some_and(|j| j.windows(2).all(|w| is_ancestor(parents, w[0], w[1])))
     };
-    let on_side = |upper: Role, leg: usize| by_name.get(upper).is_some_and(|j| j == leg || is_ancestor(parents, leg, j));
+    let on_side =
+        |upper: Role, leg: usize| by_name.get(upper).is_some_and(|j| j == leg || is_ancestor(parents, leg, j));
     chain([Hips, LeftUpperLeg, LeftLowerLeg, LeftFoot])
         && chain([Hips, RightUpperLeg, RightLowerLeg, RightFoot])
         && by_name.get(Hips) == humanoid.roles.get(Hips)
@@ -473,11 +541,16 @@ pub fn find_humanoid(parents: &[i32], shape: &Shape) -> Result<Humanoid, String>
         chain
     };
     // Bone length from each chain joint to the next (the last: its end site).
-    let segments = |chain: &[usize]| -> Vec<f64> { (0..chain.len()).map(|i| chain.get(i + 1).map_or(end(chain[i]), |&c| bone(c))).collect() };
+    let segments = |chain: &[usize]| -> Vec<f64> {
+        (0..chain.len()).map(|i| chain.get(i + 1).map_or(end(chain[i]), |&c| bone(c))).collect()
+    };
     let leg_bones = |start: usize| {
         let chain = main_chain(start);
         let s = segments(&chain);
-        (0..chain.len().saturating_sub(1)).map(|i| (s[i] + s[i + 1], i)).max_by(|a, b| a.0.total_cmp(&b.0)).map(|(sum, i)| (sum, i, chain))
+        (0..chain.len().saturating_sub(1))
+            .map(|i| (s[i] + s[i + 1], i))
+            .max_by(|a, b| a.0.total_cmp(&b.0))
+            .map(|(sum, i)| (sum, i, chain))
     };
 
     // 1. Pairs of sibling limbs of one shape and similar reach.
@@ -505,7 +578,8 @@ pub fn find_humanoid(parents: &[i32], shape: &Shape) -> Result<Humanoid, String>
         pairs.truncate(MAX_LIMB_PAIRS);
     }
     // The two longest consecutive bones below each paired limb (for limbs hanging off one joint).
-    let leg_sum: HashMap<usize, Option<f64>> = pairs.iter().flat_map(|&(_, a, b)| [a, b]).map(|j| (j, leg_bones(j).map(|l| l.0))).collect();
+    let leg_sum: HashMap<usize, Option<f64>> =
+        pairs.iter().flat_map(|&(_, a, b)| [a, b]).map(|j| (j, leg_bones(j).map(|l| l.0))).collect();
     let inside = |branch: usize, j: usize| j == branch || is_ancestor(parents, branch, j);
     let mut best: Option<(f64, usize, usize)> = None;
     for (x, legs) in pairs.iter().enumerate() {
@@ -542,7 +616,9 @@ pub fn find_humanoid(parents: &[i32], shape: &Shape) -> Result<Humanoid, String>
         let chain = main_chain(start);
         let s = segments(&chain);
         let score = |i: usize| (s[i] / thigh_shin - UPPER_ARM).abs() + (s[i + 1] / thigh_shin - FOREARM).abs();
-        let i = (0..chain.len().saturating_sub(2)).min_by(|&a, &b| score(a).total_cmp(&score(b))).ok_or("no hand joint below an elbow")?;
+        let i = (0..chain.len().saturating_sub(2))
+            .min_by(|&a, &b| score(a).total_cmp(&score(b)))
+            .ok_or("no hand joint below an elbow")?;
         Ok((i.checked_sub(1).map(|k| chain[k]), chain[i], chain[i + 1], chain[i + 2]))
     };
     let (aa, ab) = (arm(arm_a)?, arm(arm_b)?);
@@ -613,15 +689,19 @@ pub fn find_humanoid(parents: &[i32], shape: &Shape) -> Result<Humanoid, String>
     use Role::*;
     let mut roles = Roles::default();
     roles.set(Hips, Some(hips));
-    for (leg, [upper, lower, foot, toe]) in [(left_leg, [LeftUpperLeg, LeftLowerLeg, LeftFoot, LeftToe]), (right_leg, [RightUpperLeg, RightLowerLeg, RightFoot, RightToe])] {
+    for (leg, [upper, lower, foot, toe]) in [
+        (left_leg, [LeftUpperLeg, LeftLowerLeg, LeftFoot, LeftToe]),
+        (right_leg, [RightUpperLeg, RightLowerLeg, RightFoot, RightToe]),
+    ] {
         roles.set(upper, Some(leg.0));
         roles.set(lower, Some(leg.1));
         roles.set(foot, Some(leg.2));
         roles.set(toe, leg.3);
     }
-    for (arm, [shoulder, upper, lower, hand]) in
-        [(left_arm, [LeftShoulder, LeftUpperArm, LeftLowerArm, LeftHand]), (right_arm, [RightShoulder, RightUpperArm, RightLowerArm, RightHand])]
-    {
+    for (arm, [shoulder, upper, lower, hand]) in [
+        (left_arm, [LeftShoulder, LeftUpperArm, LeftLowerArm, LeftHand]),
+        (right_arm, [RightShoulder, RightUpperArm, RightLowerArm, RightHand]),
+    ] {
         roles.set(shoulder, arm.0);
         roles.set(upper, Some(arm.1));
         roles.set(lower, Some(arm.2));
@@ -650,8 +730,11 @@ fn rest_pose(parents: &[i32], parent_first: &[usize], shape: &Shape) -> ShapePos
 /// ([`mirror_name`]) where the other side's name exists; else, inside the limbs of a
 /// `humanoid`, the joint at the same place of the opposite limb's tree.
 pub fn mirror_pairs<S: AsRef<str>>(names: &[S], parents: &[i32], humanoid: Option<&Humanoid>) -> Vec<usize> {
-    let mut pairs: Vec<usize> =
-        names.iter().enumerate().map(|(j, n)| mirror_name(n.as_ref()).and_then(|m| names.iter().position(|x| x.as_ref() == m)).unwrap_or(j)).collect();
+    let mut pairs: Vec<usize> = names
+        .iter()
+        .enumerate()
+        .map(|(j, n)| mirror_name(n.as_ref()).and_then(|m| names.iter().position(|x| x.as_ref() == m)).unwrap_or(j))
+        .collect();
     let Some(h) = humanoid else { return pairs };
     let n = parents.len();
     let mut children = vec![Vec::new(); n];
@@ -721,7 +804,8 @@ pub fn mirror_name(name: &str) -> Option<String> {
         }
     }
     // VRoid `J_Bip_L_UpperLeg`.
-    for (a, b) in [("_L_", "_R_")] {
+    {
+        let (a, b) = ("_L_", "_R_");
         if name.contains(a) {
             return Some(name.replacen(a, b, 1));
         }
@@ -747,11 +831,13 @@ pub fn mirror_name(name: &str) -> Option<String> {
     };
     let second = rest.chars().next()?;
     let lower_parts = [
-        "hip", "femur", "tibia", "foot", "toe", "clavicle", "humerus", "radius", "wrist", "hand", "finger", "thumb", "thigh", "shin",
-        "collar", "shldr", "forearm", "buttock", "index", "mid", "ring", "pinky", "eye", "ankle", "knee", "elbow", "arm", "leg",
-        "upleg", "shoulder",
+        "hip", "femur", "tibia", "foot", "toe", "clavicle", "humerus", "radius", "wrist", "hand", "finger", "thumb",
+        "thigh", "shin", "collar", "shldr", "forearm", "buttock", "index", "mid", "ring", "pinky", "eye", "ankle",
+        "knee", "elbow", "arm", "leg", "upleg", "shoulder",
     ];
-    let is_part = second.is_ascii_uppercase() || second == '_' || lower_parts.iter().any(|p| rest.to_ascii_lowercase().starts_with(p));
+    let is_part = second.is_ascii_uppercase()
+        || second == '_'
+        || lower_parts.iter().any(|p| rest.to_ascii_lowercase().starts_with(p));
     is_part.then(|| format!("{ns}{swap}{rest}"))
 }
 
@@ -760,7 +846,11 @@ mod tests {
     use super::*;
 
     fn roles_of(names: &[&str], parents: &[i32]) -> HashMap<&'static str, String> {
-        find_roles(names, parents, &HashMap::new()).unwrap().iter().map(|(r, j)| (r.name(), names[j].to_string())).collect()
+        find_roles(names, parents, &HashMap::new())
+            .unwrap()
+            .iter()
+            .map(|(r, j)| (r.name(), names[j].to_string()))
+            .collect()
     }
 
     #[test]
@@ -802,25 +892,231 @@ mod tests {
         // l shoulder, l upper arm, l lower arm, l hand, r shoulder, r upper arm, r lower arm, r hand,
         // l upper leg, l lower leg, l foot, l toe, r upper leg, r lower leg, r foot, r toe.
         let conventions: [(&str, [&str; 22]); 8] = [
-            ("cmu asf", ["root", "lowerback", "upperback", "thorax", "lowerneck", "head", "lclavicle", "lhumerus", "lradius", "lwrist", "rclavicle", "rhumerus", "rradius", "rwrist", "lfemur", "ltibia", "lfoot", "ltoes", "rfemur", "rtibia", "rfoot", "rtoes"]),
-            ("mixamo", ["mixamorig:Hips", "mixamorig:Spine", "mixamorig:Spine1", "mixamorig:Spine2", "mixamorig:Neck", "mixamorig:Head", "mixamorig:LeftShoulder", "mixamorig:LeftArm", "mixamorig:LeftForeArm", "mixamorig:LeftHand", "mixamorig:RightShoulder", "mixamorig:RightArm", "mixamorig:RightForeArm", "mixamorig:RightHand", "mixamorig:LeftUpLeg", "mixamorig:LeftLeg", "mixamorig:LeftFoot", "mixamorig:LeftToeBase", "mixamorig:RightUpLeg", "mixamorig:RightLeg", "mixamorig:RightFoot", "mixamorig:RightToeBase"]),
-            ("unreal", ["pelvis", "spine_01", "spine_02", "spine_03", "neck_01", "head", "clavicle_l", "upperarm_l", "lowerarm_l", "hand_l", "clavicle_r", "upperarm_r", "lowerarm_r", "hand_r", "thigh_l", "calf_l", "foot_l", "ball_l", "thigh_r", "calf_r", "foot_r", "ball_r"]),
-            ("xsens", ["Pelvis", "L5", "T12", "T8", "Neck", "Head", "LeftShoulder", "LeftUpperArm", "LeftForeArm", "LeftHand", "RightShoulder", "RightUpperArm", "RightForeArm", "RightHand", "LeftUpperLeg", "LeftLowerLeg", "LeftFoot", "LeftToe", "RightUpperLeg", "RightLowerLeg", "RightFoot", "RightToe"]),
-            ("vrm", ["hips", "spine", "chest", "upperChest", "neck", "head", "leftShoulder", "leftUpperArm", "leftLowerArm", "leftHand", "rightShoulder", "rightUpperArm", "rightLowerArm", "rightHand", "leftUpperLeg", "leftLowerLeg", "leftFoot", "leftToes", "rightUpperLeg", "rightLowerLeg", "rightFoot", "rightToes"]),
-            ("vroid", ["J_Bip_C_Hips", "J_Bip_C_Spine", "J_Bip_C_Chest", "J_Bip_C_UpperChest", "J_Bip_C_Neck", "J_Bip_C_Head", "J_Bip_L_Shoulder", "J_Bip_L_UpperArm", "J_Bip_L_LowerArm", "J_Bip_L_Hand", "J_Bip_R_Shoulder", "J_Bip_R_UpperArm", "J_Bip_R_LowerArm", "J_Bip_R_Hand", "J_Bip_L_UpperLeg", "J_Bip_L_LowerLeg", "J_Bip_L_Foot", "J_Bip_L_ToeBase", "J_Bip_R_UpperLeg", "J_Bip_R_LowerLeg", "J_Bip_R_Foot", "J_Bip_R_ToeBase"]),
-            ("100style", ["Hips", "Chest", "Chest2", "Chest3", "Neck", "Head", "LeftCollar", "LeftShoulder", "LeftElbow", "LeftWrist", "RightCollar", "RightShoulder", "RightElbow", "RightWrist", "LeftHip", "LeftKnee", "LeftAnkle", "LeftToe", "RightHip", "RightKnee", "RightAnkle", "RightToe"]),
-            ("cmu daz", ["hip", "abdomen", "chest", "", "neck", "head", "lCollar", "lShldr", "lForeArm", "lHand", "rCollar", "rShldr", "rForeArm", "rHand", "lThigh", "lShin", "lFoot", "lToe", "rThigh", "rShin", "rFoot", "rToe"]),
+            (
+                "cmu asf",
+                [
+                    "root",
+                    "lowerback",
+                    "upperback",
+                    "thorax",
+                    "lowerneck",
+                    "head",
+                    "lclavicle",
+                    "lhumerus",
+                    "lradius",
+                    "lwrist",
+                    "rclavicle",
+                    "rhumerus",
+                    "rradius",
+                    "rwrist",
+                    "lfemur",
+                    "ltibia",
+                    "lfoot",
+                    "ltoes",
+                    "rfemur",
+                    "rtibia",
+                    "rfoot",
+                    "rtoes",
+                ],
+            ),
+            (
+                "mixamo",
+                [
+                    "mixamorig:Hips",
+                    "mixamorig:Spine",
+                    "mixamorig:Spine1",
+                    "mixamorig:Spine2",
+                    "mixamorig:Neck",
+                    "mixamorig:Head",
+                    "mixamorig:LeftShoulder",
+                    "mixamorig:LeftArm",
+                    "mixamorig:LeftForeArm",
+                    "mixamorig:LeftHand",
+                    "mixamorig:RightShoulder",
+                    "mixamorig:RightArm",
+                    "mixamorig:RightForeArm",
+                    "mixamorig:RightHand",
+                    "mixamorig:LeftUpLeg",
+                    "mixamorig:LeftLeg",
+                    "mixamorig:LeftFoot",
+                    "mixamorig:LeftToeBase",
+                    "mixamorig:RightUpLeg",
+                    "mixamorig:RightLeg",
+                    "mixamorig:RightFoot",
+                    "mixamorig:RightToeBase",
+                ],
+            ),
+            (
+                "unreal",
+                [
+                    "pelvis",
+                    "spine_01",
+                    "spine_02",
+                    "spine_03",
+                    "neck_01",
+                    "head",
+                    "clavicle_l",
+                    "upperarm_l",
+                    "lowerarm_l",
+                    "hand_l",
+                    "clavicle_r",
+                    "upperarm_r",
+                    "lowerarm_r",
+                    "hand_r",
+                    "thigh_l",
+                    "calf_l",
+                    "foot_l",
+                    "ball_l",
+                    "thigh_r",
+                    "calf_r",
+                    "foot_r",
+                    "ball_r",
+                ],
+            ),
+            (
+                "xsens",
+                [
+                    "Pelvis",
+                    "L5",
+                    "T12",
+                    "T8",
+                    "Neck",
+                    "Head",
+                    "LeftShoulder",
+                    "LeftUpperArm",
+                    "LeftForeArm",
+                    "LeftHand",
+                    "RightShoulder",
+                    "RightUpperArm",
+                    "RightForeArm",
+                    "RightHand",
+                    "LeftUpperLeg",
+                    "LeftLowerLeg",
+                    "LeftFoot",
+                    "LeftToe",
+                    "RightUpperLeg",
+                    "RightLowerLeg",
+                    "RightFoot",
+                    "RightToe",
+                ],
+            ),
+            (
+                "vrm",
+                [
+                    "hips",
+                    "spine",
+                    "chest",
+                    "upperChest",
+                    "neck",
+                    "head",
+                    "leftShoulder",
+                    "leftUpperArm",
+                    "leftLowerArm",
+                    "leftHand",
+                    "rightShoulder",
+                    "rightUpperArm",
+                    "rightLowerArm",
+                    "rightHand",
+                    "leftUpperLeg",
+                    "leftLowerLeg",
+                    "leftFoot",
+                    "leftToes",
+                    "rightUpperLeg",
+                    "rightLowerLeg",
+                    "rightFoot",
+                    "rightToes",
+                ],
+            ),
+            (
+                "vroid",
+                [
+                    "J_Bip_C_Hips",
+                    "J_Bip_C_Spine",
+                    "J_Bip_C_Chest",
+                    "J_Bip_C_UpperChest",
+                    "J_Bip_C_Neck",
+                    "J_Bip_C_Head",
+                    "J_Bip_L_Shoulder",
+                    "J_Bip_L_UpperArm",
+                    "J_Bip_L_LowerArm",
+                    "J_Bip_L_Hand",
+                    "J_Bip_R_Shoulder",
+                    "J_Bip_R_UpperArm",
+                    "J_Bip_R_LowerArm",
+                    "J_Bip_R_Hand",
+                    "J_Bip_L_UpperLeg",
+                    "J_Bip_L_LowerLeg",
+                    "J_Bip_L_Foot",
+                    "J_Bip_L_ToeBase",
+                    "J_Bip_R_UpperLeg",
+                    "J_Bip_R_LowerLeg",
+                    "J_Bip_R_Foot",
+                    "J_Bip_R_ToeBase",
+                ],
+            ),
+            (
+                "100style",
+                [
+                    "Hips",
+                    "Chest",
+                    "Chest2",
+                    "Chest3",
+                    "Neck",
+                    "Head",
+                    "LeftCollar",
+                    "LeftShoulder",
+                    "LeftElbow",
+                    "LeftWrist",
+                    "RightCollar",
+                    "RightShoulder",
+                    "RightElbow",
+                    "RightWrist",
+                    "LeftHip",
+                    "LeftKnee",
+                    "LeftAnkle",
+                    "LeftToe",
+                    "RightHip",
+                    "RightKnee",
+                    "RightAnkle",
+                    "RightToe",
+                ],
+            ),
+            (
+                "cmu daz",
+                [
+                    "hip", "abdomen", "chest", "", "neck", "head", "lCollar", "lShldr", "lForeArm", "lHand", "rCollar",
+                    "rShldr", "rForeArm", "rHand", "lThigh", "lShin", "lFoot", "lToe", "rThigh", "rShin", "rFoot",
+                    "rToe",
+                ],
+            ),
         ];
         // hips → spine → chest → upper chest → neck → head; shoulders on the upper chest; legs on the hips.
         let parents: [i32; 22] = [-1, 0, 1, 2, 3, 4, 3, 6, 7, 8, 3, 10, 11, 12, 0, 14, 15, 16, 0, 18, 19, 20];
         for (convention, names) in conventions {
             let roles = find_roles(&names, &parents, &HashMap::new()).unwrap();
             for (k, role) in [
-                Role::Hips, Role::Spine, Role::Chest, Role::UpperChest, Role::Neck, Role::Head,
-                Role::LeftShoulder, Role::LeftUpperArm, Role::LeftLowerArm, Role::LeftHand,
-                Role::RightShoulder, Role::RightUpperArm, Role::RightLowerArm, Role::RightHand,
-                Role::LeftUpperLeg, Role::LeftLowerLeg, Role::LeftFoot, Role::LeftToe,
-                Role::RightUpperLeg, Role::RightLowerLeg, Role::RightFoot, Role::RightToe,
+                Role::Hips,
+                Role::Spine,
+                Role::Chest,
+                Role::UpperChest,
+                Role::Neck,
+                Role::Head,
+                Role::LeftShoulder,
+                Role::LeftUpperArm,
+                Role::LeftLowerArm,
+                Role::LeftHand,
+                Role::RightShoulder,
+                Role::RightUpperArm,
+                Role::RightLowerArm,
+                Role::RightHand,
+                Role::LeftUpperLeg,
+                Role::LeftLowerLeg,
+                Role::LeftFoot,
+                Role::LeftToe,
+                Role::RightUpperLeg,
+                Role::RightLowerLeg,
+                Role::RightFoot,
+                Role::RightToe,
             ]
             .into_iter()
             .enumerate()
@@ -862,7 +1158,8 @@ mod tests {
     fn many_identical_siblings_are_judged_quickly() {
         let n = 1001;
         let parents: Vec<i32> = (0..n).map(|j| if j == 0 { -1 } else { 0 }).collect();
-        let offsets: Vec<DVec3> = (0..n).map(|j| if j == 0 { DVec3::ZERO } else { DVec3::new(0.0, -0.4, 0.01 * j as f64) }).collect();
+        let offsets: Vec<DVec3> =
+            (0..n).map(|j| if j == 0 { DVec3::ZERO } else { DVec3::new(0.0, -0.4, 0.01 * j as f64) }).collect();
         let end_sites = vec![Some(DVec3::new(0.0, -0.4, 0.0)); n];
         let started = std::time::Instant::now();
         let found = find_humanoid(&parents, &Shape { offsets: &offsets, end_sites: &end_sites, poses: &[] });

@@ -29,7 +29,14 @@ pub struct SearchOptions<'a> {
 
 impl Default for SearchOptions<'_> {
     fn default() -> Self {
-        SearchOptions { beta_pose: 1.0, beta_trajectory: 1.0, exclude: None, exclude_recent: None, mask: None, tags: TagQuery::default() }
+        SearchOptions {
+            beta_pose: 1.0,
+            beta_trajectory: 1.0,
+            exclude: None,
+            exclude_recent: None,
+            mask: None,
+            tags: TagQuery::default(),
+        }
     }
 }
 
@@ -206,11 +213,20 @@ impl SearchIndex {
         // A branch-free pass first (it vectorizes); find the culprit only for the message.
         if !db.features.iter().fold(true, |ok, f| ok & f.is_finite()) {
             let i = db.features.iter().position(|f| !f.is_finite()).unwrap_or(0);
-            return Err(Error::format(format!("FEAT: frame {} dim {} is {} (features must be finite)", i / d, i % d, db.features[i])));
+            return Err(Error::format(format!(
+                "FEAT: frame {} dim {} is {} (features must be finite)",
+                i / d,
+                i % d,
+                db.features[i]
+            )));
         }
         let mut dim_weights = vec![DimWeight::One; d];
         for g in &db.groups {
-            dim_weights[g.first_dim..g.first_dim + g.num_dims].fill(if g.is_trajectory { DimWeight::Trajectory } else { DimWeight::Pose });
+            dim_weights[g.first_dim..g.first_dim + g.num_dims].fill(if g.is_trajectory {
+                DimWeight::Trajectory
+            } else {
+                DimWeight::Pose
+            });
         }
         // Padded to whole groups of four large boxes, so every box the search may visit exists.
         let padded = db.num_frames.div_ceil(PADDING) * PADDING;
@@ -235,10 +251,25 @@ impl SearchIndex {
         let mut tag_bits = frame_tag_bits(db);
         tag_bits.resize(padded, 0);
         let summarize = |size: usize| -> Vec<TagSummary> {
-            (0..padded / size).map(|b| (b * size..(b + 1) * size).filter(|&f| valid[f]).fold(TagSummary::EMPTY, |s, f| s.add(tag_bits[f]))).collect()
+            (0..padded / size)
+                .map(|b| {
+                    (b * size..(b + 1) * size)
+                        .filter(|&f| valid[f])
+                        .fold(TagSummary::EMPTY, |s, f| s.with_frame(tag_bits[f]))
+                })
+                .collect()
         };
         let box_tags = BOX_FRAMES.map(summarize);
-        Ok(SearchIndex { num_frames: db.num_frames, num_dims: d, dim_weights, valid, lanes, bounds, tag_bits, box_tags })
+        Ok(SearchIndex {
+            num_frames: db.num_frames,
+            num_dims: d,
+            dim_weights,
+            valid,
+            lanes,
+            bounds,
+            tag_bits,
+            box_tags,
+        })
     }
 
     pub fn num_frames(&self) -> usize {
@@ -276,7 +307,13 @@ impl SearchIndex {
     }
 
     /// Runs `method`; see the type's docs for the semantics.
-    pub fn search(&self, method: SearchMethod, query: &[f32], options: &SearchOptions, bar: f32) -> Option<(usize, f32)> {
+    pub fn search(
+        &self,
+        method: SearchMethod,
+        query: &[f32],
+        options: &SearchOptions,
+        bar: f32,
+    ) -> Option<(usize, f32)> {
         match method {
             SearchMethod::Scalar => self.search_scalar(query, options, bar),
             SearchMethod::Simd => self.search_simd(query, options, bar),
@@ -394,12 +431,29 @@ impl SearchIndex {
     #[inline(always)]
     fn tag_bounds(&self, level: usize, group: usize, tags: &TagQuery) -> F32x4 {
         let summaries = &self.box_tags[level][4 * group..4 * group + 4];
-        F32x4::from_array(std::array::from_fn(|l| if tags.may_allow(summaries[l]) { tags.min_bias(summaries[l]) } else { f32::INFINITY }))
+        F32x4::from_array(std::array::from_fn(|l| {
+            if tags.may_allow(summaries[l]) {
+                tags.min_bias(summaries[l])
+            } else {
+                f32::INFINITY
+            }
+        }))
     }
 
     /// Visits the boxes of group `group` of `level` (their `bounds`; but those in `skip`, a
     /// lane mask) that may hold a frame beating the best, the lowest bound first.
-    fn visit_boxes(&self, level: usize, group: usize, bounds: F32x4, skip: u32, q: &LaneQuery, options: &SearchOptions, best: &mut Best) {
+    // The search's state is passed as it is (no struct per call in the hot loop).
+    #[allow(clippy::too_many_arguments)]
+    fn visit_boxes(
+        &self,
+        level: usize,
+        group: usize,
+        bounds: F32x4,
+        skip: u32,
+        q: &LaneQuery,
+        options: &SearchOptions,
+        best: &mut Best,
+    ) {
         let size = BOX_FRAMES[level];
         let first = 4 * group * size;
         let mut lanes = best.lanes_beaten_by(bounds, first, size) & !skip;
@@ -547,12 +601,23 @@ impl SearchIndex {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::rng::Rng;
     use crate::database::{Axes, FeatureGroup, FeatureKind, Skeleton, Tag};
+    use crate::rng::Rng;
     use glam::Vec3;
 
     fn group(name: &str, is_trajectory: bool, first_dim: usize, num_dims: usize) -> FeatureGroup {
-        FeatureGroup { name: name.into(), kind: FeatureKind::Position, is_trajectory, axes: Axes::Xyz, joint: 0, axis: Vec3::Z, offsets: vec![0], weight: 1.0, first_dim, num_dims }
+        FeatureGroup {
+            name: name.into(),
+            kind: FeatureKind::Position,
+            is_trajectory,
+            axes: Axes::Xyz,
+            joint: 0,
+            axis: Vec3::Z,
+            offsets: vec![0],
+            weight: 1.0,
+            first_dim,
+            num_dims,
+        }
     }
 
     /// Only what the search reads: features (on a coarse grid, so exact ties are common),
@@ -572,7 +637,12 @@ mod tests {
             })
             .collect();
         Database {
-            skeleton: Skeleton { names: vec!["root".into()], parents: vec![-1], offsets: vec![Vec3::ZERO], sites: vec![] },
+            skeleton: Skeleton {
+                names: vec!["root".into()],
+                parents: vec![-1],
+                offsets: vec![Vec3::ZERO],
+                sites: vec![],
+            },
             fps: 60.0,
             num_frames,
             clips: vec![],
@@ -600,7 +670,9 @@ mod tests {
         // Sizes around the box and padding boundaries (4, 16, 64, 256, 1024 frames), with 1, 2
         // and 3 top-level groups past the last whole four, and past the cached top bounds.
         let beyond_cache = 1024 * (TOP_CACHE + 3) + 5;
-        for num_frames in [1, 3, 4, 17, 63, 64, 65, 255, 256, 257, 1000, 1024, 1025, 4096, 5121, 6200, 7165, beyond_cache] {
+        for num_frames in
+            [1, 3, 4, 17, 63, 64, 65, 255, 256, 257, 1000, 1024, 1025, 4096, 5121, 6200, 7165, beyond_cache]
+        {
             let db = synthetic(num_frames, &mut rng);
             let index = SearchIndex::new(&db).unwrap();
             let mask: Vec<bool> = (0..num_frames).map(|_| rng.below(3) != 0).collect();
@@ -656,12 +728,20 @@ mod tests {
             let index = SearchIndex::new(&db).unwrap();
             for _ in 0..200 {
                 let source = rng.below(num_frames);
-                let query: Vec<f32> = db.features[source * 6..source * 6 + 6].iter().map(|v| v + (rng.below(100) as f32 - 50.0) / 200.0).collect();
-                let options = SearchOptions { exclude: Some((source.saturating_sub(20), source + 21)), ..Default::default() };
+                let query: Vec<f32> = db.features[source * 6..source * 6 + 6]
+                    .iter()
+                    .map(|v| v + (rng.below(100) as f32 - 50.0) / 200.0)
+                    .collect();
+                let options =
+                    SearchOptions { exclude: Some((source.saturating_sub(20), source + 21)), ..Default::default() };
                 let expected = reference(&db, &query, &options, f32::INFINITY);
                 for method in [SearchMethod::Simd, SearchMethod::Aabb] {
                     let got = index.search(method, &query, &options, f32::INFINITY);
-                    assert_eq!(got.map(|(f, c)| (f, c.to_bits())), expected.map(|(f, c)| (f, c.to_bits())), "{num_frames} frames, {method:?}, query from frame {source}");
+                    assert_eq!(
+                        got.map(|(f, c)| (f, c.to_bits())),
+                        expected.map(|(f, c)| (f, c.to_bits())),
+                        "{num_frames} frames, {method:?}, query from frame {source}"
+                    );
                 }
             }
         }
@@ -677,7 +757,11 @@ mod tests {
         let (frame, cost) = index.search_aabb(&query, &options, f32::INFINITY).unwrap();
         assert_eq!(index.cost(frame, &query, &options).to_bits(), cost.to_bits());
         for method in SearchMethod::ALL {
-            assert_eq!(index.search(method, &query, &options, cost), None, "{method:?}: equal to the bar is not better");
+            assert_eq!(
+                index.search(method, &query, &options, cost),
+                None,
+                "{method:?}: equal to the bar is not better"
+            );
             assert_eq!(index.search(method, &query, &options, cost.next_up()), Some((frame, cost)));
         }
     }
@@ -709,7 +793,13 @@ mod tests {
         db.features[13] = f32::NAN;
         let e = SearchIndex::new(&db).unwrap_err().to_string();
         assert!(e.contains("frame 2 dim 1"), "{e}");
-        let wide = Database { feature_mean: vec![0.0; MAX_DIMS + 1], feature_scale: vec![1.0; MAX_DIMS + 1], features: vec![0.0; 10 * (MAX_DIMS + 1)], groups: vec![], ..db };
+        let wide = Database {
+            feature_mean: vec![0.0; MAX_DIMS + 1],
+            feature_scale: vec![1.0; MAX_DIMS + 1],
+            features: vec![0.0; 10 * (MAX_DIMS + 1)],
+            groups: vec![],
+            ..db
+        };
         assert!(SearchIndex::new(&wide).unwrap_err().to_string().contains("1 to 128"));
     }
 

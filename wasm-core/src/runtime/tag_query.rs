@@ -48,7 +48,8 @@ impl TagSummary {
     /// The summary of no frame: the identity of both folds.
     pub const EMPTY: TagSummary = TagSummary { any: 0, all: u64::MAX };
 
-    pub fn add(self, bits: u64) -> TagSummary {
+    /// This summary with one more frame's tag bits folded in.
+    pub fn with_frame(self, bits: u64) -> TagSummary {
         TagSummary { any: self.any | bits, all: self.all & bits }
     }
 
@@ -137,8 +138,14 @@ impl TagQuery {
         style: &str,
         bias: f32,
     ) -> TagQuery {
-        let bits = |names: &mut dyn Iterator<Item = &'a str>| names.filter_map(|n| tag_bit(db, n)).fold(0, |a, b| a | b);
-        let style_bit = db.tags.iter().take(MAX_QUERY_TAGS).position(|t| t.name.strip_prefix(STYLE_PREFIX) == Some(style)).map_or(0, |i| 1u64 << i);
+        let bits =
+            |names: &mut dyn Iterator<Item = &'a str>| names.filter_map(|n| tag_bit(db, n)).fold(0, |a, b| a | b);
+        let style_bit = db
+            .tags
+            .iter()
+            .take(MAX_QUERY_TAGS)
+            .position(|t| t.name.strip_prefix(STYLE_PREFIX) == Some(style))
+            .map_or(0, |i| 1u64 << i);
         TagQuery {
             require: bits(&mut require.into_iter()),
             exclude: bits(&mut exclude.into_iter()),
@@ -185,13 +192,13 @@ mod tests {
         assert_eq!(q.bias(0b001), 2.0);
         // Runs: bounds never exceed any frame's bias, and a run none of whose frames is allowed
         // is recognised.
-        let run = TagSummary::EMPTY.add(0b011).add(0b001);
+        let run = TagSummary::EMPTY.with_frame(0b011).with_frame(0b001);
         assert_eq!(q.min_bias(run), 0.0);
         assert_eq!(q.run_bias(run), RunBias::Mixed);
-        assert_eq!(q.run_bias(TagSummary::EMPTY.add(0b001)), RunBias::All(2.0));
-        assert_eq!(q.run_bias(TagSummary::EMPTY.add(0b011)), RunBias::None);
-        assert!(!q.may_allow(TagSummary::EMPTY.add(0b010).add(0b110)));
-        assert!(!q.may_allow(TagSummary::EMPTY.add(0b101)));
+        assert_eq!(q.run_bias(TagSummary::EMPTY.with_frame(0b001)), RunBias::All(2.0));
+        assert_eq!(q.run_bias(TagSummary::EMPTY.with_frame(0b011)), RunBias::None);
+        assert!(!q.may_allow(TagSummary::EMPTY.with_frame(0b010).with_frame(0b110)));
+        assert!(!q.may_allow(TagSummary::EMPTY.with_frame(0b101)));
         assert!(TagQuery::default().is_trivial());
         assert!(TagQuery { prefer: 1, bias: 0.0, ..TagQuery::default() }.is_trivial());
     }

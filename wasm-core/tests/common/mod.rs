@@ -14,7 +14,8 @@ pub fn mocap() -> PathBuf {
 /// A parsed BVH under `mocap()`, named by its relative path.
 pub fn source(rel: &str) -> Source {
     let path = mocap().join(rel);
-    let bytes = std::fs::read(&path).unwrap_or_else(|e| panic!("{}: {e} (is ../shared beside the repo?)", path.display()));
+    let bytes =
+        std::fs::read(&path).unwrap_or_else(|e| panic!("{}: {e} (is ../shared beside the repo?)", path.display()));
     Source { name: rel.to_string(), bvh: Bvh::parse(rel, &bytes).unwrap() }
 }
 

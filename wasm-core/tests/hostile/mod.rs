@@ -219,7 +219,19 @@ pub fn bvh_cases() -> Vec<Case> {
         c.push(case(format!("truncated_after_line_{:03}", k + 1), lines[..=k].concat(), err("end of file")));
     }
     // Mid-token truncations of the two-joint file.
-    for (k, cut) in ["HIERAR", "HIERARCHY\nROOT Hi", "OFFSET 0 0.", "CHANNELS 6 Xpos", "End Si", "Frames: ", "Frame Time: 0.03", "0 1 0 0 0 0 0 0 0\n1 1 0 9"].iter().enumerate() {
+    for (k, cut) in [
+        "HIERAR",
+        "HIERARCHY\nROOT Hi",
+        "OFFSET 0 0.",
+        "CHANNELS 6 Xpos",
+        "End Si",
+        "Frames: ",
+        "Frame Time: 0.03",
+        "0 1 0 0 0 0 0 0 0\n1 1 0 9",
+    ]
+    .iter()
+    .enumerate()
+    {
         let at = TWO.find(cut).unwrap() + cut.len();
         c.push(case(format!("truncated_mid_token_{k}"), &TWO.as_bytes()[..at], Expect::Either));
     }
@@ -228,7 +240,22 @@ pub fn bvh_cases() -> Vec<Case> {
 
 /// Tokens the random mutator splices in: the values and keywords parsers trip on.
 pub const DICTIONARY: [&str; 16] = [
-    "nan", "1e308", "-1", "{", "}", "JOINT x\n{\n", "End Site", "\r", "\0", "Frames: 16777216", "CHANNELS 6", "\u{feff}", "OFFSET 0 0 0\n", "1e39", "Frame Time: 1e-300", "\n",
+    "nan",
+    "1e308",
+    "-1",
+    "{",
+    "}",
+    "JOINT x\n{\n",
+    "End Site",
+    "\r",
+    "\0",
+    "Frames: 16777216",
+    "CHANNELS 6",
+    "\u{feff}",
+    "OFFSET 0 0 0\n",
+    "1e39",
+    "Frame Time: 1e-300",
+    "\n",
 ];
 
 /// One random mutation of `input` (deterministic in `rng`): 1–2 of bit flip, interesting byte,
@@ -281,14 +308,26 @@ pub fn big_bvh_cases() -> Vec<Case> {
         case("deep_5k", deep(5_000), err(":770: the hierarchy is nested deeper than 256 joints")),
         case("deep_20k", deep(20_000), err(":770: the hierarchy is nested deeper than 256 joints")),
         case("deep_100k", deep(100_000), err(":770: the hierarchy is nested deeper than 256 joints")),
-        case("deep_100k_unclosed", deep(100_000).split("}\n").next().unwrap().to_string(), err(":770: the hierarchy is nested deeper than 256 joints")),
+        case(
+            "deep_100k_unclosed",
+            deep(100_000).split("}\n").next().unwrap().to_string(),
+            err(":770: the hierarchy is nested deeper than 256 joints"),
+        ),
         case("wide_10k", wide(10_000), err(":4097: more than 1024 joints")),
-        case("name_1mb", format!("HIERARCHY\nROOT {}\n{{\n", "N".repeat(1 << 20)), err(":2: joint name 'NNNNNNNNNNNNNNNNNNNNNNNNNNNNNNNNNNNNNNNN…' is longer than 256 bytes")),
-        case("frames_claim_max_1mb_file", {
-            let mut s = one("Frames: 16777216\nFrame Time: 0.01\n");
-            s += &"0\n".repeat(1 << 19);
-            s
-        }, err("declares 16777216 frames but only 524288 frame lines follow")),
+        case(
+            "name_1mb",
+            format!("HIERARCHY\nROOT {}\n{{\n", "N".repeat(1 << 20)),
+            err(":2: joint name 'NNNNNNNNNNNNNNNNNNNNNNNNNNNNNNNNNNNNNNNN…' is longer than 256 bytes"),
+        ),
+        case(
+            "frames_claim_max_1mb_file",
+            {
+                let mut s = one("Frames: 16777216\nFrame Time: 0.01\n");
+                s += &"0\n".repeat(1 << 19);
+                s
+            },
+            err("declares 16777216 frames but only 524288 frame lines follow"),
+        ),
     ]
 }
 
@@ -324,8 +363,28 @@ pub fn tiny_database() -> Database {
         fps: 60.0,
         num_frames: 4,
         clips: vec![
-            Clip { name: "a".into(), source: "a.bvh".into(), start: 0, end: 2, mirrored: false, source_fps: 120.0, scale: 0.01, root_scale: 1.0, source_start: 0 },
-            Clip { name: "a (mirror)".into(), source: "a.bvh".into(), start: 2, end: 4, mirrored: true, source_fps: 120.0, scale: 0.01, root_scale: 1.0, source_start: 0 },
+            Clip {
+                name: "a".into(),
+                source: "a.bvh".into(),
+                start: 0,
+                end: 2,
+                mirrored: false,
+                source_fps: 120.0,
+                scale: 0.01,
+                root_scale: 1.0,
+                source_start: 0,
+            },
+            Clip {
+                name: "a (mirror)".into(),
+                source: "a.bvh".into(),
+                start: 2,
+                end: 4,
+                mirrored: true,
+                source_fps: 120.0,
+                scale: 0.01,
+                root_scale: 1.0,
+                source_start: 0,
+            },
         ],
         tags: vec![Tag { name: "walk".into(), ranges: vec![(0, 1), (2, 4)] }],
         local_positions: (0..8).map(|i| glam::Vec3::splat(i as f32 * 0.1)).collect(),
@@ -334,8 +393,30 @@ pub fn tiny_database() -> Database {
         local_angular_velocities: vec![glam::Vec3::Z; 8],
         contacts: vec![1, 0, 0, 1, 1, 1, 0, 0],
         groups: vec![
-            FeatureGroup { name: "p".into(), kind: FeatureKind::Position, is_trajectory: true, axes: Axes::Xz, joint: 0, axis: glam::Vec3::Z, offsets: vec![1], weight: 1.0, first_dim: 0, num_dims: 2 },
-            FeatureGroup { name: "v".into(), kind: FeatureKind::Velocity, is_trajectory: false, axes: Axes::Xyz, joint: 1, axis: glam::Vec3::Z, offsets: vec![0], weight: 0.5, first_dim: 2, num_dims: 3 },
+            FeatureGroup {
+                name: "p".into(),
+                kind: FeatureKind::Position,
+                is_trajectory: true,
+                axes: Axes::Xz,
+                joint: 0,
+                axis: glam::Vec3::Z,
+                offsets: vec![1],
+                weight: 1.0,
+                first_dim: 0,
+                num_dims: 2,
+            },
+            FeatureGroup {
+                name: "v".into(),
+                kind: FeatureKind::Velocity,
+                is_trajectory: false,
+                axes: Axes::Xyz,
+                joint: 1,
+                axis: glam::Vec3::Z,
+                offsets: vec![0],
+                weight: 0.5,
+                first_dim: 2,
+                num_dims: 3,
+            },
         ],
         feature_mean: vec![0.5, 0.25, 0.0, 0.0, 0.0],
         feature_scale: vec![2.0, 2.0, 1.0, 1.0, 1.0],
@@ -350,12 +431,19 @@ pub fn tiny_database() -> Database {
 pub fn wide_database(extra: usize) -> Database {
     let mut db = tiny_database();
     let d = db.num_features();
-    let group = FeatureGroup { name: "wide".into(), offsets: vec![0; extra / 2], first_dim: d, num_dims: extra / 2 * 2, ..db.groups[0].clone() };
+    let group = FeatureGroup {
+        name: "wide".into(),
+        offsets: vec![0; extra / 2],
+        first_dim: d,
+        num_dims: extra / 2 * 2,
+        ..db.groups[0].clone()
+    };
     let extra = group.num_dims;
     db.groups.push(group);
     db.feature_mean.resize(d + extra, 0.0);
     db.feature_scale.resize(d + extra, 1.0);
-    db.features = db.features.chunks(d).flat_map(|row| row.iter().copied().chain(std::iter::repeat_n(0.0, extra))).collect();
+    db.features =
+        db.features.chunks(d).flat_map(|row| row.iter().copied().chain(std::iter::repeat_n(0.0, extra))).collect();
     db
 }
 
@@ -380,34 +468,76 @@ pub fn mmdb_named_cases() -> Vec<Case> {
     let info = at(b"INFO").2;
     vec![
         // One flipped exponent bit: 60 fps → 1.1e21 fps froze the page.
-        case("fps_bit_flip", patched(&|b| b[info + 11] ^= 0x20), err("INFO.fps must be between 1 and 1000, found 1.10680464e21")),
-        case("fps_zero", patched(&|b| b[info + 8..info + 12].copy_from_slice(&0f32.to_le_bytes())), err("INFO.fps must be between 1 and 1000, found 0")),
-        case("zero_feature_groups", edit(&|db| {
-            db.groups.clear();
-            db.feature_mean.clear();
-            db.feature_scale.clear();
-            db.features.clear();
-        }), err("INFO has 0 feature groups and 0 feature dims")),
-        case("empty_last_group", edit(&|db| {
-            db.groups[1].offsets.clear();
-            db.groups[1].num_dims = 0;
-            db.feature_mean.truncate(2);
-            db.feature_scale.truncate(2);
-            db.features = db.features.chunks(5).flat_map(|r| r[..2].to_vec()).collect();
-        }), err("FDSC: feature 'v' has no frame offsets")),
-        case("zero_frames", patched(&|b| b[info..info + 4].copy_from_slice(&0u32.to_le_bytes())), err("INFO.num_frames is 0")),
+        case(
+            "fps_bit_flip",
+            patched(&|b| b[info + 11] ^= 0x20),
+            err("INFO.fps must be between 1 and 1000, found 1.10680464e21"),
+        ),
+        case(
+            "fps_zero",
+            patched(&|b| b[info + 8..info + 12].copy_from_slice(&0f32.to_le_bytes())),
+            err("INFO.fps must be between 1 and 1000, found 0"),
+        ),
+        case(
+            "zero_feature_groups",
+            edit(&|db| {
+                db.groups.clear();
+                db.feature_mean.clear();
+                db.feature_scale.clear();
+                db.features.clear();
+            }),
+            err("INFO has 0 feature groups and 0 feature dims"),
+        ),
+        case(
+            "empty_last_group",
+            edit(&|db| {
+                db.groups[1].offsets.clear();
+                db.groups[1].num_dims = 0;
+                db.feature_mean.truncate(2);
+                db.feature_scale.truncate(2);
+                db.features = db.features.chunks(5).flat_map(|r| r[..2].to_vec()).collect();
+            }),
+            err("FDSC: feature 'v' has no frame offsets"),
+        ),
+        case(
+            "zero_frames",
+            patched(&|b| b[info..info + 4].copy_from_slice(&0u32.to_le_bytes())),
+            err("INFO.num_frames is 0"),
+        ),
         case("nan_feature_scale", edit(&|db| db.feature_scale[0] = f32::NAN), err("FNRM: scale of dim 0 is NaN")),
         case("zero_clip_scale", edit(&|db| db.clips[0].scale = 0.0), err("CLIP 'a': scale 0 is outside")),
         case("nan_position", edit(&|db| db.local_positions[1].x = f32::NAN), err("PANM: value 3 is NaN")),
         case("infinite_feature", edit(&|db| db.features[7] = f32::INFINITY), err("FSHF: value 7 is inf")),
-        case("section_count_huge", patched(&|b| b[12..16].copy_from_slice(&u32::MAX.to_le_bytes())), err("section table of 4294967295 entries runs past the end")),
-        case("section_length_huge", patched(&|b| { let e = at(b"FSHF").1; b[e + 16..e + 24].copy_from_slice(&u64::MAX.to_le_bytes()) }), err("section FSHF (offset")),
-        case("sections_overlap", patched(&|b| {
-            let (lpos, lvel) = (at(b"PANM").1, at(b"QROT").1);
-            let off: [u8; 8] = b[lpos + 8..lpos + 16].try_into().unwrap();
-            b[lvel + 8..lvel + 16].copy_from_slice(&off);
-        }), err("sections QROT and PANM overlap")),
-        case("clip_count_huge", patched(&|b| { let c = at(b"CLIP").2; b[c..c + 4].copy_from_slice(&u32::MAX.to_le_bytes()) }), err("CLIP clip count 4294967295 does not fit in the section")),
+        case(
+            "section_count_huge",
+            patched(&|b| b[12..16].copy_from_slice(&u32::MAX.to_le_bytes())),
+            err("section table of 4294967295 entries runs past the end"),
+        ),
+        case(
+            "section_length_huge",
+            patched(&|b| {
+                let e = at(b"FSHF").1;
+                b[e + 16..e + 24].copy_from_slice(&u64::MAX.to_le_bytes())
+            }),
+            err("section FSHF (offset"),
+        ),
+        case(
+            "sections_overlap",
+            patched(&|b| {
+                let (lpos, lvel) = (at(b"PANM").1, at(b"QROT").1);
+                let off: [u8; 8] = b[lpos + 8..lpos + 16].try_into().unwrap();
+                b[lvel + 8..lvel + 16].copy_from_slice(&off);
+            }),
+            err("sections QROT and PANM overlap"),
+        ),
+        case(
+            "clip_count_huge",
+            patched(&|b| {
+                let c = at(b"CLIP").2;
+                b[c..c + 4].copy_from_slice(&u32::MAX.to_le_bytes())
+            }),
+            err("CLIP clip count 4294967295 does not fit in the section"),
+        ),
         case("valid_tiny", bytes.clone(), Expect::Ok),
     ]
 }
@@ -506,7 +636,9 @@ fn float_fields(bytes: &[u8]) -> Vec<(String, usize, usize)> {
 /// `damage` (1–8 random bytes replaced, raw and with CRC).
 pub fn mmdb_mutations(seed_name: &str, seed: &[u8]) -> Vec<Case> {
     let mut out = Vec::new();
-    let mut add = |name: String, bytes: Vec<u8>, expect: Expect| out.push(Case { name: format!("{seed_name}.{name}"), bytes, expect });
+    let mut add = |name: String, bytes: Vec<u8>, expect: Expect| {
+        out.push(Case { name: format!("{seed_name}.{name}"), bytes, expect })
+    };
     let n = seed.len();
     let t = table(seed);
     let header_and_table = 32 + 24 * t.len();
@@ -565,7 +697,10 @@ pub fn mmdb_mutations(seed_name: &str, seed: &[u8]) -> Vec<Case> {
     }
     let huge32: [u32; 5] = [0, 1, 1 << 31, u32::MAX - 1, u32::MAX];
     let mut counts: Vec<(String, usize)> = vec![("header.section_count".into(), 12)];
-    for (k, f) in ["num_frames", "num_joints", "fps", "num_dims", "num_clips", "num_tags", "num_groups", "flags"].iter().enumerate() {
+    for (k, f) in ["num_frames", "num_joints", "fps", "num_dims", "num_clips", "num_tags", "num_groups", "flags"]
+        .iter()
+        .enumerate()
+    {
         counts.push((format!("INFO.{f}"), info + 4 * k));
     }
     for e in &t {
@@ -600,7 +735,15 @@ pub fn mmdb_mutations(seed_name: &str, seed: &[u8]) -> Vec<Case> {
         }
     }
     // Float fields poisoned.
-    let poisons: [(&str, f32); 7] = [("nan", f32::NAN), ("inf", f32::INFINITY), ("-inf", f32::NEG_INFINITY), ("zero", 0.0), ("-zero", -0.0), ("1e30", 1e30), ("denormal", 1e-40)];
+    let poisons: [(&str, f32); 7] = [
+        ("nan", f32::NAN),
+        ("inf", f32::INFINITY),
+        ("-inf", f32::NEG_INFINITY),
+        ("zero", 0.0),
+        ("-zero", -0.0),
+        ("1e30", 1e30),
+        ("denormal", 1e-40),
+    ];
     for (field, at, len) in float_fields(seed) {
         for (pname, v) in poisons {
             let mut b = seed.to_vec();
@@ -609,7 +752,14 @@ pub fn mmdb_mutations(seed_name: &str, seed: &[u8]) -> Vec<Case> {
             let expect = match (field.as_str(), pname) {
                 (_, "nan" | "inf" | "-inf") => Expect::Error(String::new()),
                 ("INFO.fps", _) => Expect::Error("INFO.fps".into()),
-                (f, "zero" | "-zero" | "denormal") if f.starts_with("FNRM.scale") || f.ends_with("weight") || f.contains("scale") || f.contains("fps") => Expect::Error(String::new()),
+                (f, "zero" | "-zero" | "denormal")
+                    if f.starts_with("FNRM.scale")
+                        || f.ends_with("weight")
+                        || f.contains("scale")
+                        || f.contains("fps") =>
+                {
+                    Expect::Error(String::new())
+                }
                 _ => Expect::Either,
             };
             add(format!("float.{field}.{pname}"), b, expect);

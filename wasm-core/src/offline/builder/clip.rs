@@ -95,12 +95,30 @@ impl ClipBuilder<'_> {
         world.rotations.resize(n * nj, DQuat::IDENTITY);
         for f in 0..n {
             let r = f * nj..(f + 1) * nj;
-            local_to_model(self.parents, 0..nj, None, &locals.positions[r.clone()], &locals.rotations[r.clone()], &mut world.positions[r.clone()], &mut world.rotations[r]);
+            local_to_model(
+                self.parents,
+                0..nj,
+                None,
+                &locals.positions[r.clone()],
+                &locals.rotations[r.clone()],
+                &mut world.positions[r.clone()],
+                &mut world.rotations[r],
+            );
         }
 
         let (c, hips) = (self.config, self.hips);
         let world = &scratch.world;
-        virtual_root(n, |f| world.at(f, hips), self.forward_rest, self.fps, root_window, c.root_facing_window, &mut scratch.root_xz, &mut scratch.facing, &mut scratch.root);
+        virtual_root(
+            n,
+            |f| world.at(f, hips),
+            self.forward_rest,
+            self.fps,
+            root_window,
+            c.root_facing_window,
+            &mut scratch.root_xz,
+            &mut scratch.facing,
+            &mut scratch.root,
+        );
         let root = &scratch.root;
 
         // Local pose rows: joint 0 = root (world), source root re-expressed under it.
@@ -145,7 +163,9 @@ impl ClipBuilder<'_> {
             out.rotations[i] = q.as_quat();
         }
 
-        let toe_speed = |side: usize, f: usize| self.toe_sites[side].as_ref().map(|s| geometry.velocity(f, s.joint as usize, s.offset.as_dvec3()).length());
+        let toe_speed = |side: usize, f: usize| {
+            self.toe_sites[side].as_ref().map(|s| geometry.velocity(f, s.joint as usize, s.offset.as_dvec3()).length())
+        };
         let radius = (c.contact_filter * self.fps).round() as usize;
         contacts(n, toe_speed, c.contact_speed, radius, &mut scratch.contacts, out.contacts);
         raw_features(&geometry, self.groups, self.num_dims, out.features);

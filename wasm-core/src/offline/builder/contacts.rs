@@ -3,7 +3,14 @@
 
 /// Writes `2 × num_frames` contact flags (left, right) into `out`. `toe_speed(side, f)` is the
 /// toe's speed (m/s) or `None` without a toe; `raw` is scratch.
-pub fn contacts(num_frames: usize, toe_speed: impl Fn(usize, usize) -> Option<f64>, threshold: f64, radius: usize, raw: &mut Vec<[bool; 2]>, out: &mut [u8]) {
+pub fn contacts(
+    num_frames: usize,
+    toe_speed: impl Fn(usize, usize) -> Option<f64>,
+    threshold: f64,
+    radius: usize,
+    raw: &mut Vec<[bool; 2]>,
+    out: &mut [u8],
+) {
     raw.clear();
     raw.resize(num_frames, [false; 2]);
     for side in 0..2 {

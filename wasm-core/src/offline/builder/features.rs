@@ -49,10 +49,18 @@ pub fn feature_groups(config: &BuildConfig, skeleton: &Skeleton) -> Result<Vec<F
         } else if let Some(site) = skeleton.site(&s.joint) {
             (site.joint as usize, site.offset)
         } else if Role::from_name(&s.joint).is_some() {
-            return Err(Error::config(format!("feature '{}': the skeleton has no {} joint (set it in \"roles\")", s.name, s.joint)));
+            return Err(Error::config(format!(
+                "feature '{}': the skeleton has no {} joint (set it in \"roles\")",
+                s.name, s.joint
+            )));
         } else {
             let j = skeleton.joint_index(&s.joint).ok_or_else(|| {
-                Error::config(format!("feature '{}': '{}' is neither a role ({}), 'root', nor a joint name", s.name, s.joint, role_list()))
+                Error::config(format!(
+                    "feature '{}': '{}' is neither a role ({}), 'root', nor a joint name",
+                    s.name,
+                    s.joint,
+                    role_list()
+                ))
             })?;
             (j, Vec3::ZERO)
         };

@@ -30,14 +30,14 @@ mod tags;
 mod take;
 
 use crate::bvh::Bvh;
-use glam::{Quat, Vec3};
 use crate::config::BuildConfig;
 use crate::database::{Clip, Database, Tag};
 use crate::error::{Error, Result};
 use crate::roles::Role;
 use clip::{ClipBuilder, Scratch};
+use glam::{Quat, Vec3};
 use poses::Poses;
-use retarget::{Retargeter, RetargetReport, Rig};
+use retarget::{RetargetReport, Retargeter, Rig};
 use rows::{Accumulator, Rows};
 use skeleton::{same_topology, Reference};
 use std::collections::{BTreeMap, HashMap};
@@ -132,12 +132,20 @@ pub fn build(config: &BuildConfig, sources: &[Source]) -> Result<BuildOutput> {
     // Each take's own skeleton when it is not the reference's topology (then retargeted).
     let mut foreign: Vec<Option<Reference>> = Vec::with_capacity(sources.len());
     for s in sources {
-        foreign.push(if same_topology(ref_source, s) { None } else { Some(Reference::new(config, s, Take::frame_range(s, config)?, false)?) });
+        foreign.push(if same_topology(ref_source, s) {
+            None
+        } else {
+            Some(Reference::new(config, s, Take::frame_range(s, config)?, false)?)
+        });
     }
     let rig_of = |t: usize| foreign[t].as_ref().unwrap_or(&reference);
 
     // Per-take unit scale and axis conversion, then the reference's rest skeleton (metres, Y up).
-    let takes: Vec<Take> = sources.iter().enumerate().map(|(t, s)| Take::new(s, config, &rig_of(t).roles, &mut warnings)).collect::<Result<_>>()?;
+    let takes: Vec<Take> = sources
+        .iter()
+        .enumerate()
+        .map(|(t, s)| Take::new(s, config, &rig_of(t).roles, &mut warnings))
+        .collect::<Result<_>>()?;
     let ref_take = &takes[reference_index];
     let ref_offsets = ref_take.offsets.clone();
     let ref_leg = reference.leg_length(&ref_offsets);
@@ -158,7 +166,13 @@ pub fn build(config: &BuildConfig, sources: &[Source]) -> Result<BuildOutput> {
     let mut short = Vec::new();
     for (t, take) in takes.iter().enumerate() {
         let n = take.num_out(fps).ok_or_else(|| {
-            Error::config(format!("{}: {} frames at {} fps resample to more than {} frames at {fps} fps", sources[t].name, take.frames.1 - take.frames.0, take.source_fps, crate::limits::MAX_FRAMES))
+            Error::config(format!(
+                "{}: {} frames at {} fps resample to more than {} frames at {fps} fps",
+                sources[t].name,
+                take.frames.1 - take.frames.0,
+                take.source_fps,
+                crate::limits::MAX_FRAMES
+            ))
         })?;
         if n < 2 {
             warnings.push(format!("{}: skipped, {n} frame(s) at {fps} fps (2 needed)", sources[t].name));
@@ -173,7 +187,10 @@ pub fn build(config: &BuildConfig, sources: &[Source]) -> Result<BuildOutput> {
         }
     }
     if num_frames == 0 {
-        return Err(Error::config(format!("no frames to build from: every take is shorter than 2 frames at {fps} fps: {}", short.join(", "))));
+        return Err(Error::config(format!(
+            "no frames to build from: every take is shorter than 2 frames at {fps} fps: {}",
+            short.join(", ")
+        )));
     }
     let nd = reference.num_joints() + 1;
     // Refuse before allocating: the output is num_frames × (joints, dims) and must fit (on
@@ -192,7 +209,10 @@ pub fn build(config: &BuildConfig, sources: &[Source]) -> Result<BuildOutput> {
         } else if scale.is_finite() && (1.0 / max_root_scale..=max_root_scale).contains(&scale) && leg > 1e-6 {
             scale
         } else {
-            warnings.push(format!("{}: legs of length {leg:.3} m in the rest pose; root motion not rescaled to the reference", sources[t].name));
+            warnings.push(format!(
+                "{}: legs of length {leg:.3} m in the rest pose; root motion not rescaled to the reference",
+                sources[t].name
+            ));
             1.0
         });
     }
@@ -205,9 +225,17 @@ pub fn build(config: &BuildConfig, sources: &[Source]) -> Result<BuildOutput> {
         joints: nd as u64,
         dims: num_dims as u64,
         take_frames: plans.iter().map(|p| p.frames as u64).max().unwrap_or(0),
-        take_joints: plans.iter().map(|p| (reference.num_joints() + foreign[p.take].as_ref().map_or(0, |_| sources[p.take].bvh.joints.len())) as u64).max().unwrap_or(0),
+        take_joints: plans
+            .iter()
+            .map(|p| {
+                (reference.num_joints() + foreign[p.take].as_ref().map_or(0, |_| sources[p.take].bvh.joints.len()))
+                    as u64
+            })
+            .max()
+            .unwrap_or(0),
         take_copies: takes.iter().map(|t| t.mirror as u64 + t.reverse as u64).max().unwrap_or(0),
-        name_bytes: plans.iter().map(|p| 3 * sources[p.take].name.len() as u64 + 64).sum::<u64>() + skeleton.names.iter().map(|n| n.len() as u64 + 16).sum::<u64>(),
+        name_bytes: plans.iter().map(|p| 3 * sources[p.take].name.len() as u64 + 64).sum::<u64>()
+            + skeleton.names.iter().map(|n| n.len() as u64 + 16).sum::<u64>(),
     };
     footprint.check().map_err(Error::config)?;
     let mut out = Accumulator::new(num_frames, nd, num_dims).map_err(Error::config)?;
@@ -221,7 +249,12 @@ pub fn build(config: &BuildConfig, sources: &[Source]) -> Result<BuildOutput> {
         groups: &groups,
         num_dims,
     };
-    let target_rig = Rig { parents: &reference.parents, roles: &reference.roles, offsets: &ref_offsets, end_sites: &ref_take.end_sites };
+    let target_rig = Rig {
+        parents: &reference.parents,
+        roles: &reference.roles,
+        offsets: &ref_offsets,
+        end_sites: &ref_take.end_sites,
+    };
     // Retargeted takes stand their planted toes at the reference take's planted toe height.
     let toe_floor = if foreign.iter().any(Option::is_some) {
         let mut poses = Poses::default();
@@ -251,21 +284,41 @@ pub fn build(config: &BuildConfig, sources: &[Source]) -> Result<BuildOutput> {
             Some(own) => {
                 let mut source = Poses::default();
                 take.resample(&sources[t].bvh, fps, &take.offsets, &own.animated_translation, 1.0, true, &mut source);
-                let rig = Rig { parents: &own.parents, roles: &own.roles, offsets: &take.offsets, end_sites: &take.end_sites };
+                let rig = Rig {
+                    parents: &own.parents,
+                    roles: &own.roles,
+                    offsets: &take.offsets,
+                    end_sites: &take.end_sites,
+                };
                 let report = Retargeter::new(rig, target_rig, root_scales[t]).apply(&source, toe_floor, &mut locals);
                 job_notes.lock().unwrap().1.push((t, report));
             }
-            None => take.resample(&sources[t].bvh, fps, &ref_offsets, &reference.animated_translation, root_scales[t], t == reference_index, &mut locals),
+            None => take.resample(
+                &sources[t].bvh,
+                fps,
+                &ref_offsets,
+                &reference.animated_translation,
+                root_scales[t],
+                t == reference_index,
+                &mut locals,
+            ),
         }
         let repaired = if config.repair_spikes { repair::repair_spikes(&mut locals) } else { Vec::new() };
         if !repaired.is_empty() {
             let names = &rig_of(t).names;
             let names = if foreign[t].is_some() { &reference.names } else { names };
-            let list: Vec<String> = repaired.iter().take(5).map(|&(j, f)| format!("{} at frame {f}", names[j])).collect();
+            let list: Vec<String> =
+                repaired.iter().take(5).map(|&(j, f)| format!("{} at frame {f}", names[j])).collect();
             let more = if repaired.len() > 5 { format!(" and {} more", repaired.len() - 5) } else { String::new() };
-            job_notes.lock().unwrap().0.push(format!("{}: repaired {} rotation spike(s): {}{more}", sources[t].name, repaired.len(), list.join(", ")));
+            job_notes.lock().unwrap().0.push(format!(
+                "{}: repaired {} rotation spike(s): {}{more}",
+                sources[t].name,
+                repaired.len(),
+                list.join(", ")
+            ));
         }
-        let (mut mirrored, mut reversed) = (std::mem::take(&mut scratch.mirrored), std::mem::take(&mut scratch.reversed));
+        let (mut mirrored, mut reversed) =
+            (std::mem::take(&mut scratch.mirrored), std::mem::take(&mut scratch.reversed));
         for (plan, rows) in variants {
             let base = if plan.reversed {
                 reverse::reverse(&locals, &mut reversed);
@@ -318,7 +371,9 @@ pub fn build(config: &BuildConfig, sources: &[Source]) -> Result<BuildOutput> {
         });
         // Tags: whole clip, then source-frame ranges mapped to database frames (mirrored in
         // time for a reversed copy).
-        let to_db = |s: usize| ((s.saturating_sub(take.frames.0)) as f64 * fps / take.source_fps).round().min(num_out as f64) as u32;
+        let to_db = |s: usize| {
+            ((s.saturating_sub(take.frames.0)) as f64 * fps / take.source_fps).round().min(num_out as f64) as u32
+        };
         let whole = if plan.reversed { take.reverse_tags.as_ref().unwrap_or(&take.tags) } else { &take.tags };
         for tag in whole {
             tag_ranges.entry(tag.clone()).or_default().push((start, start + num_out as u32));
@@ -339,7 +394,9 @@ pub fn build(config: &BuildConfig, sources: &[Source]) -> Result<BuildOutput> {
     if config.motion_tags {
         for clip in &clips {
             let (start, n) = (clip.start as usize, (clip.end - clip.start) as usize);
-            let ranges = tags::motion_tags(n, fps as f32, |f| (out.positions[(start + f) * nd], out.rotations[(start + f) * nd]));
+            let ranges = tags::motion_tags(n, fps as f32, |f| {
+                (out.positions[(start + f) * nd], out.rotations[(start + f) * nd])
+            });
             for (name, ranges) in tags::MOTION_TAGS.iter().zip(ranges).filter(|(_, r)| !r.is_empty()) {
                 let list = tag_ranges.entry(name.to_string()).or_default();
                 list.extend(ranges.into_iter().map(|(s, e)| (s + clip.start, e + clip.start)));
@@ -350,7 +407,9 @@ pub fn build(config: &BuildConfig, sources: &[Source]) -> Result<BuildOutput> {
     let (feature_mean, feature_scale) = features::normalize(&mut out.features, &groups, num_dims);
     let valid = features::validity(&clips, &groups, out.num_frames);
     let tags = tag_ranges.into_iter().map(|(name, ranges)| Tag { name, ranges: coalesce(ranges) }).collect();
-    let contact_share = |side: usize| out.contacts.iter().skip(side).step_by(2).filter(|&&c| c != 0).count() as f64 / out.num_frames as f64;
+    let contact_share = |side: usize| {
+        out.contacts.iter().skip(side).step_by(2).filter(|&&c| c != 0).count() as f64 / out.num_frames as f64
+    };
     if contact_share(0) < 0.05 || contact_share(1) < 0.05 {
         warnings.push(format!(
             "feet are in contact only {:.0}% / {:.0}% of frames (left/right): check the scale, the floor height and contact_speed",
@@ -383,11 +442,14 @@ pub fn build(config: &BuildConfig, sources: &[Source]) -> Result<BuildOutput> {
         if searchable == 0 {
             return Err(Error::config(format!("min_head_height {ratio}: no frame has its head that high (the head role is missing or the data never stands)")));
         }
-        warnings.push(format!("min_head_height {ratio}: {excluded} frames with the head lower are not searched ({searchable} are)"));
+        warnings.push(format!(
+            "min_head_height {ratio}: {excluded} frames with the head lower are not searched ({searchable} are)"
+        ));
     }
     // The loader's own value checks: whatever got past the limits above, `build` never returns
     // a database its loader would refuse.
-    crate::format::check_database(&database).map_err(|e| Error::config(format!("the built database would not load: {e}")))?;
+    crate::format::check_database(&database)
+        .map_err(|e| Error::config(format!("the built database would not load: {e}")))?;
     Ok(BuildOutput { database, warnings, retargeted, footprint })
 }
 

@@ -26,7 +26,9 @@ pub fn repair_spikes(poses: &mut Poses) -> Vec<(usize, usize)> {
         // A glitched start: frames 0..k far from frame k, which agrees with frame k+1.
         for k in 1..=MAX_SPIKE_FRAMES.min(n.saturating_sub(2)) {
             let good = q(k, rotations);
-            if angle(good, q(k + 1, rotations)) < SPIKE_BRIDGE_PER_FRAME && (0..k).all(|f| angle(q(f, rotations), good) > SPIKE_DEPARTURE) {
+            if angle(good, q(k + 1, rotations)) < SPIKE_BRIDGE_PER_FRAME
+                && (0..k).all(|f| angle(q(f, rotations), good) > SPIKE_DEPARTURE)
+            {
                 for f in 0..k {
                     rotations[f * num_joints + j] = good;
                     repaired.push((j, f));
@@ -45,7 +47,12 @@ pub fn repair_spikes(poses: &mut Poses) -> Vec<(usize, usize)> {
                     }
                     let after = q(after_frame, rotations);
                     let bridged = angle(before, after) < SPIKE_BRIDGE_PER_FRAME * (len + 1) as f64;
-                    if bridged && (f..after_frame).all(|g| angle(q(g, rotations), before) > SPIKE_DEPARTURE && angle(q(g, rotations), after) > SPIKE_DEPARTURE) {
+                    if bridged
+                        && (f..after_frame).all(|g| {
+                            angle(q(g, rotations), before) > SPIKE_DEPARTURE
+                                && angle(q(g, rotations), after) > SPIKE_DEPARTURE
+                        })
+                    {
                         for g in f..after_frame {
                             let u = (g + 1 - f) as f64 / (len + 1) as f64;
                             rotations[g * num_joints + j] = before.slerp(after, u);

@@ -147,7 +147,9 @@ impl<'a> Retargeter<'a> {
             }
         }
         for (role, child) in LIMB_BONES {
-            let (Some(t), Some(ds), Some(dt)) = (target.roles.get(role), source.bone(&rest_s, role, child), target.bone(&rest_t, role, child)) else {
+            let (Some(t), Some(ds), Some(dt)) =
+                (target.roles.get(role), source.bone(&rest_s, role, child), target.bone(&rest_t, role, child))
+            else {
                 continue;
             };
             if source_of[t].is_some() {
@@ -159,8 +161,15 @@ impl<'a> Retargeter<'a> {
         }
         let target_hips = target.roles[Role::Hips];
         let mut legs = Vec::new();
-        for [upper, lower, foot] in [[Role::LeftUpperLeg, Role::LeftLowerLeg, Role::LeftFoot], [Role::RightUpperLeg, Role::RightLowerLeg, Role::RightFoot]] {
-            let (Some(u), Some(l), Some(f), Some(sf)) = (target.roles.get(upper), target.roles.get(lower), target.roles.get(foot), source.roles.get(foot)) else { continue };
+        for [upper, lower, foot] in [
+            [Role::LeftUpperLeg, Role::LeftLowerLeg, Role::LeftFoot],
+            [Role::RightUpperLeg, Role::RightLowerLeg, Role::RightFoot],
+        ] {
+            let (Some(u), Some(l), Some(f), Some(sf)) =
+                (target.roles.get(upper), target.roles.get(lower), target.roles.get(foot), source.roles.get(foot))
+            else {
+                continue;
+            };
             let path = |from: usize, to: usize| {
                 let mut v = vec![to];
                 let mut j = to;
@@ -177,7 +186,19 @@ impl<'a> Retargeter<'a> {
                 legs.push(Leg { upper: u, lower: l, foot: f, source_foot: sf, chain, below_knee });
             }
         }
-        Retargeter { source, target, source_of, align, facing, leg_ratio, target_hips, legs, target_pelvis: target.pelvis(&rest_t) - rest_t[target_hips], target_rest: rest_t, unmapped }
+        Retargeter {
+            source,
+            target,
+            source_of,
+            align,
+            facing,
+            leg_ratio,
+            target_hips,
+            legs,
+            target_pelvis: target.pelvis(&rest_t) - rest_t[target_hips],
+            target_rest: rest_t,
+            unmapped,
+        }
     }
 
     /// Retargets `src` (local poses of the source skeleton, metres, Y up) into `out` (local poses
@@ -194,7 +215,15 @@ impl<'a> Retargeter<'a> {
         let hips_parent = self.target.parents[self.target_hips];
         for f in 0..frames {
             let range = f * ns..(f + 1) * ns;
-            local_to_model(self.source.parents, 0..ns, None, &src.positions[range.clone()], &src.rotations[range], &mut ws_p, &mut ws_r);
+            local_to_model(
+                self.source.parents,
+                0..ns,
+                None,
+                &src.positions[range.clone()],
+                &src.rotations[range],
+                &mut ws_p,
+                &mut ws_r,
+            );
             // World rotations, parents first (every BVH lists parents before children).
             for t in 0..nt {
                 let parent = self.target.parents[t];
@@ -208,7 +237,8 @@ impl<'a> Retargeter<'a> {
             // The hips: placed so that the hip joints' midpoint is the source's, turned and
             // scaled (the hips joint itself sits anywhere between them and the waist: CMU's is
             // 10 cm above and 4 cm behind them, an Xsens one level with them).
-            let hips = self.facing * self.source.pelvis(&ws_p) * self.leg_ratio - wt_r[self.target_hips] * self.target_pelvis;
+            let hips =
+                self.facing * self.source.pelvis(&ws_p) * self.leg_ratio - wt_r[self.target_hips] * self.target_pelvis;
             local_p[self.target_hips] = if hips_parent < 0 {
                 hips
             } else {
@@ -247,7 +277,8 @@ impl<'a> Retargeter<'a> {
                 out.push(local_p[t], local_r[t]);
             }
         }
-        let mut report = RetargetReport { leg_ratio: self.leg_ratio, unmapped: self.unmapped.clone(), ..Default::default() };
+        let mut report =
+            RetargetReport { leg_ratio: self.leg_ratio, unmapped: self.unmapped.clone(), ..Default::default() };
         // Planted toes on the reference's floor: the lower toe's 5th-percentile height.
         if let Some(floor) = toe_floor {
             if let Some(own) = toe_floor_of(out, &self.target) {
@@ -261,11 +292,29 @@ impl<'a> Retargeter<'a> {
         let mut sums = [(0.0, 0.0, 0usize); 4];
         for f in 0..frames {
             let (rs, rt) = (f * ns..(f + 1) * ns, f * nt..(f + 1) * nt);
-            local_to_model(self.source.parents, 0..ns, None, &src.positions[rs.clone()], &src.rotations[rs], &mut ws_p, &mut ws_r);
-            local_to_model(self.target.parents, 0..nt, None, &out.positions[rt.clone()], &out.rotations[rt], &mut wt_p, &mut wt_r);
+            local_to_model(
+                self.source.parents,
+                0..ns,
+                None,
+                &src.positions[rs.clone()],
+                &src.rotations[rs],
+                &mut ws_p,
+                &mut ws_r,
+            );
+            local_to_model(
+                self.target.parents,
+                0..nt,
+                None,
+                &out.positions[rt.clone()],
+                &out.rotations[rt],
+                &mut wt_p,
+                &mut wt_r,
+            );
             for (group, roles) in [&FEET[..], &TOES[..], &HANDS[..], &HEAD[..]].into_iter().enumerate() {
                 for &role in roles {
-                    let (Some(s), Some(t)) = (self.source.roles.get(role), self.target.roles.get(role)) else { continue };
+                    let (Some(s), Some(t)) = (self.source.roles.get(role), self.target.roles.get(role)) else {
+                        continue;
+                    };
                     let expected = self.facing * (ws_p[s] - self.source.pelvis(&ws_p)) * self.leg_ratio;
                     let e = (wt_p[t] - self.target.pelvis(&wt_p) - expected).length();
                     let g = &mut sums[group];
@@ -275,8 +324,12 @@ impl<'a> Retargeter<'a> {
                 }
             }
         }
-        let stats = |(sum, max, count): (f64, f64, usize)| ErrorStats { mean: if count > 0 { sum / count as f64 } else { 0.0 }, max };
-        (report.feet, report.toes, report.hands, report.head) = (stats(sums[0]), stats(sums[1]), stats(sums[2]), stats(sums[3]));
+        let stats = |(sum, max, count): (f64, f64, usize)| ErrorStats {
+            mean: if count > 0 { sum / count as f64 } else { 0.0 },
+            max,
+        };
+        (report.feet, report.toes, report.hands, report.head) =
+            (stats(sums[0]), stats(sums[1]), stats(sums[2]), stats(sums[3]));
         report
     }
 }
@@ -291,7 +344,15 @@ pub fn toe_floor_of(poses: &Poses, rig: &Rig) -> Option<f64> {
     let mut heights: Vec<f64> = (0..poses.num_frames())
         .map(|f| {
             let range = f * n..(f + 1) * n;
-            local_to_model(rig.parents, 0..n, None, &poses.positions[range.clone()], &poses.rotations[range], &mut p, &mut q);
+            local_to_model(
+                rig.parents,
+                0..n,
+                None,
+                &poses.positions[range.clone()],
+                &poses.rotations[range],
+                &mut p,
+                &mut q,
+            );
             p[l].y.min(p[r].y)
         })
         .collect();

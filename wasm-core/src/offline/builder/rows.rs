@@ -24,7 +24,12 @@ impl Accumulator {
     pub fn new(num_frames: usize, num_joints: usize, num_dims: usize) -> Result<Accumulator, String> {
         fn filled<T: Clone>(n: usize, value: T) -> Result<Vec<T>, String> {
             let mut v = Vec::new();
-            v.try_reserve_exact(n).map_err(|_| format!("out of memory: {:.1} MB for the database's arrays could not be allocated", (n * std::mem::size_of::<T>()) as f64 / 1e6))?;
+            v.try_reserve_exact(n).map_err(|_| {
+                format!(
+                    "out of memory: {:.1} MB for the database's arrays could not be allocated",
+                    (n * std::mem::size_of::<T>()) as f64 / 1e6
+                )
+            })?;
             v.resize(n, value);
             Ok(v)
         }

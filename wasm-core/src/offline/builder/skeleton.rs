@@ -2,13 +2,13 @@
 //! skeleton with the virtual root as joint 0 and a site per role, left/right pairs for
 //! mirroring; and the check that every other take shares its topology.
 
+use super::sample::sample_poses;
 use super::{Source, VIRTUAL_ROOT};
 use crate::bvh::{Bvh, Channel};
 use crate::config::BuildConfig;
 use crate::database::{Site, Skeleton};
 use crate::error::{Error, Result};
 use crate::kinematics::local_to_model;
-use super::sample::sample_poses;
 use crate::roles::{self, Role, Roles, Shape};
 use glam::{DQuat, DVec3, Vec3};
 
@@ -49,13 +49,19 @@ impl Reference {
         } else {
             // Overrides describe the reference skeleton; another skeleton keeps those that fit.
             let known: Vec<String> = names.iter().map(|n| roles::normalize_name(n)).collect();
-            config.roles.iter().filter(|(_, j)| j.is_empty() || known.contains(&roles::normalize_name(j))).map(|(r, j)| (r.clone(), j.clone())).collect()
+            config
+                .roles
+                .iter()
+                .filter(|(_, j)| j.is_empty() || known.contains(&roles::normalize_name(j)))
+                .map(|(r, j)| (r.clone(), j.clone()))
+                .collect()
         };
         // The file's own map (a VRM humanoid), under the config's.
         for (role, joint) in &bvh.role_hints {
             overrides.entry(role.clone()).or_insert_with(|| joint.clone());
         }
-        let roles = roles::find_roles_in(&names, &parents, Some(&shape), &overrides).map_err(|e| Error::config(format!("roles: {e}")))?;
+        let roles = roles::find_roles_in(&names, &parents, Some(&shape), &overrides)
+            .map_err(|e| Error::config(format!("roles: {e}")))?;
         let humanoid = roles::find_humanoid(&parents, &shape);
         for role in REQUIRED {
             if !roles.contains(role) {
@@ -76,7 +82,11 @@ impl Reference {
             }
         }
         let pairs = roles::mirror_pairs(&names, &parents, humanoid.as_ref().ok());
-        let animated_translation = bvh.joints.iter().map(|j| j.channels.iter().any(|c| matches!(c, Channel::PosX | Channel::PosY | Channel::PosZ))).collect();
+        let animated_translation = bvh
+            .joints
+            .iter()
+            .map(|j| j.channels.iter().any(|c| matches!(c, Channel::PosX | Channel::PosY | Channel::PosZ)))
+            .collect();
         Ok(Reference { names, parents, roles, pairs, animated_translation })
     }
 
@@ -112,7 +122,10 @@ impl Reference {
     /// Forward in the hips' rest frame: left-to-right hip axis × up (left = +X when facing +Z).
     pub fn forward_rest(&self, offsets: &[DVec3]) -> DVec3 {
         let rest = self.rest_positions(offsets);
-        (rest[self.roles[Role::LeftUpperLeg]] - rest[self.roles[Role::RightUpperLeg]]).cross(DVec3::Y).try_normalize().unwrap_or(DVec3::Z)
+        (rest[self.roles[Role::LeftUpperLeg]] - rest[self.roles[Role::RightUpperLeg]])
+            .cross(DVec3::Y)
+            .try_normalize()
+            .unwrap_or(DVec3::Z)
     }
 
     /// The `.mmdb` skeleton: the virtual root as joint 0, the BVH joints under it with

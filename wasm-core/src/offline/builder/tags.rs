@@ -41,7 +41,10 @@ pub fn motion_tags(num_frames: usize, fps: f32, root: impl Fn(usize) -> (Vec3, Q
         if speed >= MOVING {
             let facing = yaw(f);
             let travel = v.x.atan2(v.z);
-            let off = ((travel - facing + std::f32::consts::PI).rem_euclid(std::f32::consts::TAU) - std::f32::consts::PI).abs().to_degrees();
+            let off = ((travel - facing + std::f32::consts::PI).rem_euclid(std::f32::consts::TAU)
+                - std::f32::consts::PI)
+                .abs()
+                .to_degrees();
             return if off > 120.0 {
                 Some(3)
             } else if off >= 60.0 {
@@ -52,7 +55,8 @@ pub fn motion_tags(num_frames: usize, fps: f32, root: impl Fn(usize) -> (Vec3, Q
         }
         if speed < IN_PLACE {
             let (a, b) = (f.saturating_sub(kt), (f + kt).min(last));
-            let turn = (yaw(b) - yaw(a) + std::f32::consts::PI).rem_euclid(std::f32::consts::TAU) - std::f32::consts::PI;
+            let turn =
+                (yaw(b) - yaw(a) + std::f32::consts::PI).rem_euclid(std::f32::consts::TAU) - std::f32::consts::PI;
             let rate = turn.abs() * fps / (b - a).max(1) as f32;
             return Some(if rate > TURN_RATE { 1 } else { 0 });
         }

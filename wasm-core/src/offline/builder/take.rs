@@ -45,11 +45,15 @@ impl Take {
     /// A configured frame range beyond the take.
     pub fn frame_range(source: &Source, config: &BuildConfig) -> Result<(usize, usize)> {
         let bvh = &source.bvh;
-        let configured = config.clip_spec(&source.name).and_then(|s| s.frames).or_else(|| config.frame_cuts_of(&source.name));
+        let configured =
+            config.clip_spec(&source.name).and_then(|s| s.frames).or_else(|| config.frame_cuts_of(&source.name));
         match configured {
             Some([s, e]) => {
                 if e > bvh.num_frames || e <= s {
-                    return Err(Error::config(format!("{}: frames [{s}, {e}] but the take has {} frames", source.name, bvh.num_frames)));
+                    return Err(Error::config(format!(
+                        "{}: frames [{s}, {e}] but the take has {} frames",
+                        source.name, bvh.num_frames
+                    )));
                 }
                 Ok((s, e))
             }
@@ -71,13 +75,19 @@ impl Take {
         // Up and units from the motion: in any frame a person's head is above the hips and the
         // hips above the feet, whatever the rest pose (Unity humanoids: legs up) or axes.
         let poses = sample_poses(bvh, frames, 32);
-        let feet: Vec<usize> = [Role::LeftFoot, Role::RightFoot, Role::LeftToe, Role::RightToe].into_iter().filter_map(|r| roles.get(r)).collect();
+        let feet: Vec<usize> = [Role::LeftFoot, Role::RightFoot, Role::LeftToe, Role::RightToe]
+            .into_iter()
+            .filter_map(|r| roles.get(r))
+            .collect();
         let hips = roles[Role::Hips];
         let mut up_sum = DVec3::ZERO;
         for pose in &poses {
             let low = feet.iter().map(|&f| pose.joints[f]).sum::<DVec3>() / feet.len().max(1) as f64;
             up_sum += match roles.get(Role::Head) {
-                Some(h) => (pose.joints[h] - pose.joints[hips]).normalize_or_zero() + (pose.joints[hips] - low).normalize_or_zero(),
+                Some(h) => {
+                    (pose.joints[h] - pose.joints[hips]).normalize_or_zero()
+                        + (pose.joints[hips] - low).normalize_or_zero()
+                }
                 None => (pose.joints[hips] - low).normalize_or_zero(),
             };
         }
@@ -101,9 +111,17 @@ impl Take {
             UpAxis::Auto => {
                 if detected != DQuat::IDENTITY {
                     let axis = if up_sum.z.abs() > up_sum.y.abs() && up_sum.z.abs() > up_sum.x.abs() {
-                        if up_sum.z > 0.0 { "Z" } else { "-Z" }
+                        if up_sum.z > 0.0 {
+                            "Z"
+                        } else {
+                            "-Z"
+                        }
                     } else if up_sum.x.abs() > up_sum.y.abs() {
-                        if up_sum.x > 0.0 { "X" } else { "-X" }
+                        if up_sum.x > 0.0 {
+                            "X"
+                        } else {
+                            "-X"
+                        }
                     } else {
                         "-Y"
                     };
@@ -115,7 +133,12 @@ impl Take {
         // Standing hip height in source units: the hips above the lowest foot point (joints and
         // end sites), median over the sampled frames.
         let height = |pose: &ShapePose| {
-            let lowest = feet.iter().flat_map(|&f| [Some(pose.joints[f]), pose.ends[f]]).flatten().map(|p| (up * p).y).fold(f64::INFINITY, f64::min);
+            let lowest = feet
+                .iter()
+                .flat_map(|&f| [Some(pose.joints[f]), pose.ends[f]])
+                .flatten()
+                .map(|p| (up * p).y)
+                .fold(f64::INFINITY, f64::min);
             (up * pose.joints[hips]).y - lowest
         };
         let hip_height = median(poses.iter().map(height).filter(|h| h.is_finite()).collect());
@@ -123,7 +146,12 @@ impl Take {
             Scale::Fixed(s) => s,
             Scale::Auto(AutoScale::Auto) => {
                 if hip_height > 0.0 {
-                    [1.0, 0.01, 0.001, 0.0254].into_iter().min_by(|a, b| (hip_height * a / 0.95).ln().abs().total_cmp(&(hip_height * b / 0.95).ln().abs())).unwrap()
+                    [1.0, 0.01, 0.001, 0.0254]
+                        .into_iter()
+                        .min_by(|a, b| {
+                            (hip_height * a / 0.95).ln().abs().total_cmp(&(hip_height * b / 0.95).ln().abs())
+                        })
+                        .unwrap()
                 } else {
                     1.0
                 }
@@ -150,8 +178,15 @@ impl Take {
             mirror: spec.and_then(|s| s.mirror).unwrap_or(config.mirror),
             reverse: spec.and_then(|s| s.reverse).unwrap_or(config.reverse),
             // The style is a whole-clip tag of every copy (mirrored, reversed).
-            tags: spec.map(|s| s.tags.clone()).unwrap_or_default().into_iter().chain(config.style_tag(&source.name)).collect(),
-            reverse_tags: spec.and_then(|s| s.reverse_tags.clone()).map(|t| t.into_iter().chain(config.style_tag(&source.name)).collect()),
+            tags: spec
+                .map(|s| s.tags.clone())
+                .unwrap_or_default()
+                .into_iter()
+                .chain(config.style_tag(&source.name))
+                .collect(),
+            reverse_tags: spec
+                .and_then(|s| s.reverse_tags.clone())
+                .map(|t| t.into_iter().chain(config.style_tag(&source.name)).collect()),
             ranges: spec.map(|s| s.ranges.clone()).unwrap_or_default(),
             root_position_window: spec.and_then(|s| s.root_position_window).unwrap_or(config.root_position_window),
             offsets: raw_offsets.iter().map(|&o| up * o * scale).collect(),
@@ -190,7 +225,16 @@ impl Take {
     /// animated translations (root motion) are scaled by the leg-length ratio `root_scale` so
     /// the feet keep their stride.
     #[allow(clippy::too_many_arguments)]
-    pub fn resample(&self, bvh: &Bvh, fps: f64, ref_offsets: &[DVec3], animated: &[bool], root_scale: f64, is_reference: bool, out: &mut Poses) {
+    pub fn resample(
+        &self,
+        bvh: &Bvh,
+        fps: f64,
+        ref_offsets: &[DVec3],
+        animated: &[bool],
+        root_scale: f64,
+        is_reference: bool,
+        out: &mut Poses,
+    ) {
         let num_joints = bvh.joints.len();
         let count = self.frames.1 - self.frames.0;
         // build() refused takes past the frame limit before calling this.
@@ -199,7 +243,11 @@ impl Take {
         let convert = self.up != DQuat::IDENTITY;
         let sample = |frame: usize, j: usize| {
             let (t, q) = bvh.local_transform(self.frames.0 + frame, j);
-            let t = if is_reference || animated[j] { self.up * t * self.scale * if animated[j] { root_scale } else { 1.0 } } else { ref_offsets[j] };
+            let t = if is_reference || animated[j] {
+                self.up * t * self.scale * if animated[j] { root_scale } else { 1.0 }
+            } else {
+                ref_offsets[j]
+            };
             (t, if convert { self.up * q * self.up.conjugate() } else { q })
         };
         for k in 0..num_out {
@@ -229,7 +277,9 @@ fn reach(bvh: &Bvh, frames: (usize, usize)) -> f64 {
         for (c, channel) in j.channels.iter().enumerate() {
             if matches!(channel, crate::bvh::Channel::PosX | crate::bvh::Channel::PosY | crate::bvh::Channel::PosZ) {
                 let at = j.first_channel + c;
-                let largest = (frames.0..frames.1.min(bvh.num_frames)).map(|f| bvh.values[f * bvh.num_channels + at].abs()).fold(0.0, f64::max);
+                let largest = (frames.0..frames.1.min(bvh.num_frames))
+                    .map(|f| bvh.values[f * bvh.num_channels + at].abs())
+                    .fold(0.0, f64::max);
                 own[k] = own[k].max(largest);
             }
         }

@@ -2,9 +2,11 @@
 //! the velocity and rotation springs, a path, or a tracked (VR) user; and the trajectory each
 //! of them predicts for the query.
 
-use crate::controller::{desired_rotation, desired_velocity, yaw_facing, ChangeDetector, ControllerSettings, Input, Path, Simulation};
-use crate::spring::{quat_abs, spring_damper_exact, spring_damper_exact_quat, spring_rotation_predict};
+use crate::controller::{
+    desired_rotation, desired_velocity, yaw_facing, ChangeDetector, ControllerSettings, Input, Path, Simulation,
+};
 use crate::persist::{Persist, Visitor};
+use crate::spring::{quat_abs, spring_damper_exact, spring_damper_exact_quat, spring_rotation_predict};
 use glam::{Quat, Vec3};
 
 /// A tracked user (VR), as given each frame: raw, the drive smooths it.
@@ -67,7 +69,9 @@ impl Persist for Drive {
             match (tag, &self.mode) {
                 (0, _) => self.mode = Mode::Input,
                 (1, Mode::Path { .. }) | (2, Mode::Tracked(_)) => {}
-                (1, _) => v.fail("the state follows a path this character was not given (set the same path first)".into()),
+                (1, _) => {
+                    v.fail("the state follows a path this character was not given (set the same path first)".into())
+                }
                 (2, _) => self.mode = Mode::Tracked(Tracked::default()),
                 _ => v.fail(format!("drive mode {tag} (0 input, 1 path, 2 tracked)")),
             }
@@ -101,7 +105,14 @@ impl Default for Drive {
 impl Drive {
     /// Moves `simulation` by `dt` under the mode (`input` is used in input mode only). Returns
     /// whether what is asked for changed sharply (velocity or facing rate above the thresholds).
-    pub fn update(&mut self, simulation: &mut Simulation, settings: &ControllerSettings, thresholds: (f32, f32), input: &Input, dt: f32) -> bool {
+    pub fn update(
+        &mut self,
+        simulation: &mut Simulation,
+        settings: &ControllerSettings,
+        thresholds: (f32, f32),
+        input: &Input,
+        dt: f32,
+    ) -> bool {
         let (velocity, rotation) = match &mut self.mode {
             Mode::Input => {
                 let v = desired_velocity(input, simulation.rotation, settings);
@@ -121,9 +132,16 @@ impl Drive {
                 // The simulated character is the user's head on the floor (§9), less where the
                 // avatar's head sits from its root; its velocity is the head's ground velocity,
                 // spring-smoothed: the head bobs and sways every step, the trajectory must not.
-                simulation.position = Vec3::new(t.position.x - self.head_offset.x, 0.0, t.position.z - self.head_offset.z);
+                simulation.position =
+                    Vec3::new(t.position.x - self.head_offset.x, 0.0, t.position.z - self.head_offset.z);
                 let goal = Vec3::new(t.velocity.x, 0.0, t.velocity.z);
-                spring_damper_exact(&mut simulation.velocity, &mut simulation.acceleration, goal, settings.velocity_halflife, dt);
+                spring_damper_exact(
+                    &mut simulation.velocity,
+                    &mut simulation.acceleration,
+                    goal,
+                    settings.velocity_halflife,
+                    dt,
+                );
                 (goal, Quat::from_rotation_y(t.yaw))
             }
         };
@@ -137,7 +155,13 @@ impl Drive {
             Mode::Input => simulation.update(velocity, rotation, settings, dt),
             // The path or the user sets the position; only the facing is sprung.
             Mode::Path { .. } | Mode::Tracked(_) => {
-                spring_damper_exact_quat(&mut simulation.rotation, &mut simulation.angular_velocity, rotation, settings.rotation_halflife, dt);
+                spring_damper_exact_quat(
+                    &mut simulation.rotation,
+                    &mut simulation.angular_velocity,
+                    rotation,
+                    settings.rotation_halflife,
+                    dt,
+                );
             }
         }
         sharp_velocity || sharp_rotation
@@ -158,10 +182,19 @@ impl Drive {
     }
 
     /// Where the simulated character will be, and facing, after each of `times` seconds (world).
-    pub fn predict(&self, simulation: &Simulation, settings: &ControllerSettings, times: &[f32], positions: &mut [Vec3], rotations: &mut [Quat]) {
+    pub fn predict(
+        &self,
+        simulation: &Simulation,
+        settings: &ControllerSettings,
+        times: &[f32],
+        positions: &mut [Vec3],
+        rotations: &mut [Quat],
+    ) {
         let s = simulation;
         match &self.mode {
-            Mode::Input => s.predict(self.desired_velocity, self.desired_rotation, settings, times, positions, rotations),
+            Mode::Input => {
+                s.predict(self.desired_velocity, self.desired_rotation, settings, times, positions, rotations)
+            }
             Mode::Path { path, time } => {
                 for (i, &t) in times.iter().enumerate() {
                     let (p, v) = path.sample(time + t);
@@ -178,7 +211,14 @@ impl Drive {
                 for (i, &t) in times.iter().enumerate() {
                     positions[i] = s.position + s.velocity * t;
                 }
-                spring_rotation_predict(rotations, s.rotation, s.angular_velocity, self.desired_rotation, settings.rotation_halflife, times);
+                spring_rotation_predict(
+                    rotations,
+                    s.rotation,
+                    s.angular_velocity,
+                    self.desired_rotation,
+                    settings.rotation_halflife,
+                    times,
+                );
             }
         }
     }

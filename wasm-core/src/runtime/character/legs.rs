@@ -10,8 +10,8 @@ use super::settings::CharacterSettings;
 use crate::database::Database;
 use crate::ik::{knee_bend_direction, leg_ik, FootLock, LegJoints};
 use crate::kinematics::subtree_range;
-use crate::skating::ON_FLOOR;
 use crate::persist::{Persist, Visitor};
+use crate::skating::ON_FLOOR;
 use glam::{Quat, Vec3};
 use std::ops::Range;
 
@@ -103,7 +103,9 @@ impl Legs {
                 let rest = db.rest_positions();
                 // Facing at rest: (left hip − right hip) × up, the builder's virtual-root rule.
                 let forward = match &legs {
-                    [Some(l), Some(r)] => (rest[l.upper_leg] - rest[r.upper_leg]).cross(Vec3::Y).with_y(0.0).normalize_or(Vec3::Z),
+                    [Some(l), Some(r)] => {
+                        (rest[l.upper_leg] - rest[r.upper_leg]).cross(Vec3::Y).with_y(0.0).normalize_or(Vec3::Z)
+                    }
                     _ => Vec3::Z,
                 };
                 for k in 0..spine_count {
@@ -172,7 +174,10 @@ impl Legs {
         }
         let head = self.head.map_or(Vec3::ZERO, |h| pose.world_positions[h]);
         // Facing +Z, +X is the left: a positive turn about it takes the head forward and down.
-        let share = Quat::from_axis_angle(facing * Vec3::X, self.chain_angle(self.bend.min(MAX_BEND)) / self.spine_count as f32);
+        let share = Quat::from_axis_angle(
+            facing * Vec3::X,
+            self.chain_angle(self.bend.min(MAX_BEND)) / self.spine_count as f32,
+        );
         for &j in &self.spine[..self.spine_count] {
             let parent = pose.world_rotations[parents[j] as usize];
             pose.output_rotations[j] = (parent.inverse() * share * parent * pose.output_rotations[j]).normalize();
@@ -282,10 +287,24 @@ impl Legs {
             // Keep the knee in the animation's own bend plane, even a slightly backward
             // (hyperextended) one: a pole on the other side makes the solver turn the leg half
             // a turn about the hip–ankle axis in one frame. Facing only breaks an exact tie.
-            let (hip, knee, ankle) = (pose.world_positions[leg.upper_leg], pose.world_positions[leg.lower_leg], pose.world_positions[leg.foot]);
+            let (hip, knee, ankle) = (
+                pose.world_positions[leg.upper_leg],
+                pose.world_positions[leg.lower_leg],
+                pose.world_positions[leg.foot],
+            );
             let bend = knee_bend_direction(hip, knee, ankle);
             let pole = if bend.length_squared() > 1e-8 { bend } else { facing * Vec3::Z };
-            leg_ik(leg, parents, &pose.world_positions, &pose.world_rotations, target, pole, 0.0, 1e-4, &mut pose.output_rotations);
+            leg_ik(
+                leg,
+                parents,
+                &pose.world_positions,
+                &pose.world_rotations,
+                target,
+                pole,
+                0.0,
+                1e-4,
+                &mut pose.output_rotations,
+            );
             pose.forward_kinematics(parents, self.leg_ranges[side].clone());
         }
         for side in 0..2 {

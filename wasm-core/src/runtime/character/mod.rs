@@ -26,8 +26,8 @@ pub use settings::CharacterSettings;
 
 use crate::controller::{Input, Path, Simulation, MAX_PATH_COORDINATE};
 use crate::database::Database;
-use crate::skating::SkatingMeter;
 use crate::search::SearchIndex;
+use crate::skating::SkatingMeter;
 use drive::{Drive, Mode};
 use glam::{Quat, Vec3};
 use legs::Legs;
@@ -96,7 +96,8 @@ pub struct Character {
 pub fn start_frame(db: &Database, settings: &CharacterSettings) -> usize {
     let tag = |name: &str| db.tags.iter().find(|t| t.name == name);
     let within = |ranges: &[(u32, u32)], f: usize| ranges.iter().any(|&(s, e)| (s as usize..e as usize).contains(&f));
-    let style = db.tags.iter().find(|t| t.name.strip_prefix(crate::tag_query::STYLE_PREFIX) == Some(settings.style.as_str()));
+    let style =
+        db.tags.iter().find(|t| t.name.strip_prefix(crate::tag_query::STYLE_PREFIX) == Some(settings.style.as_str()));
     let searchable = |f: usize| f < db.num_frames && db.valid[f] != 0;
     if let Some(idle) = tag("idle") {
         let frames = || idle.ranges.iter().flat_map(|&(s, e)| s as usize..e as usize).filter(|&f| searchable(f));
@@ -148,7 +149,11 @@ impl Character {
     /// that is not finite or beyond ±1e5 m, or a rotation that is not a finite unit quaternion,
     /// is refused (the character stays; counted).
     pub fn teleport(&mut self, db: &Database, position: Vec3, rotation: Quat) {
-        if !(position.x.abs() <= MAX_PATH_COORDINATE && position.z.abs() <= MAX_PATH_COORDINATE && rotation.is_finite() && (rotation.length() - 1.0).abs() < 1e-3) {
+        if !(position.x.abs() <= MAX_PATH_COORDINATE
+            && position.z.abs() <= MAX_PATH_COORDINATE
+            && rotation.is_finite()
+            && (rotation.length() - 1.0).abs() < 1e-3)
+        {
             self.stats.rejected_inputs += 1;
             return;
         }
@@ -451,7 +456,8 @@ impl Character {
         self.pose.reset_output(&db.skeleton.parents);
         self.legs.apply(db, &mut self.pose, &self.settings, self.root.rotation, dt);
         if self.is_finite() {
-            self.last_good = LastGood { position: self.root.position, rotation: self.root.rotation, simulation: self.simulation };
+            self.last_good =
+                LastGood { position: self.root.position, rotation: self.root.rotation, simulation: self.simulation };
             self.skating.update(self.legs.toes, self.pose.contacts, self.legs.toe_floor);
         } else {
             self.recover(db);
@@ -504,7 +510,8 @@ impl Character {
     /// only what the torso bend moved the head.
     fn update_head_offset(&mut self, dt: f32) {
         let bend_shift = if matches!(self.drive.mode, Mode::Tracked(_)) { self.legs.bend_shift } else { Vec3::ZERO };
-        let (Some(head), true, Mode::Tracked(_)) = (self.head, self.settings.tracked_head_offset, &self.drive.mode) else {
+        let (Some(head), true, Mode::Tracked(_)) = (self.head, self.settings.tracked_head_offset, &self.drive.mode)
+        else {
             self.drive.head_offset = bend_shift;
             return;
         };
@@ -530,11 +537,20 @@ impl Character {
         if self.settings.query_drag {
             self.query.add_drag(db, self.root.drag_velocity, self.root.rotation);
         }
-        self.query.set_trajectory(db, &self.drive, &self.simulation, &self.settings.controller, self.root.position, self.root.rotation);
+        self.query.set_trajectory(
+            db,
+            &self.drive,
+            &self.simulation,
+            &self.settings.controller,
+            self.root.position,
+            self.root.rotation,
+        );
         let speed = self.settings.idle_exclude_speed;
         let moving = speed > 0.0 && self.simulation.velocity.length() > speed && !self.schedule.switching;
         let tags = Schedule::tag_query(db, &self.settings, moving);
-        if let Outcome::Jump(frame) = self.schedule.search(index, &self.settings, self.frame, &self.query, &mut self.stats, tags) {
+        if let Outcome::Jump(frame) =
+            self.schedule.search(index, &self.settings, self.frame, &self.query, &mut self.stats, tags)
+        {
             self.transition(db, frame);
         }
     }

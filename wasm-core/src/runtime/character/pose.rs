@@ -31,7 +31,12 @@ pub struct Pose {
 fn frame_slices(db: &Database, frame: usize) -> (&[Vec3], &[Quat], &[Vec3], &[Vec3]) {
     let j = db.num_joints();
     let r = frame * j..(frame + 1) * j;
-    (&db.local_positions[r.clone()], &db.local_rotations[r.clone()], &db.local_velocities[r.clone()], &db.local_angular_velocities[r])
+    (
+        &db.local_positions[r.clone()],
+        &db.local_rotations[r.clone()],
+        &db.local_velocities[r.clone()],
+        &db.local_angular_velocities[r],
+    )
 }
 
 /// The world transforms are not stored: the reader recomputes them from the rest by the one FK
@@ -131,6 +136,14 @@ impl Pose {
     /// World transforms of the shown pose for `joints` (their parents outside the range must be
     /// current): after a touch-up of a limb, only its subtree.
     pub fn forward_kinematics(&mut self, parents: &[i32], joints: std::ops::Range<usize>) {
-        local_to_model(parents, joints, None, &self.positions, &self.output_rotations, &mut self.world_positions, &mut self.world_rotations);
+        local_to_model(
+            parents,
+            joints,
+            None,
+            &self.positions,
+            &self.output_rotations,
+            &mut self.world_positions,
+            &mut self.world_rotations,
+        );
     }
 }

@@ -60,14 +60,26 @@ impl Query {
                     times.push(t);
                     times.len() - 1
                 });
-                slots.push(TrajectorySlot { first_dim: g.first_dim + k * g.axes.num_dims(), kind: g.kind, axes: g.axes, axis: g.axis, time });
+                slots.push(TrajectorySlot {
+                    first_dim: g.first_dim + k * g.axes.num_dims(),
+                    kind: g.kind,
+                    axes: g.axes,
+                    axis: g.axis,
+                    time,
+                });
             }
         }
         let hips = db.skeleton.site("hips").map_or(-1, |s| s.joint);
         let body_velocity_dims = db
             .groups
             .iter()
-            .filter(|g| !g.is_trajectory && g.kind == FeatureKind::Velocity && g.axes == Axes::Xyz && (g.joint as i32 == hips || g.joint == 0) && g.offsets == [0])
+            .filter(|g| {
+                !g.is_trajectory
+                    && g.kind == FeatureKind::Velocity
+                    && g.axes == Axes::Xyz
+                    && (g.joint as i32 == hips || g.joint == 0)
+                    && g.offsets == [0]
+            })
             .map(|g| g.first_dim)
             .collect();
         Query {
@@ -83,7 +95,15 @@ impl Query {
     /// Fills the trajectory part from the drive's prediction, relative to the root at
     /// `(root_position, root_rotation)`, normalized with `db`'s mean and scale. The pose part
     /// must already be in `values` (see [`Query::set_pose`]).
-    pub fn set_trajectory(&mut self, db: &Database, drive: &Drive, simulation: &Simulation, settings: &ControllerSettings, root_position: Vec3, root_rotation: Quat) {
+    pub fn set_trajectory(
+        &mut self,
+        db: &Database,
+        drive: &Drive,
+        simulation: &Simulation,
+        settings: &ControllerSettings,
+        root_position: Vec3,
+        root_rotation: Quat,
+    ) {
         drive.predict(simulation, settings, &self.times, &mut self.predicted_positions, &mut self.predicted_rotations);
         let inv = root_rotation.inverse();
         for slot in &self.slots {

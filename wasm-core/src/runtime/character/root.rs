@@ -5,8 +5,8 @@
 use super::settings::CharacterSettings;
 use crate::controller::Simulation;
 use crate::database::Database;
-use crate::spring::{decay_spring_damper_exact, quat_abs};
 use crate::persist::{Persist, Visitor};
+use crate::spring::{decay_spring_damper_exact, quat_abs};
 use glam::{Quat, Vec3};
 
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -98,7 +98,8 @@ impl RootMotion {
         let delta_position = self.rotation * (r0.inverse() * (p1 - p0));
         let delta_rotation = r0.inverse() * r1;
         self.position += delta_position + self.velocity_offset * frame_dt;
-        self.rotation = (Quat::from_scaled_axis(self.angular_offset * frame_dt) * self.rotation * delta_rotation).normalize();
+        self.rotation =
+            (Quat::from_scaled_axis(self.angular_offset * frame_dt) * self.rotation * delta_rotation).normalize();
         decay_spring_damper_exact(&mut self.velocity_offset, &mut self.velocity_offset_rate, halflife, frame_dt);
         decay_spring_damper_exact(&mut self.angular_offset, &mut self.angular_offset_rate, halflife, frame_dt);
         let (v, w) = self.motion_at(db, next);

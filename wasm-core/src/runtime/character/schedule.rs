@@ -103,7 +103,15 @@ impl Schedule {
 
     /// Searches `index` for `query` (whose pose part must be filled, see [`Query`]) from the
     /// frame playing, among the frames `tags` allows ([`Schedule::tag_query`]).
-    pub fn search(&mut self, index: &SearchIndex, settings: &CharacterSettings, frame: usize, query: &Query, stats: &mut CharacterStats, tags: TagQuery) -> Outcome {
+    pub fn search(
+        &mut self,
+        index: &SearchIndex,
+        settings: &CharacterSettings,
+        frame: usize,
+        query: &Query,
+        stats: &mut CharacterStats,
+        tags: TagQuery,
+    ) -> Outcome {
         self.force = false;
         self.frames_since_search = 0;
         let switching = std::mem::take(&mut self.switching);
@@ -126,7 +134,8 @@ impl Schedule {
         };
         // The current frame is the bar: jump only to something strictly better. After a
         // switch every frame is new: no bar.
-        let valid_now = !switching && index.is_valid(frame) && mask.is_none_or(|m| m[frame]) && index.tags_allow(frame, &tags);
+        let valid_now =
+            !switching && index.is_valid(frame) && mask.is_none_or(|m| m[frame]) && index.tags_allow(frame, &tags);
         let bar = if valid_now { index.cost(frame, &query.values, &options) } else { f32::INFINITY };
         let best = index.search(settings.search_method, &query.values, &options, bar);
         stats.searches += 1;

@@ -182,16 +182,28 @@ impl CharacterSettings {
             }
         }
         // Tag names are compared on every search: keep them few and short.
-        let lists = [("require_tags", &self.require_tags), ("exclude_tags", &self.exclude_tags), ("prefer_tags", &self.prefer_tags)];
+        let lists = [
+            ("require_tags", &self.require_tags),
+            ("exclude_tags", &self.exclude_tags),
+            ("prefer_tags", &self.prefer_tags),
+        ];
         for (name, list) in lists {
             if list.len() > crate::tag_query::MAX_QUERY_TAGS {
-                return Err(format!("settings: {name} has {} tags, at most {}", list.len(), crate::tag_query::MAX_QUERY_TAGS));
+                return Err(format!(
+                    "settings: {name} has {} tags, at most {}",
+                    list.len(),
+                    crate::tag_query::MAX_QUERY_TAGS
+                ));
             }
         }
         let names = lists.iter().flat_map(|(n, l)| l.iter().map(move |t| (*n, t))).chain([("style", &self.style)]);
         for (field, tag) in names {
             if tag.len() > crate::limits::MAX_NAME_BYTES {
-                return Err(format!("settings: {field} has a name of {} bytes, at most {}", tag.len(), crate::limits::MAX_NAME_BYTES));
+                return Err(format!(
+                    "settings: {field} has a name of {} bytes, at most {}",
+                    tag.len(),
+                    crate::limits::MAX_NAME_BYTES
+                ));
             }
         }
         Ok(())

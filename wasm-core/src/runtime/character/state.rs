@@ -46,7 +46,9 @@ impl Character {
     /// The runtime state as bytes (allocates: call on request, not every frame).
     pub fn save_state(&self, db: &Database) -> Vec<u8> {
         let mut w = StateWriter::default();
-        for mut x in [STATE_MAGIC, STATE_VERSION, db.num_joints() as u32, db.num_frames as u32, db.num_features() as u32] {
+        for mut x in
+            [STATE_MAGIC, STATE_VERSION, db.num_joints() as u32, db.num_frames as u32, db.num_features() as u32]
+        {
             x.persist(&mut w, "");
         }
         self.clone().persist(&mut w, "");
@@ -62,7 +64,13 @@ impl Character {
     /// Another database or version, short or long bytes, a value not finite or out of range.
     pub fn load_state(&mut self, db: &Database, bytes: &[u8]) -> Result<(), String> {
         let mut r = StateReader::new(bytes);
-        let expect = [(STATE_MAGIC, "magic"), (STATE_VERSION, "version"), (db.num_joints() as u32, "joint count"), (db.num_frames as u32, "frame count"), (db.num_features() as u32, "feature count")];
+        let expect = [
+            (STATE_MAGIC, "magic"),
+            (STATE_VERSION, "version"),
+            (db.num_joints() as u32, "joint count"),
+            (db.num_frames as u32, "frame count"),
+            (db.num_features() as u32, "feature count"),
+        ];
         for (want, what) in expect {
             let mut x = 0u32;
             x.persist(&mut r, what);
@@ -74,10 +82,16 @@ impl Character {
         next.persist(&mut r, "");
         r.finish()?;
         if next.frame >= db.num_frames {
-            return Err(format!("runtime state frame {} is beyond the database's {} frames", next.frame, db.num_frames));
+            return Err(format!(
+                "runtime state frame {} is beyond the database's {} frames",
+                next.frame, db.num_frames
+            ));
         }
         if !next.schedule.left_is_within(db.num_frames) {
-            return Err(format!("runtime state's last jump left a frame beyond the database's {} frames", db.num_frames));
+            return Err(format!(
+                "runtime state's last jump left a frame beyond the database's {} frames",
+                db.num_frames
+            ));
         }
         if !(0.0..=MAX_FRAMES_PER_UPDATE as f32).contains(&next.frame_fraction) || next.legs.hips_drop < 0.0 {
             return Err("runtime state frame fraction or hips drop out of range".into());

@@ -1,0 +1,53 @@
+// `npm run lint`: every formatter in check mode and every linter, each finding a failure.
+// `npm run format` (`node scripts/lint.mjs --fix`): the formatters rewrite the files instead.
+//   Rust:       rustfmt (wasm-core/rustfmt.toml), clippy -D warnings natively (all targets: the
+//               library, the CLI, tests, examples) and for wasm32 with simd128 (the binding layer
+//               and the WASM lane code compile only there); lints allowed on purpose are in
+//               wasm-core/Cargo.toml [lints.clippy].
+//   Python:     ruff check and ruff format (training/ruff.toml), from training/.venv.
+//   TypeScript: tsc --noEmit over the library, pages, server and tests.
+// `npm test` runs it first (scripts/setup.mjs); it needs the venv that set-up makes.
+// Prints "lint: N passed, M failed" last.
+import { spawnSync } from 'node:child_process';
+import fs from 'node:fs';
+import path from 'node:path';
+
+const ROOT = path.resolve(import.meta.dirname, '..');
+const CORE = path.join(ROOT, 'wasm-core');
+const TRAINING = path.join(ROOT, 'training');
+const RUFF = path.join(TRAINING, '.venv', 'bin', 'ruff');
+const fix = process.argv.includes('--fix');
+const wasmEnv = { ...process.env, CARGO_TARGET_WASM32_UNKNOWN_UNKNOWN_RUSTFLAGS: '-C target-feature=+simd128' };
+
+const checks = [
+  { name: 'rustfmt', cmd: 'cargo', args: ['fmt', ...(fix ? [] : ['--check'])], cwd: CORE },
+  { name: 'clippy (native)', cmd: 'cargo', args: ['clippy', '--all-targets', '--quiet', '--', '-D', 'warnings'], cwd: CORE },
+  {
+    name: 'clippy (wasm32)',
+    cmd: 'cargo',
+    args: ['clippy', '--target', 'wasm32-unknown-unknown', '--lib', '--quiet', '--', '-D', 'warnings'],
+    cwd: CORE,
+    env: wasmEnv,
+  },
+  { name: 'ruff check', cmd: RUFF, args: ['check', ...(fix ? ['--fix'] : []), '.'], cwd: TRAINING },
+  { name: 'ruff format', cmd: RUFF, args: ['format', ...(fix ? [] : ['--check']), '.'], cwd: TRAINING },
+  { name: 'tsc', cmd: path.join(ROOT, 'node_modules', '.bin', 'tsc'), args: ['--noEmit'], cwd: ROOT },
+];
+
+let passed = 0;
+let failed = 0;
+for (const c of checks) {
+  const t0 = performance.now();
+  if (path.isAbsolute(c.cmd) && !fs.existsSync(c.cmd)) {
+    console.log(`[lint] ${c.name}: FAILED — ${path.relative(ROOT, c.cmd)} is missing (run \`npm test\` or \`npm start\` once to set up)`);
+    failed++;
+    continue;
+  }
+  const r = spawnSync(c.cmd, c.args, { cwd: c.cwd, env: c.env ?? process.env, stdio: 'inherit' });
+  const ok = r.status === 0;
+  console.log(`[lint] ${c.name}: ${ok ? 'clean' : `FAILED (${r.error?.message ?? `exit ${r.status}`})`} in ${((performance.now() - t0) / 1000).toFixed(1)}s`);
+  if (ok) passed++;
+  else failed++;
+}
+console.log(`lint: ${passed} passed, ${failed} failed`);
+process.exit(failed ? 1 : 0);
