@@ -5,7 +5,9 @@
 //               and the WASM lane code compile only there); lints allowed on purpose are in
 //               wasm-core/Cargo.toml [lints.clippy].
 //   Python:     ruff check and ruff format (training/ruff.toml), from training/.venv.
-//   TypeScript: tsc --noEmit over the library, pages, server and tests.
+//   TypeScript: Biome's linter (biome.jsonc: its recommended rules, a few off on purpose, each
+//               said why) and tsc --noEmit over the library, pages, server and tests. Biome's
+//               formatter is not on yet (biome.jsonc says why).
 // `npm test` runs it first (scripts/setup.mjs); it needs the venv that set-up makes.
 // Prints "lint: N passed, M failed" last.
 import { spawnSync } from 'node:child_process';
@@ -31,6 +33,7 @@ const checks = [
   },
   { name: 'ruff check', cmd: RUFF, args: ['check', ...(fix ? ['--fix'] : []), '.'], cwd: TRAINING },
   { name: 'ruff format', cmd: RUFF, args: ['format', ...(fix ? [] : ['--check']), '.'], cwd: TRAINING },
+  { name: 'biome lint', cmd: path.join(ROOT, 'node_modules', '.bin', 'biome'), args: ['lint', ...(fix ? ['--write'] : [])], cwd: ROOT },
   { name: 'tsc', cmd: path.join(ROOT, 'node_modules', '.bin', 'tsc'), args: ['--noEmit'], cwd: ROOT },
 ];
 

@@ -515,7 +515,7 @@ async function runSuites() {
   const bin = (name) => path.join(ROOT, 'node_modules', '.bin', name);
   const suites = [
     // Formatters and linters first: a finding fails `npm test` (scripts/lint.mjs).
-    { id: 'lint', title: 'lint (rustfmt, clippy, ruff, tsc)', cmd: process.execPath, args: [path.join(ROOT, 'scripts', 'lint.mjs')] },
+    { id: 'lint', title: 'lint (rustfmt, clippy, ruff, biome, tsc)', cmd: process.execPath, args: [path.join(ROOT, 'scripts', 'lint.mjs')] },
     { id: 'cargo', title: 'cargo test (wasm-core)', cmd: 'cargo', args: ['test', '--profile', 'test-opt', '--no-fail-fast'], cwd: CORE },
     { id: 'vitest', title: 'vitest', cmd: bin('vitest'), args: ['run'] },
     { id: 'pytest', title: 'pytest (training)', cmd: path.join(VENV, 'bin', 'pytest'), args: ['-q'], cwd: path.join(ROOT, 'training') },

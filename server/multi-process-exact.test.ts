@@ -7,16 +7,10 @@
  */
 import fs from 'node:fs';
 import path from 'node:path';
-import * as THREE from 'three';
 import { afterAll, afterEach, beforeAll, describe, expect, it } from 'vitest';
-import { WebSocket } from 'ws';
-import { Character } from '../web/src/character/character.ts';
 import { Database } from '../web/src/core/database.ts';
 import { initWasmSync } from '../web/src/core/wasm.ts';
 import { createRoomId, encodeJoin } from '../web/src/rooms/protocol.ts';
-import { type WebSocketLike } from '../web/src/rooms/room-client.ts';
-import { RoomSession } from '../web/src/rooms/room-session.ts';
-import { DEFAULT_ALPHA, VR_SETTINGS } from '../web/src/vr/tracked-drive.ts';
 import { startNats, startRooms, type NatsServer, type RoomsProcess } from './nats-helpers.ts';
 import { sessionPerson, type SessionPerson } from './session-helpers.ts';
 import { moveBytes, settle, sleep, stateBytes, TestClient, testJoin } from './test-helpers.ts';

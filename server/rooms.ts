@@ -10,9 +10,9 @@
  * code and a reason and announced as left, without touching anyone else. Nothing crosses rooms:
  * a connection belongs to the one room its URL named. docs/rooms.md has the whole contract.
  */
-import { type IncomingMessage, type Server as HttpServer, type ServerResponse } from 'node:http';
-import { type Server as HttpsServer } from 'node:https';
-import { type Duplex } from 'node:stream';
+import type { IncomingMessage, Server as HttpServer, ServerResponse } from 'node:http';
+import type { Server as HttpsServer } from 'node:https';
+import type { Duplex } from 'node:stream';
 import { WebSocketServer, type RawData, type WebSocket } from 'ws';
 import {
   CloseCode,
@@ -576,7 +576,7 @@ export function attachRooms(server: HttpServer | HttpsServer, options: RoomsOpti
     const t = now();
     if (!c.messages.take(1, t) || !c.bytes.take(bytes.length, t)) return drop(c, CloseCode.rateLimited, 'rate limit: too many messages or bytes', 'dropped');
     if (!isBinary) return drop(c, CloseCode.malformed, 'text messages are not part of the protocol', 'dropped');
-    let m;
+    let m: ReturnType<typeof decodeClientMessage>;
     try {
       m = decodeClientMessage(bytes);
     } catch (e) {

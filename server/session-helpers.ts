@@ -7,8 +7,8 @@
 import * as THREE from 'three';
 import { WebSocket } from 'ws';
 import { Character } from '../web/src/character/character.ts';
-import { type Database } from '../web/src/core/database.ts';
-import { type WebSocketLike } from '../web/src/rooms/room-client.ts';
+import type { Database } from '../web/src/core/database.ts';
+import type { WebSocketLike } from '../web/src/rooms/room-client.ts';
 import { RoomSession } from '../web/src/rooms/room-session.ts';
 import { DEFAULT_ALPHA, VR_SETTINGS } from '../web/src/vr/tracked-drive.ts';
 

@@ -170,7 +170,7 @@ export function staticHandler(root: string, options: StaticOptions = {}) {
     }
 
     const inm = req.headers['if-none-match'];
-    if (inm && inm.split(',').some((t) => t.trim().replace(/^W\//, '') === etag)) {
+    if (inm?.split(',').some((t) => t.trim().replace(/^W\//, '') === etag)) {
       res.writeHead(304, headers).end();
       return true;
     }

@@ -1,6 +1,6 @@
 /** Loopback helpers for the room server's tests: a server on 127.0.0.1:0 and a raw ws client. */
 import { createServer, type Server } from 'node:http';
-import { type AddressInfo } from 'node:net';
+import type { AddressInfo } from 'node:net';
 import { WebSocket } from 'ws';
 import {
   createMoveStep,

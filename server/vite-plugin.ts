@@ -8,7 +8,7 @@
  * export default defineConfig({ plugins: [roomsPlugin()] });
  * ```
  */
-import { type Plugin } from 'vite';
+import type { Plugin } from 'vite';
 import { attachRooms, roomsRequestHandler, type RoomsHandle, type RoomsOptions } from './rooms.ts';
 
 export function roomsPlugin(options: RoomsOptions = {}): Plugin {

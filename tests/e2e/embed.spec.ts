@@ -114,7 +114,7 @@ test('a timeStep set before <mm-avatar> is defined is taken through the element 
     el.timeStep = 0.05; // before the element is defined: a plain own property
     document.body.append(el);
     await import(url);
-    const own = Object.prototype.hasOwnProperty.call(el, 'timeStep');
+    const own = Object.hasOwn(el, 'timeStep');
     const kept = el.timeStep;
     el.timeStep = 5; // the accessor refuses it (> 1 s) and keeps 0.05
     const after = el.timeStep;

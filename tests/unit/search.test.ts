@@ -2,7 +2,7 @@ import fs from 'node:fs';
 import path from 'node:path';
 import { afterAll, beforeAll, describe, expect, it } from 'vitest';
 import { seededRandom } from '../../web/src/bench/queries.ts';
-import { type FeatureGroupInfo } from '../../web/src/core/database.ts';
+import type { FeatureGroupInfo } from '../../web/src/core/database.ts';
 import { RawDatabase, RawSearchIndex } from '../../web/src/core/raw.ts';
 import { initWasmSync, wasmMemory } from '../../web/src/core/wasm.ts';
 

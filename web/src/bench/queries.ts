@@ -4,7 +4,7 @@
  * and its speed changed, as when the user steers somewhere else. Deterministic (seeded).
  */
 
-import { type FeatureGroupInfo } from '../core/database.ts';
+import type { FeatureGroupInfo } from '../core/database.ts';
 
 /** A query and the frame it was made from (the "current frame", excluded ±20 around it). */
 export interface BenchQuery {

@@ -16,7 +16,7 @@ import { Avatar, type AvatarOptions } from '../avatar/avatar.ts';
 import { CharacterRuntime, createMoveInput, createTrackedInput, type MoveInput, type RuntimeSettings, type TrackedInput } from '../core/character.ts';
 import { type Database, loadDatabase } from '../core/database.ts';
 import { DEFAULT_AVATAR, DEFAULT_DATABASE, assetUrl } from '../assets.ts';
-import { type FetchOptions } from '../fetch.ts';
+import type { FetchOptions } from '../fetch.ts';
 import { DebugViews } from '../views/debug-views.ts';
 import { SkeletonView } from '../views/skeleton-view.ts';
 

@@ -3,7 +3,7 @@
  * or a path or a tracked user in, the world pose out as zero-copy views. The public
  * `Character` (../character/character.ts) adds the avatar, the scene object and units.
  */
-import { type Database } from './database.ts';
+import type { Database } from './database.ts';
 import { RawCharacter } from './raw.ts';
 import { ViewCache } from './view-cache.ts';
 import { asError, freeRaw, wasmMemory } from './wasm.ts';

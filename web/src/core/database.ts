@@ -6,7 +6,7 @@
 import { assetUrl } from '../assets.ts';
 import { type FetchOptions, fetchBytes, mark } from '../fetch.ts';
 import { RawDatabase } from './raw.ts';
-import { type RoleName } from './roles.ts';
+import type { RoleName } from './roles.ts';
 import { ViewCache } from './view-cache.ts';
 import { asError, freeRaw, initWasm, wasmMemory } from './wasm.ts';
 

@@ -3,8 +3,8 @@
  * (wraps `RawRetargeter`; the method is in wasm-core/src/runtime/retarget.rs). `apply` fills zero-copy
  * views of the avatar's local rotations and hips translation.
  */
-import { type CharacterRuntime } from './character.ts';
-import { type Database } from './database.ts';
+import type { CharacterRuntime } from './character.ts';
+import type { Database } from './database.ts';
 import { RawRetargeter } from './raw.ts';
 import { ROLE_NAMES, type RoleName } from './roles.ts';
 import { ViewCache } from './view-cache.ts';

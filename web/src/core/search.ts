@@ -2,7 +2,7 @@
  * `SearchIndex`: the motion-matching search on its own (wraps `RawSearchIndex`), for
  * benchmarks and tools. The query is written into a zero-copy view, then searched.
  */
-import { type Database } from './database.ts';
+import type { Database } from './database.ts';
 import { RawSearchIndex } from './raw.ts';
 import { ViewCache } from './view-cache.ts';
 import { asError, freeRaw, wasmMemory } from './wasm.ts';

@@ -128,7 +128,7 @@ export class MMAvatarElement extends ElementBase {
     // A page (or a framework rendering before the script loads) may have set `timeStep` on the
     // element before <mm-avatar> was defined: that own property hides the accessor, so the value
     // would never be checked or used. Take it through the setter instead.
-    if (Object.prototype.hasOwnProperty.call(this, 'timeStep')) {
+    if (Object.hasOwn(this, 'timeStep')) {
       const value = (this as { timeStep: number | null }).timeStep;
       delete (this as { timeStep?: number | null }).timeStep;
       this.timeStep = value;

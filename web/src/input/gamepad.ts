@@ -2,7 +2,7 @@
  * Gamepad control (standard mapping): left stick moves relative to the camera, the right
  * stick pushed past half way sets the facing and strafes, the right trigger (or A) runs.
  */
-import { type CameraBasis, type MoveInput } from './input.ts';
+import type { CameraBasis, MoveInput } from './input.ts';
 
 /** The part of the Gamepad API this reads (so tests can pass plain objects). */
 export interface GamepadLike {

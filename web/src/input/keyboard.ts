@@ -3,7 +3,7 @@
  * (keeps the current facing), Q/E turn the facing while strafing. Listens on a target
  * (`attach(window)`); `press` is the whole state machine, so it is testable without a DOM.
  */
-import { type CameraBasis, type MoveInput } from './input.ts';
+import type { CameraBasis, MoveInput } from './input.ts';
 
 /** Facing turn rate for Q/E while strafing (rad/s). */
 export const TURN_RATE = 2.0;

@@ -7,7 +7,7 @@
  * same calls with the same numbers in the same order, two characters compute the same motion.
  * The rooms code calls exactly `set*` then `update(dt)` per step, on both sides.
  */
-import { type MoveStep, type TrackedStep, type RoomTrackerPose } from './protocol.ts';
+import type { MoveStep, TrackedStep, RoomTrackerPose } from './protocol.ts';
 
 export interface PathInput {
   /** Keypoints (x, z interleaved) in database units. */

@@ -24,7 +24,7 @@ export { RoomClient, type RoomClientEvents, type RoomClientOptions, type RoomSta
 export { InputStream, TickClock, type StreamReport } from './input-stream.ts';
 export { JitterBuffer, type JitterBufferOptions, type JitterStats, type PushResult, type Released } from './jitter-buffer.ts';
 export { DriftCorrector, type DriftCorrectorOptions } from './drift-corrector.ts';
-export { type DrivenCharacter, type PathInput } from './driven-character.ts';
+export type { DrivenCharacter, PathInput } from './driven-character.ts';
 export { LocalAvatar } from './local-avatar.ts';
 export { RemoteAvatar, type RemoteAvatarOptions, type RemoteAvatarStats } from './remote-avatar.ts';
 export { measureBandwidth, type BandwidthOptions, type BandwidthResult } from './bandwidth.ts';

@@ -4,9 +4,9 @@
  * stream compute the same motion. Call `setMove` / `setPath` / `setTracked` as the devices say,
  * then `update(dt)` once a frame instead of the character's own update.
  */
-import { type MoveInput, type TrackedInput } from '../core/character.ts';
-import { type DrivenCharacter } from './driven-character.ts';
-import { type InputStream } from './input-stream.ts';
+import type { MoveInput, TrackedInput } from '../core/character.ts';
+import type { DrivenCharacter } from './driven-character.ts';
+import type { InputStream } from './input-stream.ts';
 import { createMoveStep, createTrackedStep, TICKS_PER_SECOND, type MoveStep, type TrackedStep, type RoomTrackerPose } from './protocol.ts';
 
 export class LocalAvatar {

@@ -12,7 +12,7 @@
  * settings then computes the same motion; the sender's reported root corrects what differs.
  */
 
-import { type MoveInput, type TrackedInput } from '../core/character.ts';
+import type { MoveInput, TrackedInput } from '../core/character.ts';
 
 // ------------------------------------------------------------------ constants
 

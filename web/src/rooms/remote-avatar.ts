@@ -9,7 +9,7 @@
  * positions beyond `worldLimit` are refused with a note and never reach the character.
  */
 import { DriftCorrector, type DriftCorrectorOptions } from './drift-corrector.ts';
-import { type DrivenCharacter, type PathInput } from './driven-character.ts';
+import type { DrivenCharacter, PathInput } from './driven-character.ts';
 import { JitterBuffer, type JitterBufferOptions, type PushResult } from './jitter-buffer.ts';
 import { RUNTIME_STATE_INTERVAL_MS } from './room-client.ts';
 import {

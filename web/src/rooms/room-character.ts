@@ -13,9 +13,9 @@
  * metres long whatever avatar the receiver shows.
  */
 import * as THREE from 'three';
-import { type Character } from '../character/character.ts';
-import { type DrivenCharacter, type PathInput } from './driven-character.ts';
-import { type MoveStep, type RoomTrackerPose, type TrackedStep } from './protocol.ts';
+import type { Character } from '../character/character.ts';
+import type { DrivenCharacter, PathInput } from './driven-character.ts';
+import type { MoveStep, RoomTrackerPose, TrackedStep } from './protocol.ts';
 
 export class RoomCharacter implements DrivenCharacter {
   /** Holds a remote member's `character.object3d`; its transform is the display offset. Add it to the scene. */

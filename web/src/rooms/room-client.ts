@@ -258,7 +258,8 @@ export class RoomClient {
     const max = r.maxAttempts ?? Infinity;
     if (this.attempts >= max) {
       this.wanted = false;
-      return this.setStatus('closed', `${detail}; gave up after ${this.attempts} attempts`);
+      this.setStatus('closed', `${detail}; gave up after ${this.attempts} attempts`);
+      return;
     }
     const initial = r.initialDelayMs ?? 500;
     const cap = r.maxDelayMs ?? 8000;
@@ -310,7 +311,7 @@ export class RoomClient {
     }
     this.traffic.receivedBytes += data.byteLength;
     this.traffic.receivedMessages++;
-    let m;
+    let m: ReturnType<typeof decodeServerMessage>;
     try {
       m = decodeServerMessage(data);
     } catch (e) {
@@ -424,7 +425,7 @@ export class RoomClient {
 
   private sendRaw(bytes: Uint8Array): void {
     const ws = this.ws;
-    if (!ws || ws.readyState !== 1) return;
+    if (ws?.readyState !== 1) return;
     ws.send(bytes);
     this.traffic.sentBytes += bytes.length;
     this.traffic.sentMessages++;

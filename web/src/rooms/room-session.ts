@@ -20,7 +20,7 @@ import { Database } from '../core/database.ts';
 import { errorMessage } from '../fetch.ts';
 import { MISSING, TRACKED } from '../vr/trackers.ts';
 import { VR_SETTINGS, DEFAULT_ALPHA } from '../vr/tracked-drive.ts';
-import { type TrackerPose } from '../vr/body-yaw.ts';
+import type { TrackerPose } from '../vr/body-yaw.ts';
 import { UpperBody } from '../vr/upper-body.ts';
 import { LocalAvatar } from './local-avatar.ts';
 import { NameLabel } from './name-label.ts';

@@ -3,7 +3,7 @@
  * toward the requested velocity and facing, follows paths, and in tracked mode stays within α
  * of the head. Same calls with the same numbers → the same floats, like the real runtime.
  */
-import { type DrivenCharacter, type PathInput } from './driven-character.ts';
+import type { DrivenCharacter, PathInput } from './driven-character.ts';
 import { wrapAngle } from '../yaw.ts';
 import { createMoveStep, createTrackedStep, type MoveStep, type TrackedStep, type RoomTrackerPose } from './protocol.ts';
 

@@ -4,7 +4,7 @@
  * failure with a Retry button. `<mm-avatar>` shows it inside the element; the pages show it in
  * their toolbar (`LoadingStatus.attach`).
  */
-import { type FetchProgress } from '../fetch.ts';
+import type { FetchProgress } from '../fetch.ts';
 
 const mb = (n: number) => (n >= 1e5 ? `${(n / 1e6).toFixed(1)} MB` : `${Math.max(0, Math.round(n / 1e3))} kB`);
 

@@ -8,7 +8,7 @@ import { Avatar } from '../avatar/avatar.ts';
 import { Character } from '../character/character.ts';
 import { type Database, loadDatabase } from '../core/database.ts';
 import { errorMessage } from '../fetch.ts';
-import { type LoadingStatus } from './loading-status.ts';
+import type { LoadingStatus } from './loading-status.ts';
 
 export interface PageCharacterOptions {
   database: string | URL;

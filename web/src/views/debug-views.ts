@@ -6,7 +6,7 @@
  * positions.
  */
 import * as THREE from 'three';
-import { type CharacterRuntime } from '../core/character.ts';
+import type { CharacterRuntime } from '../core/character.ts';
 
 const REQUESTED = 0xff9a3c;
 const MATCHED = 0x3cc8ff;

@@ -1,5 +1,5 @@
 import { describe, expect, it } from 'vitest';
-import { type TrackerPose } from './body-yaw.ts';
+import type { TrackerPose } from './body-yaw.ts';
 import { HeadingYawPredictor } from './fallback-yaw.ts';
 
 const deg = Math.PI / 180;

@@ -5,7 +5,7 @@
  * the edge of the dead zone when it looks further. While the head moves over the ground faster
  * than `walkSpeed` the dead zone closes (people look where they walk), so walking turns the body.
  */
-import { type BodyYawPredictor, type TrackerPose } from './body-yaw.ts';
+import type { BodyYawPredictor, TrackerPose } from './body-yaw.ts';
 import { headingYaw, wrapAngle } from '../yaw.ts';
 
 export interface HeadingYawOptions {

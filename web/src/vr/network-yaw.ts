@@ -30,7 +30,7 @@
  * of the yaw made the drive search afresh and moved the root up to 18 cm (held-in walk replay).
  */
 import type { OrientationModel } from '../orientation/orientation-model.ts'; // type only: onnxruntime loads on demand
-import { type BodyYawPredictor, type TrackerPose } from './body-yaw.ts';
+import type { BodyYawPredictor, TrackerPose } from './body-yaw.ts';
 import { type FetchOptions, fetchBytes } from '../fetch.ts';
 import { headingYaw } from '../yaw.ts';
 import { TRACKED } from './trackers.ts';

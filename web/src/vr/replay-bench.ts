@@ -7,9 +7,9 @@
  */
 import { headingYaw, wrapAngle } from '../yaw.ts';
 import { UpdateTimer } from '../views/update-timer.ts';
-import { type BodyYawPredictor } from './body-yaw.ts';
-import { type NetworkYawPredictor } from './network-yaw.ts';
-import { type RecordingPlayer } from './recording.ts';
+import type { BodyYawPredictor } from './body-yaw.ts';
+import type { NetworkYawPredictor } from './network-yaw.ts';
+import type { RecordingPlayer } from './recording.ts';
 import { TrackerSample } from './tracker-sample.ts';
 import { HMD_TO_HEAD_CENTRE, type TrackedDrive } from './tracked-drive.ts';
 
@@ -209,7 +209,7 @@ export async function benchReplay(drive: TrackedDrive, player: RecordingPlayer, 
     scale,
     pose,
   };
-  if (pose && pose.uprightFrames) pose.hipsMeanRatio /= pose.uprightFrames;
+  if (pose?.uprightFrames) pose.hipsMeanRatio /= pose.uprightFrames;
   if (truth) {
     const h = await pass(heuristic, false);
     result.yawError.heuristic = stats(yawErr, h.count);

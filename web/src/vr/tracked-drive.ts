@@ -21,11 +21,11 @@
  * reference is the highest head-centre height seen since the last reset. Standing taller
  * (tip-toe) leaves the avatar standing.
  */
-import { type Character } from '../character/character.ts';
-import { type RuntimeSettings } from '../core/character.ts';
+import type { Character } from '../character/character.ts';
+import type { RuntimeSettings } from '../core/character.ts';
 import { headingYaw } from '../yaw.ts';
-import { type BodyYawPredictor } from './body-yaw.ts';
-import { type TrackerSample } from './tracker-sample.ts';
+import type { BodyYawPredictor } from './body-yaw.ts';
+import type { TrackerSample } from './tracker-sample.ts';
 import { TrackerState } from './trackers.ts';
 import { UpperBody } from './upper-body.ts';
 import vrSettings from '../../../settings/vr-settings.json';

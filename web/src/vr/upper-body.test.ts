@@ -4,10 +4,10 @@ import * as THREE from 'three';
 import { beforeAll, describe, expect, it } from 'vitest';
 import { seededRandom } from '../bench/queries.ts';
 import { TwoBoneIk } from '../core/ik.ts';
-import { type RoleName } from '../core/roles.ts';
+import type { RoleName } from '../core/roles.ts';
 import { initWasmSync } from '../core/wasm.ts';
 import { headingYaw } from '../yaw.ts';
-import { type TrackerPose } from './body-yaw.ts';
+import type { TrackerPose } from './body-yaw.ts';
 import { UpperBody } from './upper-body.ts';
 
 beforeAll(() => {

@@ -16,8 +16,8 @@
  */
 import * as THREE from 'three';
 import { TwoBoneIk } from '../core/ik.ts';
-import { type RoleName } from '../core/roles.ts';
-import { type TrackerPose } from './body-yaw.ts';
+import type { RoleName } from '../core/roles.ts';
+import type { TrackerPose } from './body-yaw.ts';
 import { headingYaw, wrapAngle } from '../yaw.ts';
 
 /** What UpperBody needs of an avatar (avatar.ts `Avatar` is one). */

@@ -223,7 +223,7 @@ el.addEventListener('load', async () => {
     [hook.root[0], hook.root[1], hook.root[2], hook.yaw] = [r.x, r.y, r.z, r.yaw];
     [hook.contacts, hook.frame, hook.searches, hook.transitions] = [contacts, rt.frame, rt.searches, rt.transitions];
     const avatar = character.avatar;
-    if (avatar && avatar.object.visible) {
+    if (avatar?.object.visible) {
       [hook.avatarToes[0], hook.avatarToes[1]] = avatar.toeHeights;
       for (let side = 0; side < 2; side++) if (contacts & ~rt.footSteps & (1 << side)) hook.toeErrors.push(avatar.toeHeights[side] - avatar.standingToeHeight); // planted, not stepping
       if (hook.toeErrors.length >= 4096) hook.toeErrors.splice(0, 2048);
