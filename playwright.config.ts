@@ -11,12 +11,7 @@ export default defineConfig({
   testDir: 'tests/e2e',
   outputDir: 'test-results/playwright',
   fullyParallel: false,
-  // Two test files at a time: a page's frame rate is bound by its browser's GPU process (software
-  // WebGL, one per browser), which leaves much of this 2-core machine idle with one worker. The
-  // rooms tests (several browsers each, and deadlines in wall time: a leave seen within 2 s, a
-  // blocked joiner not dropped) are a project of their own, one at a time; `npm test` runs it
-  // after the other, alone (scripts/setup.mjs).
-  workers: 2,
+  workers: 1,
   retries: 0,
   timeout: 60_000,
   expect: { timeout: 15_000 },
@@ -44,10 +39,7 @@ export default defineConfig({
       ],
     },
   },
-  projects: [
-    { name: 'chromium', testIgnore: /rooms.*\.spec\.ts/ },
-    { name: 'rooms', testMatch: /rooms.*\.spec\.ts/, workers: 1 },
-  ],
+  projects: [{ name: 'chromium' }],
   webServer: {
     command: `node_modules/.bin/vite --host 127.0.0.1 --port ${PORT} --strictPort`,
     url: `http://127.0.0.1:${PORT}/`,

@@ -4,8 +4,6 @@ import { expect, test, type Page } from '@playwright/test';
 import { bvhToGltf, readBvh } from '../unit/gltf-fixtures.ts';
 
 const ROOT = path.resolve(import.meta.dirname, '../..');
-// The tests share nothing: both workers may take them (this file is the suite's longest chain).
-test.describe.configure({ mode: 'parallel' });
 const hook = (page: Page) =>
   page.evaluate(() => {
     const { screenOf: _, toeErrors: __, ...h } = window.__mm;
