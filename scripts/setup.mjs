@@ -519,9 +519,7 @@ async function runSuites() {
     { id: 'cargo', title: 'cargo test (wasm-core)', cmd: 'cargo', args: ['test', '--profile', 'test-opt', '--no-fail-fast'], cwd: CORE },
     { id: 'vitest', title: 'vitest', cmd: bin('vitest'), args: ['run'] },
     { id: 'pytest', title: 'pytest (training)', cmd: path.join(VENV, 'bin', 'pytest'), args: ['-q'], cwd: path.join(ROOT, 'training') },
-    // Two runs: the rooms tests alone after the rest (playwright.config.ts says why).
-    { id: 'playwright', title: 'playwright', cmd: bin('playwright'), args: ['test', '--project', 'chromium'] },
-    { id: 'playwright', title: 'playwright (rooms)', cmd: bin('playwright'), args: ['test', '--project', 'rooms'] },
+    { id: 'playwright', title: 'playwright', cmd: bin('playwright'), args: ['test'] },
   ].filter((s) => only.size === 0 || only.has(s.id));
 
   const results = [];

@@ -1,7 +1,7 @@
 import fs from 'node:fs';
 import path from 'node:path';
 import { expect, test, type Page } from '@playwright/test';
-import { type PoseCheck } from '../../web/src/vr/replay-bench.ts';
+import type { PoseCheck } from '../../web/src/vr/replay-bench.ts';
 
 // The VR page under the iwer emulator (a Quest 3 installed over Chromium's own navigator.xr with
 // forceInstall), deterministic with ?dt=fixed: one frame = 1/60 s of tracker time. A skinned
