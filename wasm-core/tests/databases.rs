@@ -148,6 +148,77 @@ fn the_foot_lock_holds_while_strafing_and_overall() {
     assert!(locked <= 0.4 * unlocked, "all scripts: {locked} vs {unlocked} without the lock");
 }
 
+/// The quality harness is chaotic run to run (one search decides a clip), so it is judged over
+/// five runs (`search_interval` 8–12), medians of the sums: with the foot lock the neutral
+/// database skates no more than the stylized one it replaced did (44.5 cm/s, issue 29 allows
+/// +10 %) — 54.3 before the corrective step became a timed swing with the other foot holding
+/// its lock meanwhile, 33.6 after. Stop-and-go, where a body starting faster than the data's
+/// starts dragged one foot 30–60 cm along the floor while the other stepped: 16.0 → 3.4.
+#[test]
+fn the_quality_harness_skates_less_than_the_stylized_database_did() {
+    let db = &locomotion().0;
+    let (mut totals, mut stop_and_go) = (Vec::new(), Vec::new());
+    for interval in 8..=12 {
+        let settings = CharacterSettings { search_interval: interval, ..CharacterSettings::default() };
+        let mut total = 0.0;
+        for script in quality::scripts() {
+            let r = quality::run(db, &settings, &script, 60.0, 1.0 / 60.0);
+            total += 100.0 * r.skating;
+            if r.script == "stop-and-go" {
+                stop_and_go.push(100.0 * r.skating);
+            }
+        }
+        totals.push(total);
+    }
+    let median = |v: &mut Vec<f32>| {
+        v.sort_by(f32::total_cmp);
+        v[v.len() / 2]
+    };
+    println!("all scripts per run {totals:.1?} cm/s, stop-and-go {stop_and_go:.1?}");
+    let (total, stop) = (median(&mut totals), median(&mut stop_and_go));
+    assert!(total <= 1.1 * 44.5, "all scripts: median {total:.1} cm/s (the stylized database: 44.5)");
+    assert!(stop <= 8.0, "stop-and-go: median {stop:.1} cm/s");
+}
+
+/// The foot lock's rule for a dragged body, on real data: while one foot is in the air on a
+/// corrective step, the other keeps its lock however far the body pulls (the step lands within
+/// `ik::STEP_TIME`), so the feet take turns instead of one sliding back under the body.
+#[test]
+fn a_locked_foot_holds_while_the_other_steps() {
+    let db = &locomotion().0;
+    let index = SearchIndex::new(db).unwrap();
+    let floor = db.toe_height_in_contact().unwrap();
+    let dt = 1.0 / 60.0;
+    let (mut held, mut steps) = (0, 0);
+    for script in quality::scripts().iter().filter(|s| s.path.is_none()) {
+        let mut c = Character::new(db, CharacterSettings::default());
+        c.set_toe_floor(Some(floor));
+        let mut before = (c.foot_locked(), c.foot_stepping(), c.foot_airborne());
+        for step in 0..1800 {
+            c.update(db, &index, &(script.input)(step as f32 * dt), dt);
+            let (locked, stepping, airborne) = (c.foot_locked(), c.foot_stepping(), c.foot_airborne());
+            for side in 0..2 {
+                let other = 1 - side;
+                steps += (stepping[side] && !before.1[side]) as usize;
+                // The other foot in the air on its step (after the last update), this one locked
+                // and still in contact: it must still be locked.
+                if before.2[other] && before.0[side] && c.contacts()[side] != 0 {
+                    held += 1;
+                    assert!(
+                        locked[side],
+                        "{}: t {:.2} s, foot {side} let go while the other stepped",
+                        script.name,
+                        step as f32 * dt
+                    );
+                }
+            }
+            before = (locked, stepping, airborne);
+        }
+    }
+    println!("{steps} corrective steps, {held} frames a foot held while the other stepped");
+    assert!(steps > 20 && held > 100, "{steps} steps, {held} held frames: the scripts no longer drag the feet");
+}
+
 /// A user walking perfectly straight at any speed from 0.3 to 2.0 m/s (VR settings, α = 0.2 m):
 /// after 4 s the avatar keeps within a few cm of the head, never at α. Before the VR database
 /// (the desktop one has no walk slower than ~1 m/s), some speeds left it standing at the clamp,

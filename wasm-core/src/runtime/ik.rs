@@ -23,6 +23,16 @@ const TINY: f32 = 1e-6;
 /// at its middle; a walking step lifts it 5–15 cm).
 const STEP_LIFT: f32 = 0.3;
 
+/// Most a corrective step lifts the toe (m): a long step (the body dragged far while the other
+/// foot was stepping) swings low rather than high, as people's quick steps do, and its knee
+/// bends within the data's own joint speeds.
+const STEP_MAX_LIFT: f32 = 0.12;
+
+/// How long a foot lock's corrective step swings (s): a walking swing phase is 0.35–0.4 s, a quick
+/// step shorter. A bounded swing lets the feet take turns: the other foot holds its lock while
+/// this one is in the air (`character::legs`), so it must land soon.
+pub const STEP_TIME: f32 = 0.3;
+
 /// Weight of the pole in the *current* bend plane's normal, relative to the sine of the knee
 /// angle: the bones decide once the knee is bent more than ~0.6°, the pole decides for a straight
 /// leg, and the normal changes continuously in between (no pop when a leg straightens).
@@ -304,10 +314,13 @@ pub fn leg_ik(
 ///   jump in position or velocity. A new lock needs a new contact start, or the end of a drift
 ///   release's blend.
 /// - A drift release happens while the animation still stands on that foot (a dragged body), so
-///   the way back is a **step**, not a slide: the target is lifted by `STEP_LIFT · span · 4s(1 − s)`,
-///   with `s` the share of the way travelled (from the release point to the animated toe) and
-///   `span` the whole way — 9 cm at the middle of a 0.3 m step, nothing at either end. It starts
-///   from rest (the target was locked) and lands as the blend ends. A contact end needs none:
+///   the way back is a **step**, not a slide: a swing of [`STEP_TIME`] to the animated toe, the
+///   floor travel eased in and out (smoothstep), the target lifted by
+///   `min(STEP_LIFT · span, STEP_MAX_LIFT) · 4s(1 − s)` with `s` the share of the time and `span`
+///   the floor distance between the ends — 9 cm at the middle of a 0.3 m step, nothing at either
+///   end. It starts from rest (the target was locked) and lands on the animated toe, moving with
+///   it. (It used to follow the release blend's decay spring: fastest at the start, while the toe
+///   was still low, and ~0.6 s long, so the other foot slid while it waited.) A contact end needs none:
 ///   the animation lifts the foot itself; nor one whose caller sets `may_step` false (the
 ///   other foot is off the ground): it slides back.
 ///
@@ -328,6 +341,8 @@ pub struct FootLock {
     /// top of the blend) and the lift now.
     stepping: bool,
     step_from: Vec3,
+    /// Seconds since the step's release.
+    step_time: f32,
     lift: f32,
     /// Whether a drift release may step (lift the foot): the caller says no while the other
     /// foot is off the ground, and the foot slides back instead.
@@ -351,6 +366,7 @@ impl Persist for FootLock {
         self.velocity.persist(v, "foot lock target velocity");
         self.stepping.persist(v, "foot lock stepping");
         self.step_from.persist(v, "foot lock step start");
+        self.step_time.persist(v, "foot lock step time");
         self.lift.persist(v, "foot lock step lift");
     }
 }
@@ -375,6 +391,7 @@ impl FootLock {
             velocity: Vec3::ZERO,
             stepping: false,
             step_from: Vec3::ZERO,
+            step_time: 0.0,
             lift: 0.0,
             may_step: true,
             floor: None,
@@ -464,38 +481,45 @@ impl FootLock {
             // Released by drift while still in contact: step back (see type docs).
             self.stepping = contact && self.may_step;
             self.step_from = self.position;
+            self.step_time = 0.0;
         }
         self.contact = contact;
 
         let (input, input_velocity) =
             if self.locked { (self.lock_position, Vec3::ZERO) } else { (animated_toe_pos, animated_toe_vel) };
-        (self.offset, self.offset_velocity) = decay_spring_vec3(self.offset, self.offset_velocity, halflife, dt);
-        self.position = input + self.offset;
-        self.velocity = input_velocity + self.offset_velocity;
         if self.stepping {
-            // Landed: under 0.1 mm to go, the lift is under 0.1 mm too. (In contact the foot
-            // re-locks before, at 1 cm, and the lock's offset lands the rest of the lift.)
-            self.stepping = self.offset.length_squared() >= 1e-8;
-            let lift = if self.stepping { self.step_lift() } else { 0.0 };
-            let speed = if dt > 0.0 { (lift - self.lift) / dt } else { 0.0 };
-            self.lift = lift;
-            self.position.y += lift;
-            self.velocity.y += speed;
+            self.step(input, input_velocity, dt);
+        } else {
+            (self.offset, self.offset_velocity) = decay_spring_vec3(self.offset, self.offset_velocity, halflife, dt);
+            self.position = input + self.offset;
+            self.velocity = input_velocity + self.offset_velocity;
         }
         self.position
     }
 
-    /// The lift of a drift release's step now (see type docs): from the floor-plane distances
-    /// travelled since the release and still to go.
-    fn step_lift(&self) -> f32 {
-        let flat = |v: Vec3| Vec3::new(v.x, 0.0, v.z).length();
-        let (done, left) = (flat(self.position - self.step_from), flat(self.offset));
-        let span = done + left;
-        if !(span > TINY) {
-            return 0.0;
+    /// One update of a drift release's step: a swing of [`STEP_TIME`] from where the lock released
+    /// to the animated toe (`input`, moving with the body), along `smoothstep(s)` on the floor
+    /// plane and lifted by `min(STEP_LIFT · span, STEP_MAX_LIFT) · 4s(1 − s)` (`s` the share of
+    /// the time, `span` the floor distance still between the two ends). The lift grows linearly from the start while
+    /// the floor travel grows as s², so the toe leaves the floor before it travels: a step, not a
+    /// slide. It starts from rest (the target was locked) and lands on the animated toe with its
+    /// velocity; the offset is kept equal to what separates the target from the input, so a
+    /// contact change mid-step blends on from where the foot is.
+    fn step(&mut self, input: Vec3, input_velocity: Vec3, dt: f32) {
+        self.step_time += dt;
+        let s = (self.step_time / STEP_TIME).min(1.0);
+        let w = s * s * (3.0 - 2.0 * s);
+        let previous = self.position;
+        let span = Vec3::new(input.x - self.step_from.x, 0.0, input.z - self.step_from.z).length();
+        self.lift = (STEP_LIFT * span).min(STEP_MAX_LIFT) * 4.0 * s * (1.0 - s);
+        self.position = self.step_from.lerp(input, w) + Vec3::Y * self.lift;
+        self.velocity = if dt > 0.0 { (self.position - previous) / dt } else { input_velocity };
+        if s >= 1.0 {
+            // Landed on the animated toe (a contact re-locks on the next update).
+            (self.stepping, self.lift, self.position, self.velocity) = (false, 0.0, input, input_velocity);
         }
-        let s = (done / span).clamp(0.0, 1.0);
-        STEP_LIFT * span * 4.0 * s * (1.0 - s)
+        self.offset = self.position - input;
+        self.offset_velocity = self.velocity - input_velocity;
     }
 }
 
@@ -798,7 +822,7 @@ mod tests {
         lock.update(false, toe, Vec3::ZERO, DT, 0.3, 0.12);
         let mut prev = lock.position();
         let (mut steps, mut peak, mut on_floor, mut in_air, mut max_step) = (0, 0.0f32, 0.0f32, 0.0f32, 0.0f32);
-        let mut was_stepping = false;
+        let (mut was_stepping, mut run, mut longest) = (false, 0, 0);
         for _ in 0..240 {
             toe += drag * DT;
             let target = lock.update(true, toe, drag, DT, 0.3, 0.12);
@@ -806,6 +830,8 @@ mod tests {
             assert!(target.y >= -1e-6, "below the floor: {}", target.y);
             steps += (lock.is_stepping() && !was_stepping) as usize;
             was_stepping = lock.is_stepping();
+            run = if was_stepping { run + 1 } else { 0 };
+            longest = longest.max(run);
             let moved = Vec3::new(target.x - prev.x, 0.0, target.z - prev.z).length();
             if target.y < 0.033 {
                 on_floor += moved
@@ -817,10 +843,15 @@ mod tests {
             prev = target;
         }
         // 2 m of drag in 4 s: a step every ~0.3 m, each lifting the toe ~9 cm (0.3 × span at mid-way).
+        println!("{steps} steps, peak {peak:.3} m, {on_floor:.3} m on the floor, {in_air:.3} m in the air, longest {longest} frames");
         assert!((4..=8).contains(&steps), "{steps} steps");
         assert!(peak > 0.06 && peak < 0.15, "peak lift {peak}");
-        // Most of the way back is in the air; what slides is the take-off and the landing.
-        assert!(on_floor < 0.35 * (on_floor + in_air), "on the floor {on_floor} m of {} m", on_floor + in_air);
+        // Nearly all the way back is in the air: the toe rises before it travels (the lift grows
+        // linearly, the floor travel as s²); what slides is the take-off and the landing. (The
+        // decay-spring step it replaced slid ~30 % of the way.)
+        assert!(on_floor < 0.1 * (on_floor + in_air), "on the floor {on_floor} m of {} m", on_floor + in_air);
+        // Each swing lasts STEP_TIME (the other foot waits for it to land).
+        assert!(longest as f32 * DT <= STEP_TIME + 1.5 * DT, "a step of {longest} frames");
         assert!(max_step < 0.05, "per-frame step {max_step}");
     }
 

@@ -364,6 +364,11 @@ impl Character {
     pub fn foot_stepping(&self) -> [bool; 2] {
         self.legs.stepping()
     }
+    /// Whether each foot (left, right) is in the air on such a step: while one is, the other
+    /// keeps its lock (`legs`).
+    pub fn foot_airborne(&self) -> [bool; 2] {
+        self.legs.airborne()
+    }
     /// Foot contacts of the current frame (left, right).
     pub fn contacts(&self) -> [u8; 2] {
         self.pose.contacts
