@@ -53,6 +53,13 @@ describe('pages are built on the public entries only', () => {
       const total = ts.reduce((n, f) => n + lines(f), 0);
       expect(total, `${page}: ${total} lines`).toBeLessThanOrEqual(250);
     });
+
+    it(`${page}: no line over 120 characters`, () => {
+      for (const f of files(path.join(WEB, 'pages', page), /\.(ts|css)$/).filter(source)) {
+        const long = fs.readFileSync(f, 'utf8').split('\n').flatMap((l, i) => ([...l].length > 120 ? [`${rel(f)}:${i + 1}`] : []));
+        expect(long, 'lines over 120 characters').toEqual([]);
+      }
+    });
   }
 
   it('the HTML pages load their page module and nothing else of the library', () => {

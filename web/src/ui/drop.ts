@@ -2,8 +2,10 @@
  * Files dropped on the page, sorted by what they are for: motion (BVH takes, VRM Animation
  * `.vrma`, glTF/GLB files with animations and no mesh: build a database in the page), a database
  * (`.mmdb`), or an avatar (`.vrm`, and `.glb`/`.gltf` with a mesh). Anything else is reported, not
- * silently ignored.
+ * silently ignored. `droppedDatabase`: the database they make.
  */
+import { DatabaseBuilder } from '../core/builder.ts';
+import { Database } from '../core/database.ts';
 
 export interface DroppedFiles {
   /** Motion to build a database from (`DatabaseBuilder.addFile`): BVH, VRMA, animation-only glTF/GLB. */
@@ -71,4 +73,28 @@ export function installDropTarget(target: HTMLElement, overlay: HTMLElement, onD
     const files = e.dataTransfer?.files;
     if (files && files.length > 0) void sortDroppedFiles([...files]).then(onDrop);
   });
+}
+
+/**
+ * The database dropped files make: one built from the motion files (`DatabaseBuilder`), named
+ * after the first and how many more; else the first `.mmdb`; null with neither. Throws what is
+ * wrong, naming the file.
+ */
+export async function droppedDatabase(files: DroppedFiles): Promise<Database | null> {
+  const read = async (f: File) => new Uint8Array(await f.arrayBuffer());
+  const { motions, databases } = files;
+  let bytes: Uint8Array;
+  let name: string;
+  if (motions.length) {
+    const builder = new DatabaseBuilder({});
+    try {
+      for (const f of motions) builder.addFile(f.name, await read(f));
+      bytes = builder.build();
+      name = motions.length === 1 ? motions[0].name : `${motions[0].name} + ${motions.length - 1} more`;
+    } finally {
+      builder.free();
+    }
+  } else if (databases.length) [bytes, name] = [await read(databases[0]), databases[0].name];
+  else return null;
+  return Database.fromBytes(bytes, name);
 }

@@ -5,7 +5,9 @@
  * `window.__searchBench`. Only the library's public entry and the pages' kit are used.
  */
 import { initWasm } from '../../index.ts';
-import { type RuntimeBenchResult, type SearchBenchResult, benchRuntime, benchSearch, errorMessage, fetchBytes } from '../kit.ts';
+import {
+  type RuntimeBenchResult, type SearchBenchResult, benchRuntime, benchSearch, catchPageErrors, errorMessage, fetchBytes,
+} from '../kit.ts';
 
 const hook = {
   done: false,
@@ -25,27 +27,32 @@ window.__searchBench = hook;
 
 const status = document.getElementById('status')!;
 
-function fail(message: string): void {
-  hook.error = hook.error ? `${hook.error}\n${message}` : message;
+const fail = catchPageErrors(hook, () => {
   const box = document.getElementById('error-box')!;
   box.textContent = hook.error;
   box.hidden = false;
   status.textContent = 'failed';
   hook.done = true;
-}
+});
 
 function show(r: SearchBenchResult): void {
   const table = document.getElementById('results') as HTMLTableElement;
   table.hidden = false;
   for (const m of r.methods) {
     const row = table.tBodies[0].insertRow();
-    for (const text of [r.database, String(r.frames), m.method, m.median_ms.toFixed(4), m.p95_ms.toFixed(4), m.mean_ms.toFixed(4), r.index_build_ms.toFixed(2)]) row.insertCell().textContent = text;
+    const times = [m.median_ms.toFixed(4), m.p95_ms.toFixed(4), m.mean_ms.toFixed(4), r.index_build_ms.toFixed(2)];
+    for (const text of [r.database, String(r.frames), m.method, ...times]) row.insertCell().textContent = text;
   }
 }
 
-/** `?db=` entries: a name in databases/, or a path from the site root (the bench's pinned recipes, bench-databases/x.mmdb, named x). */
+/**
+ * `?db=` entries: a name in databases/, or a path from the site root (the bench's pinned recipes,
+ * bench-databases/x.mmdb, named x).
+ */
 const databaseUrl = (entry: string): [string, string] =>
-  entry.includes('/') ? [`/${entry.replace(/^\//, '')}`, entry.replace(/^.*\//, '').replace(/\.mmdb$/, '')] : [`databases/${entry}`, entry];
+  entry.includes('/')
+    ? [`/${entry.replace(/^\//, '')}`, entry.replace(/^.*\//, '').replace(/\.mmdb$/, '')]
+    : [`databases/${entry}`, entry];
 
 /** Yields so the page paints between databases. */
 const nextFrame = (): Promise<void> => new Promise((resolve) => setTimeout(resolve, 0));
@@ -76,6 +83,4 @@ async function main(): Promise<void> {
   hook.done = true;
 }
 
-window.addEventListener('error', (e) => fail(`error: ${e.message}`));
-window.addEventListener('unhandledrejection', (e) => fail(`error: ${errorMessage(e.reason)}`));
 main().catch((e: unknown) => fail(errorMessage(e)));

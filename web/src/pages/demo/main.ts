@@ -1,16 +1,23 @@
 /**
  * The desktop demo (index.html): `<mm-avatar>` full page, plus a panel with every runtime knob,
  * path editing, view toggles, the database and style choice; files dropped on the page (BVH,
- * VRMA, glTF clips → a database built here, `.mmdb`, `.glb`/`.vrm`); a HUD. The public entries and the pages' kit only.
+ * VRMA, glTF clips → a database built here, `.mmdb`, `.glb`/`.vrm`); a HUD. The public entries
+ * and the pages' kit only.
  *
  * URL parameters: `db=<url>`, `avatar=<url>|none`, `roles=<JSON role → bone name>` (manual
- * joint map), `skeleton=1`, `shadows=0`, `dt=fixed` (exactly 1/60 s per frame, for tests; `dt=0.05`: that many s),
- * `room=<id>` and `name=` (a shared room: `RoomPanel`; the HUD reads `el.room.list()`). Tests: `window.__mm`.
+ * joint map), `skeleton=1`, `shadows=0`, `dt=fixed` (exactly 1/60 s per frame, for tests;
+ * `dt=0.05`: that many s), `room=<id>` and `name=` (a shared room: `RoomPanel`; the HUD reads
+ * `el.room.list()`). Tests: `window.__mm`.
  */
-import GUI, { type Controller } from 'lil-gui';
+import GUI from 'lil-gui';
 import * as THREE from 'three';
-import { Avatar, Database, DatabaseBuilder, RUNTIME_SETTINGS, type RoleOverrides, defineMMAvatar, listDatabases, registerOfflineCache } from '../../index.ts';
-import { type DroppedFiles, PathEditor, UpdateTimer, errorMessage, installDropTarget, showError } from '../kit.ts';
+import {
+  Avatar, Database, RUNTIME_SETTINGS, type RoleOverrides, defineMMAvatar, listDatabases, registerOfflineCache,
+} from '../../index.ts';
+import {
+  type DroppedFiles, PathEditor, UpdateTimer, addSettingsFolders, catchPageErrors, droppedDatabase, errorMessage,
+  installDropTarget, setOptions, showError,
+} from '../kit.ts';
 import { RoomPanel } from '../../rooms/index.ts';
 
 const hook = {
@@ -34,16 +41,12 @@ const hook = {
   screenOf: (x: number, z: number) => ({ x: x * 0, y: z * 0 }),
 };
 declare global {
-  interface Window {
-    __mm: typeof hook;
-  }
+  interface Window { __mm: typeof hook }
 }
 window.__mm = hook;
 
-const fail = (message: string) => showError((hook.error = hook.error ? `${hook.error}\n${message}` : message) && message);
+catchPageErrors(hook);
 const fileError = (message: string) => showError((hook.fileError = message));
-window.addEventListener('error', (e) => fail(`error: ${e.message}`));
-window.addEventListener('unhandledrejection', (e) => fail(`error: ${errorMessage(e.reason)}`));
 
 defineMMAvatar();
 const params = new URLSearchParams(location.search);
@@ -71,14 +74,20 @@ el.addEventListener('load', async () => {
   const stage = el.stage!;
   el.orbit!.controls.enableZoom = true; // a full page: the wheel zooms
   stage.camera.position.set(2.2, 1.7, 3.8);
-  const room = new RoomPanel({ character, scene: stage.scene, parent: document.getElementById('toolbar')!, mode: 'desktop', onNote: fileError, trace: el.timeStep !== null, avatar: avatarParam && avatarParam !== 'none' ? { kind: 'url', url: avatarParam } : undefined });
-  const view = { mesh: true, skeleton: params.get('skeleton') === '1', shadows: params.get('shadows') !== '0', simulation: true, trajectory: true, matched: true, locks: true };
+  const room = new RoomPanel({
+    character, scene: stage.scene, parent: document.getElementById('toolbar')!, mode: 'desktop', onNote: fileError,
+    trace: el.timeStep !== null,
+    avatar: avatarParam && avatarParam !== 'none' ? { kind: 'url', url: avatarParam } : undefined,
+  });
+  const [skeleton, shadows] = [params.get('skeleton') === '1', params.get('shadows') !== '0'];
+  const view = { mesh: true, skeleton, shadows, simulation: true, trajectory: true, matched: true, locks: true };
   character.debug = true;
   const apply = () => {
     if (character.avatar) character.avatar.object.visible = view.mesh;
     character.showSkeleton = view.skeleton || !character.avatar || !view.mesh;
     const d = character.debugViews!;
-    [d.simulation.visible, d.requested.object.visible, d.matched.object.visible, d.locks.visible] = [view.simulation, view.trajectory, view.matched, view.locks];
+    [d.simulation.visible, d.requested.object.visible] = [view.simulation, view.trajectory];
+    [d.matched.object.visible, d.locks.visible] = [view.matched, view.locks];
     stage.enableShadows(view.shadows);
   };
   const useAvatar = (avatar: Avatar | null) => {
@@ -87,7 +96,8 @@ el.addEventListener('load', async () => {
     hook.avatarStandingToe = avatar?.standingToeHeight ?? NaN;
     apply();
   };
-  const databases: Record<string, Database | string> = { [character.database.name.split('?')[0].split('/').pop()!.replace(/\.mmdb$/, '')]: character.database };
+  const loadedName = character.database.name.split('?')[0].split('/').pop()!.replace(/\.mmdb$/, '');
+  const databases: Record<string, Database | string> = { [loadedName]: character.database };
   let refreshStyles = () => {};
   const useDatabase = (db: Database, name: string) => {
     character.setDatabase(db);
@@ -96,9 +106,7 @@ el.addEventListener('load', async () => {
     refreshStyles();
     apply();
   };
-  hook.database = Object.keys(databases)[0];
-  hook.databaseFrames = character.database.numFrames;
-  hook.databaseLoads = 1;
+  [hook.database, hook.databaseFrames, hook.databaseLoads] = [loadedName, character.database.numFrames, 1];
   useAvatar(character.avatar);
   if (roles && avatarParam !== 'none') {
     const url = avatarParam ?? 'avatars/ubc_male.glb';
@@ -114,7 +122,9 @@ el.addEventListener('load', async () => {
     if (path.points.length === 0) path.add(character.root.x, character.root.z, path.walkSpeed);
   };
   const follow = () => {
-    if (path.points.length < 4) return fileError('Path: place at least 2 keypoints (turn on "edit", then click the floor).');
+    if (path.points.length < 4) {
+      return fileError('Path: place at least 2 keypoints (turn on "edit", then click the floor).');
+    }
     const points = [];
     for (let i = 0; i < path.points.length; i += 2) points.push([path.points[i], path.points[i + 1]] as const);
     character.followPath(points, { speed: [...path.segmentSpeeds()], loop: path.looped && points.length >= 3 });
@@ -122,15 +132,10 @@ el.addEventListener('load', async () => {
     path.editing = false;
     editing.updateDisplay();
   };
-  const stopPath = () => {
-    character.stop();
-    hook.path.following = false;
-  };
+  const stopPath = () => (character.stop(), (hook.path.following = false));
 
   // ---- panel
   const gui = new GUI({ title: 'Motion matching' });
-  // lil-gui's options() makes a new controller without the old one's callback: set it again.
-  const menu = (c: Controller, values: string[], value: string, onChange: (v: string) => void) => c.options(values).setValue(value).onChange(onChange);
   const choice = { database: hook.database, style: character.style };
   const onDatabase = async (name: string) => {
     const entry = databases[name];
@@ -146,17 +151,24 @@ el.addEventListener('load', async () => {
   // The styles the database's tags name (neutral, angry, akimbo…); hidden for a database without.
   let styleSelect = gui.add(choice, 'style', ['neutral']);
   refreshStyles = () => {
-    styleSelect = menu(styleSelect, [...character.styles], (hook.style = character.style), onStyle).show(character.styles.length > 0);
+    styleSelect = setOptions(styleSelect, [...character.styles], (hook.style = character.style), onStyle);
+    styleSelect.show(character.styles.length > 0);
   };
   refreshStyles();
+  const showDatabases = (name: string) => {
+    databaseSelect = setOptions(databaseSelect, Object.keys(databases), name, onDatabase);
+  };
   // Only databases the site serves (its generated databases/index.json), besides the one loaded.
-  void listDatabases().then((list) => (list.forEach((d) => (databases[d.name] ??= d.url)), (databaseSelect = menu(databaseSelect, Object.keys(databases), hook.database, onDatabase))), () => undefined);
+  void listDatabases().then((list) => {
+    for (const d of list) databases[d.name] ??= d.url;
+    showDatabases(hook.database);
+  }, () => undefined);
   void registerOfflineCache(); // after the first frame: repeat visits and offline from Cache Storage
   const folder = (title: string) => gui.addFolder(title).close();
   const viewFolder = folder('View');
   for (const key of ['mesh', 'skeleton', 'shadows'] as const) viewFolder.add(view, key).onChange(apply);
-  const debugFolder = folder('Debug views');
-  for (const key of ['simulation', 'trajectory', 'matched', 'locks'] as const) debugFolder.add(view, key).onChange(apply);
+  const debug = folder('Debug views');
+  for (const key of ['simulation', 'trajectory', 'matched', 'locks'] as const) debug.add(view, key).onChange(apply);
   const pathFolder = folder('Path mode');
   const editing = pathFolder.add(path, 'editing').name('edit (click the floor)');
   pathFolder.add(path, 'walkSpeed', 0.3, 3, 0.1).name('speed (m/s)');
@@ -165,40 +177,23 @@ el.addEventListener('load', async () => {
   pathFolder.add({ follow }, 'follow').name('follow the path');
   pathFolder.add({ stop: stopPath }, 'stop').name('stop (back to keys)');
   pathFolder.add({ clear: () => (stopPath(), path.clear()) }, 'clear');
-  const settings = character.settings;
   const runtime = gui.addFolder('Runtime').close();
-  const groups = new Map<string, GUI>();
-  for (const s of RUNTIME_SETTINGS) {
-    if (!groups.has(s.group)) groups.set(s.group, runtime.addFolder(s.group).close());
-    const c = s.range ? groups.get(s.group)!.add(settings, s.key, ...s.range) : groups.get(s.group)!.add(settings, s.key, s.options);
-    c.name(s.label).onChange((v: unknown) => (el.character!.settings = { [s.key]: v }));
-  }
+  addSettingsFolders(runtime, RUNTIME_SETTINGS, character.settings, (patch) => (el.character!.settings = patch));
 
   // ---- dropped files: motion (BVH, .vrma, glTF clips) → a database built here; .mmdb; .glb/.vrm → the avatar
-  installDropTarget(document.body, document.getElementById('drop-overlay')!, (files: DroppedFiles) => void onDrop(files));
+  installDropTarget(document.body, document.getElementById('drop-overlay')!, (files) => void onDrop(files));
   const onDrop = async (files: DroppedFiles) => {
-    if (files.unknown.length) fileError(`Not used (drop .bvh, .vrma, .glb, .mmdb or .vrm): ${files.unknown.join(', ')}`);
-    const read = async (f: File) => new Uint8Array(await f.arrayBuffer());
+    const { unknown } = files;
+    if (unknown.length) fileError(`Not used (drop .bvh, .vrma, .glb, .mmdb or .vrm): ${unknown.join(', ')}`);
     try {
-      let bytes: Uint8Array | null = null;
-      let name = '';
-      if (files.motions.length) {
-        const builder = new DatabaseBuilder({});
-        try {
-          for (const f of files.motions) builder.addFile(f.name, await read(f));
-          bytes = builder.build();
-          name = files.motions.length === 1 ? files.motions[0].name : `${files.motions[0].name} + ${files.motions.length - 1} more`;
-        } finally {
-          builder.free();
-        }
-      } else if (files.databases.length) [bytes, name] = [await read(files.databases[0]), files.databases[0].name];
-      if (bytes) {
-        const db = Database.fromBytes(bytes, name);
-        databases[name] = db;
-        useDatabase(db, name);
-        databaseSelect = menu(databaseSelect, Object.keys(databases), name, onDatabase);
+      const db = await droppedDatabase(files);
+      if (db) {
+        databases[db.name] = db;
+        useDatabase(db, db.name);
+        showDatabases(db.name);
       }
-      if (files.avatars.length) useAvatar(await Avatar.load(await read(files.avatars[0]), { name: files.avatars[0].name }));
+      const [avatar] = files.avatars;
+      if (avatar) useAvatar(await Avatar.load(new Uint8Array(await avatar.arrayBuffer()), { name: avatar.name }));
     } catch (e) {
       fileError(errorMessage(e)); // names the file (and line)
     }
@@ -211,9 +206,7 @@ el.addEventListener('load', async () => {
   let previousContacts = 0;
   el.afterUpdate = (dt) => {
     room.update(dt);
-    const r = character.root;
-    const rt = character.runtime;
-    const contacts = character.contacts;
+    const [r, rt, contacts] = [character.root, character.runtime, character.contacts];
     hook.path.following = character.followingPath; // a move key takes the character back from a path
     const onsets = contacts & ~previousContacts;
     previousContacts = contacts;
@@ -225,7 +218,8 @@ el.addEventListener('load', async () => {
     const avatar = character.avatar;
     if (avatar?.object.visible) {
       [hook.avatarToes[0], hook.avatarToes[1]] = avatar.toeHeights;
-      for (let side = 0; side < 2; side++) if (contacts & ~rt.footSteps & (1 << side)) hook.toeErrors.push(avatar.toeHeights[side] - avatar.standingToeHeight); // planted, not stepping
+      const [planted, standing] = [contacts & ~rt.footSteps, avatar.standingToeHeight]; // in contact, not stepping
+      for (let s = 0; s < 2; s++) if (planted & (1 << s)) hook.toeErrors.push(avatar.toeHeights[s] - standing);
       if (hook.toeErrors.length >= 4096) hook.toeErrors.splice(0, 2048);
       const hips = avatar.bone('hips')?.getWorldPosition(v);
       [hook.hips[0], hook.hips[1]] = hips ? [hips.x, hips.z] : [NaN, NaN];
@@ -240,7 +234,13 @@ el.addEventListener('load', async () => {
     });
     timer.add(el.lastUpdateMs);
     if (hook.updates % 15 === 1) { // from the first update on: "loading…" never outlives the load
-      hud.textContent = `${character.clip} · frame ${rt.frame} · ${character.tags.join(' ') || '—'} · cost ${rt.searchCost.toFixed(2)} → ${rt.bestCost.toFixed(2)} · update ${timer.median().toFixed(3)} ms (median of 64)${/* the room's public API */ (el.room?.list() ?? []).filter((m) => m.shown).map((m) => [Math.hypot(m.x - character.root.x, m.z - character.root.z), m.name] as const).sort((a, b) => a[0] - b[0]).map(([d, n]) => ` · nearest: ${n} ${d.toFixed(1)} m`)[0] ?? ''}`;
+      const cost = `cost ${rt.searchCost.toFixed(2)} → ${rt.bestCost.toFixed(2)}`;
+      const members = (el.room?.list() ?? []).filter((m) => m.shown); // the room's public API
+      const near = members.map((m) => [Math.hypot(m.x - r.x, m.z - r.z), m.name] as const).sort((a, b) => a[0] - b[0]);
+      const nearest = near.length ? ` · nearest: ${near[0][1]} ${near[0][0].toFixed(1)} m` : '';
+      const update = `update ${timer.median().toFixed(3)} ms (median of 64)`;
+      const playing = `${character.clip} · frame ${rt.frame} · ${character.tags.join(' ') || '—'}`;
+      hud.textContent = `${playing} · ${cost} · ${update}${nearest}`;
     }
     hook.ready = true;
   };

@@ -5,7 +5,7 @@
  * tests is on `window.__viewer`. Only the library's public entry and the pages' kit are used.
  */
 import { DEFAULT_DATABASE, Database, assetUrl, registerOfflineCache, FollowCamera, Stage } from '../../index.ts';
-import { LoadingStatus, Playback, RootMarker, SkeletonView, errorMessage, showError } from '../kit.ts';
+import { LoadingStatus, Playback, RootMarker, SkeletonView, catchPageErrors, errorMessage, showError } from '../kit.ts';
 
 const hook = { numFrames: 0, frame: 0, playing: false, clipName: '', error: null as string | null, ready: false };
 declare global {
@@ -20,17 +20,14 @@ const button = $<HTMLButtonElement>('play');
 const scrubber = $<HTMLInputElement>('scrubber');
 const hud = $('hud');
 
-function fail(message: string): void {
-  hook.error = hook.error ? `${hook.error}\n${message}` : message;
+const fail = catchPageErrors(hook, (message) => {
   showError(message);
   if (!hook.ready) {
     // Nothing to play: say so in the toolbar instead of "loading…".
     button.disabled = scrubber.disabled = true;
     hud.textContent = 'no database loaded';
   }
-}
-window.addEventListener('error', (e) => fail(`error: ${e.message}`));
-window.addEventListener('unhandledrejection', (e) => fail(`error: ${errorMessage(e.reason)}`));
+});
 
 async function main(): Promise<void> {
   const params = new URLSearchParams(location.search);
@@ -53,7 +50,8 @@ async function main(): Promise<void> {
   if (db.numFrames === 0) return fail(`${db.name}: the database has no frames`);
 
   // Feet colored by contact: the database's own roles (its site table).
-  const feet = (side: string) => ['foot', 'toe'].map((p) => db.roles.get(`${side}_${p}` as 'left_foot')).filter((j): j is number => j !== undefined);
+  const feet = (side: string) =>
+    ['foot', 'toe'].map((p) => db.roles.get(`${side}_${p}` as 'left_foot')).filter((j): j is number => j !== undefined);
   const skeleton = new SkeletonView(db.jointParents, feet('left'), feet('right'));
   const root = new RootMarker();
   stage.scene.add(skeleton.object, root.object);

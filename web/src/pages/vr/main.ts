@@ -1,22 +1,27 @@
 /**
- * The VR page (vr.html): a WebXR `immersive-vr` session on `local-floor` where the headset and both controllers drive a full-body
- * motion-matched avatar (`TrackedDrive`), on the public entries and the pages' kit (three's Reflector; iwer only with `emulate=1`).
+ * The VR page (vr.html): a WebXR `immersive-vr` session on `local-floor` where the headset and
+ * both controllers drive a full-body motion-matched avatar (`TrackedDrive`), on the public entries
+ * and the pages' kit (three's Reflector; iwer only with `emulate=1`).
  * Loading: the character first (stages named in the toolbar; a failed avatar → the skeleton, a note);
  * the network and onnxruntime after the first frame, the heuristic driving until then (shown).
  *
  * URL parameters: `emulate=1` (iwer, a Quest 3; `devui=0` without its panel), `replay=URL` or
  * `replay=scripted` (play a recording on the desktop page; `bench=1` also scores it), `dt=fixed`
- * (1/60 s per frame; `dt=0.05`: that many seconds), `model=URL` (orientation model; a missing one falls back, visibly, to the
- * heuristic), `predictor=heuristic`, `alpha=0.2`, `mirror=0|<texture px>`, `spectator=0`,
- * `settings={...}`, `db=`, `avatar=URL|none`, `room=<id>`, `name=` (a shared room: `RoomPanel`). Tests: `window.__vr`.
+ * (1/60 s per frame; `dt=0.05`: that many seconds), `model=URL` (orientation model; a missing one
+ * falls back, visibly, to the heuristic), `predictor=heuristic`, `alpha=0.2`, `mirror=0|<texture px>`,
+ * `spectator=0`, `settings={...}`, `db=`, `avatar=URL|none`, `room=<id>`, `name=` (a shared room:
+ * `RoomPanel`). Tests: `window.__vr`.
  */
 import * as THREE from 'three';
-import { Reflector } from 'three/addons/objects/Reflector.js';
 import { DEFAULT_AVATAR, assetUrl, registerOfflineCache, FollowCamera, Stage } from '../../index.ts';
-import { LoadingStatus, UpdateTimer, errorMessage, loadPageCharacter, saveTextFile, showError } from '../kit.ts';
 import {
-  DEFAULT_ALPHA, EnterVrButton, FIRST_PERSON_LAYER, FirstPerson, HeadingYawPredictor, LEFT, type NetworkYawPredictor, RIGHT, RecordingPlayer, SpectatorView, THIRD_PERSON_LAYER,
-  TrackedDrive, TrackerRecorder, TrackerSample, benchReplay, deviceSetName, encodeRecordingJson, loadNetworkPredictor, loadRecording, orientationModelUrl, sampleXRFrame, scriptedSample, setHeadsetView, vrDatabaseUrl,
+  ControllerMarkers, LoadingStatus, RecordButton, UpdateTimer, YawPredictorChoice, catchPageErrors, createMirror,
+  emulateQuest3, errorMessage, loadPageCharacter, showError,
+} from '../kit.ts';
+import {
+  DEFAULT_ALPHA, EnterVrButton, FIRST_PERSON_LAYER, FirstPerson, HeadingYawPredictor, LEFT, RIGHT, RecordingPlayer,
+  type ReplayBenchResult, SpectatorView, THIRD_PERSON_LAYER, TrackedDrive, TrackerSample, benchReplay, deviceSetName,
+  loadRecording, orientationModelUrl, sampleXRFrame, scriptedSample, setHeadsetView, vrDatabaseUrl,
 } from '../../vr/index.ts';
 import { RoomPanel } from '../../rooms/index.ts';
 
@@ -24,34 +29,28 @@ const $ = <T extends HTMLElement>(id: string) => document.getElementById(id) as 
 const hook = {
   ready: false, error: null as string | null, mode: 'idle' as 'idle' | 'xr' | 'replay', inXR: false, frames: 0,
   head: [0, 0], hmd: [0, 0, 0], root: [0, 0, 0], rootYaw: 0, bodyYaw: 0,
-  predictor: '', predictorFallback: null as string | null, networkLoaded: false, predictorRuns: 0, predictorSkipped: 0, predictorFailures: 0, yawModel: '',
-  alpha: DEFAULT_ALPHA, hipsHeight: NaN, toeHeights: [NaN, NaN], hipsDrop: 0, avatarScale: 1, handErrors: [NaN, NaN], trackerStatus: [0, 0, 0],
-  updateMs: { median: NaN, p95: NaN, last: NaN }, replayDone: false, replayDuration: NaN, bench: null as Awaited<ReturnType<typeof benchReplay>> | null,
-  eyeHeight: NaN, headTrianglesHidden: 0, deviceSet: '', hands: [0, 0, 0, 0, 0, 0], views: () => ({ headsetWhole: false, headsetHeadless: false, spectatorWhole: false, pageWhole: false }), emulator: null as unknown, beforeFrame: null as ((frame: number) => void) | null,
+  predictor: '', predictorFallback: null as string | null, networkLoaded: false, predictorRuns: 0, predictorSkipped: 0,
+  predictorFailures: 0, yawModel: '', alpha: DEFAULT_ALPHA, hipsHeight: NaN, toeHeights: [NaN, NaN], hipsDrop: 0,
+  avatarScale: 1, handErrors: [NaN, NaN], trackerStatus: [0, 0, 0], updateMs: { median: NaN, p95: NaN, last: NaN },
+  replayDone: false, replayDuration: NaN, bench: null as ReplayBenchResult | null,
+  eyeHeight: NaN, headTrianglesHidden: 0, deviceSet: '', hands: [0, 0, 0, 0, 0, 0], room: null as RoomPanel | null,
+  views: () => ({ headsetWhole: false, headsetHeadless: false, spectatorWhole: false, pageWhole: false }),
+  emulator: null as unknown, beforeFrame: null as ((frame: number) => void) | null,
   enterVR: () => Promise.reject(new Error('not ready')) as Promise<void>, exitVR: () => Promise.resolve(),
-  calibrate: (_eye?: number) => undefined as void, setPredictor: (_name: string) => undefined as void, setAlpha: (_a: number) => undefined as void,
-  startRecording: () => undefined as void, stopRecording: () => '', room: null as RoomPanel | null,
+  calibrate: (_eye?: number) => undefined as void, setPredictor: (_name: string) => undefined as void,
+  setAlpha: (_a: number) => undefined as void, startRecording: () => undefined as void, stopRecording: () => '',
 };
 declare global {
   interface Window { __vr: typeof hook }
 }
 window.__vr = hook;
-const fail = (message: string) => showError((hook.error = hook.error ? `${hook.error}\n${message}` : message) && message);
-window.addEventListener('error', (e) => fail(`error: ${e.message}`));
-window.addEventListener('unhandledrejection', (e) => fail(`error: ${errorMessage(e.reason)}`));
+const fail = catchPageErrors(hook);
 
 async function main(): Promise<void> {
   const params = new URLSearchParams(location.search);
   const fixedDt = params.get('dt') === 'fixed' ? 1 / 60 : Number(params.get('dt')) || 0; // s per frame; 0: real time
   const emulated = params.get('emulate') === '1';
-  if (emulated) {
-    // iwer's Quest 3 over Chromium's own navigator.xr (forceInstall), its panel for people.
-    const { XRDevice, metaQuest3 } = await import('iwer');
-    const device = new XRDevice(metaQuest3);
-    device.installRuntime({ forceInstall: true });
-    if (params.get('devui') !== '0') device.installDevUI((await import('@iwer/devui')).DevUI);
-    hook.emulator = device;
-  }
+  if (emulated) hook.emulator = await emulateQuest3(params.get('devui') !== '0');
   const stage = new Stage($('viewport'));
   const renderer = stage.renderer;
   renderer.xr.enabled = true;
@@ -62,7 +61,8 @@ async function main(): Promise<void> {
 
   const avatarParam = params.get('avatar');
   const loading = LoadingStatus.attach($('hud'));
-  const loaded = await loadPageCharacter({ database: params.get('db') ?? vrDatabaseUrl(), avatar: avatarParam === 'none' ? null : (avatarParam ?? assetUrl(DEFAULT_AVATAR)), status: loading });
+  const avatar = avatarParam === 'none' ? null : (avatarParam ?? assetUrl(DEFAULT_AVATAR));
+  const loaded = await loadPageCharacter({ database: params.get('db') ?? vrDatabaseUrl(), avatar, status: loading });
   if (!loaded) return void (hook.error = $('hud').textContent);
   const { character, avatarNote } = loaded;
   loading.finish(avatarNote ? (showError(avatarNote), 'skeleton: the avatar did not load') : null);
@@ -71,10 +71,21 @@ async function main(): Promise<void> {
   const drive = new TrackedDrive(character, heuristic);
   // First person: the headset sees a headless copy, the mirror and the spectator the whole avatar.
   const head = character.avatar?.bone('head');
-  if (head) (hook.headTrianglesHidden = new FirstPerson(character.avatar!.object, head).hiddenTriangles), FirstPerson.attach(stage.scene);
+  if (head) {
+    hook.headTrianglesHidden = new FirstPerson(character.avatar!.object, head).hiddenTriangles;
+    FirstPerson.attach(stage.scene);
+  }
   const sees = (c: THREE.Camera, layer: number) => c.layers.isEnabled(layer);
-  hook.views = () => ({ headsetWhole: sees(renderer.xr.getCamera(), THIRD_PERSON_LAYER), headsetHeadless: sees(renderer.xr.getCamera(), FIRST_PERSON_LAYER), spectatorWhole: !!pip && sees(pip.camera, THIRD_PERSON_LAYER), pageWhole: sees(stage.camera, THIRD_PERSON_LAYER) && !sees(stage.camera, FIRST_PERSON_LAYER) });
-  const room = (hook.room = new RoomPanel({ character, scene: stage.scene, parent: $('toolbar'), mode: 'vr', trackers: drive.trackers, onNote: showError, trace: fixedDt > 0 }));
+  hook.views = () => ({
+    headsetWhole: sees(renderer.xr.getCamera(), THIRD_PERSON_LAYER),
+    headsetHeadless: sees(renderer.xr.getCamera(), FIRST_PERSON_LAYER),
+    spectatorWhole: !!pip && sees(pip.camera, THIRD_PERSON_LAYER),
+    pageWhole: sees(stage.camera, THIRD_PERSON_LAYER) && !sees(stage.camera, FIRST_PERSON_LAYER),
+  });
+  const room = (hook.room = new RoomPanel({
+    character, scene: stage.scene, parent: $('toolbar'), mode: 'vr', trackers: drive.trackers, onNote: showError,
+    trace: fixedDt > 0,
+  }));
   const hips = character.avatar?.bone('hips') ?? null;
 
   const alphaInput = $<HTMLInputElement>('alpha');
@@ -90,41 +101,22 @@ async function main(): Promise<void> {
 
   // Body yaw: the heuristic until the network has loaded (after the first frame), the network
   // then, the heuristic for good if it cannot load — and the page says which and why.
-  let network: NetworkYawPredictor | null = null;
-  let networkLoad: Promise<void> | null = null;
-  const modelUrl = params.get('model') ?? String(orientationModelUrl());
-  const select = $<HTMLSelectElement>('predictor');
-  const status = $('predictor-status');
-  const showPredictor = () => {
-    hook.predictor = drive.predictor.name;
-    select.value = drive.predictor.name === 'network' ? 'network' : 'heuristic';
-    const failed = hook.predictorFallback !== null;
-    status.textContent = network ? `body yaw: ${drive.predictor.name}` : failed ? 'fallback: heuristic — the orientation model did not load' : 'body yaw: heuristic (loading the network…)';
-    status.title = hook.predictorFallback ?? `model: ${modelUrl}`;
-    status.classList.toggle('fallback', failed);
-  };
-  const loadNetwork = () => (networkLoad ??= loadNetworkPredictor(modelUrl, { fewerDevices: params.get('model') ? null : orientationModelUrl(true) }).then((n) => {
-    [network, hook.networkLoaded] = [n, true];
-    choosePredictor(params.get('predictor') === 'heuristic' ? 'heuristic' : 'network');
-  }, (e: unknown) => {
-    console.warn((hook.predictorFallback = `orientation model unavailable (${modelUrl}): ${errorMessage(e)}`));
-    (select.querySelector('option[value="network"]') as HTMLOptionElement).disabled = true;
-    showPredictor();
-  }));
-  const choosePredictor = (name: string) => (drive.setPredictor(name === 'network' && network ? network : heuristic), showPredictor());
-  select.addEventListener('change', () => choosePredictor(select.value));
-  hook.setPredictor = choosePredictor;
-  showPredictor();
+  const yaw = new YawPredictorChoice(drive, heuristic, {
+    model: params.get('model') ?? String(orientationModelUrl()),
+    fewerDevices: params.get('model') ? null : orientationModelUrl(true),
+    prefer: params.get('predictor') ?? 'network',
+    select: $<HTMLSelectElement>('predictor'),
+    status: $('predictor-status'),
+    onChange: ({ network, fallback }) => {
+      [hook.predictor, hook.predictorFallback, hook.networkLoaded] = [drive.predictor.name, fallback, network !== null];
+    },
+  });
+  hook.setPredictor = (name) => yaw.choose(name);
 
   // A mirror in front of the start position; markers at the controller grips.
-  if (params.get('mirror') !== '0') {
-    const width = Math.max(64, Math.min(2048, Number(params.get('mirror')) || 512));
-    const mirror = new Reflector(new THREE.PlaneGeometry(1.6, 2.2), { textureWidth: width, textureHeight: Math.round(width * 1.375), color: 0xb8c0c8, multisample: 0 });
-    mirror.position.set(0, 1.1, -3);
-    stage.scene.add(mirror);
-  }
-  const markers = [0x4fa3ff, 0xff7a4f].map((color) => new THREE.Mesh(new THREE.BoxGeometry(0.04, 0.04, 0.12), new THREE.MeshStandardMaterial({ color, roughness: 0.6 })));
-  stage.scene.add(...markers);
+  if (params.get('mirror') !== '0') stage.scene.add(createMirror(Number(params.get('mirror')) || 512));
+  const markers = new ControllerMarkers();
+  stage.scene.add(...markers.meshes);
 
   // Enter VR; three.js copies the headset's pose into the camera while presenting: keep the
   // spectator's and give it back afterwards.
@@ -135,23 +127,23 @@ async function main(): Promise<void> {
   [hook.enterVR, hook.exitVR] = [() => button.enter(), () => button.exit()];
   let xrFrames = 0;
   const spectatorPose = new THREE.Matrix4();
-  renderer.xr.addEventListener('sessionstart', () => (spectatorPose.copy(stage.camera.matrix), setHeadsetView(stage.camera, true), drive.reset(), (xrFrames = 0)));
-  renderer.xr.addEventListener('sessionend', () => (spectatorPose.decompose(stage.camera.position, stage.camera.quaternion, stage.camera.scale), setHeadsetView(stage.camera, false), stage.resize(), drive.reset()));
+  renderer.xr.addEventListener('sessionstart', () => {
+    spectatorPose.copy(stage.camera.matrix);
+    setHeadsetView(stage.camera, true);
+    drive.reset();
+    xrFrames = 0;
+  });
+  renderer.xr.addEventListener('sessionend', () => {
+    spectatorPose.decompose(stage.camera.position, stage.camera.quaternion, stage.camera.scale);
+    setHeadsetView(stage.camera, false);
+    stage.resize();
+    drive.reset();
+  });
 
   // Recording and calibration.
-  const recorder = new TrackerRecorder();
-  let recording = false;
-  const recordButton = $<HTMLButtonElement>('record');
-  hook.startRecording = () => (recorder.clear(), (recording = true), (recordButton.textContent = 'Stop recording'));
-  hook.stopRecording = () => {
-    [recording, recordButton.textContent] = [false, 'Record'];
-    return recorder.frames === 0 ? '' : encodeRecordingJson(recorder.toRecording({ page: 'vr.html', mode: hook.mode, eyeHeight: hook.eyeHeight, userAgent: navigator.userAgent }));
-  };
-  recordButton.addEventListener('click', () => {
-    if (!recording) return hook.startRecording();
-    const text = hook.stopRecording();
-    if (text) saveTextFile(text, `vr-session-${new Date().toISOString().replace(/[:.]/g, '-')}.json`);
-  });
+  const meta = () => ({ page: 'vr.html', mode: hook.mode, eyeHeight: hook.eyeHeight, userAgent: navigator.userAgent });
+  const recorder = new RecordButton($<HTMLButtonElement>('record'), meta);
+  [hook.startRecording, hook.stopRecording] = [() => recorder.start(), () => recorder.stop()];
   hook.calibrate = (eyeHeight = drive.trackers.head.position[1]) => {
     try {
       drive.calibrate(eyeHeight);
@@ -171,9 +163,9 @@ async function main(): Promise<void> {
   const recordedEye = player?.recording.meta.eyeHeight;
   if (typeof recordedEye === 'number') hook.calibrate(recordedEye);
   if (player && params.get('bench') === '1') {
-    await loadNetwork();
-    hook.bench = await benchReplay(drive, player, network, heuristic, replayUrl ?? '');
-    choosePredictor(network && params.get('predictor') !== 'heuristic' ? 'network' : 'heuristic');
+    await yaw.load();
+    hook.bench = await benchReplay(drive, player, yaw.network, heuristic, replayUrl ?? '');
+    yaw.choose(yaw.network && params.get('predictor') !== 'heuristic' ? 'network' : 'heuristic');
   }
 
   const sample = new TrackerSample();
@@ -201,12 +193,12 @@ async function main(): Promise<void> {
     }
     hook.inXR = renderer.xr.isPresenting;
     $('try-hint').hidden = hook.mode !== 'idle' || emulated;
-    if (recording) recorder.add(sample);
+    recorder.add(sample);
     drive.update(sample, fixedDt || undefined);
     room.update(fixedDt || realDt);
     timer.add(drive.lastUpdateMs);
     const tr = drive.trackers;
-    [tr.left, tr.right].forEach((view, k) => (markers[k].position.fromArray(view.position), markers[k].quaternion.fromArray(view.rotation), (markers[k].visible = tr.status[k ? RIGHT : LEFT] === 0)));
+    markers.update(tr);
     const root = character.root;
     if (!hook.inXR) spectator.follow(root.x, root.z, fixedDt || realDt);
     stage.grid.follow(root.x, root.z);
@@ -218,29 +210,35 @@ async function main(): Promise<void> {
     hook.frames++;
     [hook.head[0], hook.head[1]] = drive.headFloor;
     [hook.hmd[0], hook.hmd[1], hook.hmd[2]] = tr.head.position;
-    [hook.root[0], hook.root[1], hook.root[2], hook.rootYaw, hook.bodyYaw] = [root.x, root.y, root.z, root.yaw, drive.yaw];
-    hook.predictor = drive.predictor.name;
-    if (network) [hook.predictorRuns, hook.predictorSkipped, hook.predictorFailures, hook.yawModel] = [network.runs, network.skipped, network.failures + (network.fewer?.failures ?? 0), network.source];
+    [hook.root[0], hook.root[1], hook.root[2]] = [root.x, root.y, root.z];
+    [hook.rootYaw, hook.bodyYaw, hook.predictor] = [root.yaw, drive.yaw, drive.predictor.name];
+    const net = yaw.network;
+    if (net) [hook.predictorRuns, hook.predictorSkipped, hook.yawModel] = [net.runs, net.skipped, net.source];
+    if (net) hook.predictorFailures = net.failures + (net.fewer?.failures ?? 0);
     hook.hipsHeight = hips ? hips.matrixWorld.elements[13] : NaN;
     const scale = character.object3d.scale.x;
-    [hook.toeHeights[0], hook.toeHeights[1]] = character.avatar ? character.avatar.toeHeights.map((h) => h * scale) : [NaN, NaN];
+    const toes = character.avatar?.toeHeights ?? [NaN, NaN];
+    [hook.toeHeights[0], hook.toeHeights[1]] = [toes[0] * scale, toes[1] * scale];
     hook.hipsDrop = drive.hipsDrop;
     if (drive.upperBody) [hook.handErrors[0], hook.handErrors[1]] = drive.upperBody.handError;
-    [hook.trackerStatus[0], hook.trackerStatus[1], hook.trackerStatus[2]] = [tr.status[0], tr.status[LEFT], tr.status[RIGHT]];
+    [hook.trackerStatus[0], hook.trackerStatus[1]] = [tr.status[0], tr.status[LEFT]];
+    hook.trackerStatus[2] = tr.status[RIGHT];
     if (drive.upperBody) for (let k = 0; k < 6; k++) hook.hands[k] = drive.upperBody.handPositions[k];
     const devices = deviceSetName(tr.status, sample.hand);
     if (devices !== hook.deviceSet) $('devices').textContent = hook.deviceSet = devices;
     hook.updateMs.last = drive.lastUpdateMs;
     if (hook.frames % 30 === 0) {
       [hook.updateMs.median, hook.updateMs.p95] = [timer.median(), timer.quantile(0.95)];
-      const ratio = Number.isFinite(hook.eyeHeight) ? ` · height ${(tr.head.position[1] / hook.eyeHeight).toFixed(2)}` : '';
+      const height = tr.head.position[1] / hook.eyeHeight;
+      const ratio = Number.isFinite(hook.eyeHeight) ? ` · height ${height.toFixed(2)}` : '';
       const bench = hook.bench ? ` · bench median ${hook.bench.median.toFixed(3)} ms` : '';
-      $('hud').textContent = `${hook.mode} · frame ${hook.frames} · VR update ${hook.updateMs.median.toFixed(2)} ms${network ? ` · model runs ${network.runs}` : ''}${ratio}${bench}`;
+      const [update, runs] = [hook.updateMs.median.toFixed(2), net ? ` · model runs ${net.runs}` : ''];
+      $('hud').textContent = `${hook.mode} · frame ${hook.frames} · VR update ${update} ms${runs}${ratio}${bench}`;
     }
     if (!hook.ready) {
       performance.mark('mm:first-frame');
       // After the first frame: the network and onnxruntime (in parallel), then the offline cache.
-      void loadNetwork().then(() => registerOfflineCache());
+      void yaw.load().then(() => registerOfflineCache());
     }
     hook.ready = true;
   });
