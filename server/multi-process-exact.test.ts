@@ -74,14 +74,14 @@ async function run(list: Person[], frames: number): Promise<void> {
 }
 
 /** Largest root distance (m) and yaw error (rad) of `viewer`'s drawn copy of `sender`, matched by sender time, from trace row `from` on. */
-function errors(viewer: Person, sender: Person, from = 0): { n: number; d: number; yaw: number; first: number } {
+function errors(viewer: Person, sender: Person, from = 0, to?: number): { n: number; d: number; yaw: number; first: number } {
   const id = sender.session.client.memberId;
   const sent = new Map(sender.session.trace.sent.filter((r) => r[0] === id).map((r) => [r[1], r]));
   let n = 0;
   let d = 0;
   let yaw = 0;
   let first = NaN;
-  for (const s of viewer.session.trace.shown.slice(from)) {
+  for (const s of viewer.session.trace.shown.slice(from, to)) {
     const r = sent.get(s[1]);
     if (s[0] !== id || !r) continue;
     const e = Math.hypot(s[2] - r[2], s[3] - r[3]);
@@ -190,20 +190,42 @@ describe('RoomSession across room server processes (real WASM, real NATS)', () =
     }
     console.log(`after SIGKILL: everyone sees everyone again (new ids, ghosts gone) after ${seenAt.toFixed(0)} ms`);
     expect(seenAt).toBeLessThan(5000);
+    // Exact again: every copy computing its sender's own floats (placed by the sender's runtime
+    // state). Three members rejoining at once ask everyone for it within a second, and a member
+    // sends it at most once a second, so on a loaded machine a copy may first be shown from the
+    // snapshot alone — close, not exact — until the runtime state comes (docs/rooms.md).
+    const allExact = () => people.every((p) => [...p.session.members.values()].every((m) => !m.remote || m.remote.exact));
+    while (performance.now() - t0 < 15_000 && !allExact()) await run(people, 1);
+    const exactAt = performance.now() - t0;
+    console.log(`after SIGKILL: every copy exact again after ${exactAt.toFixed(0)} ms`);
+    expect(allExact()).toBe(true);
+    expect(exactAt).toBeLessThan(5000);
+    const exactFrom = new Map(people.map((p) => [p, p.session.trace.shown.length]));
     await run(people, 120);
-    let worst = 0;
-    let rows = 0;
-    for (const g of groups)
-      for (const viewer of g)
-        for (const sender of g) {
-          if (viewer === sender) continue;
-          const e = errors(viewer, sender, traceFrom.get(viewer));
-          rows += e.n;
-          worst = Math.max(worst, e.d, e.yaw);
-        }
-    console.log(`after failover: ${rows} drawn messages matched, worst root/yaw error ${(worst * 1000).toFixed(3)} mm/mrad`);
-    expect(rows).toBeGreaterThan(9 * 2 * 30);
-    expect(worst).toBeLessThan(0.001);
+    const worst = (from: Map<Person, number>, to?: Map<Person, number>) => {
+      let w = 0;
+      let rows = 0;
+      for (const g of groups)
+        for (const viewer of g)
+          for (const sender of g) {
+            if (viewer === sender) continue;
+            const e = errors(viewer, sender, from.get(viewer), to?.get(viewer));
+            rows += e.n;
+            w = Math.max(w, e.d, e.yaw);
+          }
+      return { w, rows };
+    };
+    const before = worst(traceFrom, exactFrom);
+    const after = worst(exactFrom);
+    console.log(
+      `after failover: until every copy was exact ${before.rows} drawn messages, worst root/yaw error ${(before.w * 1000).toFixed(3)} mm/mrad; ` +
+        `from then ${after.rows} drawn messages matched, worst ${(after.w * 1000).toFixed(3)} mm/mrad`,
+    );
+    // Until then a copy shown is where the snapshot put it and the sender's steps took it:
+    // centimetres (up to 5.7 cm measured in room-session.test.ts, docs/rooms.md).
+    expect(before.w).toBeLessThan(0.1);
+    expect(after.rows).toBeGreaterThan(9 * 2 * 30);
+    expect(after.w).toBeLessThan(0.001);
     expect(front.exits.some((e) => e.pid === victim.pid && e.signal === 'SIGKILL')).toBe(true);
   }, 180_000);
 
