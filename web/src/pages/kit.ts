@@ -17,11 +17,11 @@ export { createMirror } from '../views/mirror.ts';
 export { ControllerMarkers } from '../views/controller-markers.ts';
 
 // Page helpers.
-export { droppedDatabase, installDropTarget, sortDroppedFiles } from '../ui/drop.ts';
+export { droppedDatabase, installDropTarget } from '../ui/drop.ts';
 export type { DroppedFiles } from '../ui/drop.ts';
 export { showError } from '../ui/error-box.ts';
 export { catchPageErrors } from '../ui/page-errors.ts';
-export { LoadingStatus, describeProgress, shortUrl } from '../ui/loading-status.ts';
+export { LoadingStatus } from '../ui/loading-status.ts';
 export { loadPageCharacter } from '../ui/page-loader.ts';
 export type { PageCharacter, PageCharacterOptions } from '../ui/page-loader.ts';
 export { addSettingsFolders, setOptions } from '../ui/settings-gui.ts';
@@ -34,7 +34,5 @@ export { benchSearch } from '../bench/search-bench.ts';
 export type { MethodTiming, SearchBenchOptions, SearchBenchResult } from '../bench/search-bench.ts';
 export { benchRuntime } from '../bench/runtime-bench.ts';
 export type { RuntimeBenchResult } from '../bench/runtime-bench.ts';
-export { realisticQueries, seededRandom } from '../bench/queries.ts';
-export type { BenchQuery } from '../bench/queries.ts';
 // Fetching with progress and the error text the pages show.
 export { errorMessage, fetchBytes } from '../fetch.ts';
