@@ -10,13 +10,14 @@ export class ControllerMarkers {
     return new THREE.Mesh(new THREE.BoxGeometry(0.04, 0.04, 0.12), material);
   });
 
-  /** Moves the boxes to the trackers' grip poses. */
+  /** Moves the boxes to the trackers' grip poses (every frame: no array or closure made). */
   update(trackers: TrackerState): void {
-    [trackers.left, trackers.right].forEach((view, k) => {
+    for (let k = 0; k < 2; k++) {
+      const view = k ? trackers.right : trackers.left;
       const marker = this.meshes[k];
       marker.position.fromArray(view.position);
       marker.quaternion.fromArray(view.rotation);
       marker.visible = trackers.status[k ? RIGHT : LEFT] === TRACKED;
-    });
+    }
   }
 }

@@ -255,7 +255,7 @@ impl Legs {
             // body hop. While the other foot is in the air on a step, this one holds its lock
             // whatever the drift (the step lands within `ik::STEP_TIME`), so the steps take turns:
             // releasing then meant sliding the whole way back under a body that starts faster than
-            // the data can (the quality harness's stop-and-go: 17.0 → 3.4 cm/s).
+            // the data can (the quality harness's stop-and-go, five-run median: 16.0 → 4.0 cm/s).
             let other = &self.locks[1 - side];
             let stepping = airborne[1 - side];
             let radius = if stepping { f32::INFINITY } else { radius };
