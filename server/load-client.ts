@@ -8,7 +8,16 @@
 import { WebSocket } from 'ws';
 import { InputStream } from '../web/src/rooms/input-stream.ts';
 import { LocalAvatar } from '../web/src/rooms/local-avatar.ts';
-import { createRoomId, decodeServerMessage, encodeJoin, MsgType, websocketFrameOverhead, type RoomTrackerPose } from '../web/src/rooms/protocol.ts';
+import {
+  BATCH_ENTRY_BYTES,
+  BATCH_HEADER_BYTES,
+  createRoomId,
+  decodeServerMessage,
+  encodeJoin,
+  MsgType,
+  websocketFrameOverhead,
+  type RoomTrackerPose,
+} from '../web/src/rooms/protocol.ts';
 import { TestCharacter } from '../web/src/rooms/testing.ts';
 
 function arg(name: string, fallback: number): number;
@@ -144,30 +153,28 @@ function openOnce(index: number): Promise<void> {
     ws.on('open', () => {
       ws.send(encodeJoin({ name: `load ${index}`, avatar: { kind: 'builtin', id: index % 4 }, database: 'locomotion', height: vr ? 1.65 : 0, mode: vr ? 'vr' : 'desktop', devices: vr ? { headset: true, leftController: true, rightController: true } : { keyboard: true } }));
     });
-    ws.on('message', (data: Buffer) => {
-      const now = performance.now();
-      if (data[1] === MsgType.relay) {
-        // Hot path: header only. [1, 0x83, from, 1, type, seq u32 …]
-        const from = data[2];
-        const seq = data.readUInt32LE(5);
-        const sender = byRoomAndId.get(`${room}:${from}`);
-        if (sender && seq >= sender.firstSeq) c.received[sender.index]++;
-        if (measuring && sender) {
-          const sent = sender.sentAt[seq % RING];
-          if (sent > 0) {
-            const ms = now - sent;
-            const b = Math.floor(ms / HIST_BUCKET_MS);
-            if (b < histogram.length) histogram[b]++;
-            else latencyOverflow++;
-            latencySamples++;
-          }
-          const key = sender.vr ? 'vr' : 'desktop';
-          c.downBytes[key] += data.length + websocketFrameOverhead(data.length, false);
+    // One relay: count it, time it, and charge its bytes (`wire`: its share of the frame).
+    const relayed = (data: Buffer, o: number, wire: number, now: number) => {
+      // Header only: [version, 0x83, from, version, type, seq u32 …]
+      const from = data[o + 2];
+      const seq = data.readUInt32LE(o + 5);
+      const sender = byRoomAndId.get(`${room}:${from}`);
+      if (sender && seq >= sender.firstSeq) c.received[sender.index]++;
+      if (measuring && sender) {
+        const sent = sender.sentAt[seq % RING];
+        if (sent > 0) {
+          const ms = now - sent;
+          const b = Math.floor(ms / HIST_BUCKET_MS);
+          if (b < histogram.length) histogram[b]++;
+          else latencyOverflow++;
+          latencySamples++;
         }
-        return;
+        c.downBytes[sender.vr ? 'vr' : 'desktop'] += wire;
       }
+    };
+    const other = (bytes: Uint8Array) => {
       try {
-        const m = decodeServerMessage(new Uint8Array(data.buffer, data.byteOffset, data.byteLength));
+        const m = decodeServerMessage(bytes);
         if (m.type === 'welcome') {
           c.memberId = m.memberId;
           c.joined = true;
@@ -178,6 +185,28 @@ function openOnce(index: number): Promise<void> {
         } else if (m.type === 'stateRequest') c.stream.queueState();
       } catch {
         c.errors++;
+      }
+    };
+    ws.on('message', (data: Buffer) => {
+      const now = performance.now();
+      const frame = data.length + websocketFrameOverhead(data.length, false);
+      if (data[1] === MsgType.relay) return relayed(data, 0, frame, now);
+      if (data[1] !== MsgType.batch) return other(new Uint8Array(data.buffer, data.byteOffset, data.byteLength));
+      // A batch, walked in place (the hot path: no views made for relays). Each relay is charged its
+      // bytes, its length prefix and an equal share of the batch's header and frame.
+      let count = 0;
+      for (let o = BATCH_HEADER_BYTES; o + BATCH_ENTRY_BYTES <= data.length; o += BATCH_ENTRY_BYTES + data.readUInt16LE(o)) count++;
+      const share = (frame - data.length + BATCH_HEADER_BYTES) / Math.max(1, count);
+      for (let o = BATCH_HEADER_BYTES; o + BATCH_ENTRY_BYTES <= data.length; ) {
+        const n = data.readUInt16LE(o);
+        const at = o + BATCH_ENTRY_BYTES;
+        if (n < 2 || at + n > data.length) {
+          c.errors++;
+          return;
+        }
+        if (data[at + 1] === MsgType.relay) relayed(data, at, n + BATCH_ENTRY_BYTES + share, now);
+        else other(new Uint8Array(data.buffer, data.byteOffset + at, n));
+        o = at + n;
       }
     });
     ws.on('close', () => {

@@ -15,9 +15,11 @@ import type { Server as HttpsServer } from 'node:https';
 import type { Duplex } from 'node:stream';
 import { WebSocketServer, type RawData, type WebSocket } from 'ws';
 import {
+  BATCH_ENTRY_BYTES,
   CloseCode,
   createRoomId,
   decodeClientMessage,
+  encodeBatch,
   encodeError,
   encodeMemberJoined,
   encodeMemberLeft,
@@ -37,6 +39,9 @@ import {
 import { ContentJudge, DEFAULT_CONTENT_LIMITS, type ContentCause, type ContentLimits } from './content.ts';
 import { DEFAULT_LIMITS, TokenBucket, type RateLimits } from './rate-limit.ts';
 import { BusKind, encodeMembers, NatsBus, type BusMember, type NatsBusOptions } from './rooms-nats.ts';
+
+/** The largest BATCH frame the server writes (a message alone may be larger: a STATE is ≤ 16 KB). */
+const MAX_BATCH_BYTES = 64 * 1024;
 
 export interface RoomsOptions {
   /** URL prefix; rooms live at `${path}/<id>`. Default `/rooms`. */
@@ -105,6 +110,8 @@ export interface RoomsStats {
   /** Relayed/sent messages and bytes (payload, all recipients counted). */
   messagesOut: number;
   bytesOut: number;
+  /** WebSocket frames sent: a frame carries one message or a BATCH of those queued in one turn. */
+  framesOut: number;
   /** Relays skipped because the recipient's queue was over `softBufferBytes`. */
   skippedSlow: number;
   /** Connections closed by the server, by close code. */
@@ -169,6 +176,9 @@ interface Connection {
   content: ContentJudge | null;
   /** Content refusals warned about (once per cause). */
   warned: Set<string>;
+  /** Messages for it queued in this turn of the event loop (sent together by `flush`). */
+  outbox: Uint8Array[];
+  outboxBytes: number;
 }
 
 /** A member held by another process (with `nats`). */
@@ -225,6 +235,7 @@ export function attachRooms(server: HttpServer | HttpsServer, options: RoomsOpti
     messagesIn: 0,
     bytesIn: 0,
     messagesOut: 0,
+    framesOut: 0,
     bytesOut: 0,
     skippedSlow: 0,
     dropped: {},
@@ -380,6 +391,8 @@ export function attachRooms(server: HttpServer | HttpsServer, options: RoomsOpti
       backlog: [],
       content: o.content ? new ContentJudge(o.content, t) : null,
       warned: new Set(),
+      outbox: [],
+      outboxBytes: 0,
     };
     room.connections.add(c);
     connections.add(c);
@@ -408,21 +421,75 @@ export function attachRooms(server: HttpServer | HttpsServer, options: RoomsOpti
     });
   };
 
+  // Sends are queued per receiver and written once per turn of the event loop (setImmediate runs
+  // right after the turn's I/O callbacks: no timer, no added wait). What arrived in one turn for
+  // one receiver leaves as one frame — a BATCH when it is several messages. Under load a turn
+  // holds many senders' messages, and a frame, not its bytes, is what costs the server a write
+  // and the receiver an event (docs/rooms.md "Batches").
+  const queued = new Set<Connection>();
+  let flushing = false;
   const send = (c: Connection, bytes: Uint8Array) => {
     const ws = c.ws;
     if (ws.readyState !== ws.OPEN) return;
-    const queued = ws.bufferedAmount;
-    if (queued > o.hardBufferBytes) {
+    const backlog = ws.bufferedAmount + c.outboxBytes;
+    if (backlog > o.hardBufferBytes) {
       drop(c, CloseCode.tooSlow, 'too slow: send queue over limit', 'dropped');
       return;
     }
-    if (queued > o.softBufferBytes) {
+    if (backlog > o.softBufferBytes) {
       stats.skippedSlow++;
       return;
     }
-    ws.send(bytes);
+    c.outbox.push(bytes);
+    c.outboxBytes += bytes.length;
+    queued.add(c);
     stats.messagesOut++;
     stats.bytesOut += bytes.length;
+    if (!flushing) {
+      flushing = true;
+      setImmediate(flushAll);
+    }
+  };
+
+  /** Writes what is queued for `c`: one frame per message alone, else batches of ≤ 64 KiB. */
+  const flush = (c: Connection) => {
+    const box = c.outbox;
+    const ws = c.ws;
+    queued.delete(c);
+    if (box.length === 0) return;
+    try {
+      if (ws.readyState !== ws.OPEN) return;
+      if (box.length === 1) {
+        ws.send(box[0]);
+        stats.framesOut++;
+        return;
+      }
+      let from = 0;
+      let bytes = 0;
+      for (let i = 0; i <= box.length; i++) {
+        if (i === box.length || (i > from && bytes + BATCH_ENTRY_BYTES + box[i].length > MAX_BATCH_BYTES)) {
+          ws.send(i - from === 1 ? box[from] : encodeBatch(box.slice(from, i), bytes - (i - from) * BATCH_ENTRY_BYTES));
+          stats.framesOut++;
+          from = i;
+          bytes = 0;
+        }
+        if (i < box.length) bytes += BATCH_ENTRY_BYTES + box[i].length;
+      }
+    } finally {
+      box.length = 0;
+      c.outboxBytes = 0;
+    }
+  };
+
+  const flushAll = () => {
+    flushing = false;
+    for (const c of queued) {
+      try {
+        flush(c);
+      } catch (e) {
+        internal('flush', e, c);
+      }
+    }
   };
 
   const broadcast = (room: Room, from: Connection | null, bytes: Uint8Array) => {
@@ -469,6 +536,7 @@ export function attachRooms(server: HttpServer | HttpsServer, options: RoomsOpti
         ws.terminate(); // a silent peer would not answer a close handshake
         return;
       }
+      flush(c); // what was queued for it goes first, in order
       if (ws.readyState === ws.OPEN) ws.send(encodeError(code, reason));
       ws.close(code, reason.slice(0, 120));
       // Do not wait the close handshake's 30 s for a hostile peer.

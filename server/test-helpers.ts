@@ -8,6 +8,7 @@ import {
   encodeState,
   quantizeTrackedStep,
   decodeServerMessage,
+  unbatch,
   encodeJoin,
   encodeMove,
   quantizeMoveStep,
@@ -84,6 +85,8 @@ export function stateBytes(seq: number, rootX: number, restart = true): Uint8Arr
 export class TestClient {
   readonly messages: ServerMessage[] = [];
   readonly decodeErrors: string[] = [];
+  /** WebSocket frames received (a BATCH is one frame of several messages). */
+  frames = 0;
   closed: { code: number; reason: string; at: number } | null = null;
   memberId = 0;
   private waiters: (() => void)[] = [];
@@ -92,9 +95,12 @@ export class TestClient {
     ws.binaryType = 'nodebuffer';
     ws.on('message', (data: Buffer) => {
       try {
-        const m = decodeServerMessage(new Uint8Array(data.buffer, data.byteOffset, data.byteLength));
-        if (m.type === 'welcome') this.memberId = m.memberId;
-        this.messages.push(m);
+        this.frames++;
+        for (const part of unbatch(new Uint8Array(data.buffer, data.byteOffset, data.byteLength))) {
+          const m = decodeServerMessage(part);
+          if (m.type === 'welcome') this.memberId = m.memberId;
+          this.messages.push(m);
+        }
       } catch (e) {
         this.decodeErrors.push(String(e));
       }

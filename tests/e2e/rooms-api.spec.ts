@@ -9,9 +9,9 @@
 //   (4007); each page's error box shows at most one line about it.
 // - A third page's main thread is blocked for 8 s right after it opens its room socket (a page
 //   busy loading): it is not dropped (the server's join timeout gives an open socket 30 s, however
-//   busy its page; Chromium does not even read pings while the page is blocked) and it shows the
-//   two others after resuming (the time is logged with the page's own steps: software WebGL makes
-//   this page slow after resuming, not the room).
+//   busy its page; Chromium does not even read pings while the page is blocked), keeps its one
+//   socket, and shows the two others within 10 s of resuming (2.7-4.8 s here; the time is logged
+//   with the page's own steps).
 import { expect, test, type Browser, type BrowserContext, type Page } from '@playwright/test';
 import { WebSocket as NodeWebSocket } from 'ws';
 import { createMoveStep, createRoomId, CloseCode, encodeJoin, encodeMove, encodePath, encodeState, quantizeMoveStep, quantizeTrackedStep } from '../../web/src/rooms/protocol.ts';
@@ -208,16 +208,15 @@ test('room API lists the others where they are in two browsers; a flood shows at
   if (cyNotes.length) console.log(`Cy's notes: ${cyNotes.join(' | ')}`);
   console.log(`Cy: blocked 8 s after opening its socket; ${sockets} room socket(s) in all; shows Ada and Bo ${seenAfter.toFixed(0)} ms after resuming (the page's own clock, checked every 10 ms; ms after resuming: ${JSON.stringify(steps)})`);
   expect(t.resumedAt).toBeGreaterThan(0);
-  // NOT MET YET (issue 26 asks for one socket and the others within 2 s of resuming): with the
-  // server's join and idle clocks now waiting for the page (30 s to JOIN, the idle clock from
-  // when its WELCOME was read), this page still reconnected once in the last runs (2–3 sockets;
-  // closed below 4000, so no note says why) and showed the others 30–53 s after resuming, most of
-  // it its own software-WebGL start and avatar loads (the steps above). Logged, not asserted, so
-  // the suite stays green; see the branch's report.
-  expect(sockets).toBeGreaterThanOrEqual(1);
-  // Issue 26 asks for 2 s; here the page itself needs seconds after resuming (its first software-
-  // WebGL frame, then loading and cloning the others' avatars): the timeline above says where.
-  // What the server controls — not dropping it — is asserted; the time is bounded loosely.
-  expect(seenAfter).toBeLessThan(30_000);
+  // One socket: the server's join and idle clocks wait for the page (30 s to JOIN; the idle
+  // clock from when its WELCOME was read).
+  expect(sockets).toBe(1);
+  // Issue 26 asks for 2 s. Here 2.7-4.8 s (was 14-18 s): after resuming the page still draws a
+  // software-GPU frame before it reads its socket, sends its JOIN, and waits for the others' pages
+  // (themselves software-rendered on the same two cores) to answer with their runtime states — the
+  // copies are shown exact or not at all. What the page did before: a second avatar download,
+  // parse and texture upload per room, its debug views rebuilt on the welcome and seven shaders
+  // compiled after resuming. Bounded with room for a loaded machine; the timeline above says where.
+  expect(seenAfter).toBeLessThan(10_000);
   expect((await list(cy)).map((m) => m.name).sort()).toEqual(['Ada', 'Bo']);
 });

@@ -119,3 +119,38 @@ describe('Character with the shipped avatar', () => {
     expect(liveObjects().retargeters).toBe(before.retargeters);
   });
 });
+
+describe('Avatar.clone (a shared room shows others with the page own model)', () => {
+  it('is at rest however the original is posed, finds the same roles, shares geometry and materials, and frees them with the last user', async () => {
+    const avatar = await Avatar.load(glbScene(GLB), { name: 'ubc_male' });
+    const character = new Character(db.retain(), avatar);
+    for (let step = 0; step < 90; step++) (character.setMove(0.5, 1), character.update(1 / 60));
+    const posed = avatar.bones.map((b) => b.quaternion.clone());
+    const copy = avatar.clone();
+    // The original keeps its pose; the copy has the rest pose of a fresh load.
+    avatar.bones.forEach((b, i) => expect(b.quaternion.equals(posed[i])).toBe(true));
+    const fresh = await Avatar.load(glbScene(GLB), { name: 'ubc_male' });
+    // (Components, not angleTo: its acos near 1 turns float32 rounding into 5e-4 rad.)
+    copy.bones.forEach((b, i) => b.quaternion.toArray().forEach((v, k) => expect(Math.abs(v - fresh.bones[i].quaternion.toArray()[k])).toBeLessThan(1e-6)));
+    // The posed original differs from rest (the check above can fail).
+    expect(avatar.bones.some((b, i) => b.quaternion.angleTo(fresh.bones[i].quaternion) > 0.05)).toBe(true);
+    expect([...copy.roles]).toEqual([...avatar.roles]);
+    expect(copy.standingToeHeight).toBeCloseTo(fresh.standingToeHeight, 6);
+    const meshes = (a: Avatar) => {
+      const out: THREE.SkinnedMesh[] = [];
+      a.object.traverse((o) => (o as THREE.SkinnedMesh).isSkinnedMesh && out.push(o as THREE.SkinnedMesh));
+      return out;
+    };
+    const [mine, theirs] = [meshes(avatar), meshes(copy)];
+    expect(theirs.length).toBe(mine.length);
+    theirs.forEach((m, i) => (expect(m.geometry).toBe(mine[i].geometry), expect(m.material).toBe(mine[i].material)));
+    let disposed = 0;
+    mine[0].geometry.addEventListener('dispose', () => disposed++);
+    copy.dispose();
+    copy.dispose(); // twice is once
+    expect(disposed).toBe(0); // the original still draws them
+    character.dispose(); // disposes the original avatar: the last user
+    expect(disposed).toBe(1);
+    fresh.dispose();
+  });
+});

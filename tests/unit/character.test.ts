@@ -133,6 +133,22 @@ describe('Character (the public API)', () => {
     expect(shared.isFreed).toBe(true);
   });
 
+  it('restartRuntime keeps the debug views (a page’s choice of what to show, their compiled materials) and draws the new runtime', () => {
+    const c = new Character(Database.fromBytes(DB, 'debug'), null, { debug: true });
+    const views = c.debugViews!;
+    views.matched.object.visible = false;
+    c.setMove(0, 1);
+    for (let i = 0; i < 60; i++) c.update(1 / 60);
+    c.restartRuntime();
+    expect(c.debugViews).toBe(views);
+    expect(views.matched.object.visible).toBe(false);
+    c.setMove(1, 0);
+    for (let i = 0; i < 30; i++) c.update(1 / 60); // would throw on a freed runtime
+    const s = c.runtime.simulation;
+    expect([views.simulation.position.x, views.simulation.position.z]).toEqual([s[0], s[2]]);
+    c.dispose();
+  });
+
   it('walkTo reaches its target within α in the frame of object3d’s parent, however object3d is placed', () => {
     const c = new Character(db.retain(), null);
     try {

@@ -8,6 +8,7 @@
 import * as THREE from 'three';
 import { type GLTF, GLTFLoader } from 'three/addons/loaders/GLTFLoader.js';
 import { MeshoptDecoder } from 'three/addons/libs/meshopt_decoder.module.js';
+import { clone as cloneSkinned } from 'three/addons/utils/SkeletonUtils.js';
 import { type VRM, VRMLoaderPlugin, VRMUtils } from '@pixiv/three-vrm';
 import type { CharacterRuntime } from '../core/character.ts';
 import type { Database } from '../core/database.ts';
@@ -70,8 +71,18 @@ export class Avatar {
   private readonly grounding: Grounding;
   private readonly toes: (number | undefined)[];
   private retargeter: Retargeter | null = null;
+  /** Avatars sharing these geometries, materials and textures (`clone`): the last one disposed frees them. */
+  private readonly assets: { users: number };
+  private disposed = false;
 
-  private constructor(root: THREE.Object3D, name: string, vrm: VRM | undefined, overrides: RoleOverrides | undefined) {
+  private constructor(
+    root: THREE.Object3D,
+    name: string,
+    vrm: VRM | undefined,
+    private readonly overrides: RoleOverrides | undefined,
+    assets = { users: 1 },
+  ) {
+    this.assets = assets;
     this.object = root;
     this.name = name;
     this.vrm = vrm;
@@ -226,10 +237,35 @@ export class Avatar {
     this.grounding.update(this.toeHeights[0], this.toeHeights[1], runtime.contacts, dt);
   }
 
-  /** Frees the retargeting and GPU resources; remove `object` from its scene first. */
+  /**
+   * A second avatar of the same model, at rest, sharing this one's geometries, materials and
+   * textures: nothing is downloaded, parsed, uploaded or compiled again (a shared room shows
+   * several people with the page's own avatar; on a software GPU each new material is a shader
+   * compile of a second or more). The shared resources are freed with the last of them. Not for
+   * VRM models (their extras need a load of their own: use `Avatar.load`).
+   */
+  clone(): Avatar {
+    if (this.vrm) throw new Error(`${this.name}: a VRM model is not cloned; load it again`);
+    const posed = this.bones.map((b) => [b.position.clone(), b.quaternion.clone()] as const);
+    this.resetToRest();
+    let copy: Avatar;
+    try {
+      copy = new Avatar(cloneSkinned(this.object), this.name, undefined, this.overrides, this.assets);
+    } finally {
+      this.bones.forEach((b, i) => (b.position.copy(posed[i][0]), b.quaternion.copy(posed[i][1])));
+      this.object.updateMatrixWorld(true);
+    }
+    this.assets.users++;
+    return copy;
+  }
+
+  /** Frees the retargeting and GPU resources (shared ones with the last `clone`); remove `object` from its scene first. */
   dispose(): void {
     this.retargeter?.free();
     this.retargeter = null;
+    if (this.disposed) return;
+    this.disposed = true;
+    if (--this.assets.users > 0) return;
     this.object.traverse((o) => {
       const m = o as THREE.Mesh;
       if (!m.isMesh) return;

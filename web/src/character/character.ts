@@ -240,9 +240,9 @@ export class Character {
     const old = this.runtime;
     this.runtime_ = new CharacterRuntime(old.database, old.settings());
     old.free();
-    const debug = this.debug;
-    this.debug = false;
-    this.debug = debug;
+    // The debug views stay (same database, same trajectory sizes): rebuilding them would drop a
+    // page's choice of which to show, and their materials' programs (a compile each, seconds in
+    // all on a software GPU, when a room's welcome restarts the runtime).
   }
 
   /**
@@ -560,7 +560,7 @@ export class Character {
       const c = runtime.contacts;
       this.skeletonView.update(runtime.worldPositions, (c & 1) !== 0, (c & 2) !== 0);
     }
-    this.debugViews_?.update();
+    this.debugViews_?.update(this.runtime);
   }
 
   // ---- reading

@@ -17,9 +17,12 @@ import {
   encodeState,
   encodeTracked,
   encodeWelcome,
+  encodeBatch,
   MAX_PATH_COORD,
+  PROTOCOL_VERSION,
   ProtocolError,
   quantizeMoveStep,
+  unbatch,
   quantizeTrackedStep,
   type ClientMessage,
 } from './protocol.ts';
@@ -56,6 +59,8 @@ it('200,000 mutated or random inputs: a valid message or a ProtocolError, nothin
     encodeState({ seq: 5, time: 250, frame: 9, rootX: 1, rootZ: 2, rootYaw: 1, drive: 'tracked', pathTime: 0, scale: 1, alpha: 0.2, move: step, tracked }),
   ];
   const server = [encodeWelcome(3, 16, [{ id: 1, join }]), encodeMemberJoined(2, join), encodeRelay(2, client[2]), encodeSnapshot(2, client[4], client[3])];
+  const relays = [encodeRelay(2, client[1]), encodeRelay(3, client[2])];
+  server.push(encodeBatch(relays, relays[0].length + relays[1].length));
   let valid = 0;
   let rejected = 0;
   for (let i = 0; i < 200_000; i++) {
@@ -69,13 +74,15 @@ it('200,000 mutated or random inputs: a valid message or a ProtocolError, nothin
       if (how === 1) b = b.subarray(0, int(b.length + 1));
       const flips = 1 + int(6);
       for (let k = 0; k < flips && b.length; k++) b[int(b.length)] = how === 2 ? int(256) : b[int(b.length)] ^ (1 << int(8));
-      if (how === 4 && b.length > 2) b[0] = 1; // keep the version, so the body's checks run
+      if (how === 4 && b.length > 2) b[0] = PROTOCOL_VERSION; // keep the version, so the body's checks run
     }
     try {
       if (fromServer) {
-        const m = decodeServerMessage(b);
-        expect(finiteEverywhere(m)).toBe(true);
-        if (m.type === 'relay') checkClient(m.message);
+        for (const part of unbatch(b)) {
+          const m = decodeServerMessage(part);
+          expect(finiteEverywhere(m)).toBe(true);
+          if (m.type === 'relay') checkClient(m.message);
+        }
       } else checkClient(decodeClientMessage(b));
       valid++;
     } catch (e) {

@@ -5,6 +5,7 @@ import {
   createRoomId,
   decodeClientMessage,
   decodeServerMessage,
+  encodeBatch,
   encodeError,
   encodeJoin,
   encodeMemberJoined,
@@ -31,6 +32,7 @@ import {
   STATE_BYTES,
   TRACKED_HEADER_BYTES,
   TRACKED_STEP_BYTES,
+  unbatch,
   unpackQuat,
   type JoinInfo,
   type MoveStep,
@@ -271,6 +273,35 @@ describe('server messages round trip', () => {
     // A relay may not smuggle a JOIN or a server message.
     expect(() => decodeServerMessage(encodeRelay(4, j))).toThrow(ProtocolError);
     expect(() => decodeServerMessage(encodeRelay(4, encodeStateRequest()))).toThrow(ProtocolError);
+  });
+});
+
+describe('batches', () => {
+  it('a batch splits into its messages, in order; anything else is one message', () => {
+    const move = encodeMove({ seq: 1, time: 0, rootX: 0, rootZ: 0, rootYaw: 0, steps: [moveStep(120, 0, 1, 0, 1)] });
+    const parts = [encodeRelay(4, move), encodeMemberLeft(9, 'timeout'), encodeStateRequest(), encodeRelay(5, move)];
+    const total = parts.reduce((n, p) => n + p.length, 0);
+    const batch = encodeBatch(parts, total);
+    expect(batch.length).toBe(2 + 2 * parts.length + total);
+    const split = unbatch(batch.buffer.slice(0) as ArrayBuffer);
+    expect(split.map((p) => Array.from(p))).toEqual(parts.map((p) => Array.from(p)));
+    expect(split.map((p) => decodeServerMessage(p).type)).toEqual(['relay', 'memberLeft', 'stateRequest', 'relay']);
+    const one = encodeRelay(4, move);
+    expect(unbatch(one)).toEqual([one]);
+    // decodeServerMessage names the mistake of decoding a batch whole.
+    expect(() => decodeServerMessage(batch)).toThrow(/unbatch/);
+  });
+
+  it('a batch whose lengths do not add up, that nests a batch, or is empty is refused whole', () => {
+    const parts = [encodeStateRequest(), encodeMemberLeft(2, 'closed')];
+    const batch = encodeBatch(parts, 6);
+    expect(() => unbatch(batch.subarray(0, batch.length - 1))).toThrow(/claims 4 bytes, 3 left/);
+    expect(() => unbatch(Uint8Array.from([...batch, 7]))).toThrow(/cut off/);
+    expect(() => unbatch(encodeBatch([batch], batch.length))).toThrow(/itself a batch/);
+    expect(() => unbatch(encodeBatch([], 0))).toThrow(/empty/);
+    const old = batch.slice();
+    old[0] = 3;
+    expect(() => unbatch(old)).toThrow(ProtocolError);
   });
 });
 

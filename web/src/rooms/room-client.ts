@@ -12,6 +12,7 @@ import { InputStream } from './input-stream.ts';
 import {
   CloseCode,
   decodeServerMessage,
+  unbatch,
   encodeJoin,
   isRoomId,
   MAX_RUNTIME_STATE_BYTES,
@@ -310,6 +311,17 @@ export class RoomClient {
       return;
     }
     this.traffic.receivedBytes += data.byteLength;
+    let parts: Uint8Array[];
+    try {
+      parts = unbatch(data);
+    } catch (e) {
+      this.emit('note', `dropped a server frame: ${e instanceof ProtocolError ? e.message : String(e)}`);
+      return;
+    }
+    for (const part of parts) this.onServerMessage(part, t);
+  }
+
+  private onServerMessage(data: Uint8Array, t: number): void {
     this.traffic.receivedMessages++;
     let m: ReturnType<typeof decodeServerMessage>;
     try {

@@ -12,7 +12,6 @@
  * database / the skeleton, with a note. Nothing from the room reaches the page as markup.
  */
 import * as THREE from 'three';
-import { clone as cloneSkinned } from 'three/addons/utils/SkeletonUtils.js';
 import { DEFAULT_AVATAR, assetUrl } from '../assets.ts';
 import { Avatar } from '../avatar/avatar.ts';
 import { Character, type CharacterStepper } from '../character/character.ts';
@@ -36,6 +35,12 @@ export interface RoomSessionOptions {
   character: Character;
   /** Where the other members' avatars go (the page's scene). */
   scene: THREE.Object3D;
+  /**
+   * The page's renderer, if it has one: the name labels' shader is compiled with it as the
+   * session starts, while the page waits for the room, instead of in the frame that first shows
+   * someone (a second or more on a software GPU; the models share the page's own programs).
+   */
+  renderer?: THREE.WebGLRenderer;
   mode: 'desktop' | 'vr';
   /** Shown above this person's avatar to the others (≤ 48 UTF-8 bytes). */
   name: string;
@@ -150,6 +155,7 @@ export class RoomSession {
   private pathVersion = -1;
   /** One loaded avatar per URL, cloned for each member who uses it (no second download, parse or texture decode). */
   private readonly templates = new Map<string, Promise<Avatar>>();
+  private warmLabel: NameLabel | null = null;
   /**
    * Other members' databases (a VR member plays `vr`, a desktop one `locomotion`), by id, each
    * fetched once from the asset folder: a copy replays its sender's inputs on the sender's
@@ -163,6 +169,14 @@ export class RoomSession {
 
   constructor(options: RoomSessionOptions) {
     this.o = options;
+    if (options.renderer) {
+      // Kept (not drawn) until close: disposing it would release the program it compiled.
+      this.warmLabel = new NameLabel('');
+      let root: THREE.Object3D = options.scene;
+      while (root.parent) root = root.parent;
+      options.renderer.compile(this.warmLabel.object, new THREE.PerspectiveCamera(), root instanceof THREE.Scene ? root : null);
+      options.renderer.getContext().flush(); // the GPU compiles while the page does other work
+    }
     const character = options.character;
     const database = options.database ?? (character.database.name.split('?')[0].split('/').pop() ?? '').replace(/\.mmdb$/, '');
     this.databaseId = /^[A-Za-z0-9._-]{1,64}$/.test(database) ? database : 'locomotion';
@@ -289,6 +303,7 @@ export class RoomSession {
     globalThis.removeEventListener?.('pagehide', this.onPageHide);
     setRoomOf(this.o.character, null);
     this.client.close();
+    this.warmLabel?.dispose();
     for (const id of [...this.members.keys()]) this.remove(id);
     for (const t of this.templates.values()) void t.then((a) => a.dispose(), () => undefined);
     this.templates.clear();
@@ -445,6 +460,10 @@ export class RoomSession {
   }
 
   private async avatarFor(url: string): Promise<Avatar> {
+    // The page's own avatar when it is the same model (the usual case: everyone on the built-in
+    // one): a clone shares its geometry, textures and shader programs.
+    const own = this.o.character.avatar;
+    if (own && !own.vrm && own.name === url) return own.clone();
     let template = this.templates.get(url);
     if (!template) {
       template = Avatar.load(url);
@@ -453,7 +472,7 @@ export class RoomSession {
     }
     const t = await template;
     // A VRM's extras (its humanoid, the VRM 0 turn) come with a load of its own.
-    return t.vrm ? Avatar.load(url) : Avatar.load(cloneSkinned(t.object), { name: t.name });
+    return t.vrm ? Avatar.load(url) : t.clone();
   }
 
   private feed(from: number, f: (m: Member) => void): void {

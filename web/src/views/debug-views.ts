@@ -79,7 +79,8 @@ export class DebugViews {
   readonly locks = new THREE.Group();
   private readonly lockRings: THREE.Mesh[];
 
-  constructor(private readonly runtime: CharacterRuntime) {
+  /** Sized for `runtime`'s trajectories; `update` takes the runtime to draw (a restarted one keeps the views). */
+  constructor(runtime: CharacterRuntime) {
     this.requested = new TrajectoryView(runtime.predictedPositions.length / 3, REQUESTED, 0.01);
     this.matched = new TrajectoryView(runtime.matchedTrajectory().length / 4, MATCHED, 0.012);
 
@@ -101,8 +102,7 @@ export class DebugViews {
   }
 
   /** Draws the runtime's state now (database units: put `object` where the character's pose is drawn). */
-  update(): void {
-    const runtime = this.runtime;
+  update(runtime: CharacterRuntime): void {
     if (this.simulation.visible) {
       const s = runtime.simulation;
       this.simulation.position.set(s[0], 0.008, s[2]);

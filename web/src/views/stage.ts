@@ -24,6 +24,11 @@ export class Stage {
     this.renderer = new THREE.WebGLRenderer({ antialias: options.antialias ?? true, preserveDrawingBuffer: true });
     this.renderer.setPixelRatio(Math.min(window.devicePixelRatio, 2));
     this.renderer.outputColorSpace = THREE.SRGBColorSpace;
+    // Set once, before anything is drawn: the shadow type is part of every lit material's program
+    // key, and three.js does not recompile a material already drawn when it changes — so a type
+    // set later (by enableShadows) gave every avatar loaded after it a second set of programs, each
+    // a compile (seconds on a software GPU) that a room's late joiner waited for.
+    this.renderer.shadowMap.type = THREE.PCFSoftShadowMap;
     container.appendChild(this.renderer.domElement);
 
     this.scene.background = new THREE.Color(0x1d2126);
@@ -68,7 +73,6 @@ export class Stage {
   /** Soft shadows of casters (meshes with `castShadow`) on the floor, in a box around `follow`'s point. */
   enableShadows(on: boolean): void {
     this.renderer.shadowMap.enabled = on;
-    this.renderer.shadowMap.type = THREE.PCFSoftShadowMap;
     this.sun.castShadow = on;
     if (on && !this.shadowCatcher) {
       const s = this.sun.shadow;

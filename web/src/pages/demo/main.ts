@@ -53,6 +53,7 @@ const params = new URLSearchParams(location.search);
 const el = document.createElement('mm-avatar');
 el.id = 'avatar';
 el.setAttribute('controls', 'keyboard gamepad');
+el.setAttribute('debug', ''); // the debug views exist (and are compiled) before the first frame
 el.setAttribute('alt', 'A motion-matched character; focus it and walk with WASD');
 if (params.get('db')) el.setAttribute('database', params.get('db')!);
 // A manual joint map (?roles=) applies when the page loads the avatar itself, below.
@@ -74,14 +75,8 @@ el.addEventListener('load', async () => {
   const stage = el.stage!;
   el.orbit!.controls.enableZoom = true; // a full page: the wheel zooms
   stage.camera.position.set(2.2, 1.7, 3.8);
-  const room = new RoomPanel({
-    character, scene: stage.scene, parent: document.getElementById('toolbar')!, mode: 'desktop', onNote: fileError,
-    trace: el.timeStep !== null,
-    avatar: avatarParam && avatarParam !== 'none' ? { kind: 'url', url: avatarParam } : undefined,
-  });
   const [skeleton, shadows] = [params.get('skeleton') === '1', params.get('shadows') !== '0'];
   const view = { mesh: true, skeleton, shadows, simulation: true, trajectory: true, matched: true, locks: true };
-  character.debug = true;
   const apply = () => {
     if (character.avatar) character.avatar.object.visible = view.mesh;
     character.showSkeleton = view.skeleton || !character.avatar || !view.mesh;
@@ -198,6 +193,13 @@ el.addEventListener('load', async () => {
       fileError(errorMessage(e)); // names the file (and line)
     }
   };
+  // ---- the room, joined once the scene is built (and its shaders sent to the GPU to compile)
+  stage.renderer.compile(stage.scene, stage.camera);
+  const room = new RoomPanel({
+    character, scene: stage.scene, renderer: stage.renderer, mode: 'desktop', onNote: fileError,
+    parent: document.getElementById('toolbar')!, trace: el.timeStep !== null,
+    avatar: avatarParam && avatarParam !== 'none' ? { kind: 'url', url: avatarParam } : undefined,
+  });
 
   // ---- per update: the hook and the HUD
   const hud = document.getElementById('hud')!;

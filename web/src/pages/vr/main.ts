@@ -84,7 +84,7 @@ async function main(): Promise<void> {
   });
   const room = (hook.room = new RoomPanel({
     character, scene: stage.scene, parent: $('toolbar'), mode: 'vr', trackers: drive.trackers, onNote: showError,
-    trace: fixedDt > 0,
+    trace: fixedDt > 0, renderer,
   }));
   const hips = character.avatar?.bone('hips') ?? null;
 
