@@ -28,5 +28,5 @@ export type { DrivenCharacter, PathInput } from './driven-character.ts';
 export { LocalAvatar } from './local-avatar.ts';
 export { RemoteAvatar, type RemoteAvatarOptions, type RemoteAvatarStats } from './remote-avatar.ts';
 export { measureBandwidth, type BandwidthOptions, type BandwidthResult } from './bandwidth.ts';
-export { CloseCode, LeaveReason, PROTOCOL_VERSION, ProtocolError, TICKS_PER_SECOND, createRoomId, decodeClientMessage, decodeServerMessage, isRoomId } from './protocol.ts';
+export { CloseCode, LeaveReason, PROTOCOL_VERSION, ProtocolError, TICKS_PER_SECOND, createRoomId, decodeClientMessage, decodeServerMessage, isRoomId, unbatch } from './protocol.ts';
 export type { AvatarChoice, ClientMessage, DeviceMode, DeviceSet, DriveMode, JoinInfo, LeaveReasonName, MemberInfo, MoveMessage, MoveStep, PathMessage, RoomTrackerPose, ServerMessage, StateMessage, StreamMessage, TrackedMessage, TrackedStep } from './protocol.ts';
