@@ -20,6 +20,7 @@ import { errorMessage } from '../fetch.ts';
 import { MISSING, TRACKED } from '../vr/trackers.ts';
 import { VR_SETTINGS, DEFAULT_ALPHA } from '../vr/tracked-drive.ts';
 import type { TrackerPose } from '../vr/body-yaw.ts';
+import { compileNow } from '../views/stage.ts';
 import { UpperBody } from '../vr/upper-body.ts';
 import { LocalAvatar } from './local-avatar.ts';
 import { NameLabel } from './name-label.ts';
@@ -36,9 +37,9 @@ export interface RoomSessionOptions {
   /** Where the other members' avatars go (the page's scene). */
   scene: THREE.Object3D;
   /**
-   * The page's renderer, if it has one: the name labels' shader is compiled with it as the
-   * session starts, while the page waits for the room, instead of in the frame that first shows
-   * someone (a second or more on a software GPU; the models share the page's own programs).
+   * The page's renderer, if it has one: the name labels' shader is compiled and linked with it as
+   * the session starts, instead of in the frame that first shows someone (a second or more on a
+   * software GPU; the others' models share the page's own avatar's programs).
    */
   renderer?: THREE.WebGLRenderer;
   mode: 'desktop' | 'vr';
@@ -174,8 +175,7 @@ export class RoomSession {
       this.warmLabel = new NameLabel('');
       let root: THREE.Object3D = options.scene;
       while (root.parent) root = root.parent;
-      options.renderer.compile(this.warmLabel.object, new THREE.PerspectiveCamera(), root instanceof THREE.Scene ? root : null);
-      options.renderer.getContext().flush(); // the GPU compiles while the page does other work
+      compileNow(options.renderer, this.warmLabel.object, new THREE.PerspectiveCamera(), root instanceof THREE.Scene ? root : null);
     }
     const character = options.character;
     const database = options.database ?? (character.database.name.split('?')[0].split('/').pop() ?? '').replace(/\.mmdb$/, '');

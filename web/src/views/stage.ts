@@ -5,6 +5,20 @@
 import * as THREE from 'three';
 import { FloorGrid } from './floor-grid.ts';
 
+/**
+ * Compiles and links the shaders of everything visible under `object` now, as it will be drawn in
+ * `scene`, instead of in the frame that first draws it. Why now: ANGLE links a program only when
+ * it is first used or asked about, so `renderer.compile` alone leaves the wait for that frame —
+ * on a software GPU a second or more per program, a frozen page. Asking for each program's
+ * uniforms makes three.js wait for the link here (where the page is loading anyway).
+ */
+export function compileNow(renderer: THREE.WebGLRenderer, object: THREE.Object3D, camera: THREE.Camera, scene: THREE.Scene | null = null): void {
+  for (const material of renderer.compile(object, camera, scene)) {
+    const program = (renderer.properties.get(material) as { currentProgram?: { getUniforms(): unknown } }).currentProgram;
+    program?.getUniforms();
+  }
+}
+
 export class Stage {
   readonly renderer: THREE.WebGLRenderer;
   readonly scene = new THREE.Scene();
@@ -88,6 +102,11 @@ export class Stage {
       this.scene.add(this.shadowCatcher);
     }
     if (this.shadowCatcher) this.shadowCatcher.visible = on;
+  }
+
+  /** Compiles and links every shader the scene needs now (`compileNow`): the next frame draws without stalling. */
+  compile(): void {
+    compileNow(this.renderer, this.scene, this.camera);
   }
 
   /** Keeps the sun's shadow box over floor point (x, z). */

@@ -193,8 +193,8 @@ el.addEventListener('load', async () => {
       fileError(errorMessage(e)); // names the file (and line)
     }
   };
-  // ---- the room, joined once the scene is built (and its shaders sent to the GPU to compile)
-  stage.renderer.compile(stage.scene, stage.camera);
+  // ---- the room, joined once the scene is built and its shaders compiled
+  stage.compile();
   const room = new RoomPanel({
     character, scene: stage.scene, renderer: stage.renderer, mode: 'desktop', onNote: fileError,
     parent: document.getElementById('toolbar')!, trace: el.timeStep !== null,
