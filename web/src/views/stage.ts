@@ -10,7 +10,10 @@ import { FloorGrid } from './floor-grid.ts';
  * `scene`, instead of in the frame that first draws it. Why now: ANGLE links a program only when
  * it is first used or asked about, so `renderer.compile` alone leaves the wait for that frame —
  * on a software GPU a second or more per program, a frozen page. Asking for each program's
- * uniforms makes three.js wait for the link here (where the page is loading anyway).
+ * uniforms makes three.js wait for the link here (where the page is loading anyway). For unlit
+ * materials, or once the scene has drawn its shadows: compiled before the first shadow pass, lit
+ * materials drew with a non-shadow placeholder in their shadow samplers (WebGL errors at every
+ * draw) — `Stage.compile` draws a frame instead.
  */
 export function compileNow(renderer: THREE.WebGLRenderer, object: THREE.Object3D, camera: THREE.Camera, scene: THREE.Scene | null = null): void {
   for (const material of renderer.compile(object, camera, scene)) {
@@ -104,9 +107,14 @@ export class Stage {
     if (this.shadowCatcher) this.shadowCatcher.visible = on;
   }
 
-  /** Compiles and links every shader the scene needs now (`compileNow`): the next frame draws without stalling. */
+  /**
+   * Draws the scene once now, so that every shader it needs is compiled and linked here and the
+   * next frames draw without stalling (a page calls it after building its scene). A draw rather
+   * than `compileNow`: `renderer.compile` before the first shadow pass left lit materials bound to
+   * a non-shadow placeholder (WebGL "texture format and sampler type" errors at every draw).
+   */
   compile(): void {
-    compileNow(this.renderer, this.scene, this.camera);
+    this.render();
   }
 
   /** Keeps the sun's shadow box over floor point (x, z). */
