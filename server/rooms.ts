@@ -468,7 +468,7 @@ export function attachRooms(server: HttpServer | HttpsServer, options: RoomsOpti
       let bytes = 0;
       for (let i = 0; i <= box.length; i++) {
         if (i === box.length || (i > from && bytes + BATCH_ENTRY_BYTES + box[i].length > MAX_BATCH_BYTES)) {
-          ws.send(i - from === 1 ? box[from] : encodeBatch(box.slice(from, i), bytes - (i - from) * BATCH_ENTRY_BYTES));
+          ws.send(i - from === 1 ? box[from] : encodeBatch(box.slice(from, i)));
           stats.framesOut++;
           from = i;
           bytes = 0;

@@ -1208,9 +1208,11 @@ export const BATCH_HEADER_BYTES = 2;
  * Packs server messages for one receiver into one frame: `[version, 0x87, (u16 length, message)…]`.
  * Why: a WebSocket frame costs the server a write and the receiver an event however small it is;
  * in a busy room most frames are 60–200-byte relays, so the frame, not the bytes, is the cost
- * (docs/rooms.md "Batches"). `total` is the messages' summed length. A batch holds no batch.
+ * (docs/rooms.md "Batches"). A batch holds no batch.
  */
-export function encodeBatch(messages: readonly Uint8Array[], total: number): Uint8Array {
+export function encodeBatch(messages: readonly Uint8Array[]): Uint8Array {
+  let total = 0;
+  for (const m of messages) total += m.length;
   const out = new Uint8Array(BATCH_HEADER_BYTES + BATCH_ENTRY_BYTES * messages.length + total);
   out[0] = PROTOCOL_VERSION;
   out[1] = MsgType.batch;

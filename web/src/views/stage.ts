@@ -13,7 +13,7 @@ import { FloorGrid } from './floor-grid.ts';
  * uniforms makes three.js wait for the link here (where the page is loading anyway). For unlit
  * materials, or once the scene has drawn its shadows: compiled before the first shadow pass, lit
  * materials drew with a non-shadow placeholder in their shadow samplers (WebGL errors at every
- * draw) — `Stage.compile` draws a frame instead.
+ * draw) — draw a frame (`Stage.render`) instead.
  */
 export function compileNow(renderer: THREE.WebGLRenderer, object: THREE.Object3D, camera: THREE.Camera, scene: THREE.Scene | null = null): void {
   for (const material of renderer.compile(object, camera, scene)) {
@@ -105,16 +105,6 @@ export class Stage {
       this.scene.add(this.shadowCatcher);
     }
     if (this.shadowCatcher) this.shadowCatcher.visible = on;
-  }
-
-  /**
-   * Draws the scene once now, so that every shader it needs is compiled and linked here and the
-   * next frames draw without stalling (a page calls it after building its scene). A draw rather
-   * than `compileNow`: `renderer.compile` before the first shadow pass left lit materials bound to
-   * a non-shadow placeholder (WebGL "texture format and sampler type" errors at every draw).
-   */
-  compile(): void {
-    this.render();
   }
 
   /** Keeps the sun's shadow box over floor point (x, z). */

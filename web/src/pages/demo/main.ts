@@ -193,8 +193,8 @@ el.addEventListener('load', async () => {
       fileError(errorMessage(e)); // names the file (and line)
     }
   };
-  // ---- the room, joined once the scene is built and its shaders compiled
-  stage.compile();
+  // ---- the room, joined once the scene is built and drawn once (every shader compiled and linked)
+  stage.render();
   const room = new RoomPanel({
     character, scene: stage.scene, renderer: stage.renderer, mode: 'desktop', onNote: fileError,
     parent: document.getElementById('toolbar')!, trace: el.timeStep !== null,
