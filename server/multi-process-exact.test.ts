@@ -244,10 +244,12 @@ describe('RoomSession across room server processes (real WASM, real NATS)', () =
       m1.send(stateBytes(1, 1));
       m2.send(stateBytes(1, 2));
       let seq = 1;
+      // A STATE every second, as a real client sends (RoomClient's stateIntervalMs): a process
+      // that lost track of a member in the outage relays its steps again only after one.
       const talk = setInterval(() => {
         seq++;
-        m1.send(moveBytes(seq, 1));
-        m2.send(moveBytes(seq, 2));
+        m1.send(seq % 20 ? moveBytes(seq, 1) : stateBytes(seq, 1, false));
+        m2.send(seq % 20 ? moveBytes(seq, 2) : stateBytes(seq, 2, false));
       }, 50);
       try {
         await m2.waitFor((m) => m.type === 'relay' && m.from === m1.memberId);
