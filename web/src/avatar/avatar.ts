@@ -16,6 +16,7 @@ import { Retargeter } from '../core/retarget.ts';
 import { initWasm } from '../core/wasm.ts';
 import { findRoles, ROLE_NAMES, type RoleName, type RoleOverrides, vrmBoneNames } from '../core/roles.ts';
 import { type FetchOptions, fetchBytes, mark } from '../fetch.ts';
+import { cullHiddenBackFaces } from './closed-mesh.ts';
 import { Grounding } from './grounding.ts';
 
 export interface AvatarOptions {
@@ -179,6 +180,7 @@ export class Avatar {
       vrm.humanoid.autoUpdateHumanBones = false;
     }
     const avatar = new Avatar(vrm?.scene ?? gltf.scene, name, vrm, options.roles);
+    cullHiddenBackFaces(avatar.object); // a loaded file's materials are ours to set (closed-mesh.ts)
     mark('mm:avatar-ready');
     return avatar;
   }

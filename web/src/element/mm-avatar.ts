@@ -276,7 +276,7 @@ export class MMAvatarElement extends ElementBase {
     // get ready while the database still downloads (the first frame then only draws).
     let stage: Stage;
     try {
-      stage = this.stage = new Stage(this.view, { antialias: true });
+      stage = this.stage = new Stage(this.view);
       stage.scene.fog = null;
     } catch (e) {
       this.fail(errorMessage(e), databaseUrl);

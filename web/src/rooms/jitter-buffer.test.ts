@@ -42,6 +42,20 @@ describe('JitterBuffer', () => {
     expect(b.pop(1080)?.item).toBe('a');
   });
 
+  it('playFrom: a buffered item is due at once, the ones before it dropped, the ones after at their own pace, slewing back to the delay', () => {
+    const b = new JitterBuffer<number>({ adaptive: false, initialDelayMs: 100 });
+    for (const seq of [1, 2, 3, 4]) b.push(seq, seq * 50, seq * 50 + 20, seq); // offset 20: t plays at t + 120
+    expect(b.pop(169)).toBeUndefined(); // seq 1 is due at 170, seq 3 at 270
+    expect(b.playFrom(9, 169)).toBe(false); // not buffered
+    expect(b.playFrom(3, 169)).toBe(true);
+    expect(b.pop(169)?.seq).toBe(3);
+    // Seq 4 is 50 ms of sender time later; the clock then runs 10 % slow to win its delay back
+    // (the slew): due 56 ms later, not at once and not 100 ms later.
+    expect(b.pop(169 + 55)).toBeUndefined();
+    expect(b.pop(169 + 56)?.seq).toBe(4);
+    expect(b.stats.released).toBe(2);
+  });
+
   it('adapts the delay to the measured jitter: ~span + p95 jitter + margin; the playout clock stays within ±10% of real time', () => {
     const rand = seededRandom(42);
     const run = (jitterMs: number) => {

@@ -119,6 +119,23 @@ export class JitterBuffer<T> {
     while (this.entries.length && this.entries[0].seq <= this.lastSeq) this.entries.shift();
   }
 
+  /**
+   * Makes the buffered item `seq` due at `nowMs`: the items before it are dropped and the playout
+   * clock jumps to its start, from where it slews to its target as always. Only for a stream
+   * nobody sees yet — a copy waiting for its sender's state plays from that state the moment it
+   * arrives instead of a playout delay later; a shown stream never jumps. False if `seq` is not
+   * buffered.
+   */
+  playFrom(seq: number, nowMs: number): boolean {
+    const entry = this.entries.find((e) => e.seq === seq);
+    if (!entry || !Number.isFinite(this.offsetMs)) return false;
+    this.skipTo(seq - 1);
+    this.mappingMs = nowMs - (entry.time - entry.span);
+    this.lastClock = nowMs;
+    this.delayMs = this.mappingMs - this.offsetMs;
+    return true;
+  }
+
   push(seq: number, senderTimeMs: number, arrivalMs: number, item: T, spanMs = 0): PushResult {
     if (!Number.isInteger(seq) || seq < 1 || !Number.isFinite(senderTimeMs) || !Number.isFinite(arrivalMs) || !(spanMs >= 0 && spanMs < 60_000)) return 'invalid';
     this.measure(arrivalMs - senderTimeMs, spanMs);

@@ -239,6 +239,43 @@ describe('RemoteAvatar', () => {
     expect(r.maxExcess).toBeLessThanOrEqual(1.5 + 1e-6);
   });
 
+  it('a copy placed by the snapshot is shown the moment its sender\'s state arrives, not a playout delay later', () => {
+    let now = 0;
+    const a = new TestCharacter();
+    const stream = new InputStream(() => now);
+    const local = new LocalAvatar(a, stream);
+    const b = new TestCharacter();
+    const remote = new RemoteAvatar(b);
+    let snapshot: StateMessage | null = null;
+    const deliver = () => {
+      for (const bytes of stream.flush()) {
+        const m = decodeClientMessage(bytes) as StreamMessage;
+        if (m.type === 'state' && !snapshot) snapshot = m;
+        else if (snapshot) expect(remote.receive(m, now + 40)).toBe('ok');
+      }
+    };
+    stream.queueState();
+    for (let f = 0; f < 120; f++) {
+      now += 1000 / 60;
+      local.setMove({ moveX: 0, moveZ: 1, faceX: 0, faceZ: 1, run: false, strafe: false });
+      local.update(1 / 60);
+      if (f === 30) {
+        deliver(); // the server's cached snapshot: the first STATE
+        remote.applySnapshot(snapshot!, null);
+      }
+      if (f % 3 === 2) deliver();
+      remote.update(now + 40, 1 / 60);
+    }
+    expect(remote.ready).toBe(true);
+    expect(remote.shown).toBe(false); // placed, waiting for the sender's state
+    // The sender answers the newcomer (a restart here: TestCharacter has no runtime bytes).
+    stream.queueState(true);
+    deliver();
+    remote.update(now + 40, 1 / 60); // the frame it arrived in
+    expect(remote.shown).toBe(true);
+    expect(remote.exact).toBe(true);
+  });
+
   it('refuses untrusted positions with a note and never drives the character with them', () => {
     const b = new TestCharacter();
     const notes: string[] = [];

@@ -165,6 +165,10 @@ export class RemoteAvatar {
       this.exact = false;
       return this.buffer.push(m.seq, m.time, nowMs, m, stepSeconds(m) * 1000);
     }
+    // The state a copy placed by the snapshot waits for (it is not shown until then): played the
+    // moment it is here, not a playout delay later. The copy is its sender's floats from it on
+    // either way; only when it is first drawn changes.
+    if (result === 'ok' && this.provisional && m.type === 'state' && (m.runtime || m.restart)) this.buffer.playFrom(m.seq, nowMs);
     return result;
   }
 

@@ -4,6 +4,7 @@
  */
 import * as THREE from 'three';
 import { FloorGrid } from './floor-grid.ts';
+import { softwareWebGL } from './software-gl.ts';
 
 /**
  * Compiles and links the shaders of everything visible under `object` now, as it will be drawn in
@@ -38,8 +39,10 @@ export class Stage {
     private readonly container: HTMLElement,
     options: { antialias?: boolean } = {},
   ) {
-    this.renderer = new THREE.WebGLRenderer({ antialias: options.antialias ?? true, preserveDrawingBuffer: true });
-    this.renderer.setPixelRatio(Math.min(window.devicePixelRatio, 2));
+    // MSAA and high-DPI pixels on a GPU; neither where WebGL draws in software (software-gl.ts).
+    const software = softwareWebGL();
+    this.renderer = new THREE.WebGLRenderer({ antialias: options.antialias ?? !software, preserveDrawingBuffer: true });
+    this.renderer.setPixelRatio(software ? 1 : Math.min(window.devicePixelRatio, 2));
     this.renderer.outputColorSpace = THREE.SRGBColorSpace;
     // Set once, before anything is drawn: the shadow type is part of every lit material's program
     // key, and three.js does not recompile a material already drawn when it changes — so a type

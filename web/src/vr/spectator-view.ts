@@ -5,6 +5,7 @@
  * as a picture-in-picture over the page (an emulator may draw the eyes' view on the main canvas).
  */
 import * as THREE from 'three';
+import { softwareWebGL } from '../views/software-gl.ts';
 
 export class SpectatorView {
   readonly renderer: THREE.WebGLRenderer;
@@ -16,7 +17,7 @@ export class SpectatorView {
   height = 1.6;
 
   constructor(container: HTMLElement) {
-    this.renderer = new THREE.WebGLRenderer({ antialias: true, preserveDrawingBuffer: true });
+    this.renderer = new THREE.WebGLRenderer({ antialias: !softwareWebGL(), preserveDrawingBuffer: true });
     this.renderer.outputColorSpace = THREE.SRGBColorSpace;
     const canvas = this.renderer.domElement;
     canvas.id = 'spectator';

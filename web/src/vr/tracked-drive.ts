@@ -28,7 +28,7 @@ import type { BodyYawPredictor } from './body-yaw.ts';
 import type { TrackerSample } from './tracker-sample.ts';
 import { TrackerState } from './trackers.ts';
 import { UpperBody } from './upper-body.ts';
-import vrSettings from '../../../settings/vr-settings.json';
+import vrSettings from '../../../settings/vr-settings.json' with { type: 'json' };
 
 /**
  * HMD (eyes) → head centre, m backward along the headset's view axis (MMVR: HMD = head + 0.10 m
