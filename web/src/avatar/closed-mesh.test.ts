@@ -8,6 +8,10 @@ describe('closed meshes', () => {
   it('a box (faces split at its edges, as seams split a model) is closed; open, inside-out or broken surfaces are not', () => {
     expect(isClosedMesh(new THREE.BoxGeometry(1, 2, 3, 4, 5, 6))).toBe(true);
     expect(isClosedMesh(new THREE.BoxGeometry(1, 1, 1).toNonIndexed())).toBe(true);
+    const quantized = new THREE.BoxGeometry(1, 1, 1, 2, 2, 2); // as a meshopt-compressed model stores it
+    const f32 = quantized.getAttribute('position').array;
+    quantized.setAttribute('position', new THREE.BufferAttribute(Int16Array.from(f32, (v) => Math.round(v * 32767)), 3, true));
+    expect(isClosedMesh(quantized)).toBe(true);
     expect(isClosedMesh(new THREE.PlaneGeometry(1, 1, 4, 4))).toBe(false); // a card
     const inside = new THREE.BoxGeometry(1, 1, 1);
     const idx = inside.getIndex()!;

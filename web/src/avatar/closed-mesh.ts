@@ -81,11 +81,15 @@ function tableSize(n: number): number {
 function weld(position: THREE.BufferAttribute | THREE.InterleavedBufferAttribute): [Int32Array, Float32Array] {
   const n = position.count;
   const xyz = new Float32Array(n * 3);
+  // The stored numbers as they are: a normalized (quantized) attribute's integers differ from its
+  // positions by a positive factor, which changes neither which are equal nor the volume's sign.
+  // + 0 turns −0 into +0: equal positions, equal bits.
+  const raw = (position as THREE.InterleavedBufferAttribute).isInterleavedBufferAttribute ? null : position.array;
+  const stride = position.itemSize;
   for (let i = 0; i < n; i++) {
-    // + 0 turns −0 into +0: equal positions, equal bits.
-    xyz[3 * i] = position.getX(i) + 0;
-    xyz[3 * i + 1] = position.getY(i) + 0;
-    xyz[3 * i + 2] = position.getZ(i) + 0;
+    xyz[3 * i] = (raw ? raw[i * stride] : position.getX(i)) + 0;
+    xyz[3 * i + 1] = (raw ? raw[i * stride + 1] : position.getY(i)) + 0;
+    xyz[3 * i + 2] = (raw ? raw[i * stride + 2] : position.getZ(i)) + 0;
   }
   const bits = new Int32Array(xyz.buffer);
   const mask = tableSize(n) - 1;

@@ -34,7 +34,10 @@ export class Stage {
 
   private readonly observer: ResizeObserver | null = null;
 
-  /** A canvas appended to `container`, sized to it (and kept so). */
+  /**
+   * A canvas appended to `container`, sized to it (and kept so). `antialias`: MSAA (default: on a
+   * GPU, off where WebGL draws in software).
+   */
   constructor(
     private readonly container: HTMLElement,
     options: { antialias?: boolean } = {},
