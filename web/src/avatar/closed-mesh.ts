@@ -42,7 +42,6 @@ export function isClosedMesh(geometry: THREE.BufferGeometry): boolean {
     return true;
   };
   let volume = 0;
-  let edges = 0;
   for (let t = 0; t < count; t += 3) {
     const i0 = corners ? corners[t] : t;
     const i1 = corners ? corners[t + 1] : t + 1;
@@ -52,7 +51,6 @@ export function isClosedMesh(geometry: THREE.BufferGeometry): boolean {
     const c = welded[i2];
     if (a === b || b === c || c === a) continue; // degenerate: no area, never seen
     if (!add(a, b) || !add(b, c) || !add(c, a)) return false;
-    edges += 3;
     // 6 × the signed volume of the tetrahedron (origin, p0, p1, p2): p0 · (p1 × p2).
     const x1 = xyz[3 * i1];
     const y1 = xyz[3 * i1 + 1];
@@ -62,9 +60,8 @@ export function isClosedMesh(geometry: THREE.BufferGeometry): boolean {
     const z2 = xyz[3 * i2 + 2];
     volume += xyz[3 * i0] * (y1 * z2 - z1 * y2) + xyz[3 * i0 + 1] * (z1 * x2 - x1 * z2) + xyz[3 * i0 + 2] * (x1 * y2 - y1 * x2);
   }
-  if (edges === 0) return false;
   for (let h = 0; h <= mask; h++) if (from[h] !== -1 && from[find(to[h], from[h])] === -1) return false;
-  return volume > 0;
+  return volume > 0; // also false with no triangle at all
 }
 
 /** A power of two at least twice `n` (open addressing stays short). */
@@ -124,7 +121,8 @@ export function cullHiddenBackFaces(root: THREE.Object3D): number {
     for (const m of materials) {
       // A material drawn on part of a mesh (groups) leaves the rest of its surface open.
       if (materials.length > 1) mixed.add(m);
-      meshesOf.set(m, [...(meshesOf.get(m) ?? []), mesh]);
+      if (!meshesOf.has(m)) meshesOf.set(m, []);
+      meshesOf.get(m)!.push(mesh);
     }
   });
   const closed = new Map<THREE.BufferGeometry, boolean>();
