@@ -9,7 +9,7 @@ import fs from 'node:fs';
 import path from 'node:path';
 import { beforeAll, describe, expect, it } from 'vitest';
 import { wasmMemory } from '../../web/src/core/wasm.ts';
-import { CharacterRuntime, Database, DatabaseBuilder, createMoveInput, initWasmSync, liveObjects } from '../../web/src/index.ts';
+import { CharacterRuntime, Database, DatabaseBuilder, createDrive, initWasmSync, liveObjects } from '../../web/src/index.ts';
 
 const ROOT = path.resolve(import.meta.dirname, '../..');
 const CMU = path.resolve(ROOT, '../shared/mocap/cmu-asf/cmu_02_06.bvh');
@@ -58,9 +58,9 @@ describe('build limits in WASM', () => {
     expect(grown).toBeLessThanOrEqual(footprint?.bytes ?? 0);
     const db = Database.fromBytes(bytes, 'cmu_02_06.mmdb');
     const runtime = new CharacterRuntime(db);
-    const walk = createMoveInput();
+    const walk = createDrive();
     walk.moveZ = 1;
-    runtime.setInput(walk);
+    runtime.setDrive(walk);
     for (let i = 0; i < 120; i++) runtime.update(1 / 60);
     expect(runtime.worldPositions.every(Number.isFinite)).toBe(true);
     runtime.free();

@@ -5,7 +5,7 @@ import fs from 'node:fs';
 import path from 'node:path';
 import * as THREE from 'three';
 import { beforeAll, describe, expect, it } from 'vitest';
-import { Character, CharacterRuntime, Crowd, Database, createMoveInput, initWasmSync, liveObjects } from '../../web/src/index.ts';
+import { Character, CharacterRuntime, Crowd, Database, createDrive, createMoveInput, initWasmSync, liveObjects } from '../../web/src/index.ts';
 
 const ROOT = path.resolve(import.meta.dirname, '../..');
 const DB = new Uint8Array(fs.readFileSync(path.join(ROOT, 'public/databases/locomotion.mmdb')));
@@ -20,10 +20,10 @@ describe('CharacterRuntime (WASM in Node)', () => {
   it('walks forward, turns, and its world pose is a view of WASM memory', () => {
     const c = new CharacterRuntime(db);
     try {
-      const input = createMoveInput();
+      const input = createDrive();
       const start = Array.from(c.root);
       input.moveZ = 1;
-      c.setInput(input);
+      c.setDrive(input);
       for (let step = 0; step < 120; step++) c.update(1 / 60);
       expect(c.root[2] - start[2]).toBeGreaterThan(1.5);
       expect(Math.abs(c.root[0] - start[0])).toBeLessThan(0.5);
@@ -68,9 +68,9 @@ describe('CharacterRuntime (WASM in Node)', () => {
   it('exposes the trajectory it asked for, the matched one and the simulated character', () => {
     const c = new CharacterRuntime(db);
     try {
-      const input = createMoveInput();
+      const input = createDrive();
       input.moveX = 1; // walk toward +X
-      c.setInput(input);
+      c.setDrive(input);
       for (let step = 0; step < 90; step++) c.update(1 / 60);
       const predicted = c.predictedPositions;
       expect(predicted.length).toBe(9);
@@ -106,7 +106,7 @@ describe('CharacterRuntime (WASM in Node)', () => {
       expect(worst).toBeLessThanOrEqual(0.15 + 0.02);
       expect(() => c.setPath(new Float32Array([0, 0]), new Float32Array([]), false)).toThrow(/at least 2 points/);
       expect(() => c.setPath(new Float32Array([0, 0, 1]), new Float32Array([1]), false)).toThrow(/pairs/);
-      c.clearPath();
+      c.setDrive(createDrive()); // move input again
       c.update(1 / 60);
     } finally {
       c.free();
@@ -276,7 +276,8 @@ describe('Character (the public API)', () => {
       for (const bad of [NaN, Infinity, -1, '0.2' as unknown as number]) {
         expect(() => c.setAlpha(bad)).toThrow(`setAlpha: α must be a number of metres ≥ 0, got ${String(bad)}`);
       }
-      expect(c.drive.alpha).toBe(0.3);
+      expect(c.drive.clampDistance).toBeCloseTo(0.3 / c.metresPerDatabaseUnit, 12);
+      c.update(1 / 60);
       expect(c.settings['clamp_distance']).toBeCloseTo(0.3, 6);
       expect(() => (c.settings = { clamp_distance: NaN })).toThrow('settings: clamp_distance is NaN, expected a finite number');
       expect(() => (c.settings = { controller: { walk: { forward: Infinity } } })).toThrow('settings: controller.walk.forward is Infinity, expected a finite number');

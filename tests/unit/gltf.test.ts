@@ -9,7 +9,7 @@ import fs from 'node:fs';
 import os from 'node:os';
 import path from 'node:path';
 import { beforeAll, describe, expect, it } from 'vitest';
-import { CharacterRuntime, Database, DatabaseBuilder, createMoveInput, initWasmSync, type RoleName } from '../../web/src/index.ts';
+import { CharacterRuntime, Database, DatabaseBuilder, createDrive, initWasmSync, type RoleName } from '../../web/src/index.ts';
 import { CMU_VRM_BONES, bvhToGltf, editGlbJson, readBvh } from './gltf-fixtures.ts';
 
 const ROOT = path.resolve(import.meta.dirname, '../..');
@@ -64,9 +64,9 @@ function largestGap(a: Database, b: Database): number {
 function walks(db: Database): number {
   const c = new CharacterRuntime(db);
   try {
-    const input = createMoveInput();
+    const input = createDrive();
     input.moveZ = 1;
-    c.setInput(input);
+    c.setDrive(input);
     const start = Array.from(c.root);
     for (let step = 0; step < 180; step++) c.update(1 / 60);
     return Math.hypot(c.root[0] - start[0], c.root[2] - start[2]);

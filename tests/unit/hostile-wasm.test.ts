@@ -12,7 +12,7 @@ import os from 'node:os';
 import path from 'node:path';
 import { beforeAll, describe, expect, it } from 'vitest';
 import { bvh_info } from '../../web/src/core/raw.ts';
-import { CharacterRuntime, Crowd, Database, createMoveInput, initWasmSync, liveObjects } from '../../web/src/index.ts';
+import { CharacterRuntime, Crowd, Database, createDrive, initWasmSync, liveObjects } from '../../web/src/index.ts';
 
 const ROOT = path.resolve(import.meta.dirname, '../..');
 const CORE = path.join(ROOT, 'wasm-core');
@@ -55,7 +55,7 @@ describe('hostile input in WASM', () => {
     expect(cases.filter((c) => c.kind === 'mmdb').length).toBeGreaterThanOrEqual(2000);
     const disagreements: string[] = [];
     let played = 0;
-    const walk = createMoveInput();
+    const walk = createDrive();
     for (const c of cases) {
       const bytes = new Uint8Array(fs.readFileSync(path.join(dir, c.file)));
       const r = outcome(c.file, () => {
@@ -69,7 +69,7 @@ describe('hostile input in WASM', () => {
           for (let i = 0; i < 30; i++) {
             walk.moveX = Math.sin(i);
             walk.moveZ = 1;
-            runtime.setInput(walk);
+            runtime.setDrive(walk);
             runtime.update(1 / 60);
           }
           if (!runtime.worldPositions.every(Number.isFinite)) throw new Error('non-finite pose');
@@ -95,16 +95,16 @@ describe('hostile input in WASM', () => {
     const db = Database.fromBytes(new Uint8Array(fs.readFileSync(path.join(ROOT, 'public/databases/locomotion.mmdb'))), 'locomotion.mmdb');
     const runtime = new CharacterRuntime(db);
     const bad = [NaN, Infinity, -Infinity, 1e38, -1e38, -1];
-    const input = createMoveInput();
+    const input = createDrive();
     for (const x of bad) {
       input.moveX = x;
       input.faceZ = x;
-      runtime.setInput(input);
+      runtime.setDrive(input);
       runtime.update(x);
-      runtime.setTracked(x, 0, x, x, x);
+      runtime.setDrive({ ...input, mode: 'tracked', headX: x, headZ: 0, velocityX: x, velocityZ: x, yaw: x, bend: x, clampDistance: x });
       runtime.update(1 / 60);
       runtime.teleport(x, x, x);
-      runtime.setHipsDrop(x);
+      runtime.setDrive({ ...input, hipsDrop: x });
       runtime.update(1 / 60);
       outcome('path', () => runtime.setPath(Float32Array.of(0, 0, x, 1), Float32Array.of(1), false));
       outcome('settings', () => runtime.setSettings({ playback_speed: x } as never));
@@ -124,9 +124,9 @@ describe('hostile input in WASM', () => {
   it('afterwards the same module still animates a character on the shipped database', () => {
     const db = Database.fromBytes(new Uint8Array(fs.readFileSync(path.join(ROOT, 'public/databases/locomotion.mmdb'))), 'locomotion.mmdb');
     const runtime = new CharacterRuntime(db);
-    const input = createMoveInput();
+    const input = createDrive();
     input.moveZ = 1;
-    runtime.setInput(input);
+    runtime.setDrive(input);
     for (let i = 0; i < 180; i++) runtime.update(1 / 60);
     expect(runtime.root[2]).toBeGreaterThan(1.5); // 3 s of walking
     expect(runtime.worldPositions.every(Number.isFinite)).toBe(true);

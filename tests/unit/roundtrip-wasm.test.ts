@@ -10,7 +10,7 @@ import fs from 'node:fs';
 import os from 'node:os';
 import path from 'node:path';
 import { beforeAll, describe, expect, it } from 'vitest';
-import { CharacterRuntime, Database, DatabaseBuilder, createMoveInput, initWasmSync, liveObjects } from '../../web/src/index.ts';
+import { CharacterRuntime, Database, DatabaseBuilder, createDrive, initWasmSync, liveObjects } from '../../web/src/index.ts';
 
 const ROOT = path.resolve(import.meta.dirname, '../..');
 const CORE = path.join(ROOT, 'wasm-core');
@@ -41,7 +41,7 @@ describe('the round trip in WASM', () => {
   it('what the builder accepts, the loader loads and a character plays; verdicts agree with native', () => {
     expect(cases.length).toBe(CASES);
     const wrong: string[] = [];
-    const input = createMoveInput();
+    const input = createDrive();
     let played = 0;
     for (const c of cases) {
       const config = fs.readFileSync(path.join(dir, c.dir, 'config.json'), 'utf8');
@@ -61,7 +61,7 @@ describe('the round trip in WASM', () => {
           const amount = [1, 0.6, 0, 1][phase];
           [input.moveX, input.moveZ, input.faceX, input.faceZ] = [Math.sin(a) * amount, Math.cos(a) * amount, Math.cos(a), -Math.sin(a)];
           [input.run, input.strafe] = [phase === 3, phase === 1];
-          runtime.setInput(input);
+          runtime.setDrive(input);
           runtime.update(1 / 60);
           if (!runtime.worldPositions.every(Number.isFinite) || !runtime.root.every(Number.isFinite)) throw new Error(`non-finite output at step ${step}`);
           const [r, s] = [runtime.root, runtime.simulation];

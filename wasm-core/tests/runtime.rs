@@ -608,3 +608,34 @@ fn a_bad_runtime_state_is_refused_and_changes_nothing() {
     }
     println!("random damage: {loaded} of 400 damaged states loaded (values still in range), all stayed finite");
 }
+
+/// The one drive value: a tracked character given move input walks (the per-field calls it
+/// replaced left the runtime tracked); a malformed value is refused with the reason.
+#[test]
+fn one_drive_value_takes_a_tracked_character_back_to_move_input() {
+    use mmcore::character::drive::{DriveInput, DriveMode};
+    let db = db();
+    let mut c = Character::new(db, CharacterSettings::default());
+    let mut d = DriveInput { mode: DriveMode::Tracked, ..Default::default() };
+    for _ in 0..60 {
+        c.set_drive(&d);
+        c.update(db, index(), &d.input, 1.0 / 60.0);
+    }
+    let z0 = c.root_position().z;
+    d.mode = DriveMode::Move;
+    d.input.direction = Vec2::new(0.0, 1.0);
+    for _ in 0..120 {
+        c.set_drive(&d);
+        c.update(db, index(), &d.input, 1.0 / 60.0);
+    }
+    let walked = c.root_position().z - z0;
+    assert!(walked > 1.5, "walked {walked:.2} m in 2 s of move input after tracking");
+    assert_eq!(c.stats.rejected_inputs, 0);
+    assert_eq!(
+        DriveInput::from_flat(&[0.0; 3]).unwrap_err().split(' ').take(4).collect::<Vec<_>>(),
+        ["a", "drive", "value", "has"]
+    );
+    let mut flat = [0.0; DriveInput::FIELDS.len()];
+    flat[0] = 3.0;
+    assert_eq!(DriveInput::from_flat(&flat).unwrap_err(), "drive mode 3 (0 move, 1 path, 2 tracked)");
+}

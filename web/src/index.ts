@@ -17,7 +17,7 @@
 
 // Characters: a database and an avatar → a three.js object; the per-frame recipe.
 export { Character, RUN_SPEED, WALK_SPEED } from './character/character.ts';
-export type { CharacterDrive, CharacterOptions, CharacterStepper, CreateOptions, MoveOptions, PathOptions, Root, TagQuery } from './character/character.ts';
+export type { CharacterOptions, CharacterStepper, CreateOptions, MoveOptions, PathOptions, Root, TagQuery } from './character/character.ts';
 export { Avatar } from './avatar/avatar.ts';
 export type { AvatarOptions } from './avatar/avatar.ts';
 
@@ -37,8 +37,10 @@ export { registerOfflineCache } from './offline.ts';
 export type { FetchOptions, FetchProgress } from './fetch.ts';
 
 // The runtime underneath (advanced: crowds, tools).
-export { CharacterRuntime, createMoveInput, createTrackedInput } from './core/character.ts';
-export type { MoveInput, RuntimeSettings, TrackedInput } from './core/character.ts';
+export { CharacterRuntime } from './core/character.ts';
+export type { RuntimeSettings } from './core/character.ts';
+export { createDrive, createMoveInput, createTrackedInput } from './core/drive.ts';
+export type { Drive, DriveMode, DrivePath, MoveInput, TrackedInput } from './core/drive.ts';
 export { Crowd } from './core/crowd.ts';
 export { SEARCH_METHODS, SearchIndex } from './core/search.ts';
 export { ROLE_NAMES, findRoles } from './core/roles.ts';

@@ -3,10 +3,11 @@
 
 use super::database::{RawDatabase, Shared};
 use super::{Kind, LiveToken};
-use crate::character::{Character, CharacterSettings, Tracked};
+use crate::character::drive::DriveInput;
+use crate::character::{Character, CharacterSettings};
 use crate::controller::{Input, Path};
 use crate::database::{Axes, FeatureKind};
-use glam::{Quat, Vec2, Vec3};
+use glam::{Quat, Vec3};
 use std::rc::Rc;
 use wasm_bindgen::prelude::*;
 
@@ -54,10 +55,20 @@ impl RawCharacter {
         Ok(c)
     }
 
-    /// Move input: direction (x, z) with length 0–1, facing (x, z) used when strafing, run and
-    /// strafe flags.
-    pub fn set_input(&mut self, move_x: f32, move_z: f32, face_x: f32, face_z: f32, run: bool, strafe: bool) {
-        self.input = Input { direction: Vec2::new(move_x, move_z), facing: Vec2::new(face_x, face_z), run, strafe };
+    /// The drive value for the next `update`, flat in `DriveInput::FIELDS` order (database
+    /// units; `web/src/core/drive.ts` writes it). Throws on a wrong length or an unknown mode;
+    /// nothing changes then.
+    pub fn set_drive(&mut self, values: &[f32]) -> Result<(), JsError> {
+        let drive = DriveInput::from_flat(values).map_err(|e| JsError::new(&e))?;
+        self.input = drive.input;
+        self.character.set_drive(&drive);
+        Ok(())
+    }
+
+    /// The drive value's field names in their flat order, comma-separated (the TS mirror's
+    /// test compares its own).
+    pub fn drive_fields() -> String {
+        DriveInput::FIELDS.join(",")
     }
 
     /// Follow a path on the floor: `points` as x, z pairs (≥ 2 points), `speeds` in m/s per
@@ -71,32 +82,6 @@ impl RawCharacter {
         let path = Path::new(&points, speeds, looped).map_err(|e| JsError::new(&e))?;
         self.character.set_path(Some(path));
         Ok(())
-    }
-
-    /// Back to move input (from a path or a tracked user).
-    pub fn clear_path(&mut self) {
-        self.character.set_path(None);
-    }
-
-    /// Follow a tracked user (VR); call every frame. `head_x, head_z`: the head centre on the
-    /// floor (m); `velocity_x, velocity_z`: its raw ground velocity (m/s); `yaw`: the predicted
-    /// body yaw (rad, 0 = +Z). The runtime smooths velocity and yaw.
-    pub fn set_tracked(&mut self, head_x: f32, head_z: f32, velocity_x: f32, velocity_z: f32, yaw: f32) {
-        self.character.set_tracked(Tracked {
-            position: Vec3::new(head_x, 0.0, head_z),
-            velocity: Vec3::new(velocity_x, 0.0, velocity_z),
-            yaw,
-        });
-    }
-
-    /// Lowers the hips `drop` m below the animation, legs bent by IK to keep the feet planted.
-    pub fn set_hips_drop(&mut self, drop: f32) {
-        self.character.set_hips_drop(drop);
-    }
-
-    /// Bends the torso forward `bend` rad (spine joints, about the root's lateral axis).
-    pub fn set_torso_bend(&mut self, bend: f32) {
-        self.character.set_torso_bend(bend);
     }
 
     /// VR: a head `head_drop` m below standing, headset pitched `pitch` rad → hips drop and torso

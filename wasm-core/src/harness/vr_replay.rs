@@ -12,8 +12,8 @@
 //! root's and the head's offset from the true root (along and across the true facing) and the
 //! clip playing — how the root distance in docs/vr.md was taken apart.
 
+use crate::character::drive::{DriveInput, DriveMode};
 use crate::character::{Character, CharacterSettings, Tracked};
-use crate::controller::Input;
 use crate::database::Database;
 use crate::recording::Recording;
 use crate::search::SearchIndex;
@@ -157,13 +157,22 @@ pub fn replay(
         let centre = recording.head_position[f].y + HMD_TO_HEAD_CENTRE * up;
         let pitch = (-up).clamp(-1.0, 1.0).asin();
         let started = std::time::Instant::now();
-        c.set_tracked(Tracked {
-            position: Vec3::new(floor.x / scale, 0.0, floor.y / scale),
-            velocity: Vec3::new(velocity.x, 0.0, velocity.z) / scale,
-            yaw: body_yaw,
-        });
-        c.set_crouch((eye - centre) / scale, pitch);
-        c.update(db, index, &Input::default(), dt);
+        // The page's drive value: its crouch split first (`Character.setCrouch`), then the
+        // whole value handed over at the update.
+        let crouch = c.set_crouch((eye - centre) / scale, pitch);
+        let drive = DriveInput {
+            mode: DriveMode::Tracked,
+            tracked: Tracked {
+                position: Vec3::new(floor.x / scale, 0.0, floor.y / scale),
+                velocity: Vec3::new(velocity.x, 0.0, velocity.z) / scale,
+                yaw: body_yaw,
+            },
+            hips_drop: crouch.hips_drop,
+            bend: crouch.bend,
+            ..Default::default()
+        };
+        c.set_drive(&drive);
+        c.update(db, index, &drive.input, dt);
         times.push(started.elapsed().as_secs_f32() * 1e3);
         let now = c.foot_stepping();
         steps += (0..2).filter(|&k| now[k] && !stepping[k]).count();

@@ -4,7 +4,7 @@
  * zig-zag, a backward run and a stop, each 2 s, at 60 Hz.
  */
 
-import { createMoveInput } from '../core/character.ts';
+import { createMoveInput } from '../core/drive.ts';
 import { Crowd } from '../core/crowd.ts';
 import { Database } from '../core/database.ts';
 

@@ -13,7 +13,8 @@
  */
 import * as THREE from 'three';
 import { Avatar, type AvatarOptions } from '../avatar/avatar.ts';
-import { CharacterRuntime, createMoveInput, createTrackedInput, type MoveInput, type RuntimeSettings, type TrackedInput } from '../core/character.ts';
+import { CharacterRuntime, type RuntimeSettings } from '../core/character.ts';
+import { createDrive, type Drive, type MoveInput } from '../core/drive.ts';
 import { type Database, loadDatabase } from '../core/database.ts';
 import { DEFAULT_AVATAR, DEFAULT_DATABASE, assetUrl } from '../assets.ts';
 import type { FetchOptions } from '../fetch.ts';
@@ -66,27 +67,6 @@ export interface CreateOptions extends CharacterOptions, FetchOptions {
   avatarOptions?: AvatarOptions;
 }
 
-/** What drives the character, as its callers last set it (read by a `CharacterStepper`). */
-export interface CharacterDrive {
-  /** `move`: the move input; `path`: following `path`; `tracked`: `tracked` and `alpha` (VR). */
-  readonly mode: 'move' | 'path' | 'tracked';
-  /** Move input in database axes (what `setMove`/`setInput` made of the caller's directions). */
-  readonly move: Readonly<MoveInput>;
-  /** The path (`followPath`, `walkTo`) in database units; each new path bumps `pathVersion`. */
-  readonly path: { readonly points: Float32Array; readonly speeds: Float32Array; readonly looped: boolean } | null;
-  readonly pathVersion: number;
-  /** Tracked input (`setTracked`, `setCrouch`, `setHipsDrop`) in the parent frame, and α (`setAlpha`, m; NaN: never set). */
-  readonly tracked: Readonly<TrackedInput>;
-  readonly alpha: number;
-}
-
-/**
- * Takes over a character's simulation step. With a stepper set, the drive methods only record
- * (`character.drive`; paths are still checked) and `update(dt)` calls `stepper.step(character,
- * dt)` instead of stepping the runtime itself, then poses the avatar as usual. A shared room
- * needs this: its local member quantizes and sends every step before taking it, and a remote
- * member replays the steps its sender sent (web/src/rooms).
- */
 /**
  * Boolean tag queries over the database's tags (`database.tags`): searches return only frames
  * carrying every `require` tag and none of the `exclude` ones; a frame lacking any `prefer` tag
@@ -98,6 +78,14 @@ export interface TagQuery {
   prefer?: readonly string[];
 }
 
+/**
+ * Takes over a character's simulation step. With a stepper set, the drive methods only build
+ * the drive value (`character.drive`; paths are still checked) and `update(dt)` calls
+ * `stepper.step(character, dt)` instead of stepping the runtime with it, then poses the avatar
+ * as usual. A shared room needs this: its local member quantizes and sends every step's value
+ * before taking it, and a remote member replays the values its sender sent (web/src/rooms), each
+ * through `applyDrive` and `advance`.
+ */
 export interface CharacterStepper {
   /** The character's style changed (`setStyle`): a shared room tells the others. */
   styleChanged?(style: string): void;
@@ -122,15 +110,8 @@ export class Character {
   private avatar_: Avatar | null = null;
   private skeletonView: SkeletonView;
   private debugViews_: DebugViews | null = null;
-  private readonly input: MoveInput = createMoveInput();
-  private readonly drive_: { -readonly [K in keyof CharacterDrive]: CharacterDrive[K] } & { tracked: TrackedInput } = {
-    mode: 'move',
-    move: this.input,
-    path: null,
-    pathVersion: 0,
-    tracked: createTrackedInput(),
-    alpha: NaN,
-  };
+  /** The one drive value (database units): what the drive methods build and `update` hands to the runtime. */
+  private readonly drive_: Drive = createDrive();
   /** Takes over `update`'s simulation step when set (see `CharacterStepper`); null: the character steps itself. */
   stepper: CharacterStepper | null = null;
   private readonly root_: Root = { x: 0, y: 0, z: 0, yaw: 0 };
@@ -240,6 +221,7 @@ export class Character {
     const old = this.runtime;
     this.runtime_ = new CharacterRuntime(old.database, old.settings());
     old.free();
+    this.leavePath();
     // The debug views stay (same database, same trajectory sizes): rebuilding them would drop a
     // page's choice of which to show, and their materials' programs (a compile each, seconds in
     // all on a software GPU, when a room's welcome restarts the runtime).
@@ -255,6 +237,7 @@ export class Character {
     const old = this.runtime;
     this.runtime_ = new CharacterRuntime(database, settings);
     old.free();
+    this.leavePath();
     this.databaseSpace.remove(this.skeletonView.object);
     disposeObject(this.skeletonView.object);
     this.skeletonView = this.makeSkeletonView(database);
@@ -351,19 +334,19 @@ export class Character {
    */
   setMove(x: number, z: number, options: MoveOptions = {}): void {
     this.live();
-    const d = this.directionToDatabase(x, z);
-    this.input.moveX = d.x;
-    this.input.moveZ = d.z;
-    this.input.run = options.run ?? false;
-    this.input.strafe = options.face !== undefined;
+    const d = this.drive_;
+    const m = this.directionToDatabase(x, z);
+    d.moveX = m.x;
+    d.moveZ = m.z;
+    d.run = options.run ?? false;
+    d.strafe = options.face !== undefined;
     if (options.face) {
       const f = this.directionToDatabase(options.face.x, options.face.z);
       const l = Math.hypot(f.x, f.z) || 1;
-      this.input.faceX = f.x / l;
-      this.input.faceZ = f.z / l;
+      d.faceX = f.x / l;
+      d.faceZ = f.z / l;
     }
-    if (this.drive_.mode === 'path' && !this.stepper) this.runtime.clearPath();
-    this.drive_.mode = 'move';
+    d.mode = 'move';
   }
 
   /** The move input as devices write it (parent-frame directions); see `setMove`. */
@@ -397,11 +380,11 @@ export class Character {
       flat[2 * i] = p.x;
       flat[2 * i + 1] = p.z;
     });
-    this.runtime.setPath(flat, speeds, loop); // throws on a bad path (a stepper sets it again: the same)
-    this.input.moveX = this.input.moveZ = 0;
-    this.drive_.mode = 'path';
-    this.drive_.path = { points: flat, speeds, looped: loop };
-    this.drive_.pathVersion++;
+    this.runtime.setPath(flat, speeds, loop); // throws here on a bad path, before the drive changes
+    const d = this.drive_;
+    d.moveX = d.moveZ = 0;
+    d.mode = 'path';
+    d.path = { points: flat, speeds, looped: loop }; // a new object: the runtime starts it afresh
   }
 
   /** Whether the character is on a path (`walkTo`, `followPath`) rather than move input. */
@@ -410,8 +393,11 @@ export class Character {
     return this.drive_.mode === 'path';
   }
 
-  /** What drives the character now (the last move input, path or tracked input). */
-  get drive(): CharacterDrive {
+  /**
+   * The drive value the drive methods built (database units; the same object, updated by each
+   * call): what `update` hands to the runtime, and what a shared room sends.
+   */
+  get drive(): Readonly<Drive> {
     this.live();
     return this.drive_;
   }
@@ -419,10 +405,17 @@ export class Character {
   /** Stands still: no move input, no path. */
   stop(): void {
     this.live();
-    this.input.moveX = this.input.moveZ = 0;
-    this.input.strafe = false;
+    this.leavePath();
+    this.drive_.moveX = this.drive_.moveZ = 0;
+    this.drive_.strafe = false;
     this.drive_.mode = 'move';
-    if (!this.stepper) this.runtime.clearPath();
+  }
+
+  /** A runtime restarted or switched off its path: move input again, standing. */
+  private leavePath(): void {
+    if (this.drive_.mode !== 'path') return;
+    this.drive_.mode = 'move';
+    this.drive_.moveX = this.drive_.moveZ = 0;
   }
 
   /** Places the character at (x, z) facing `yaw` (parent frame). */
@@ -438,45 +431,36 @@ export class Character {
    */
   setTracked(headX: number, headZ: number, velocityX: number, velocityZ: number, yaw: number): void {
     this.live();
-    const t = this.drive_.tracked;
-    t.headX = headX;
-    t.headZ = headZ;
-    t.velocityX = velocityX;
-    t.velocityZ = velocityZ;
-    t.yaw = yaw;
-    this.drive_.mode = 'tracked';
-    if (this.stepper) return;
+    const d = this.drive_;
     const p = this.toDatabase(headX, headZ);
-    const [px, pz] = [p.x, p.z];
+    d.headX = p.x;
+    d.headZ = p.z;
     const v = this.directionToDatabase(velocityX, velocityZ).multiplyScalar(1 / this.metresPerDatabaseUnit);
-    this.runtime.setTracked(px, pz, v.x, v.z, yaw - this.frameYaw);
+    d.velocityX = v.x;
+    d.velocityZ = v.z;
+    d.yaw = yaw - this.frameYaw;
+    d.mode = 'tracked';
   }
 
   /** Lowers the hips `drop` metres (parent frame) with the feet kept planted (VR crouching). */
   setHipsDrop(drop: number): void {
     this.live();
-    this.drive_.tracked.hipsDrop = drop;
-    this.drive_.tracked.bend = 0;
-    if (!this.stepper) {
-      this.runtime.setHipsDrop(drop / this.metresPerDatabaseUnit);
-      this.runtime.setTorsoBend(0);
-    }
+    this.drive_.hipsDrop = drop / this.metresPerDatabaseUnit;
+    this.drive_.bend = 0;
   }
 
   /**
    * VR crouching and bending over: the user's head centre is `headDrop` m (parent frame) below
    * its standing height, the headset pitched `pitch` rad (negative: looking down). The runtime
    * splits the drop between the hips (knees bend, feet planted) and a forward bend of the torso
-   * by the headset's pitch (docs/vr.md, "Crouching and bending over"); `drive.tracked` holds the
-   * split (`hipsDrop` m, `bend` rad).
+   * by the headset's pitch (docs/vr.md, "Crouching and bending over"); the drive value holds the
+   * split (`hipsDrop` database units, `bend` rad).
    */
   setCrouch(headDrop: number, pitch: number): void {
-    const t = this.drive_.tracked;
     const runtime = this.runtime;
-    // A stepper (a shared room) takes the split from `drive.tracked` and sets it again itself.
     runtime.setCrouch(headDrop / this.metresPerDatabaseUnit, pitch);
-    t.hipsDrop = runtime.hipsDrop * this.metresPerDatabaseUnit;
-    t.bend = runtime.torsoBend;
+    this.drive_.hipsDrop = runtime.hipsDrop;
+    this.drive_.bend = runtime.torsoBend;
   }
 
   /**
@@ -486,8 +470,49 @@ export class Character {
   setAlpha(alpha: number): void {
     this.live();
     if (!(typeof alpha === 'number' && alpha >= 0 && alpha < Infinity)) throw new Error(`setAlpha: α must be a number of metres ≥ 0, got ${String(alpha)}`);
-    this.drive_.alpha = alpha;
-    if (!this.stepper) this.runtime.setSettings({ clamp_distance: alpha / this.metresPerDatabaseUnit });
+    this.drive_.clampDistance = alpha / this.metresPerDatabaseUnit;
+  }
+
+  // ---- the simulation in database units (shared rooms replay it: web/src/rooms)
+
+  /**
+   * Hands a drive value (database units) to the runtime now, its path first when new: what
+   * `update` does with the character's own value, and a room's stepper with the value it sent
+   * or received. Throws on a path the runtime cannot follow; nothing changes then.
+   */
+  applyDrive(drive: Readonly<Drive>): void {
+    this.runtime.setDrive(drive);
+  }
+
+  /** Advances the simulation `dt` seconds under the drive last applied, without posing. */
+  advance(dt: number): void {
+    this.runtime.update(dt);
+  }
+
+  /**
+   * Starts the runtime afresh (see `restartRuntime`) placed at (x, z, yaw) database units:
+   * playing database `frame` from there, moving as it moves, or (`frame` −1) searching from the
+   * placed root at its first update. Copies restarted from the same numbers compute the same motion.
+   */
+  restartAt(frame: number, x: number, z: number, yaw: number): void {
+    this.restartRuntime();
+    if (frame >= 0) this.runtime.teleportPlaying(frame, x, z, yaw);
+    else this.runtime.teleport(x, z, yaw);
+  }
+
+  /** The runtime's whole state (`CharacterRuntime.saveState`): a copy that loads it continues from these exact floats. */
+  saveState(): Uint8Array {
+    return this.runtime.saveState();
+  }
+
+  /** Continues from `saveState` bytes (a path it follows applied first). Throws with the reason on bytes it refuses. */
+  loadState(bytes: Uint8Array): void {
+    this.runtime.loadState(bytes);
+  }
+
+  /** The root in database units: x, y, z and yaw (a zero-copy view, valid until the next call). */
+  get databaseRoot(): Float32Array {
+    return this.runtime.root;
   }
 
   // ---- style and tags
@@ -546,8 +571,8 @@ export class Character {
     this.live();
     if (this.stepper) this.stepper.step(this, dt);
     else {
-      this.runtime.setInput(this.input);
-      this.runtime.update(dt);
+      this.applyDrive(this.drive_);
+      this.advance(dt);
     }
     this.draw(dt);
   }

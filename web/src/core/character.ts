@@ -4,50 +4,10 @@
  * `Character` (../character/character.ts) adds the avatar, the scene object and units.
  */
 import type { Database } from './database.ts';
+import { DRIVE_FIELDS, type Drive, type DrivePath, writeDrive } from './drive.ts';
 import { RawCharacter } from './raw.ts';
 import { ViewCache } from './view-cache.ts';
 import { asError, freeRaw, wasmMemory } from './wasm.ts';
-
-/**
- * What a player asks the character for this frame, on the ground plane in world space (the
- * runtime's `Input`). Devices write into one preallocated `MoveInput` per frame.
- */
-export interface MoveInput {
-  /** Desired move direction (x, z); length 0–1 is the stick magnitude. */
-  moveX: number;
-  moveZ: number;
-  /** Desired facing (x, z), unit length; used while strafing. */
-  faceX: number;
-  faceZ: number;
-  run: boolean;
-  /** Keep facing (faceX, faceZ) while moving in any direction (side-steps, backwards). */
-  strafe: boolean;
-}
-
-export function createMoveInput(): MoveInput {
-  return { moveX: 0, moveZ: 0, faceX: 0, faceZ: 1, run: false, strafe: false };
-}
-
-/**
- * What a tracked user (VR) asks of the character this frame, on the floor of the caller's frame:
- * the head centre's floor position (m), its ground velocity (m/s), the body yaw (rad, 0 = +Z),
- * how far the hips go down (m, crouching) and how far the torso bends forward (rad, bending
- * over). `Character.setTracked`/`setCrouch`/`setHipsDrop` write it; shared rooms send it
- * quantized (web/src/rooms).
- */
-export interface TrackedInput {
-  headX: number;
-  headZ: number;
-  velocityX: number;
-  velocityZ: number;
-  yaw: number;
-  hipsDrop: number;
-  bend: number;
-}
-
-export function createTrackedInput(): TrackedInput {
-  return { headX: 0, headZ: 0, velocityX: 0, velocityZ: 0, yaw: 0, hipsDrop: 0, bend: 0 };
-}
 
 /** The runtime settings (docs/runtime.md lists them; `CharacterSettings` in Rust). */
 export type RuntimeSettings = Record<string, unknown>;
@@ -71,6 +31,10 @@ export class CharacterRuntime {
   readonly database: Database;
   readonly numJoints: number;
   private raw_: RawCharacter | null;
+  /** The drive's path object the runtime follows (null: none, or one given by `setPath`). */
+  private path: DrivePath | null = null;
+  /** `setDrive`'s flat copy (no allocation per frame). */
+  private readonly flatDrive = new Float32Array(DRIVE_FIELDS.length);
   private readonly views = {
     positions: null as unknown as ViewCache<Float32Array>,
     rotations: null as unknown as ViewCache<Float32Array>,
@@ -109,8 +73,23 @@ export class CharacterRuntime {
     return this.raw_ === null;
   }
 
-  setInput(input: MoveInput): void {
-    this.raw.set_input(input.moveX, input.moveZ, input.faceX, input.faceZ, input.run, input.strafe);
+  /**
+   * The drive value for the next `update` (database units; see `Drive`), in one call: its path
+   * first when it is not the one the runtime follows (a new path starts at its beginning).
+   * Throws on a path the runtime cannot follow; nothing changes then.
+   */
+  setDrive(drive: Readonly<Drive>): void {
+    const raw = this.raw;
+    if (drive.mode === 'path' && drive.path && drive.path !== this.path) {
+      this.setPath(drive.path.points, drive.path.speeds, drive.path.looped);
+      this.path = drive.path;
+    }
+    try {
+      raw.set_drive(writeDrive(drive, this.flatDrive));
+    } catch (e) {
+      throw asError(e); // an unknown mode: a value not made by `createDrive`
+    }
+    if (drive.mode !== 'path') this.path = null;
   }
 
   /** Follow `points` (x, z pairs, database units) at `speeds` m/s per segment. Throws on a bad path. */
@@ -120,25 +99,7 @@ export class CharacterRuntime {
     } catch (e) {
       throw asError(e);
     }
-  }
-
-  /** Back to move input. */
-  clearPath(): void {
-    this.raw.clear_path();
-  }
-
-  /** Tracked user (VR): head floor position, raw ground velocity, body yaw (rad). */
-  setTracked(headX: number, headZ: number, velocityX: number, velocityZ: number, yaw: number): void {
-    this.raw.set_tracked(headX, headZ, velocityX, velocityZ, yaw);
-  }
-
-  setHipsDrop(drop: number): void {
-    this.raw.set_hips_drop(drop);
-  }
-
-  /** Bends the torso forward `bend` rad (the spine joints, about the root's lateral axis). */
-  setTorsoBend(bend: number): void {
-    this.raw.set_torso_bend(bend);
+    this.path = null;
   }
 
   /**

@@ -3,7 +3,7 @@
  * "characters per 4 ms" benchmark measures. Its size is bounded by cost: `Crowd.maxCharacters`
  * (every character searches the database at its first update; docs/robustness.md).
  */
-import type { MoveInput } from './character.ts';
+import type { MoveInput } from './drive.ts';
 import type { Database } from './database.ts';
 import { RawCrowd } from './raw.ts';
 import { ViewCache } from './view-cache.ts';

@@ -1,4 +1,4 @@
-import { createMoveInput, type MoveInput } from '../core/character.ts';
+import { createMoveInput, type MoveInput } from '../core/drive.ts';
 
 export { createMoveInput, type MoveInput };
 

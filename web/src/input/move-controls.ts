@@ -2,7 +2,7 @@
  * Move controls for a character: keyboard (while its target has focus) and the first gamepad,
  * camera-relative. One instance per character; `read` writes one preallocated `MoveInput`.
  */
-import { type MoveInput, createMoveInput } from '../core/character.ts';
+import { type MoveInput, createMoveInput } from '../core/drive.ts';
 import { readGamepad } from './gamepad.ts';
 import { CameraBasis } from './input.ts';
 import { KeyboardInput } from './keyboard.ts';

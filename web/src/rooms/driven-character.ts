@@ -5,32 +5,19 @@
  *
  * Determinism: given the same database, the same runtime settings for its drive mode and the
  * same calls with the same numbers in the same order, two characters compute the same motion.
- * The rooms code calls exactly `set*` then `update(dt)` per step, on both sides.
+ * The rooms code calls exactly `setDrive` then `update(dt)` per step, on both sides.
  */
-import type { MoveStep, TrackedStep, RoomTrackerPose } from './protocol.ts';
-
-export interface PathInput {
-  /** Keypoints (x, z interleaved) in database units. */
-  points: Float32Array;
-  /** m/s per segment (count − 1, or count when looped). */
-  speeds: Float32Array;
-  looped: boolean;
-}
+import type { Drive } from '../core/drive.ts';
+import type { RoomTrackerPose } from './protocol.ts';
 
 export interface DrivenCharacter {
-  /** Desktop input for the next `update` (stick direction, facing, run, strafe), world space. */
-  setMove(step: Readonly<MoveStep>): void;
   /**
-   * Follow `path` from `time` seconds into it (0: its start), or `null` to return to move input.
-   * A runtime that cannot start mid-path may start at its beginning (drift correction covers it).
+   * The drive value for the next `update` (database units; built from the wire's steps by
+   * `step-drive.ts`, the same lines on sender and receiver), applied now: its path too when it is
+   * not the object the character follows (a new one starts from its beginning). Throws on a path
+   * the character cannot follow.
    */
-  setPath(path: PathInput | null, time: number): void;
-  /**
-   * VR: the tracked-mode input for the next `update`, in room metres (head floor position, ground
-   * velocity, body yaw, hips drop); `scale` = room metres per database unit, `alpha` = clamp
-   * distance (m). The adapter divides by `scale` itself (the same code on sender and receiver).
-   */
-  setTracked(step: Readonly<TrackedStep>, scale: number, alpha: number): void;
+  setDrive(drive: Readonly<Drive>): void;
   /** Advances the simulation by `dt` seconds (always `ticks / 7200`). */
   update(dt: number): void;
   /**
@@ -40,8 +27,8 @@ export interface DrivenCharacter {
   reset(frame: number, x: number, z: number, yaw: number): void;
   /**
    * Continues from a member's runtime state (`CharacterRuntime.saveState` bytes, sent when
-   * someone joins), after `reset` and `setPath`: from then on this copy computes the sender's
-   * own floats. Throws with the reason on bytes the runtime refuses (nothing changes then).
+   * someone joins), after `reset` and the path it follows (`setDrive`): from then on this copy
+   * computes the sender's own floats. Throws with the reason on bytes the runtime refuses (nothing changes then).
    */
   loadState?(bytes: Uint8Array): void;
   /** The simulated root after the last update (room m, rad) and the database frame playing. */

@@ -24,9 +24,9 @@ export { RoomClient, type RoomClientEvents, type RoomClientOptions, type RoomSta
 export { InputStream, TickClock, type StreamReport } from './input-stream.ts';
 export { JitterBuffer, type JitterBufferOptions, type JitterStats, type PushResult, type Released } from './jitter-buffer.ts';
 export { DriftCorrector, type DriftCorrectorOptions } from './drift-corrector.ts';
-export type { DrivenCharacter, PathInput } from './driven-character.ts';
+export type { DrivenCharacter } from './driven-character.ts';
 export { LocalAvatar } from './local-avatar.ts';
 export { RemoteAvatar, type RemoteAvatarOptions, type RemoteAvatarStats } from './remote-avatar.ts';
 export { measureBandwidth, type BandwidthOptions, type BandwidthResult } from './bandwidth.ts';
 export { CloseCode, LeaveReason, PROTOCOL_VERSION, ProtocolError, TICKS_PER_SECOND, createRoomId, decodeClientMessage, decodeServerMessage, isRoomId, unbatch } from './protocol.ts';
-export type { AvatarChoice, ClientMessage, DeviceMode, DeviceSet, DriveMode, JoinInfo, LeaveReasonName, MemberInfo, MoveMessage, MoveStep, PathMessage, RoomTrackerPose, ServerMessage, StateMessage, StreamMessage, TrackedMessage, TrackedStep } from './protocol.ts';
+export type { AvatarChoice, ClientMessage, DeviceMode, DeviceSet, JoinInfo, LeaveReasonName, MemberInfo, MoveMessage, MoveStep, PathMessage, RoomTrackerPose, ServerMessage, StateMessage, StreamMessage, TrackedMessage, TrackedStep } from './protocol.ts';

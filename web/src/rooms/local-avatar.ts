@@ -4,13 +4,15 @@
  * stream compute the same motion. Call `setMove` / `setPath` / `setTracked` as the devices say,
  * then `update(dt)` once a frame instead of the character's own update.
  */
-import type { MoveInput, TrackedInput } from '../core/character.ts';
+import { createDrive, type DrivePath, type MoveInput, type TrackedInput } from '../core/drive.ts';
 import type { DrivenCharacter } from './driven-character.ts';
 import type { InputStream } from './input-stream.ts';
 import { createMoveStep, createTrackedStep, TICKS_PER_SECOND, type MoveStep, type TrackedStep, type RoomTrackerPose } from './protocol.ts';
+import { driveFromMove, driveFromPath, driveFromTracked } from './step-drive.ts';
 
 export class LocalAvatar {
-  private mode: 'move' | 'path' | 'tracked' = 'move';
+  /** The drive value the character is given (database units), made from the steps as sent; its mode is the one mode here. */
+  private readonly drive = createDrive();
   private readonly move: MoveStep = createMoveStep();
   private readonly tracked: TrackedStep = createTrackedStep();
   private scale = 1;
@@ -30,8 +32,7 @@ export class LocalAvatar {
     m.faceZ = input.faceZ;
     m.run = input.run;
     m.strafe = input.strafe;
-    if (this.mode === 'path') this.character.setPath(null, 0);
-    this.mode = 'move';
+    this.drive.mode = 'move';
   }
 
   /**
@@ -46,24 +47,22 @@ export class LocalAvatar {
     this.character.setScale?.(s);
   }
 
-  /** Follows a path (database units) from the next frame on. */
+  /** Follows a path (database units) from the next frame on. Throws on a bad path (nothing sent). */
   setPath(points: Float32Array, speeds: Float32Array, looped: boolean): void {
-    const bytes = this.stream.setPath(points, speeds, looped); // validates (throws on a bad path)
-    void bytes;
-    this.character.setPath({ points, speeds, looped }, 0);
+    this.stream.setPath(points, speeds, looped); // validates (throws on a bad path)
+    const path: DrivePath = { points, speeds, looped };
+    this.character.setDrive(driveFromPath(path, this.drive));
     this.stream.queueState();
-    this.mode = 'path';
   }
 
   /** VR: the tracked-mode input for the next frame (room metres), the avatar scale and α. */
   setTracked(step: Readonly<TrackedInput>, scale: number, alpha: number): void {
     Object.assign(this.tracked, step);
     // As the wire carries them (float32, whole cm), so both sides divide by the same numbers.
-    this.scale = Math.fround(scale);
+    this.setScale(scale);
     this.alpha = Math.max(0, Math.min(255, Math.round(alpha * 100))) / 100;
-    this.stream.scale = this.scale;
     this.stream.alpha = this.alpha;
-    this.mode = 'tracked';
+    this.drive.mode = 'tracked';
   }
 
   /** VR: the latest head and grip poses (sent with the next message, for display). */
@@ -79,15 +78,16 @@ export class LocalAvatar {
     const ticks = this.stream.clock.ticksFor(dt);
     if (ticks === 0) return 0;
     const c = this.character;
-    if (this.mode === 'tracked') {
+    const d = this.drive;
+    if (d.mode === 'tracked') {
       this.tracked.ticks = ticks;
       this.stream.recordTracked(this.tracked); // quantizes in place
-      c.setTracked(this.tracked, this.scale, this.alpha);
+      c.setDrive(driveFromTracked(this.tracked, this.scale, this.alpha, d));
     } else {
       this.move.ticks = ticks;
-      this.move.path = this.mode === 'path';
-      this.stream.recordMove(this.move);
-      if (this.mode === 'move') c.setMove(this.move);
+      this.move.path = d.mode === 'path';
+      this.stream.recordMove(this.move); // quantizes in place
+      if (d.mode === 'move') c.setDrive(driveFromMove(this.move, d));
     }
     const step = ticks / TICKS_PER_SECOND;
     c.update(step);

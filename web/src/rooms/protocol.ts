@@ -12,7 +12,9 @@
  * settings then computes the same motion; the sender's reported root corrects what differs.
  */
 
-import type { MoveInput, TrackedInput } from '../core/character.ts';
+import type { DriveMode, MoveInput, TrackedInput } from '../core/drive.ts';
+
+export type { DriveMode };
 
 // ------------------------------------------------------------------ constants
 
@@ -324,7 +326,6 @@ export interface PathMessage extends StreamHeader {
   looped: boolean;
 }
 
-export type DriveMode = 'move' | 'path' | 'tracked';
 const DRIVES: DriveMode[] = ['move', 'path', 'tracked'];
 const STATE_RESTART = 0x80;
 const STATE_RUNTIME = 0x40;

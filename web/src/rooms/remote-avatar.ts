@@ -9,20 +9,19 @@
  * positions beyond `worldLimit` are refused with a note and never reach the character.
  */
 import { DriftCorrector, type DriftCorrectorOptions } from './drift-corrector.ts';
-import type { DrivenCharacter, PathInput } from './driven-character.ts';
+import { createDrive, type DrivePath } from '../core/drive.ts';
+import type { DrivenCharacter } from './driven-character.ts';
 import { JitterBuffer, type JitterBufferOptions, type PushResult } from './jitter-buffer.ts';
 import { RUNTIME_STATE_INTERVAL_MS } from './room-client.ts';
+import { driveFromMove, driveFromPath, driveFromTracked } from './step-drive.ts';
 import {
   angleToI16,
-  createMoveStep,
   fromMm,
   i16ToAngle,
   toMm,
-  createTrackedStep,
   stepSeconds,
   TICKS_PER_SECOND,
   type MoveMessage,
-  type MoveStep,
   type PathMessage,
   type StateMessage,
   type StreamMessage,
@@ -104,12 +103,11 @@ export class RemoteAvatar {
   private stepEnd = 0;
   /** Sender time at the end of the last applied step. */
   private lastEnd = NaN;
-  private path: PathInput | null = null;
-  private readonly lastMove: MoveStep = createMoveStep();
-  private readonly lastTracked = createTrackedStep();
+  private path: DrivePath | null = null;
+  /** The drive value the copy is given (database units; from the steps, by the sender's own lines); its mode is the one mode here. */
+  private readonly drive = createDrive();
   private scale = 1;
   private alpha = 0.2;
-  private drive: 'move' | 'path' | 'tracked' = 'move';
   private readonly trackerA: RoomTrackerPose[] = [poseCopy(), poseCopy(), poseCopy()];
   private readonly trackerB: RoomTrackerPose[] = [poseCopy(), poseCopy(), poseCopy()];
   private trackerTimeA = NaN;
@@ -218,13 +216,11 @@ export class RemoteAvatar {
     this.setScale(s.scale);
     const [x0, z0, yaw0] = [c.rootX, c.rootZ, c.rootYaw];
     this.alpha = s.alpha;
-    this.drive = s.drive;
     // A restart is recomputed from the same numbers as the sender's (a fresh runtime, frame −1);
     // any other snapshot places the copy playing the sender's frame.
     c.reset(s.restart ? -1 : s.frame, s.rootX, s.rootZ, s.rootYaw);
-    Object.assign(this.lastMove, s.move);
-    Object.assign(this.lastTracked, s.tracked);
-    if (s.drive === 'path' && this.path) c.setPath(this.path, s.pathTime);
+    // The path first: the runtime state below continues along it.
+    if (s.drive === 'path' && this.path) c.setDrive(driveFromPath(this.path, this.drive));
     else if (s.drive === 'path') this.note('snapshot follows a path it did not include');
     // The sender's whole runtime state (sent when someone joins): from here on the copy is the
     // sender's floats. Refused bytes leave the copy placed playing the sender's frame.
@@ -238,8 +234,8 @@ export class RemoteAvatar {
       }
     }
     this.exact = s.restart === true || loaded;
-    if (s.drive === 'tracked') c.setTracked(this.lastTracked, this.scale, this.alpha);
-    else if (s.drive === 'move') c.setMove(this.lastMove);
+    if (s.drive === 'tracked') c.setDrive(driveFromTracked(s.tracked, this.scale, this.alpha, this.drive));
+    else if (s.drive === 'move') c.setDrive(driveFromMove(s.move, this.drive));
     if (this.ready) this.drift.rebase(c.rootX - x0, c.rootZ - z0, c.rootYaw - yaw0);
     else this.drift.reset();
     this.measure(s.rootX, s.rootZ, s.rootYaw);
@@ -311,8 +307,7 @@ export class RemoteAvatar {
         }
         if (m.type === 'path') {
           this.path = { points: m.points, speeds: m.speeds, looped: m.looped };
-          this.drive = 'path';
-          this.character.setPath(this.path, 0);
+          this.character.setDrive(driveFromPath(this.path, this.drive));
           this.lastEnd = m.time;
           continue;
         }
@@ -356,26 +351,19 @@ export class RemoteAvatar {
 
   private applyStep(m: MoveMessage | TrackedMessage, i: number): void {
     const c = this.character;
+    const d = this.drive;
     if (m.type === 'move') {
       const s = m.steps[i];
       if (s.path && this.path) {
-        if (this.drive !== 'path') {
+        if (d.mode !== 'path') {
           this.note('path step without a running path');
-          c.setPath(this.path, 0);
+          c.setDrive(driveFromPath(this.path, d));
         }
-        this.drive = 'path';
-      } else {
-        if (this.drive === 'path') c.setPath(null, 0);
-        this.drive = 'move';
-        c.setMove(s);
-      }
-      Object.assign(this.lastMove, s);
+      } else c.setDrive(driveFromMove(s, d));
       c.update(s.ticks / TICKS_PER_SECOND);
     } else {
       const s = m.steps[i];
-      this.drive = 'tracked';
-      c.setTracked(s, m.scale, m.alpha);
-      Object.assign(this.lastTracked, s);
+      c.setDrive(driveFromTracked(s, m.scale, m.alpha, d));
       c.update(s.ticks / TICKS_PER_SECOND);
     }
     this.stats.stepsApplied++;
@@ -384,8 +372,7 @@ export class RemoteAvatar {
   /** Steps the character `ticks` with the last input (lost time: a guess the drift correction fixes). */
   private stepLastInput(ticks: number): void {
     const c = this.character;
-    if (this.drive === 'tracked') c.setTracked(this.lastTracked, this.scale, this.alpha);
-    else if (this.drive === 'move') c.setMove(this.lastMove);
+    if (this.drive.mode !== 'path') c.setDrive(this.drive);
     c.update(ticks / TICKS_PER_SECOND);
   }
 

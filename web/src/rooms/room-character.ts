@@ -2,10 +2,11 @@
  * `RoomCharacter`: the engine's `Character` as a shared room drives it (`DrivenCharacter`), the
  * one adapter for both sides — the local member's `LocalAvatar` steps its own character through
  * it, and each `RemoteAvatar` replays its sender's steps through another. Both sides must run
- * the same code on the same numbers for the copies to compute the same motion, so this talks to
- * the runtime directly in database units, converting room metres with the member's `scale`
- * (float32, as the wire carries it) — never through the three.js transforms, whose matrix
- * inverses would round differently on a receiver whose avatar has another size.
+ * the same code on the same numbers for the copies to compute the same motion: the drive values
+ * (database units, from `step-drive.ts`) go to the character as they are, and positions convert
+ * room metres with the member's `scale` (float32, as the wire carries it) — never through the
+ * three.js transforms, whose matrix inverses would round differently on a receiver whose avatar
+ * has another size.
  *
  * A remote member's character lives inside `display`: the drift correction's offset is that
  * group's transform (the avatar turned by `dyaw` about its root and moved by `dx, dz`), so the
@@ -14,8 +15,9 @@
  */
 import * as THREE from 'three';
 import type { Character } from '../character/character.ts';
-import type { DrivenCharacter, PathInput } from './driven-character.ts';
-import type { MoveStep, RoomTrackerPose, TrackedStep } from './protocol.ts';
+import type { Drive } from '../core/drive.ts';
+import type { DrivenCharacter } from './driven-character.ts';
+import type { RoomTrackerPose } from './protocol.ts';
 
 export class RoomCharacter implements DrivenCharacter {
   /** Holds a remote member's `character.object3d`; its transform is the display offset. Add it to the scene. */
@@ -23,8 +25,6 @@ export class RoomCharacter implements DrivenCharacter {
   /** A remote VR member's head and grips this frame (room space, before the display offset). */
   trackers: readonly RoomTrackerPose[] | null = null;
   private scale_ = 1;
-  /** The clamp distance last given to the runtime (database units; NaN: none yet). */
-  private clamp = NaN;
 
   /**
    * `remote`: a copy of another member (drawn inside `display`, sized by the sender's scale);
@@ -55,32 +55,12 @@ export class RoomCharacter implements DrivenCharacter {
     }
   }
 
-  setMove(step: Readonly<MoveStep>): void {
-    this.character.runtime.setInput(step);
-  }
-
-  /** `time` is not used: the runtime starts a path at its beginning (a late joiner's copy then loads how far along the sender is: `loadState`). */
-  setPath(path: PathInput | null, _time: number): void {
-    if (path) this.character.runtime.setPath(path.points, path.speeds, path.looped);
-    else this.character.runtime.clearPath();
-  }
-
-  setTracked(step: Readonly<TrackedStep>, scale: number, alpha: number): void {
-    this.setScale(scale);
-    const s = this.scale_;
-    const runtime = this.character.runtime;
-    runtime.setTracked(step.headX / s, step.headZ / s, step.velocityX / s, step.velocityZ / s, step.yaw);
-    runtime.setHipsDrop(step.hipsDrop / s);
-    runtime.setTorsoBend(step.bend);
-    const clamp = alpha / s;
-    if (clamp !== this.clamp) {
-      this.clamp = clamp; // settings go through JSON: only when α or the scale changed
-      runtime.setSettings({ clamp_distance: clamp });
-    }
+  setDrive(drive: Readonly<Drive>): void {
+    this.character.applyDrive(drive);
   }
 
   update(dt: number): void {
-    this.character.runtime.update(dt);
+    this.character.advance(dt);
   }
 
   /**
@@ -92,28 +72,25 @@ export class RoomCharacter implements DrivenCharacter {
    * moving as it moves, so it does not start from rest while its sender walks.
    */
   reset(frame: number, x: number, z: number, yaw: number): void {
-    this.character.restartRuntime();
-    this.clamp = NaN;
     const s = this.scale_;
-    if (frame >= 0) this.character.runtime.teleportPlaying(frame, x / s, z / s, yaw);
-    else this.character.runtime.teleport(x / s, z / s, yaw);
+    this.character.restartAt(frame, x / s, z / s, yaw);
   }
 
   loadState(bytes: Uint8Array): void {
-    this.character.runtime.loadState(bytes);
+    this.character.loadState(bytes);
   }
 
   get rootX(): number {
-    return this.character.runtime.root[0] * this.scale_;
+    return this.character.databaseRoot[0] * this.scale_;
   }
   get rootZ(): number {
-    return this.character.runtime.root[2] * this.scale_;
+    return this.character.databaseRoot[2] * this.scale_;
   }
   get rootYaw(): number {
-    return this.character.runtime.root[3];
+    return this.character.databaseRoot[3];
   }
   get frame(): number {
-    return this.character.runtime.frame;
+    return this.character.frame;
   }
 
   setDisplayOffset(dx: number, dz: number, dyaw: number): void {

@@ -16,6 +16,7 @@ import { DEFAULT_AVATAR, assetUrl } from '../assets.ts';
 import { Avatar } from '../avatar/avatar.ts';
 import { Character, type CharacterStepper } from '../character/character.ts';
 import { Database } from '../core/database.ts';
+import { createTrackedInput, type DrivePath } from '../core/drive.ts';
 import { errorMessage } from '../fetch.ts';
 import { MISSING, TRACKED } from '../vr/trackers.ts';
 import { VR_SETTINGS, DEFAULT_ALPHA } from '../vr/tracked-drive.ts';
@@ -29,6 +30,7 @@ import { RemoteAvatar } from './remote-avatar.ts';
 import { RoomCharacter } from './room-character.ts';
 import { RoomClient, type RoomClientOptions } from './room-client.ts';
 import { setRoomOf } from './room-of.ts';
+import { trackedFromDrive } from './step-drive.ts';
 
 export interface RoomSessionOptions {
   roomId: string;
@@ -153,7 +155,9 @@ export class RoomSession {
   private readonly own: RoomCharacter;
   private readonly stepper: CharacterStepper;
   private readonly sentTrackers: [RoomTrackerPose, RoomTrackerPose, RoomTrackerPose];
-  private pathVersion = -1;
+  /** The path object last sent (a new one from the character is a new path). */
+  private sentPath: DrivePath | null = null;
+  private readonly sentTracked = createTrackedInput();
   /** One loaded avatar per URL, cloned for each member who uses it (no second download, parse or texture decode). */
   private readonly templates = new Map<string, Promise<Avatar>>();
   private warmLabel: NameLabel | null = null;
@@ -193,7 +197,7 @@ export class RoomSession {
         style: character.style,
       },
       // Someone joined: their copy of this person continues from this runtime's own floats.
-      runtimeState: () => this.own.character.runtime.saveState(),
+      runtimeState: () => this.own.character.saveState(),
     });
     this.own = new RoomCharacter(character, false);
     this.local = new LocalAvatar(this.own, this.client.stream);
@@ -320,7 +324,7 @@ export class RoomSession {
     const local = this.local;
     const scale = c.metresPerDatabaseUnit;
     if (d.mode === 'tracked') {
-      local.setTracked(d.tracked, scale, Number.isFinite(d.alpha) ? d.alpha : DEFAULT_ALPHA);
+      local.setTracked(trackedFromDrive(d, scale, this.sentTracked), scale, Number.isFinite(d.clampDistance) ? d.clampDistance * scale : DEFAULT_ALPHA);
       const t = this.o.trackers;
       if (t) {
         this.copyTracker(t.head, this.sentTrackers[0]);
@@ -331,9 +335,9 @@ export class RoomSession {
     } else {
       local.setScale(scale);
       if (d.mode === 'path' && d.path) {
-        if (d.pathVersion !== this.pathVersion) local.setPath(d.path.points, d.path.speeds, d.path.looped);
-      } else local.setMove(d.move);
-      this.pathVersion = d.mode === 'path' ? d.pathVersion : -1;
+        if (d.path !== this.sentPath) local.setPath(d.path.points, d.path.speeds, d.path.looped);
+      } else local.setMove(d);
+      this.sentPath = d.mode === 'path' ? d.path : null;
     }
     local.update(dt);
     // Not in the room (yet, or between reconnects): nothing to send; joining starts the stream over.

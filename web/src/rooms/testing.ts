@@ -3,7 +3,8 @@
  * toward the requested velocity and facing, follows paths, and in tracked mode stays within α
  * of the head. Same calls with the same numbers → the same floats, like the real runtime.
  */
-import type { DrivenCharacter, PathInput } from './driven-character.ts';
+import type { Drive, DrivePath } from '../core/drive.ts';
+import type { DrivenCharacter } from './driven-character.ts';
 import { wrapAngle } from '../yaw.ts';
 import { createMoveStep, createTrackedStep, type MoveStep, type TrackedStep, type RoomTrackerPose } from './protocol.ts';
 
@@ -17,7 +18,7 @@ export class TestCharacter implements DrivenCharacter {
   mode: 'move' | 'path' | 'tracked' = 'move';
   readonly move: MoveStep = createMoveStep();
   readonly tracked: TrackedStep = createTrackedStep();
-  path: PathInput | null = null;
+  path: DrivePath | null = null;
   pathTime = 0;
   scale = 1;
   alpha = 0.2;
@@ -28,20 +29,22 @@ export class TestCharacter implements DrivenCharacter {
   simulatedSeconds = 0;
   trackers: readonly RoomTrackerPose[] | null = null;
 
-  setMove(step: Readonly<MoveStep>): void {
-    Object.assign(this.move, step);
-    this.mode = 'move';
+  /** Takes the drive value (database units) back in room metres (× `scale`), as the old adapter did. */
+  setDrive(d: Readonly<Drive>): void {
+    this.mode = d.mode;
+    if (d.mode === 'move') Object.assign(this.move, { moveX: d.moveX, moveZ: d.moveZ, faceX: d.faceX, faceZ: d.faceZ, run: d.run, strafe: d.strafe });
+    else if (d.mode === 'path') {
+      if (d.path !== this.path) this.pathTime = 0;
+      this.path = d.path;
+    } else {
+      const s = this.scale;
+      Object.assign(this.tracked, { headX: d.headX * s, headZ: d.headZ * s, velocityX: d.velocityX * s, velocityZ: d.velocityZ * s, yaw: d.yaw, hipsDrop: d.hipsDrop * s, bend: d.bend });
+      this.alpha = d.clampDistance * s;
+    }
+    if (d.mode !== 'path') this.path = null;
   }
-  setPath(path: PathInput | null, time: number): void {
-    this.path = path;
-    this.pathTime = time;
-    this.mode = path ? 'path' : 'move';
-  }
-  setTracked(step: Readonly<TrackedStep>, scale: number, alpha: number): void {
-    Object.assign(this.tracked, step);
+  setScale(scale: number): void {
     this.scale = scale;
-    this.alpha = alpha;
-    this.mode = 'tracked';
   }
   update(dt: number): void {
     let tx = 0;

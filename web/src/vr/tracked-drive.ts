@@ -176,8 +176,8 @@ export class TrackedDrive {
     const character = this.character;
     character.setTracked(this.headFloor[0], this.headFloor[1], head.velocity[0], head.velocity[2], this.yaw);
     character.setCrouch(d, this.headsetPitch);
-    this.hipsDrop = character.drive.tracked.hipsDrop;
-    this.torsoBend = character.drive.tracked.bend;
+    this.hipsDrop = character.drive.hipsDrop * character.metresPerDatabaseUnit;
+    this.torsoBend = character.drive.bend;
     character.update(step);
     this.upperBody?.apply(head, tr.left, tr.right, character.root.yaw);
     this.lastUpdateMs = performance.now() - t0;

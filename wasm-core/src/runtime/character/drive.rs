@@ -2,12 +2,137 @@
 //! the velocity and rotation springs, a path, or a tracked (VR) user; and the trajectory each
 //! of them predicts for the query.
 
+use super::Character;
 use crate::controller::{
     desired_rotation, desired_velocity, yaw_facing, ChangeDetector, ControllerSettings, Input, Path, Simulation,
 };
 use crate::persist::{Persist, Visitor};
 use crate::spring::{quat_abs, spring_damper_exact, spring_damper_exact_quat, spring_rotation_predict};
-use glam::{Quat, Vec3};
+use glam::{Quat, Vec2, Vec3};
+
+/// Which source a [`DriveInput`] asks to move the character (the runtime's [`Mode`] without
+/// its data; a path's points are given once, with [`Character::set_path`]).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum DriveMode {
+    /// Keyboard/gamepad move input.
+    #[default]
+    Move,
+    /// The path last set.
+    Path,
+    /// A tracked (VR) user.
+    Tracked,
+}
+
+/// The one drive value: everything that moves a character for its next step, in database
+/// units — which mode, the move input, the tracked sample, the crouch and α. A page's
+/// `Character` builds one from its devices; a shared room sends each step's value and every copy
+/// replays it; the runtime takes it whole with [`Character::set_drive`]. Read flat from JS in
+/// [`DriveInput::FIELDS`] order (`RawCharacter::set_drive`); `web/src/core/drive.ts` mirrors
+/// it field for field and a test checks the two orders agree.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct DriveInput {
+    pub mode: DriveMode,
+    /// Move mode: stick direction, facing, run, strafe (database axes).
+    pub input: Input,
+    /// Tracked mode: the raw head floor sample (the drive smooths it).
+    pub tracked: Tracked,
+    /// Hips lowered below the animation (database units; ≥ 0), the legs bent by IK (any mode).
+    pub hips_drop: f32,
+    /// Torso bent forward (rad; any mode).
+    pub bend: f32,
+    /// α, how far the root may lag the simulated character (database units); NaN: unchanged.
+    pub clamp_distance: f32,
+}
+
+impl Default for DriveInput {
+    fn default() -> Self {
+        DriveInput {
+            mode: DriveMode::Move,
+            input: Input::default(),
+            tracked: Tracked::default(),
+            hips_drop: 0.0,
+            bend: 0.0,
+            clamp_distance: f32::NAN,
+        }
+    }
+}
+
+impl DriveInput {
+    /// The flat order: `mode` is 0 move, 1 path, 2 tracked; flags are 0 or 1.
+    pub const FIELDS: [&'static str; 15] = [
+        "mode",
+        "move_x",
+        "move_z",
+        "face_x",
+        "face_z",
+        "run",
+        "strafe",
+        "head_x",
+        "head_z",
+        "velocity_x",
+        "velocity_z",
+        "yaw",
+        "hips_drop",
+        "bend",
+        "clamp_distance",
+    ];
+
+    /// Reads the value from `v` in [`Self::FIELDS`] order.
+    ///
+    /// # Errors
+    /// A length other than the field count, or a mode that is not 0, 1 or 2. Values that are not
+    /// finite pass through: the character refuses them one by one (keeping its last good ones).
+    pub fn from_flat(v: &[f32]) -> Result<DriveInput, String> {
+        let n = Self::FIELDS.len();
+        if v.len() != n {
+            return Err(format!("a drive value has {n} numbers ({}), got {}", Self::FIELDS.join(", "), v.len()));
+        }
+        let mode = match v[0] {
+            0.0 => DriveMode::Move,
+            1.0 => DriveMode::Path,
+            2.0 => DriveMode::Tracked,
+            m => return Err(format!("drive mode {m} (0 move, 1 path, 2 tracked)")),
+        };
+        Ok(DriveInput {
+            mode,
+            input: Input {
+                direction: Vec2::new(v[1], v[2]),
+                facing: Vec2::new(v[3], v[4]),
+                run: v[5] != 0.0,
+                strafe: v[6] != 0.0,
+            },
+            tracked: Tracked {
+                position: Vec3::new(v[7], 0.0, v[8]),
+                velocity: Vec3::new(v[9], 0.0, v[10]),
+                yaw: v[11],
+            },
+            hips_drop: v[12],
+            bend: v[13],
+            clamp_distance: v[14],
+        })
+    }
+}
+
+impl Character {
+    /// Takes the drive value for the next [`Character::update`] (its move input goes to
+    /// `update`, whose argument it is). Move mode leaves a path or a tracked user; path mode
+    /// follows the path last set (without one it is refused and counted); tracked mode takes
+    /// the sample ([`Character::set_tracked`]). The crouch applies in every mode; α only when
+    /// it is a number ≥ 0.
+    pub fn set_drive(&mut self, d: &DriveInput) {
+        match d.mode {
+            DriveMode::Move => self.set_path(None),
+            DriveMode::Path if matches!(self.drive.mode, Mode::Path { .. }) => {}
+            DriveMode::Path => self.stats.rejected_inputs += 1,
+            DriveMode::Tracked => self.set_tracked(d.tracked),
+        }
+        self.set_hips_drop(d.hips_drop);
+        self.set_torso_bend(d.bend);
+        if d.clamp_distance >= 0.0 && d.clamp_distance.is_finite() {
+            self.settings.clamp_distance = d.clamp_distance;
+        }
+    }
+}
 
 /// A tracked user (VR), as given each frame: raw, the drive smooths it.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
