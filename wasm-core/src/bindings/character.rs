@@ -20,6 +20,9 @@ pub struct RawCharacter {
     root: [f32; 4],
     simulation: [f32; 7],
     toes: [f32; 6],
+    /// The drive value, flat in `DriveInput::FIELDS` order: JS writes it in place (`drive_ptr`),
+    /// then `apply_drive` reads it — no copy or allocation per frame.
+    drive: [f32; DriveInput::FIELDS.len()],
     /// Matched trajectory (world x, z, direction x, z per point).
     matched: Vec<f32>,
     _live: LiveToken,
@@ -48,6 +51,7 @@ impl RawCharacter {
             root: [0.0; 4],
             simulation: [0.0; 7],
             toes: [0.0; 6],
+            drive: [0.0; DriveInput::FIELDS.len()],
             matched: vec![0.0; points * 4],
             _live: LiveToken::new(Kind::Character),
         };
@@ -55,11 +59,15 @@ impl RawCharacter {
         Ok(c)
     }
 
-    /// The drive value for the next `update`, flat in `DriveInput::FIELDS` order (database
-    /// units; `web/src/core/drive.ts` writes it). Throws on a wrong length or an unknown mode;
-    /// nothing changes then.
-    pub fn set_drive(&mut self, values: &[f32]) -> Result<(), JsError> {
-        let drive = DriveInput::from_flat(values).map_err(|e| JsError::new(&e))?;
+    /// Where JS writes the drive value for the next `update`: `DriveInput::FIELDS.len()` f32 in
+    /// that order (database units; `web/src/core/drive.ts` writes it), then `apply_drive`.
+    pub fn drive_ptr(&mut self) -> *mut f32 {
+        self.drive.as_mut_ptr()
+    }
+
+    /// Takes the drive value written at `drive_ptr`. Throws on an unknown mode; nothing changes then.
+    pub fn apply_drive(&mut self) -> Result<(), JsError> {
+        let drive = DriveInput::from_flat(&self.drive).map_err(|e| JsError::new(&e))?;
         self.input = drive.input;
         self.character.set_drive(&drive);
         Ok(())

@@ -33,14 +33,13 @@ export class CharacterRuntime {
   private raw_: RawCharacter | null;
   /** The drive's path object the runtime follows (null: none, or one given by `setPath`). */
   private path: DrivePath | null = null;
-  /** `setDrive`'s flat copy (no allocation per frame). */
-  private readonly flatDrive = new Float32Array(DRIVE_FIELDS.length);
   private readonly views = {
     positions: null as unknown as ViewCache<Float32Array>,
     rotations: null as unknown as ViewCache<Float32Array>,
     root: new ViewCache(Float32Array, 4),
     simulation: new ViewCache(Float32Array, 7),
     toes: new ViewCache(Float32Array, 6),
+    drive: new ViewCache(Float32Array, DRIVE_FIELDS.length),
     predictedPositions: null as unknown as ViewCache<Float32Array>,
     predictedRotations: null as unknown as ViewCache<Float32Array>,
     matched: null as unknown as ViewCache<Float32Array>,
@@ -85,7 +84,8 @@ export class CharacterRuntime {
       this.path = drive.path;
     }
     try {
-      raw.set_drive(writeDrive(drive, this.flatDrive));
+      writeDrive(drive, this.views.drive.get(wasmMemory(), raw.drive_ptr())); // in place: no copy, no allocation
+      raw.apply_drive();
     } catch (e) {
       throw asError(e); // an unknown mode: a value not made by `createDrive`
     }

@@ -95,7 +95,7 @@ export const DRIVE_FIELDS = [
 
 const MODES: readonly DriveMode[] = ['move', 'path', 'tracked'];
 
-/** Writes `d` flat into `out` (`DRIVE_FIELDS.length` numbers) for `RawCharacter.set_drive`. */
+/** Writes `d` flat into `out` (`DRIVE_FIELDS.length` numbers) for `RawCharacter.apply_drive` (at its `drive_ptr`). */
 export function writeDrive(d: Readonly<Drive>, out: Float32Array): Float32Array {
   out[0] = MODES.indexOf(d.mode);
   out[1] = d.moveX;
