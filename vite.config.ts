@@ -111,7 +111,7 @@ export default defineConfig(({ command, mode }) => {
       outDir: 'dist',
       emptyOutDir: false,
       target: 'es2022',
-      rollupOptions: { input: { index: 'index.html', viewer: 'viewer.html', vr: 'vr.html', bench: 'bench.html' } },
+      rollupOptions: { input: { index: 'index.html', viewer: 'viewer.html', vr: 'vr.html', crowd: 'crowd.html', bench: 'bench.html' } },
     },
     // onnxruntime-web ships its own wasm loader that pre-bundling breaks.
     // iwer and its devui are imported lazily (vr.html?emulate=1); pre-bundling them up front keeps

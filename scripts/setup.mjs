@@ -367,7 +367,7 @@ async function stepDist() {
       ...embedExamples().map((f) => mtime(f)),
       newestUnder(path.join(ROOT, 'public')),
       newestUnder(path.join(ROOT, 'web', 'sw')),
-      ...['index.html', 'viewer.html', 'vr.html', 'bench.html', 'vite.config.ts', 'tsconfig.json', 'tsconfig.lib.json', 'package.json', 'scripts/precompress.mjs'].map((f) => mtime(path.join(ROOT, f))),
+      ...['index.html', 'viewer.html', 'vr.html', 'crowd.html', 'bench.html', 'vite.config.ts', 'tsconfig.json', 'tsconfig.lib.json', 'package.json', 'scripts/precompress.mjs'].map((f) => mtime(path.join(ROOT, f))),
     ];
     if (mtime(stamp) > Math.max(...inputs)) return 'dist/ is newer than its sources';
     const vite = path.join(ROOT, 'node_modules', '.bin', 'vite');

@@ -36,8 +36,8 @@ const ENTRIES = [
 describe('pages are built on the public entries only', () => {
   const pages = fs.readdirSync(path.join(WEB, 'pages'), { withFileTypes: true }).filter((e) => e.isDirectory()).map((e) => e.name);
 
-  it('has the four pages', () => {
-    expect(pages.sort()).toEqual(['bench', 'demo', 'viewer', 'vr']);
+  it('has the five pages', () => {
+    expect(pages.sort()).toEqual(['bench', 'crowd', 'demo', 'viewer', 'vr']);
   });
 
   for (const page of pages) {

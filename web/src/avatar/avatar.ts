@@ -17,6 +17,7 @@ import { initWasm } from '../core/wasm.ts';
 import { findRoles, ROLE_NAMES, type RoleName, type RoleOverrides, vrmBoneNames } from '../core/roles.ts';
 import { type FetchOptions, fetchBytes, mark } from '../fetch.ts';
 import { cullHiddenBackFaces } from './closed-mesh.ts';
+import { attachRigidMeshes } from './rigid-meshes.ts';
 import { Grounding } from './grounding.ts';
 
 export interface AvatarOptions {
@@ -179,6 +180,10 @@ export class Avatar {
       VRMUtils.rotateVRM0(vrm);
       vrm.humanoid.autoUpdateHumanBones = false;
     }
+    // A loaded file's meshes are ours to reshape: a mesh following one bone rigidly rides it
+    // (rigid-meshes.ts: one skeleton upload a frame per avatar, not one per mesh). Not for a VRM,
+    // whose extras (look-at, first-person layers) address its meshes.
+    if (!vrm) attachRigidMeshes(gltf.scene);
     const avatar = new Avatar(vrm?.scene ?? gltf.scene, name, vrm, options.roles);
     cullHiddenBackFaces(avatar.object); // a loaded file's materials are ours to set (closed-mesh.ts)
     mark('mm:avatar-ready');
