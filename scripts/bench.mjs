@@ -1,5 +1,5 @@
 #!/usr/bin/env node
-// `npm run bench [-- --json] [-- --seconds S] [-- --queries N] [-- --search-only] [-- --vr] [-- --compare REV] [-- --load]`
+// `npm run bench [-- --json] [-- --seconds S] [-- --queries N] [-- --search-only] [-- --vr] [-- --compare REV] [-- --load] [-- --crowd]`
 // (--vr [--recordings a,b] [--alpha A]: only the VR replay benchmark, see vrBenchmark; --vr-shots: screenshots of the replays; --load: bytes and time to the first
 // animated frame of the pages, cold and warm, localhost and throttled: scripts/bench-load.mjs):
 // Every database here is a pinned recipe of databases/bench/ (scripts/bench-recipes.mjs): the
@@ -27,6 +27,12 @@ const seconds = Number(args[args.indexOf('--seconds') + 1]) || 2;
 const searchOnly = args.includes('--search-only');
 const numQueries = args.includes('--queries') ? Number(args[args.indexOf('--queries') + 1]) : 400;
 
+if (args.includes('--crowd')) {
+  // crowd.html's CPU per character (scripts/bench-crowd.mjs); needs only the WASM package and Chromium.
+  const { crowdBenchmark } = await import('./bench-crowd.mjs');
+  await crowdBenchmark({ json, args, log: (m) => console.error(`[bench] ${m}`) });
+  process.exit(0);
+}
 if (args.includes('--load')) {
   // What a visitor downloads and waits for (scripts/bench-load.mjs); needs only dist/ and Chromium.
   const { loadBenchmark } = await import('./bench-load.mjs');

@@ -142,9 +142,14 @@ export class Avatar {
     this.standingToeHeight = this.grounding.standingToeHeight;
   }
 
-  /** Height of a bone above the avatar object's floor (its parent's frame, avatar units). */
+  /**
+   * Height of a bone above the avatar object's floor (its parent's frame, avatar units), from the
+   * world matrices as last updated (`pose` and the constructor update them first): the parent's
+   * own world matrix cancels out, so a stale one does not matter — and its ancestors are not
+   * walked again (`getWorldPosition` recomputed ~10 matrices per toe, every character, every frame).
+   */
   private heightOf(bone: THREE.Object3D): number {
-    bone.getWorldPosition(_v);
+    _v.setFromMatrixPosition(bone.matrixWorld);
     if (this.object.parent) _v.applyMatrix4(_m.copy(this.object.parent.matrixWorld).invert());
     return _v.y;
   }

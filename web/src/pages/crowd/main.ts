@@ -23,14 +23,17 @@ const n = Math.max(1, Math.min(1000, Math.floor(Number(params.get('n') ?? 200)) 
 const lod = params.get('lod') !== '0';
 const fixedDt = params.get('dt') === 'fixed' ? 1 / 60 : Math.min(0.25, Number(params.get('dt')) || 0);
 
-/** Per frame, per character updated (ms): medians over the last `WINDOW` frames. */
-const WINDOW = 120;
+/** Per frame, per character updated (ms): medians over the last `WINDOW` frames (`window=60`). */
+const WINDOW = Math.max(1, Number(params.get('window')) || 60);
 const hook = {
   ready: false,
   error: null as string | null,
   n,
   lod,
+  crossOriginIsolated,
   frames: 0,
+  /** Characters updated a frame, mean over the window. */
+  updatedMean: NaN,
   /** Character updates this frame by level (every frame, every 2nd, every 4th). */
   levels: [0, 0, 0],
   perCharacter: { runtime: NaN, pose: NaN, render: NaN },
@@ -138,7 +141,7 @@ function steer(w: Walker, i: number): [number, number] {
   return [(dx / l) * w.pace, (dz / l) * w.pace];
 }
 
-const samples = { runtime: [] as number[], pose: [] as number[], render: [] as number[] };
+const samples = { runtime: [] as number[], pose: [] as number[], render: [] as number[], updated: [] as number[] };
 const median = (v: number[]) => [...v].sort((a, b) => a - b)[v.length >> 1] ?? NaN;
 const due: Walker[] = [];
 const dts: number[] = [];
@@ -183,21 +186,27 @@ function frame(dt: number): void {
   const { geometries, textures } = stage.renderer.info.memory;
   Object.assign(hook.memory, { geometries, textures, programs: stage.renderer.info.programs?.length ?? 0 });
   const per = (ms: number) => ms / Math.max(1, due.length);
-  for (const [key, ms] of [['runtime', per(f.runtime)], ['pose', per(f.pose)], ['render', t3 - t2]] as const) {
+  const frameSamples = [
+    ['runtime', per(f.runtime)],
+    ['pose', per(f.pose)],
+    ['render', t3 - t2],
+    ['updated', due.length],
+  ] as const;
+  for (const [key, ms] of frameSamples) {
     const s = samples[key];
     s.push(ms);
     if (s.length > WINDOW) s.shift();
   }
   const p = hook.perCharacter;
   [p.runtime, p.pose, p.render] = [median(samples.runtime), median(samples.pose), median(samples.render) / n];
+  hook.updatedMean = samples.updated.reduce((a, b) => a + b, 0) / samples.updated.length;
   hook.frames++;
   if (hook.frames % 15 === 0) {
     hook.positions = walkers.flatMap((w) => [w.x, w.z]);
-    const ms = (v: number) => `${(v * 1000).toFixed(1)} µs`;
+    const ms = (v: number) => `${(v * 1000).toFixed(0)} µs`;
     hud.textContent =
-      `${n} people · per person updated: runtime ${ms(p.runtime)}, pose ${ms(p.pose)} · ` +
-      `render ${ms(p.render)} a person · ${f.drawCalls} draw calls · ` +
-      `updated ${hook.levels.join(' / ')} (every 1st / 2nd / 4th frame)`;
+      `${n} people · per person: runtime ${ms(p.runtime)}, pose ${ms(p.pose)}, render ${ms(p.render)} · ` +
+      `${f.drawCalls} draw calls · updated ${hook.levels.join('/')} (every frame/2nd/4th)`;
   }
 }
 
