@@ -7,9 +7,8 @@
 // calls. Targets (issue 27): runtime ≤ 0.02 ms and runtime + pose + upload ≤ 0.05 ms a character.
 // The render here is a software GPU's (SwiftShader): its CPU side, not what a GPU draws.
 import os from 'node:os';
-import { startBenchServer } from './bench-server.mjs';
+import { launchBenchChromium, startBenchServer } from './bench-server.mjs';
 
-const CHROMIUM = '/usr/bin/chromium';
 const TARGETS_MS = { runtime: 0.02, all: 0.05 };
 
 export async function crowdBenchmark({ json, args, log }) {
@@ -17,11 +16,7 @@ export async function crowdBenchmark({ json, args, log }) {
   const people = value('--people', 200);
   const frames = value('--frames', 60);
   const server = await startBenchServer(5197);
-  const { chromium } = await import('playwright-core');
-  const browser = await chromium.launch({
-    executablePath: CHROMIUM,
-    args: ['--headless', '--no-sandbox', '--disable-gpu', '--disable-quic', '--no-first-run', '--disable-background-networking', '--disable-component-update', '--disable-sync', '--use-angle=swiftshader', '--enable-unsafe-swiftshader'],
-  });
+  const browser = await launchBenchChromium({ webgl: true });
   const rows = [];
   try {
     for (const lod of [false, true]) {

@@ -22,11 +22,11 @@ import os from 'node:os';
 import path from 'node:path';
 import { createInterface } from 'node:readline';
 import { fileURLToPath } from 'node:url';
+import { launchBenchChromium } from './bench-server.mjs';
 
 const ROOT = path.resolve(path.dirname(fileURLToPath(import.meta.url)), '..');
 const DIST = path.join(ROOT, 'dist');
 const SERVER = path.join(ROOT, 'dist-server', 'serve.mjs');
-const CHROMIUM = '/usr/bin/chromium';
 const NETWORKS = {
   localhost: null,
   throttled: { offline: false, latency: 80, downloadThroughput: (16e6 / 8) | 0, uploadThroughput: (8e6 / 8) | 0 },
@@ -139,11 +139,7 @@ export async function loadBenchmark({ json, args, log }) {
   const pages = pick('--pages', PAGES);
   const networks = pick('--networks', NETWORKS);
   const server = await startServer();
-  const { chromium } = await import('playwright-core');
-  const browser = await chromium.launch({
-    executablePath: CHROMIUM,
-    args: ['--headless', '--no-sandbox', '--disable-gpu', '--disable-quic', '--no-first-run', '--disable-background-networking', '--disable-component-update', '--disable-sync', '--use-angle=swiftshader', '--enable-unsafe-swiftshader'],
-  });
+  const browser = await launchBenchChromium({ webgl: true });
   const rows = [];
   try {
     for (const network of networks) {

@@ -6,6 +6,16 @@ import { fileURLToPath } from 'node:url';
 
 const ROOT = path.resolve(path.dirname(fileURLToPath(import.meta.url)), '..');
 
+/**
+ * Headless Chromium as the browser benchmarks run it (the Debian package, playwright.config.ts's
+ * flags); `webgl`: software WebGL (SwiftShader) for pages that draw.
+ */
+export async function launchBenchChromium({ webgl = false } = {}) {
+  const { chromium } = await import('playwright-core');
+  const flags = ['--headless', '--no-sandbox', '--disable-gpu', '--disable-quic', '--no-first-run', '--disable-background-networking', '--disable-component-update', '--disable-sync'];
+  return chromium.launch({ executablePath: '/usr/bin/chromium', args: webgl ? [...flags, '--use-angle=swiftshader', '--enable-unsafe-swiftshader'] : flags });
+}
+
 /** Starts it; `close()` the result when done. */
 export async function startBenchServer(port) {
   const { createServer } = await import('vite');

@@ -18,7 +18,7 @@ import path from 'node:path';
 import { execFileSync } from 'node:child_process';
 import { fileURLToPath } from 'node:url';
 import { PARSE_RECIPE, recipeDatabase, recipes, RUNTIME_RECIPE } from './bench-recipes.mjs';
-import { startBenchServer } from './bench-server.mjs';
+import { launchBenchChromium, startBenchServer } from './bench-server.mjs';
 
 const ROOT = path.resolve(path.dirname(fileURLToPath(import.meta.url)), '..');
 const args = process.argv.slice(2);
@@ -155,12 +155,8 @@ const startVite = () => startBenchServer(BENCH_PORT);
 
 /** Runs bench.html in headless Chromium; returns the page's `window.__searchBench`. */
 async function chromiumSearchBench(baseUrl, databases, runtime) {
-  const { chromium } = await import('playwright-core');
   // The flags of playwright.config.ts, minus the WebGL ones (no rendering here).
-  const browser = await chromium.launch({
-    executablePath: CHROMIUM,
-    args: ['--headless', '--no-sandbox', '--disable-gpu', '--disable-quic', '--no-first-run', '--disable-background-networking', '--disable-component-update', '--disable-sync'],
-  });
+  const browser = await launchBenchChromium();
   try {
     const page = await browser.newPage();
     const pageErrors = [];
@@ -283,11 +279,7 @@ async function vrBenchmark(log) {
   const names = JSON.parse(fs.readFileSync(index, 'utf8')).filter((n) => !only || only.includes(n));
   const alpha = args.includes('--alpha') ? Number(args[args.indexOf('--alpha') + 1]) : 0.3;
   const server = await startVite();
-  const { chromium } = await import('playwright-core');
-  const browser = await chromium.launch({
-    executablePath: CHROMIUM,
-    args: ['--headless', '--no-sandbox', '--disable-gpu', '--disable-quic', '--no-first-run', '--use-angle=swiftshader', '--enable-unsafe-swiftshader'],
-  });
+  const browser = await launchBenchChromium({ webgl: true });
   const rows = [];
   try {
     for (const name of names) {
@@ -362,8 +354,7 @@ async function vrShots(log) {
   const out = path.join(ROOT, 'test-results', 'vr-shots');
   fs.mkdirSync(out, { recursive: true });
   const server = await startVite();
-  const { chromium } = await import('playwright-core');
-  const browser = await chromium.launch({ executablePath: CHROMIUM, args: ['--headless', '--no-sandbox', '--disable-gpu', '--use-angle=swiftshader', '--enable-unsafe-swiftshader'] });
+  const browser = await launchBenchChromium({ webgl: true });
   try {
     for (const name of names) {
       const page = await browser.newPage({ viewport: { width: 960, height: 540 } });

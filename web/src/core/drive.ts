@@ -27,6 +27,16 @@ export function createMoveInput(): MoveInput {
   return { moveX: 0, moveZ: 0, faceX: 0, faceZ: 1, run: false, strafe: false };
 }
 
+/** Copies the move input of `from` into `to` (and nothing else: either may be a whole `Drive`). */
+export function copyMoveInput(from: Readonly<MoveInput>, to: MoveInput): void {
+  to.moveX = from.moveX;
+  to.moveZ = from.moveZ;
+  to.faceX = from.faceX;
+  to.faceZ = from.faceZ;
+  to.run = from.run;
+  to.strafe = from.strafe;
+}
+
 /**
  * What a tracked user (VR) asks of the character this frame, on the floor: the head centre's
  * floor position, its ground velocity, the body yaw (rad, 0 = +Z), how far the hips go down

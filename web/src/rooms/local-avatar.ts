@@ -4,7 +4,7 @@
  * stream compute the same motion. Call `setMove` / `setPath` / `setTracked` as the devices say,
  * then `update(dt)` once a frame instead of the character's own update.
  */
-import { createDrive, type DrivePath, type MoveInput, type TrackedInput } from '../core/drive.ts';
+import { copyMoveInput, createDrive, type DrivePath, type MoveInput, type TrackedInput } from '../core/drive.ts';
 import type { DrivenCharacter } from './driven-character.ts';
 import type { InputStream } from './input-stream.ts';
 import { createMoveStep, createTrackedStep, TICKS_PER_SECOND, type MoveStep, type TrackedStep, type RoomTrackerPose } from './protocol.ts';
@@ -25,13 +25,7 @@ export class LocalAvatar {
 
   /** Desktop input for the next frame (leaves path mode). */
   setMove(input: Readonly<MoveInput>): void {
-    const m = this.move;
-    m.moveX = input.moveX;
-    m.moveZ = input.moveZ;
-    m.faceX = input.faceX;
-    m.faceZ = input.faceZ;
-    m.run = input.run;
-    m.strafe = input.strafe;
+    copyMoveInput(input, this.move);
     this.drive.mode = 'move';
   }
 

@@ -4,17 +4,12 @@
  * (`Drive`, database units). The sender's own copy and every receiver's run these same lines on
  * the same numbers, so each copy gives its runtime the same floats.
  */
-import type { Drive, DrivePath, MoveInput, TrackedInput } from '../core/drive.ts';
+import { copyMoveInput, type Drive, type DrivePath, type MoveInput, type TrackedInput } from '../core/drive.ts';
 
 /** A move step (database axes) into `out`. A move step carries no crouch: the hips stand. */
 export function driveFromMove(step: Readonly<MoveInput>, out: Drive): Drive {
   out.mode = 'move';
-  out.moveX = step.moveX;
-  out.moveZ = step.moveZ;
-  out.faceX = step.faceX;
-  out.faceZ = step.faceZ;
-  out.run = step.run;
-  out.strafe = step.strafe;
+  copyMoveInput(step, out);
   out.hipsDrop = out.bend = 0;
   return out;
 }
