@@ -234,8 +234,13 @@ export class RemoteAvatar {
       }
     }
     this.exact = s.restart === true || loaded;
-    if (s.drive === 'tracked') c.setDrive(driveFromTracked(s.tracked, this.scale, this.alpha, this.drive));
-    else if (s.drive === 'move') c.setDrive(driveFromMove(s.move, this.drive));
+    // The sender's last step's value, for the lost time (`stepLastInput`). A restarted sender gave
+    // its fresh runtime nothing yet: it gives it its next step's value, as this copy does when
+    // that step plays — handing this one over now would start the tracked mode from another
+    // sample (another velocity) than the sender's, and the copy would drift by millimetres.
+    if (s.drive === 'tracked') driveFromTracked(s.tracked, this.scale, this.alpha, this.drive);
+    else if (s.drive === 'move') driveFromMove(s.move, this.drive);
+    if (s.drive !== 'path' && (!s.restart || loaded)) c.setDrive(this.drive);
     if (this.ready) this.drift.rebase(c.rootX - x0, c.rootZ - z0, c.rootYaw - yaw0);
     else this.drift.reset();
     this.measure(s.rootX, s.rootZ, s.rootYaw);

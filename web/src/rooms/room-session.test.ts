@@ -224,4 +224,41 @@ describe('RoomSession (real WASM, real room server)', () => {
     for (const p of [angry, viewer]) p.session.close();
     for (const p of [angry, viewer]) expect(p.notes.filter((n) => !/path was stopped/.test(n))).toEqual([]);
   }, 120_000);
+
+  it('a VR member restarted while it walks stays exact: its copies start the tracked mode from the same sample', async () => {
+    const roomId = createRoomId();
+    const vr = person(roomId, 'vr', 'Restarted');
+    const viewer = person(roomId, 'desktop', 'Watcher');
+    // A head that turns fast: consecutive samples' velocities differ by centimetres a second.
+    const both: [Person, 'desktop' | 'vr'][] = [
+      [vr, 'vr'],
+      [viewer, 'desktop'],
+    ];
+    let t = 0;
+    const walk = async (frames: number) => {
+      for (let f = 0; f < frames; f++, t += 1 / 60) {
+        const a = 2.5 * t;
+        vr.character.setTracked(Math.sin(a), Math.cos(a), 2.5 * Math.cos(a), -2.5 * Math.sin(a), a + Math.PI / 2);
+        viewer.character.setMove(0, 0);
+        for (const [p] of both) (p.character.update(1 / 60), p.session.update(1 / 60));
+        await sleep(16);
+      }
+    };
+    for (let k = 0; k < 500 && !(ready(vr, 1) && ready(viewer, 1)); k++) await walk(1);
+    await walk(60);
+    // What a style change or a reconnect does: the room hears the profile again, the runtime restarts.
+    const session = vr.session as unknown as { restartOwn(): void };
+    const restartedAt = vr.session.trace.sent.length;
+    vr.session.client.updateJoinAndRestart({ ...vr.session.client.join }, () => session.restartOwn());
+    await walk(240);
+    await sleep(300);
+    await walk(20);
+    const id = vr.session.client.memberId;
+    const sent = new Map(vr.session.trace.sent.slice(restartedAt).filter((r) => r[0] === id).map((r) => [r[1], r]));
+    const d = viewer.session.trace.shown.filter((s) => s[0] === id && sent.has(s[1])).map((s) => Math.hypot(s[2] - sent.get(s[1])![2], s[3] - sent.get(s[1])![3]));
+    console.log(`after a VR member's restart: ${d.length} messages drawn, root error max ${(Math.max(...d) * 1000).toFixed(3)} mm`);
+    expect(d.length).toBeGreaterThan(50);
+    expect(Math.max(...d)).toBeLessThan(0.001);
+    for (const p of both) p[0].session.close();
+  }, 120_000);
 });
