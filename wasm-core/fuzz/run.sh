@@ -5,7 +5,7 @@
 #   fuzz/run.sh ci                  the CI form (< 2 min, nothing to install): replays the
 #                                   committed corpus, the malformed BVH cases and ~9,800
 #                                   deterministic .mmdb mutations, 4,000 random call sequences
-#                                   on a character (cargo test --test hostile_*)
+#                                   on a character (the integration tests hostile_*:: and roundtrip::)
 #   fuzz/run.sh long [SECONDS] [TARGET...]
 #                                   coverage-guided AFL++ runs (cargo-afl, stable Rust), SECONDS
 #                                   per target (default 600), targets bvh mmdb builder character roundtrip
@@ -21,7 +21,7 @@ mode="${1:-ci}"
 
 if [[ "$mode" == ci ]]; then
   cd "$here/.."
-  exec cargo test --profile test-opt --test hostile_bvh --test hostile_mmdb --test hostile_character --test roundtrip
+  exec cargo test --profile test-opt --test integration -- hostile_bvh:: hostile_mmdb:: hostile_character:: roundtrip::
 fi
 if [[ "$mode" != long ]]; then
   echo "usage: fuzz/run.sh ci | long [SECONDS] [bvh|mmdb|builder|character|roundtrip ...]" >&2

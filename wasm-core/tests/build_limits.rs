@@ -4,16 +4,13 @@
 //! search cannot take and leg ratios the loader refuses never become a database the loader
 //! refuses. `docs/robustness.md` ("Limits") names these tests.
 
-mod common;
-mod hostile;
+use crate::common;
+use crate::hostile;
 
 use common::{config, source};
 use hostile::alloc;
 use mmcore::limits::{BuildFootprint, MAX_BUILD_BYTES};
 use mmcore::{build, format, Bvh, Source};
-
-#[global_allocator]
-static ALLOCATOR: alloc::Counting = alloc::Counting;
 
 fn parsed(name: &str, text: &str) -> Source {
     Source { name: name.into(), bvh: Bvh::parse(name, text.as_bytes()).unwrap() }

@@ -2,8 +2,8 @@
 //! 28): `new Crowd(db, 100000)` was accepted and its first update took 304 s, and each
 //! character's first update allocated one byte per database frame (its idle mask).
 
-mod common;
-mod hostile;
+use crate::common;
+use crate::hostile;
 
 use glam::Vec2;
 use hostile::alloc;
@@ -14,9 +14,6 @@ use mmcore::crowd::{character_bytes, Crowd};
 use mmcore::limits::{CROWD_MEMORY_BUDGET, CROWD_SEARCH_BUDGET, MAX_CROWD};
 use mmcore::search::SearchIndex;
 use mmcore::{build, Bvh, Database, Source};
-
-#[global_allocator]
-static ALLOCATOR: alloc::Counting = alloc::Counting;
 
 /// A walk whose first 100 source frames are tagged `idle`, so characters have an idle mask.
 fn database(json: &str) -> Database {

@@ -3,7 +3,7 @@
 //! builds a database, and damaged copies — truncated at every length, mutated at random — are
 //! errors naming the file, never a panic, a hang or an allocation beyond the bound.
 
-mod hostile;
+use crate::hostile;
 
 use glam::{DQuat, DVec3};
 use hostile::{alloc, humanoid_bvh, mutate, Rng};
@@ -13,9 +13,6 @@ use mmcore::{build, gltf, Bvh, Source};
 use serde_json::json;
 use std::panic::{catch_unwind, AssertUnwindSafe};
 use std::time::{Duration, Instant};
-
-#[global_allocator]
-static ALLOCATOR: alloc::Counting = alloc::Counting;
 
 /// A fixed rotation per bone: the GLB's bone axes differ from the BVH's by it.
 fn axes(j: usize) -> DQuat {

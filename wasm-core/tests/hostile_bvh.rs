@@ -3,7 +3,7 @@
 //! heap use beyond `limits::BVH_ALLOCATION_FACTOR` × its size + 1 MiB. Parsed files that look
 //! like a body also go through the builder and the `.mmdb` round trip.
 
-mod hostile;
+use crate::hostile;
 
 use hostile::{alloc, Case, Expect};
 use mmcore::config::BuildConfig;
@@ -12,9 +12,6 @@ use mmcore::{format, Bvh, Source};
 use std::panic::{catch_unwind, AssertUnwindSafe};
 use std::path::Path;
 use std::time::{Duration, Instant};
-
-#[global_allocator]
-static ALLOCATOR: alloc::Counting = alloc::Counting;
 
 const FILE: &str = "case.bvh";
 

@@ -1,7 +1,7 @@
 //! The CLI on hostile input and out-of-range flags: usage errors (exit 2) name the flag, bad
 //! files (exit 1) name the file and line or section — never a NaN database with exit 0.
 
-mod hostile;
+use crate::hostile;
 
 use std::path::PathBuf;
 use std::process::{Command, Output};

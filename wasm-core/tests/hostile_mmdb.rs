@@ -3,7 +3,7 @@
 //! clear error — never a panic, a hang, or heap use beyond
 //! `limits::MMDB_ALLOCATION_FACTOR` × the file size + 64 KiB.
 
-mod hostile;
+use crate::hostile;
 
 use hostile::{alloc, Case, Expect};
 use mmcore::character::CharacterSettings;
@@ -13,9 +13,6 @@ use mmcore::{format, inspect, Database};
 use std::panic::{catch_unwind, AssertUnwindSafe};
 use std::path::Path;
 use std::time::{Duration, Instant};
-
-#[global_allocator]
-static ALLOCATOR: alloc::Counting = alloc::Counting;
 
 /// The seed files: the handmade tiny database and the committed humanoid build.
 fn seeds() -> Vec<(String, Vec<u8>)> {

@@ -9,7 +9,7 @@ use mmcore::config::BuildConfig;
 use mmcore::roles::Role;
 use mmcore::{build, format, Bvh, Database, Source};
 
-mod common;
+use crate::common;
 use common::{config, source};
 
 /// `bvh` with new joint names.

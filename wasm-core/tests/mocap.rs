@@ -7,7 +7,7 @@ use mmcore::config::BuildConfig;
 use mmcore::{build, format, inspect, Database, Source};
 use std::path::Path;
 
-mod common;
+use crate::common;
 use common::{config, mocap, source};
 
 fn world_positions(db: &Database, frame: usize) -> Vec<Vec3> {

@@ -5,10 +5,10 @@
 //! cases — random configurations and BVH takes around every limit.
 
 #[path = "../fuzz/src/roundtrip.rs"]
-mod roundtrip;
+mod property;
 
 use mmcore::rng::Rng;
-use roundtrip::Verdict;
+use property::Verdict;
 use std::path::Path;
 
 /// Cases per run: bounded so `npm test` stays quick (~1 min in the test-opt profile).
@@ -23,7 +23,7 @@ fn committed_round_trip_corpus_replays() {
         for e in entries {
             let path = e.unwrap().path();
             let bytes = std::fs::read(&path).unwrap();
-            let outcome = std::panic::catch_unwind(|| roundtrip::check_round_trip(&bytes));
+            let outcome = std::panic::catch_unwind(|| property::check_round_trip(&bytes));
             assert!(outcome.is_ok(), "{}", path.display());
             count += 1;
         }
@@ -38,7 +38,7 @@ fn random_builds_load_and_play() {
     let mut reasons: std::collections::BTreeMap<String, usize> = Default::default();
     for i in 0..CASES {
         let bytes: Vec<u8> = (0..400).map(|_| (rng.next_u64() >> 24) as u8).collect();
-        match std::panic::catch_unwind(|| roundtrip::check_round_trip(&bytes)) {
+        match std::panic::catch_unwind(|| property::check_round_trip(&bytes)) {
             Ok(Verdict::Played { frames: n }) => {
                 played += 1;
                 frames += n;
@@ -49,7 +49,7 @@ fn random_builds_load_and_play() {
                     e.split(|c: char| c.is_ascii_digit()).next().unwrap_or("").chars().take(50).collect();
                 *reasons.entry(reason).or_default() += 1;
             }
-            Err(_) => panic!("case {i} broke the round trip: {:?}", roundtrip::generate(&bytes).config),
+            Err(_) => panic!("case {i} broke the round trip: {:?}", property::generate(&bytes).config),
         }
     }
     eprintln!("round trip: {CASES} random cases, {played} built, loaded and played ({frames} frames in all), {refused} refused: {reasons:#?}");

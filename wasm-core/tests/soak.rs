@@ -4,6 +4,7 @@
 //! pose is finite and the root within α of where it is asked to be; after every fault the
 //! character searches with a finite cost again within 1 s; `update` allocates nothing.
 
+use crate::hostile::alloc::allocations_here;
 use glam::{Quat, Vec2, Vec3};
 use mmcore::character::{Character, CharacterSettings, Tracked};
 use mmcore::config::BuildConfig;
@@ -11,33 +12,6 @@ use mmcore::controller::{Input, Path};
 use mmcore::rng::Rng;
 use mmcore::search::SearchIndex;
 use mmcore::{build, Bvh, Database, Source};
-use std::alloc::{GlobalAlloc, Layout, System};
-use std::cell::Cell;
-
-/// Counts allocations per thread (tests run side by side), so the soak can show `update` makes
-/// none.
-struct Counting;
-thread_local! {
-    static ALLOCATIONS: Cell<u64> = const { Cell::new(0) };
-}
-fn allocations_here() -> u64 {
-    ALLOCATIONS.with(Cell::get)
-}
-unsafe impl GlobalAlloc for Counting {
-    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
-        let _ = ALLOCATIONS.try_with(|n| n.set(n.get() + 1));
-        unsafe { System.alloc(layout) }
-    }
-    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
-        unsafe { System.dealloc(ptr, layout) }
-    }
-    unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
-        let _ = ALLOCATIONS.try_with(|n| n.set(n.get() + 1));
-        unsafe { System.realloc(ptr, layout, new_size) }
-    }
-}
-#[global_allocator]
-static GLOBAL: Counting = Counting;
 
 fn database() -> Database {
     let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../shared/mocap/cmu-asf");

@@ -34,8 +34,8 @@
 //! ~7 ms in Node 20 (WASM); the 53k-frame benchmark database ~4–7 ms native, ~6–10 ms in
 //! Chromium, ~13 ms in Node. Parsing the same `.mmdb` bytes in WASM takes ~70 ms and ~180 ms,
 //! so the boxes would save at most a tenth of the load time while adding a format section to
-//! version and validate. (`cargo test --release --test search -- --nocapture index_build_time`
-//! prints the native figure; `npm run bench` prints the WASM ones.)
+//! version and validate. (`cargo test --release --test integration -- --nocapture
+//! search::index_build_time` prints the native figure; `npm run bench` prints the WASM ones.)
 
 use crate::lanes::F32x4;
 

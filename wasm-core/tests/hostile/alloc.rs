@@ -1,6 +1,6 @@
-//! A counting global allocator for the hostile tests: per-thread current and peak heap use,
-//! so a test can assert "parsing this never held more than k × its size" while other tests
-//! run on other threads. A single request above [`HARD_LIMIT`] aborts with a message instead
+//! The integration tests' global allocator (`tests/main.rs`): per-thread current and peak heap
+//! use and allocation count, so a test can assert "parsing this never held more than k × its
+//! size" or "`update` allocates nothing" while other tests run on other threads. A single request above [`HARD_LIMIT`] aborts with a message instead
 //! of asking the system for terabytes (what a header-trusting parser used to do).
 
 use std::alloc::{GlobalAlloc, Layout, System};
@@ -15,6 +15,16 @@ pub const HARD_LIMIT: usize = 4 << 30;
 thread_local! {
     static CURRENT: Cell<isize> = const { Cell::new(0) };
     static PEAK: Cell<isize> = const { Cell::new(0) };
+    static ALLOCATIONS: Cell<u64> = const { Cell::new(0) };
+}
+
+/// Allocations (and reallocations) this thread has made so far.
+pub fn allocations_here() -> u64 {
+    ALLOCATIONS.with(Cell::get)
+}
+
+fn count() {
+    let _ = ALLOCATIONS.try_with(|n| n.set(n.get() + 1));
 }
 
 fn track(delta: isize) {
@@ -40,11 +50,13 @@ unsafe impl GlobalAlloc for Counting {
     unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
         check(layout.size());
         track(layout.size() as isize);
+        count();
         unsafe { System.alloc(layout) }
     }
     unsafe fn alloc_zeroed(&self, layout: Layout) -> *mut u8 {
         check(layout.size());
         track(layout.size() as isize);
+        count();
         unsafe { System.alloc_zeroed(layout) }
     }
     unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
@@ -54,6 +66,7 @@ unsafe impl GlobalAlloc for Counting {
     unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
         check(new_size);
         track(new_size as isize - layout.size() as isize);
+        count();
         unsafe { System.realloc(ptr, layout, new_size) }
     }
 }
