@@ -236,27 +236,34 @@ async function stepWasmBindgen() {
       }
       if (current() === want) return;
     }
-    log(`  installing wasm-bindgen-cli ${want} (have: ${current() ?? 'none'}); this compiles it from source and takes ~8 minutes on a cold machine`);
+    log(`  installing wasm-bindgen-cli ${want} (have: ${current() ?? 'none'}); this compiles it from source (~1.5 minutes on 2 cores)`);
+    // --debug: the unoptimized CLI compiles in half the time (86 s against 181 s on 2 cores) and
+    // still binds our module in half a second, to the same bytes as the optimized one.
     // --locked first (reproducible); the registry here lacks one crate version the CLI's lockfile
     // pins (webpki-roots 1.0.11), so fall back to resolving compatible versions.
+    // --force: cargo's own record may say it is installed when the binary is gone.
+    const install = ['install', 'wasm-bindgen-cli', '--version', `=${want}`, '--debug', '--force'];
     try {
-      await run('cargo', ['install', 'wasm-bindgen-cli', '--version', `=${want}`, '--locked']);
+      await run('cargo', [...install, '--locked']);
     } catch {
       log('  --locked install failed; retrying with freshly resolved dependencies');
-      await run('cargo', ['install', 'wasm-bindgen-cli', '--version', `=${want}`]);
+      await run('cargo', install);
     }
     if (current() !== want) throw new StepError(`wasm-bindgen --version still does not report ${want} after install`);
   });
 }
 
-async function stepWasm() {
+async function stepWasmBuild(logFile) {
   await step('wasm', 'WASM build (cargo)', async () => {
     // The flag goes in the target-specific variable, not RUSTFLAGS, so the native build (same
     // target dir, host artifacts) is not invalidated by alternating flags.
     const env = { ...process.env, CARGO_TARGET_WASM32_UNKNOWN_UNKNOWN_RUSTFLAGS: '-C target-feature=+simd128' };
     if (process.env.RUSTFLAGS) log('  note: RUSTFLAGS is set and overrides the simd128 target flag');
-    await run('cargo', ['build', '--release', '--target', WASM_TARGET, '--lib'], { cwd: CORE, env });
+    await run('cargo', ['build', '--release', '--target', WASM_TARGET, '--lib'], { cwd: CORE, env, logFile });
   });
+}
+
+async function stepWasmBindings() {
   await step('wasm', 'WASM bindings (wasm-bindgen)', async () => {
     const out = path.join(PKG_DIR, 'mmcore_bg.wasm');
     if (!fs.existsSync(WASM_OUT)) throw new StepError(`cargo produced no ${path.relative(ROOT, WASM_OUT)}`);
@@ -277,9 +284,9 @@ async function stepWasm() {
   });
 }
 
-async function stepCli() {
+async function stepCli(logFile) {
   await step('cli', 'native CLI (mmdb)', async () => {
-    await run('cargo', ['build', '--release', '--bin', 'mmdb'], { cwd: CORE });
+    await run('cargo', ['build', '--release', '--bin', 'mmdb'], { cwd: CORE, logFile });
   });
 }
 
@@ -582,10 +589,17 @@ async function main() {
   const venv = mode === 'test' ? stepVenv(path.join(ROOT, 'test-results', 'pip-install.log')) : null;
   venv?.catch(() => undefined); // awaited below; a failure is reported there
   await stepRustTarget();
+  // Two lanes side by side, each ending in a long single-threaded step (the LTO of a release
+  // build) that leaves a core to the other: on 2 cores 158 s for what took 276 s one after the
+  // other (three lanes took 177 s). The native lane writes its output to a file, shown if it fails.
+  const logs = path.join(ROOT, 'test-results');
+  fs.mkdirSync(logs, { recursive: true });
+  const native = stepCli(path.join(logs, 'setup-cli.log')).then(stepDatabases);
+  native.catch(() => undefined); // awaited below; a failure is reported there
   await stepWasmBindgen();
-  await stepWasm();
-  await stepCli();
-  await stepDatabases();
+  await stepWasmBuild();
+  await stepWasmBindings();
+  await native;
   await stepAvatars();
   if (mode === 'test') {
     await stepChromium();
