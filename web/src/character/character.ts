@@ -150,7 +150,7 @@ export class Character {
     this.skeletonView = this.makeSkeletonView(database);
     this.setAvatar(avatar);
     if (options.debug) this.debug = true;
-    this.draw(0);
+    this.pose(0);
   }
 
   /**
@@ -422,7 +422,7 @@ export class Character {
   teleport(x: number, z: number, yaw = 0): void {
     const p = this.toDatabase(x, z);
     this.runtime.teleport(p.x, p.z, yaw - this.frameYaw);
-    this.draw(0);
+    this.pose(0);
   }
 
   /**
@@ -574,11 +574,17 @@ export class Character {
       this.applyDrive(this.drive_);
       this.advance(dt);
     }
-    this.draw(dt);
+    this.pose(dt);
   }
 
-  /** Poses the avatar (and skeleton, debug views) from the runtime's world pose. */
-  private draw(dt: number): void {
+  /**
+   * Poses the avatar (and skeleton, debug views) from the runtime's world pose, `dt` seconds after
+   * the last pose: what `update` does after advancing. For code that steps the simulation itself
+   * (`applyDrive`, `advance`) and poses apart, e.g. a crowd timing each part; calling `update`
+   * after `advance` would advance twice.
+   */
+  pose(dt: number): void {
+    this.live();
     const runtime = this.runtime;
     if (this.avatar_) this.avatar_.pose(runtime, dt);
     if (this.skeletonView.object.visible) {

@@ -5,7 +5,7 @@
  * characters update less often (level of detail: every frame near the camera, every 2nd frame
  * past 20 m, every 4th past 32 m; their `dt` accumulates). The HUD splits the CPU per frame per
  * character updated into the runtime (drive + search + playback: `applyDrive` + `advance`), the
- * pose (retarget, bones, grounding: `update` with the step taken over by an idle stepper) and
+ * pose (retarget, bones, grounding: `pose`) and
  * the render (bone uploads and draw calls), with the draw calls. The public entry only.
  *
  * URL parameters: `n=200` (1–1000), `lod=0` (every character every frame), `dt=fixed` (1/60 s a
@@ -13,7 +13,7 @@
  */
 import * as THREE from 'three';
 import {
-  Avatar, Character, type CharacterStepper, DEFAULT_AVATAR, DEFAULT_DATABASE, FollowCamera, Stage, assetUrl,
+  Avatar, Character, DEFAULT_AVATAR, DEFAULT_DATABASE, FollowCamera, Stage, assetUrl,
   loadDatabase,
 } from '../../index.ts';
 import { catchPageErrors, errorMessage } from '../kit.ts';
@@ -88,8 +88,6 @@ interface Walker {
   z: number;
 }
 const walkers: Walker[] = [];
-// The runtime is stepped below, timed on its own; `update` then only poses (retarget, bones, grounding).
-const idle: CharacterStepper = { step: () => undefined };
 
 async function start(): Promise<void> {
   hud.textContent = `loading the database and the avatar for ${n} characters…`;
@@ -101,7 +99,6 @@ async function start(): Promise<void> {
     const character = new Character(database, i === 0 ? template : template.clone());
     const [x, z] = point();
     character.teleport(x, z, random() * Math.PI * 2);
-    character.stepper = idle;
     stage.scene.add(character.object3d);
     walkers.push({ character, goal: point(), pace: 0.55 + 0.45 * random(), pending: 0, x, z });
   }
@@ -171,7 +168,7 @@ function frame(dt: number): void {
   hook.notFinite = 0;
   for (let i = 0; i < due.length; i++) {
     const w = due[i];
-    w.character.update(dts[i]);
+    w.character.pose(dts[i]);
     const r = w.character.root;
     if (!Number.isFinite(r.x) || !Number.isFinite(r.z)) hook.notFinite++;
     [w.x, w.z] = [r.x, r.z];
