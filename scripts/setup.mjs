@@ -15,7 +15,7 @@
 //                                  a last line `N passed, M failed`; exits non-zero on any failure
 //
 // Environment:
-//   SETUP_SKIP=step,step   skip named steps: npm, rust-target, wasm-bindgen, wasm, cli, cargo-tests, databases,
+//   SETUP_SKIP=step,step   skip named steps: npm, rust-target, wasm-bindgen, wasm, cli, databases,
 //                          avatars, dist, server, chromium, nats, venv, recordings (for working on one part while another is broken)
 //   TEST_SUITES=a,b        run only these suites: lint, cargo, vitest, pytest, playwright
 //
@@ -287,12 +287,6 @@ async function stepWasmBindings() {
 async function stepCli(logFile) {
   await step('cli', 'native CLI (mmdb)', async () => {
     await run('cargo', ['build', '--release', '--bin', 'mmdb'], { cwd: CORE, logFile });
-  });
-}
-
-async function stepCargoTests(logFile) {
-  await step('cargo-tests', 'Rust test binaries (cargo test --no-run)', async () => {
-    await run('cargo', ['test', '--profile', 'test-opt', '--no-run'], { cwd: CORE, logFile });
   });
 }
 
@@ -606,17 +600,12 @@ async function main() {
   await stepWasmBindgen();
   await stepWasmBuild();
   await stepWasmBindings();
-  // `npm test`: the cargo suite's test binaries compile now, while the venv installs and the
-  // native build links (each mostly on one core), instead of after the set-up.
-  const testBuild = mode === 'test' ? stepCargoTests(path.join(logs, 'setup-cargo-tests.log')) : null;
-  testBuild?.catch(() => undefined); // a compile error is the cargo suite's to report
   await native;
   await stepAvatars();
   if (mode === 'test') {
     await stepChromium();
     await stepNats();
     await venv;
-    await testBuild?.catch(() => log('  the test binaries did not compile: the cargo suite says why'));
   }
   if (mode !== 'build') await stepRecordings();
   if (mode !== 'dev') await stepDist();
