@@ -59,10 +59,13 @@ async function run(people: [Person, 'desktop' | 'vr'][], frames: number, t0 = 0)
   }
 }
 
-/** Shown roots of `viewer`'s copy of `sender`, matched to the sender's own roots by sender time. */
-function errors(viewer: Person, sender: Person): { d: number[]; yaw: number[] } {
+/**
+ * Shown roots of `viewer`'s copy of `sender`, matched to the sender's own roots by sender time
+ * (those it sent from its `from`-th trace row on).
+ */
+function errors(viewer: Person, sender: Person, from = 0): { d: number[]; yaw: number[] } {
   const id = sender.session.client.memberId;
-  const sent = new Map(sender.session.trace.sent.filter((r) => r[0] === id).map((r) => [r[1], r]));
+  const sent = new Map(sender.session.trace.sent.slice(from).filter((r) => r[0] === id).map((r) => [r[1], r]));
   const d: number[] = [];
   const yaw: number[] = [];
   for (const s of viewer.session.trace.shown) {
@@ -215,9 +218,7 @@ describe('RoomSession (real WASM, real room server)', () => {
     const copy = copyOf(viewer, angry)!;
     expect(copy.character!.style).toBe('akimbo');
     expect(copy.character!.tags).toContain('style:akimbo');
-    const id = angry.session.client.memberId;
-    const sent = new Map(angry.session.trace.sent.slice(changedAt).filter((r) => r[0] === id).map((r) => [r[1], r]));
-    const d = viewer.session.trace.shown.filter((s) => s[0] === id && sent.has(s[1])).map((s) => Math.hypot(s[2] - sent.get(s[1])![2], s[3] - sent.get(s[1])![3]));
+    const { d } = errors(viewer, angry, changedAt);
     console.log(`after the style change: ${d.length} messages drawn, root error max ${(Math.max(...d) * 1000).toFixed(3)} mm`);
     expect(d.length).toBeGreaterThan(50);
     expect(Math.max(...d)).toBeLessThan(0.001);
@@ -253,9 +254,7 @@ describe('RoomSession (real WASM, real room server)', () => {
     await walk(240);
     await sleep(300);
     await walk(20);
-    const id = vr.session.client.memberId;
-    const sent = new Map(vr.session.trace.sent.slice(restartedAt).filter((r) => r[0] === id).map((r) => [r[1], r]));
-    const d = viewer.session.trace.shown.filter((s) => s[0] === id && sent.has(s[1])).map((s) => Math.hypot(s[2] - sent.get(s[1])![2], s[3] - sent.get(s[1])![3]));
+    const { d } = errors(viewer, vr, restartedAt);
     console.log(`after a VR member's restart: ${d.length} messages drawn, root error max ${(Math.max(...d) * 1000).toFixed(3)} mm`);
     expect(d.length).toBeGreaterThan(50);
     expect(Math.max(...d)).toBeLessThan(0.001);
