@@ -161,3 +161,53 @@ describe('DatabaseBuilder (WASM in Node)', () => {
     }
   });
 });
+
+describe('first part (PART): a character starts on it and moves to the whole', () => {
+  const VR = path.join(ROOT, 'public/databases/vr.mmdb');
+
+  it('names its whole beside it, loads it after its first frames over HTTP and moves there on the same frame', async () => {
+    const { Character, loadDatabase } = await import('../../web/src/index.ts');
+    const http = await import('node:http');
+    // The site's files on loopback: the character fetches the whole as a page does.
+    const server = http.createServer((req, res) => {
+      const file = path.join(ROOT, 'public', decodeURIComponent(new URL(req.url ?? '/', 'http://x').pathname));
+      if (!file.startsWith(path.join(ROOT, 'public')) || !fs.existsSync(file)) return void res.writeHead(404).end();
+      res.writeHead(200, { 'content-type': 'application/octet-stream' }).end(fs.readFileSync(file));
+    });
+    await new Promise<void>((r) => server.listen(0, '127.0.0.1', r));
+    const base = `http://127.0.0.1:${(server.address() as { port: number }).port}/databases/`;
+    try {
+      const part = await loadDatabase(`${base}locomotion.first.mmdb?v=1`);
+      expect(part.wholeUrl).toBe(`${base}locomotion.mmdb`);
+      const whole = Database.fromBytes(fs.readFileSync(DB_PATH), 'locomotion.mmdb');
+      const other = Database.fromBytes(fs.readFileSync(VR), 'vr.mmdb');
+      expect(whole.wholeUrl).toBeNull();
+      expect(part.numFrames).toBeLessThan(whole.numFrames / 5);
+      expect([part.isPartOf(whole), part.isPartOf(other), whole.isPartOf(part)]).toEqual([true, false, false]);
+      const c = new Character(part);
+      part.release(); // the character holds it
+      expect(() => c.runtime.enterWhole(other)).toThrow(/first part of locomotion\.mmdb .* not of the one given/);
+      c.setMove(0, 1);
+      for (let i = 0; i < 90; i++) c.update(1 / 60); // the second update starts the whole's download
+      const [frame, j, partRotations] = [c.runtime.frame, part.numJoints, part.localRotations.slice()];
+      const [before, root] = [Array.from(c.runtime.worldPositions), { ...c.root }];
+      const loaded = await c.whole(); // it moves as soon as the whole is here, between updates
+      expect([loaded.numFrames, c.database, part.isFreed]).toEqual([whole.numFrames, loaded, true]);
+      const now = c.runtime.frame;
+      expect(now).not.toBe(frame);
+      const rotations = (r: Float32Array, f: number) => Array.from(r.subarray(f * j * 4, (f + 1) * j * 4));
+      expect(rotations(loaded.localRotations, now)).toEqual(rotations(partRotations, frame));
+      c.pose(0);
+      expect(Array.from(c.runtime.worldPositions)).toEqual(before);
+      expect(c.root).toEqual(root);
+      for (let i = 0; i < 60; i++) c.update(1 / 60); // and walks on in the whole
+      expect(Math.hypot(c.root.x - root.x, c.root.z - root.z)).toBeGreaterThan(0.5);
+      expect(() => c.runtime.enterWhole(loaded)).toThrow(/not a first part/);
+      c.dispose();
+      whole.release();
+      other.release();
+    } finally {
+      server.close();
+    }
+  });
+});

@@ -4,7 +4,7 @@
 
 pub mod codec;
 
-use crate::database::{Axes, Clip, Database, FeatureGroup, FeatureKind, Site, Skeleton, Tag};
+use crate::database::{Axes, Clip, Database, FeatureGroup, FeatureKind, Part, Site, Skeleton, Tag};
 use crate::error::{Error, Result};
 use crate::limits::{
     check_feature_dims, num, quote, MAX_ABS_STORED, MAX_FEATURE_OFFSET, MAX_FEATURE_SCALE, MAX_FPS, MAX_FRAMES,
@@ -48,6 +48,9 @@ pub fn to_bytes(db: &Database) -> Vec<u8> {
             _ => small_section(db, tag).into(),
         };
         sections.push((tag, data));
+    }
+    if db.part.is_some() {
+        sections.push((b"PART", small_section(db, b"PART").into()));
     }
 
     let mut offset = align(HEADER_LEN + ENTRY_LEN * sections.len());
@@ -118,6 +121,18 @@ fn small_section(db: &Database, tag: &[u8; 4]) -> Vec<u8> {
                 put_f32(&mut w, c.scale);
                 put_f32(&mut w, c.root_scale);
                 put_u32(&mut w, c.source_start);
+            }
+        }
+        b"PART" => {
+            if let Some(p) = &db.part {
+                put_str(&mut w, &p.whole);
+                put_u32(&mut w, p.whole_frames);
+                put_u32(&mut w, p.whole_checksum);
+                put_u32(&mut w, p.ranges.len() as u32);
+                for &(s, e) in &p.ranges {
+                    put_u32(&mut w, s);
+                    put_u32(&mut w, e);
+                }
             }
         }
         b"TAGS" => {
@@ -498,6 +513,11 @@ pub fn from_bytes(bytes: &[u8]) -> Result<Database> {
     check_floats("FNRM mean", &feature_mean)?;
     check_floats(features_tag, &features)?;
 
+    let part = match sections.iter().find(|(t, _, _)| t == b"PART") {
+        Some(&(tag, _, data)) => Some(read_part(&mut Reader { data, pos: 0, tag }, num_frames, &clips)?),
+        None => None,
+    };
+
     let derive = velocities.is_none();
     let (local_velocities, local_angular_velocities) = velocities.unwrap_or_default();
     let mut db = Database {
@@ -516,11 +536,50 @@ pub fn from_bytes(bytes: &[u8]) -> Result<Database> {
         feature_scale,
         features,
         valid,
+        part,
     };
     if derive {
         db.compute_velocities();
     }
     Ok(db)
+}
+
+/// The optional `PART` section: this database is the first part of the whole it names. Its
+/// ranges must be ascending, disjoint, inside the whole, one per clip of the part and as long
+/// as that clip (so a part frame maps to exactly one whole frame of the same clip).
+fn read_part(r: &mut Reader, num_frames: usize, clips: &[Clip]) -> Result<Part> {
+    let whole = r.string("PART whole")?;
+    if !Part::is_plain_name(&whole) {
+        return Err(Error::format(format!(
+            "PART names its whole '{}': it must be a plain file name beside the part",
+            crate::limits::quote(&whole)
+        )));
+    }
+    let whole_frames = r.u32("PART whole frames")?;
+    let whole_checksum = r.u32("PART whole checksum")?;
+    let count = r.count(8, "PART ranges")?;
+    let mut ranges = Vec::with_capacity(count);
+    for i in 0..count {
+        let (s, e) = (r.u32("PART range start")?, r.u32("PART range end")?);
+        let after = ranges.last().map_or(0, |&(_, end)| end);
+        if s < after || e <= s || e > whole_frames {
+            return Err(Error::format(format!(
+                "PART range {i} [{s}, {e}) is empty, out of order or outside the whole's {whole_frames} frames"
+            )));
+        }
+        ranges.push((s, e));
+    }
+    r.finish()?;
+    let lengths_match =
+        ranges.len() == clips.len() && ranges.iter().zip(clips).all(|(&(s, e), c)| e - s == c.end - c.start);
+    if !lengths_match || clips.last().is_none_or(|c| c.end as usize != num_frames) {
+        return Err(Error::format(format!(
+            "PART has {} ranges for {} clips: it needs one range per clip, as long as the clip",
+            ranges.len(),
+            clips.len()
+        )));
+    }
+    Ok(Part { whole, whole_frames, whole_checksum, ranges })
 }
 
 /// Checks that `loaded` is what writing `original` and reading it back may give: everything
@@ -893,6 +952,7 @@ mod tests {
             feature_scale: vec![2.0, 2.0],
             features: vec![0.0, 1.0, 2.0, 3.0, 4.0, 5.0],
             valid: vec![1, 1, 0],
+            part: None,
         };
         db.compute_velocities();
         db
@@ -915,6 +975,29 @@ mod tests {
         assert_eq!(bytes.len() % 16, 0);
         // The tiny database's rotations are identities, which quantize exactly.
         assert_eq!(from_bytes(&bytes).unwrap(), db);
+    }
+
+    /// A first part (`PART`) round-trips; a part whose ranges do not match its clips, leave the
+    /// whole or name a path instead of a file beside it is refused, naming `PART`.
+    #[test]
+    fn a_first_part_round_trips_and_bad_ones_are_refused() {
+        let mut db = tiny();
+        let part = Part { whole: "w.mmdb".into(), whole_frames: 10, whole_checksum: 7, ranges: vec![(4, 7)] };
+        db.part = Some(part.clone());
+        let back = from_bytes(&to_bytes(&db)).unwrap();
+        assert_eq!(back.part.as_ref(), Some(&part));
+        assert_eq!((part.whole_frame(0), part.whole_frame(2), part.whole_frame(3)), (Some(4), Some(6), None));
+        for (bad, says) in [
+            (Part { ranges: vec![(4, 6)], ..part.clone() }, "one range per clip"),
+            (Part { ranges: vec![(8, 11)], ..part.clone() }, "outside the whole's 10 frames"),
+            (Part { ranges: vec![(1, 2), (0, 2)], ..part.clone() }, "out of order"),
+            (Part { whole: "../w.mmdb".into(), ..part.clone() }, "plain file name"),
+            (Part { whole: "https://x/w.mmdb".into(), ..part.clone() }, "plain file name"),
+        ] {
+            db.part = Some(bad);
+            let m = message(&to_bytes(&db));
+            assert!(m.contains("PART") && m.contains(says), "{m}");
+        }
     }
 
     #[test]

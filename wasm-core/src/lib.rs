@@ -18,7 +18,7 @@ pub mod limits;
 pub mod rng;
 
 pub use harness::{naturalness, quality, vr_replay};
-pub use offline::{builder, bvh, config, frame_cuts, gltf, inspect, parallel, smoothing};
+pub use offline::{builder, bvh, config, first_part, frame_cuts, gltf, inspect, parallel, smoothing};
 pub use runtime::{
     aabb, character, controller, crowd, database, ik, inertialize, kinematics, lanes, persist, recording, retarget,
     roles, search, skating, spring, tag_query,

@@ -365,3 +365,134 @@ fn the_default_character_is_neutral_and_styles_are_opt_in() {
         assert!(r.style_share >= 0.8, "angry {}: only {:.1} % of frames angry", r.motion.name(), 100.0 * r.style_share);
     }
 }
+
+/// The first part a page starts on (`first_part` in both configs, docs/mmdb-format.md `PART`):
+/// a small share of the bytes, every frame the whole's frame exactly, and a character moved
+/// from the part to the whole mid-motion shows no jump — at 25 moments of a walk with turns,
+/// side-steps and stops, the update across the move is measured against the same character's
+/// other updates: the root within 1 cm of its motion the update before, no joint moving (in
+/// the root's space) more than the most any other update moves it.
+#[test]
+fn the_first_part_moves_to_the_whole_without_a_jump() {
+    use mmcore::first_part;
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../databases");
+    for (name, (built, _)) in [("locomotion", locomotion()), ("vr", vr())] {
+        let config =
+            BuildConfig::from_json(&std::fs::read_to_string(dir.join(format!("{name}.json"))).unwrap()).unwrap();
+        let spec = config.first_part.expect("the default databases have a first part");
+        let whole_bytes = format::to_bytes(built);
+        let checksum = u32::from_le_bytes(whole_bytes[24..28].try_into().unwrap());
+        let clips = first_part::choose(built, &spec).unwrap();
+        let fly = first_part::FirstPartSpec { seconds: 60.0, tags: vec!["fly".into()], exclude: vec![] };
+        let e = first_part::choose(built, &fly).unwrap_err().to_string();
+        assert!(e.contains("no tag 'fly' in the database (it has backward,"), "{e}");
+        let part_bytes = format::to_bytes(&first_part::cut(built, &clips, &format!("{name}.mmdb"), checksum).unwrap());
+        // What a page has: both files as loaded (rotations quantized, velocities derived).
+        let whole = format::from_bytes(&whole_bytes).unwrap();
+        let part = format::from_bytes(&part_bytes).unwrap();
+        let p = part.part.clone().expect("PART read back");
+        assert_eq!(
+            (p.whole.as_str(), p.whole_frames, p.whole_checksum),
+            (&*format!("{name}.mmdb"), whole.num_frames as u32, checksum)
+        );
+        let share = part_bytes.len() as f64 / whole_bytes.len() as f64;
+        println!(
+            "{name}: first part {} of {} clips, {:.1} s, {:.2} of {:.2} MB ({:.1} %)",
+            part.clips.len(),
+            whole.clips.len(),
+            part.duration(),
+            part_bytes.len() as f64 / 1e6,
+            whole_bytes.len() as f64 / 1e6,
+            100.0 * share
+        );
+        assert!(share < 0.15, "{name}: the first part is {:.1} % of the whole", 100.0 * share);
+        for tag in ["idle", "walk", "sidestep", "backward"] {
+            assert!(
+                seconds_tagged(&part, tag) >= 2.0,
+                "{name}: the first part has {:.1} s of {tag}",
+                seconds_tagged(&part, tag)
+            );
+        }
+        // Every part frame is the whole's frame, bit for bit.
+        let (j, d) = (whole.num_joints(), whole.num_features());
+        for f in 0..part.num_frames {
+            let w = p.whole_frame(f).unwrap();
+            assert_eq!(
+                part.local_rotations[f * j..(f + 1) * j],
+                whole.local_rotations[w * j..(w + 1) * j],
+                "{name} frame {f}"
+            );
+            assert_eq!(part.local_positions[f * j..(f + 1) * j], whole.local_positions[w * j..(w + 1) * j]);
+            assert_eq!(part.local_velocities[f * j..(f + 1) * j], whole.local_velocities[w * j..(w + 1) * j]);
+            assert_eq!(
+                part.local_angular_velocities[f * j..(f + 1) * j],
+                whole.local_angular_velocities[w * j..(w + 1) * j]
+            );
+            assert_eq!(part.features[f * d..(f + 1) * d], whole.features[w * d..(w + 1) * d]);
+            assert_eq!(
+                (&part.contacts[2 * f..2 * f + 2], part.valid[f]),
+                (&whole.contacts[2 * w..2 * w + 2], whole.valid[w])
+            );
+        }
+        assert_eq!(p.whole_frame(part.num_frames), None);
+
+        let (part_index, whole_index) = (SearchIndex::new(&part).unwrap(), SearchIndex::new(&whole).unwrap());
+        let settings = CharacterSettings::default();
+        // 12 s: stand, walk, turn, side-step, back, stop — a new input every 1.5 s.
+        let inputs = [(0.0, 0.0), (0.0, 1.0), (0.7, 0.7), (1.0, 0.0), (0.0, -1.0), (0.0, 0.0), (-1.0, 0.0), (0.0, 1.0)];
+        let input_at = |u: usize| {
+            let (x, z) = inputs[(u / 90) % inputs.len()];
+            Input { direction: Vec2::new(x, z), facing: Vec2::Y, run: false, strafe: (u / 90) % 4 == 3 }
+        };
+        // Per update: root displacement, and the largest joint displacement in the root's space.
+        let step = |c: &Character, before: &(Vec3, Quat, Vec<Vec3>)| {
+            let (root, rot) = (c.root_position(), c.root_rotation());
+            let local = |p: Vec3, r: Vec3, q: Quat| q.inverse() * (p - r);
+            let joint = c
+                .world_positions()
+                .iter()
+                .zip(&before.2)
+                .map(|(&a, &b)| (local(a, root, rot) - local(b, before.0, before.1)).length())
+                .fold(0.0f32, f32::max);
+            ((root - before.0).length(), joint)
+        };
+        let snapshot = |c: &Character| (c.root_position(), c.root_rotation(), c.world_positions().to_vec());
+        let mut worst = (0.0f32, 0.0f32, 0.0f32);
+        for k in (20..720).step_by(28) {
+            let mut c = Character::new(&part, settings.clone());
+            let (mut moves, mut joints) = (Vec::new(), Vec::new());
+            let mut swap_at = None;
+            for u in 0..k + 60 {
+                let before = snapshot(&c);
+                if u == k {
+                    let frame = c.frame();
+                    c.enter_whole(&p);
+                    assert_eq!(c.frame(), p.whole_frame(frame).unwrap());
+                    swap_at = Some(u);
+                }
+                let on_whole = swap_at.is_some();
+                let (db, index) = if on_whole { (&whole, &whole_index) } else { (&part, &part_index) };
+                c.update(db, index, &input_at(u), 1.0 / 60.0);
+                let (m, j) = step(&c, &before);
+                moves.push(m);
+                joints.push(j);
+            }
+            let (m, j) = (moves[k], joints[k]);
+            let root_jump = (m - moves[k - 1]).abs();
+            let others = joints.iter().enumerate().filter(|&(u, _)| u != k).map(|(_, &v)| v).fold(0.0f32, f32::max);
+            worst = (worst.0.max(root_jump), worst.1.max(j), worst.2.max(others));
+            assert!(
+                root_jump < 0.01,
+                "{name}, moved at update {k}: the root moved {m} m against {} the update before",
+                moves[k - 1]
+            );
+            assert!(j <= others, "{name}, moved at update {k}: a joint moved {j} m in the root's space, at most {others} in other updates");
+        }
+        println!(
+            "{name}: across the move, root change at most {:.2} mm, joints at most {:.1} mm (other updates: up to {:.1} mm)",
+            1e3 * worst.0,
+            1e3 * worst.1,
+            1e3 * worst.2
+        );
+    }
+}

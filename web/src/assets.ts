@@ -65,6 +65,7 @@ const PACKAGED: Record<string, () => URL> = PACKAGE
   ? {
       'mmcore_bg.wasm': () => new URL(/* @vite-ignore */ '../mmcore_bg.wasm', import.meta.url),
       'databases/locomotion.mmdb': () => new URL(/* @vite-ignore */ '../databases/locomotion.mmdb', import.meta.url),
+      'databases/locomotion.first.mmdb': () => new URL(/* @vite-ignore */ '../databases/locomotion.first.mmdb', import.meta.url),
       'avatars/ubc_male.glb': () => new URL(/* @vite-ignore */ '../avatars/ubc_male.glb', import.meta.url),
     }
   : {};
@@ -105,7 +106,29 @@ export function assetBytes(url: string | URL): number {
   return v ? (Object.values(VERSIONS).find((e) => e.v === v)?.bytes ?? 0) : 0;
 }
 
-/** The shipped default database (`Character.create()` and `<mm-avatar>` without one load it). */
+/**
+ * `name`, a file beside the one at `url`: a default asset's sibling gets its own version (or
+ * packaged URL), so a first part finds its whole wherever the build put it. @internal
+ */
+export function siblingAssetUrl(url: string, name: string): string {
+  let href: string;
+  try {
+    href = new URL(url, pageUrl()).href;
+  } catch {
+    return name; // bytes named by a file name: resolved against the page
+  }
+  for (const path of new Set([...Object.keys(VERSIONS), ...Object.keys(PACKAGED)])) {
+    if (assetUrl(path).href === href) return assetUrl(path.replace(/[^/]*$/, name)).href;
+  }
+  return new URL(name, href).href;
+}
+
+/** The shipped default database (`Character.create()` and `<mm-avatar>` without one start on its first part). */
 export const DEFAULT_DATABASE = 'databases/locomotion.mmdb';
+/**
+ * Its first part: what the defaults load first, then the whole after the first frames
+ * (`Character.whole()`). @internal
+ */
+export const DEFAULT_FIRST_PART = 'databases/locomotion.first.mmdb';
 /** The shipped default avatar (`Character.create()` and `<mm-avatar>` without one load it). */
 export const DEFAULT_AVATAR = 'avatars/ubc_male.glb';

@@ -1,6 +1,7 @@
 //! `mmdb`: build, inspect, search and benchmark motion databases from the command line.
 
 use mmcore::config::{AutoScale, BuildConfig, Scale};
+use mmcore::first_part::{self, FirstPartSpec};
 use mmcore::search::{self, SearchOptions};
 use mmcore::{format, inspect, limits, Bvh, Error, Source};
 use std::path::{Path, PathBuf};
@@ -163,6 +164,30 @@ fn config_files(config: &BuildConfig, dir: &Path) -> Result<Vec<PathBuf>, Error>
     Ok(files)
 }
 
+/// `OUT.first.mmdb` beside `OUT.mmdb`: the first part `spec` asks for, naming the whole by its
+/// file name and checksum (the header's, read from the bytes just written).
+fn write_first_part(output: &str, bytes: &[u8], whole: &mmcore::Database, spec: &FirstPartSpec) -> CliResult {
+    let path = Path::new(output);
+    let name = path.file_name().and_then(|n| n.to_str()).ok_or_else(|| Usage(format!("-o {output}: no file name")))?;
+    let checksum = u32::from_le_bytes(bytes[24..28].try_into().expect("a written file has a header"));
+    let clips = first_part::choose(whole, spec)?;
+    let part = first_part::cut(whole, &clips, name, checksum)?;
+    let part_bytes = format::to_bytes(&part);
+    let stem = name.strip_suffix(".mmdb").unwrap_or(name);
+    let part_path = path.with_file_name(format!("{stem}.first.mmdb"));
+    std::fs::write(&part_path, &part_bytes).map_err(|e| Error::Io(format!("{}: {e}", part_path.display())))?;
+    println!(
+        "{}: first part, {} of {} clips, {} frames ({:.1} s), {:.2} MB",
+        part_path.display(),
+        part.clips.len(),
+        whole.clips.len(),
+        part.num_frames,
+        part.duration(),
+        part_bytes.len() as f64 / 1e6
+    );
+    Ok(())
+}
+
 fn build(args: &[String]) -> CliResult {
     let a = Args::parse(
         args,
@@ -235,6 +260,9 @@ fn build(args: &[String]) -> CliResult {
         std::fs::create_dir_all(dir).map_err(|e| Error::Io(format!("{}: {e}", dir.display())))?;
     }
     std::fs::write(output, &bytes).map_err(|e| Error::Io(format!("{output}: {e}")))?;
+    if let Some(spec) = &config.first_part {
+        write_first_part(output, &bytes, &out.database, spec)?;
+    }
     for w in &out.warnings {
         eprintln!("mmdb: warning: {w}");
     }

@@ -106,6 +106,30 @@ impl RawCharacter {
         self.character.crouch().bend
     }
 
+    /// Moves the character from the first part it plays to `whole`, the database the part
+    /// names (`RawDatabase::is_part_of`), playing the same frame there: nothing it shows
+    /// changes. Throws, changing nothing, when `whole` is not that database.
+    pub fn enter_whole(&mut self, whole: &RawDatabase) -> Result<(), JsError> {
+        let part = match &self.shared.db.part {
+            Some(part) if database_is_whole(&self.shared, &whole.shared) => part.clone(),
+            Some(part) => {
+                return Err(JsError::new(&format!(
+                    "this database is the first part of {} ({} frames, checksum {:08x}), not of the one given ({} frames, checksum {:08x})",
+                    part.whole,
+                    part.whole_frames,
+                    part.whole_checksum,
+                    whole.shared.db.num_frames,
+                    whole.shared.checksum
+                )))
+            }
+            None => return Err(JsError::new("the character's database is not a first part")),
+        };
+        self.character.enter_whole(&part);
+        self.character.set_toe_floor(whole.shared.toe_floor);
+        self.shared = Rc::clone(&whole.shared);
+        Ok(())
+    }
+
     /// Places the character at (x, z) facing `yaw` (rad, 0 = +Z), searching afresh.
     pub fn teleport(&mut self, x: f32, z: f32, yaw: f32) {
         self.character.teleport(&self.shared.db, Vec3::new(x, 0.0, z), Quat::from_rotation_y(yaw));
@@ -269,4 +293,12 @@ impl RawCharacter {
     pub fn skating(&self) -> f32 {
         self.character.skating().distance
     }
+}
+
+/// Whether `whole` is the database `part` is the first part of (frame count and checksum).
+pub(crate) fn database_is_whole(part: &Shared, whole: &Shared) -> bool {
+    part.db
+        .part
+        .as_ref()
+        .is_some_and(|p| p.whole_frames as usize == whole.db.num_frames && p.whole_checksum == whole.checksum)
 }

@@ -13,6 +13,8 @@ pub(crate) struct Shared {
     pub db: Database,
     pub index: SearchIndex,
     pub toe_floor: Option<f32>,
+    /// The file's CRC-32 (its header's): a first part names its whole by it.
+    pub checksum: u32,
 }
 
 /// A loaded motion database plus FK scratch buffers (so per-frame calls never allocate).
@@ -34,8 +36,10 @@ impl RawDatabase {
         let index = SearchIndex::new(&db).map_err(js_error)?;
         let j = db.num_joints();
         let toe_floor = db.toe_height_in_contact();
+        // A file that loaded has its 32-byte header.
+        let checksum = u32::from_le_bytes([bytes[24], bytes[25], bytes[26], bytes[27]]);
         Ok(RawDatabase {
-            shared: Rc::new(Shared { db, index, toe_floor }),
+            shared: Rc::new(Shared { db, index, toe_floor, checksum }),
             world_positions: vec![Vec3::ZERO; j],
             world_rotations: vec![Quat::IDENTITY; j],
             _live: LiveToken::new(Kind::Database),
@@ -63,6 +67,18 @@ impl RawDatabase {
         let db = self.db();
         db.clip_at(frame.min(db.num_frames.saturating_sub(1)))
     }
+    /// When this database is the first part of a larger one: the whole's file name (beside
+    /// this file); otherwise undefined.
+    pub fn whole_name(&self) -> Option<String> {
+        self.db().part.as_ref().map(|p| p.whole.clone())
+    }
+
+    /// Whether `whole` is the database this one is the first part of (its frame count and
+    /// file checksum are the ones the part names).
+    pub fn is_part_of(&self, whole: &RawDatabase) -> bool {
+        super::character::database_is_whole(&self.shared, &whole.shared)
+    }
+
     /// The same JSON as `mmdb inspect --json`: joints, sites (roles), clips, tags, features.
     pub fn inspect_json(&self) -> String {
         inspect::summary(self.db(), None).to_string()

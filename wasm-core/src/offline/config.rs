@@ -83,6 +83,9 @@ pub struct BuildConfig {
     /// without its own `frames` uses the usable window the CSV gives (read by the CLI into
     /// [`BuildConfig::cuts`]).
     pub frame_cuts: Option<String>,
+    /// Also write the database's first part (`<out>.first.mmdb`): a few clips a page can start
+    /// on while the rest downloads (`crate::first_part`).
+    pub first_part: Option<crate::first_part::FirstPartSpec>,
     /// Frame windows per source file name, from `frame_cuts` (`crate::frame_cuts::parse`).
     #[serde(skip)]
     pub cuts: HashMap<String, [usize; 2]>,
@@ -109,6 +112,7 @@ impl Default for BuildConfig {
             motion_tags: false,
             min_head_height: None,
             frame_cuts: None,
+            first_part: None,
             cuts: HashMap::new(),
         }
     }
@@ -247,6 +251,9 @@ impl BuildConfig {
                     num(r)
                 )));
             }
+        }
+        if let Some(part) = &self.first_part {
+            part.validate()?;
         }
         for f in self.features.iter().flatten() {
             let name = quote(&f.name);

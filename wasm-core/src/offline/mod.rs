@@ -5,6 +5,7 @@
 pub mod builder;
 pub mod bvh;
 pub mod config;
+pub mod first_part;
 pub mod frame_cuts;
 pub mod gltf;
 pub mod inspect;

@@ -154,6 +154,49 @@ pub struct Database {
     pub features: Vec<f32>,
     /// `F` 1 where a search may land.
     pub valid: Vec<u8>,
+    /// Set when this database is the first part of a larger one (its `PART` section).
+    pub part: Option<Part>,
+}
+
+/// A database that is the first part of a larger one, the *whole*: its frames are the whole's
+/// `ranges`, in order, with everything per frame (pose, contacts, features, validity) and the
+/// feature normalization copied from the whole (docs/mmdb-format.md, `PART`). A page draws its
+/// first frame after the part's bytes and moves its characters to the whole when it arrives:
+/// the frame playing is the same frame there, so nothing on screen changes at the swap.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Part {
+    /// The whole's file name, in the same folder as the part (a plain name: no `/`, `\`, `..`).
+    pub whole: String,
+    /// The whole's frame count and its file's CRC-32 (header `checksum`): which file it is.
+    pub whole_frames: u32,
+    pub whole_checksum: u32,
+    /// `[start, end)` frame ranges of the whole, ascending and disjoint; each is one clip of
+    /// the whole and of the part.
+    pub ranges: Vec<(u32, u32)>,
+}
+
+impl Part {
+    /// The whole's frame for this part's `frame` (`None` past the part's end).
+    pub fn whole_frame(&self, frame: usize) -> Option<usize> {
+        let mut f = frame;
+        for &(s, e) in &self.ranges {
+            let n = (e - s) as usize;
+            if f < n {
+                return Some(s as usize + f);
+            }
+            f -= n;
+        }
+        None
+    }
+
+    /// Whether `name` may name a whole: a plain file name, so a part never points elsewhere.
+    pub fn is_plain_name(name: &str) -> bool {
+        !name.is_empty()
+            && name.len() <= 255
+            && name != "."
+            && name != ".."
+            && !name.contains(['/', '\\', '\0', '?', '#', ':'])
+    }
 }
 
 impl Database {

@@ -657,6 +657,7 @@ mod tests {
             feature_scale: vec![1.0; d],
             features: (0..num_frames * d).map(|_| (rng.below(5) as f32 - 2.0) * 0.5).collect(),
             valid: (0..num_frames).map(|_| (rng.below(4) != 0) as u8).collect(),
+            part: None,
         }
     }
 

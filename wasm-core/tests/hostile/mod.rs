@@ -422,6 +422,7 @@ pub fn tiny_database() -> Database {
         feature_scale: vec![2.0, 2.0, 1.0, 1.0, 1.0],
         features: (0..20).map(|i| i as f32 * 0.1 - 1.0).collect(),
         valid: vec![1, 0, 1, 0],
+        part: None,
     }
 }
 

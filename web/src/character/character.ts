@@ -15,9 +15,9 @@ import * as THREE from 'three';
 import { Avatar, type AvatarOptions } from '../avatar/avatar.ts';
 import { CharacterRuntime, type RuntimeSettings } from '../core/character.ts';
 import { createDrive, type Drive, type MoveInput } from '../core/drive.ts';
-import { type Database, loadDatabase } from '../core/database.ts';
-import { DEFAULT_AVATAR, DEFAULT_DATABASE, assetUrl } from '../assets.ts';
-import type { FetchOptions } from '../fetch.ts';
+import { type Database, loadDatabase, loadDefaultDatabase } from '../core/database.ts';
+import { DEFAULT_AVATAR, assetUrl } from '../assets.ts';
+import { type FetchOptions, errorMessage } from '../fetch.ts';
 import { DebugViews } from '../views/debug-views.ts';
 import { SkeletonView } from '../views/skeleton-view.ts';
 
@@ -55,7 +55,8 @@ export interface CharacterOptions {
 export interface CreateOptions extends CharacterOptions, FetchOptions {
   /**
    * A database, or where to load one (shared by URL); default the shipped locomotion database
-   * (`DEFAULT_DATABASE`, fetched only then; from a bundler, where it put the file).
+   * (`DEFAULT_DATABASE`, fetched only then; from a bundler, where it put the file): its first
+   * part first, the whole after the first frame (`Character.whole()`).
    */
   database?: Database | string | URL | Uint8Array;
   /**
@@ -118,6 +119,9 @@ export class Character {
   private worldScale_ = 1;
   private showSkeleton_: boolean | undefined;
   private disposed = false;
+  /** The whole database's load for a character on a first part (`whole()`), and the advances before it starts. */
+  private whole_: Promise<Database> | null = null;
+  private advances = 0;
 
   /**
    * The one dispose rule: after `dispose()` every method and property of the character throws
@@ -158,13 +162,14 @@ export class Character {
    * `Character.create()` alone: the shipped database and avatar.
    */
   static async create(options: CreateOptions = {}): Promise<Character> {
-    const { database = assetUrl(DEFAULT_DATABASE), avatar = assetUrl(DEFAULT_AVATAR), avatarOptions, ...rest } = options;
+    const { database, avatar = assetUrl(DEFAULT_AVATAR), avatarOptions, ...rest } = options;
     // The avatar downloads while the database does; a failed database drops it.
     const avatarLoad: Promise<Avatar | null> = avatar instanceof Avatar || avatar === null ? Promise.resolve(avatar) : Avatar.load(avatar, { ...avatarOptions, ...rest });
     avatarLoad.catch(() => undefined);
     let db: Database;
     try {
-      db = typeof database === 'object' && !(database instanceof URL) && !(database instanceof Uint8Array) ? database.retain() : await loadDatabase(database, rest);
+      if (database === undefined) db = await loadDefaultDatabase(rest);
+      else db = typeof database === 'object' && !(database instanceof URL) && !(database instanceof Uint8Array) ? database.retain() : await loadDatabase(database, rest);
     } catch (e) {
       void avatarLoad.then((a) => a !== avatar && a?.dispose(), () => undefined);
       throw e;
@@ -177,6 +182,7 @@ export class Character {
     }
   }
 
+  /** The database it plays: a first part moves to its whole after the first frame (`whole()`). */
   get database(): Database {
     return this.runtime.database;
   }
@@ -486,7 +492,45 @@ export class Character {
 
   /** Advances the simulation `dt` seconds under the drive last applied, without posing. */
   advance(dt: number): void {
+    // On a first part, the whole loads once the first frame is out (its bytes must not delay it).
+    if (this.advances < 2 && ++this.advances === 2 && this.runtime.database.wholeUrl) {
+      this.whole().catch((e: unknown) => console.warn(errorMessage(e)));
+    }
     this.runtime.update(dt);
+  }
+
+  /**
+   * The whole database, once the character plays it. A character made on a first part
+   * (`Database.wholeUrl`: what `Character.create()` and `<mm-avatar>` start on by default) loads
+   * the whole after its first frame, or when this is called, and moves onto it as soon as it is
+   * here, between two updates, playing the same frame there: nothing it shows changes. Resolves
+   * at once on a database that is no first part. Rejects, the character staying on the part,
+   * when the whole cannot be loaded or is not the file the part names (another build).
+   */
+  whole(): Promise<Database> {
+    const part = this.runtime.database;
+    if (!part.wholeUrl) return Promise.resolve(part);
+    return (this.whole_ ??= this.loadWhole(part, part.wholeUrl));
+  }
+
+  private async loadWhole(part: Database, url: string): Promise<Database> {
+    let whole: Database;
+    try {
+      whole = await loadDatabase(url);
+    } catch (e) {
+      throw new Error(`${part.name} is a first part; its whole did not load, so the character keeps the part: ${errorMessage(e)}`);
+    }
+    try {
+      if (this.disposed) throw new Error('Character disposed before its whole database loaded');
+      if (this.runtime.database !== part) throw new Error(`the character was given another database before ${url} loaded`);
+      if (!part.isPartOf(whole)) {
+        throw new Error(`${url} is not the database ${part.name} is the first part of (another build?): the character keeps the part`);
+      }
+      this.runtime.enterWhole(whole);
+      return whole;
+    } finally {
+      whole.release(); // the runtime holds its own reference
+    }
   }
 
   /**

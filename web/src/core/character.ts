@@ -28,7 +28,7 @@ function settingsJson(patch: RuntimeSettings): string {
 }
 
 export class CharacterRuntime {
-  readonly database: Database;
+  private database_: Database;
   readonly numJoints: number;
   private raw_: RawCharacter | null;
   /** The drive's path object the runtime follows (null: none, or one given by `setPath`). */
@@ -52,7 +52,7 @@ export class CharacterRuntime {
     } catch (e) {
       throw asError(e);
     }
-    this.database = database.retain();
+    this.database_ = database.retain();
     const j = (this.numJoints = database.numJoints);
     const k = this.raw_.num_predictions();
     this.views.positions = new ViewCache(Float32Array, j * 3);
@@ -60,6 +60,25 @@ export class CharacterRuntime {
     this.views.predictedPositions = new ViewCache(Float32Array, k * 3);
     this.views.predictedRotations = new ViewCache(Float32Array, k * 4);
     this.views.matched = new ViewCache(Float32Array, this.raw_.num_matched() * 4);
+  }
+
+  /** The database it plays (retained): the one it was made on, or the whole after `enterWhole`. */
+  get database(): Database {
+    return this.database_;
+  }
+
+  /**
+   * Moves from the first part it plays to `whole` (`Database.isPartOf`), playing the same
+   * frame there: nothing it shows changes. Throws, changing nothing, for another database.
+   */
+  enterWhole(whole: Database): void {
+    try {
+      this.raw.enter_whole(whole.raw);
+    } catch (e) {
+      throw asError(e);
+    }
+    this.database_.release();
+    this.database_ = whole.retain();
   }
 
   /** The binding, for other raw-layer classes (the retargeter). @internal */

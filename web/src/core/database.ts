@@ -3,7 +3,7 @@
  * index). One database is shared by any number of characters: it is reference-counted
  * (`retain`/`release`) and its WASM memory is freed with the last reference.
  */
-import { assetUrl } from '../assets.ts';
+import { DEFAULT_DATABASE, DEFAULT_FIRST_PART, assetUrl, siblingAssetUrl } from '../assets.ts';
 import { type FetchOptions, fetchBytes, mark } from '../fetch.ts';
 import { RawDatabase } from './raw.ts';
 import type { RoleName } from './roles.ts';
@@ -78,6 +78,13 @@ export class Database {
   readonly roles: ReadonlyMap<RoleName, number>;
   /** Height of a planted toe above the floor (m), if the database knows it. */
   readonly toeHeight: number | undefined;
+  /**
+   * When this database is the first part of a larger one (a `.first.mmdb`: a few clips a page
+   * starts on while the rest downloads, docs/mmdb-format.md `PART`), where the whole is;
+   * otherwise null. A `Character` on a first part moves to the whole by itself after its first
+   * frames, playing the same frame there (`Character.whole()`).
+   */
+  readonly wholeUrl: string | null;
 
   private raw_: RawDatabase | null;
   private references = 1;
@@ -106,6 +113,8 @@ export class Database {
     this.features = s.features;
     this.roles = new Map(s.sites.filter((x) => x.joint >= 0).map((x) => [x.name as RoleName, x.joint]));
     this.toeHeight = s.toe_height_in_contact ?? undefined;
+    const whole = raw.whole_name();
+    this.wholeUrl = whole === undefined ? null : siblingAssetUrl(name, whole);
     const F = this.numFrames, J = this.numJoints;
     this._localPositions = new ViewCache(Float32Array, F * J * 3);
     this._localRotations = new ViewCache(Float32Array, F * J * 4);
@@ -133,6 +142,11 @@ export class Database {
   static async fetch(url: string | URL, options: FetchOptions = {}): Promise<Database> {
     const [bytes] = await Promise.all([fetchBytes(url, { stage: 'database', ...options }), initWasm(undefined, options)]);
     return Database.fromBytes(bytes, String(url));
+  }
+
+  /** Whether this database is the first part of `whole` (the file its `PART` names). */
+  isPartOf(whole: Database): boolean {
+    return this.raw.is_part_of(whole.raw);
   }
 
   /** The binding, for the other raw-layer classes. @internal */
@@ -241,6 +255,20 @@ export async function loadDatabase(source: string | URL | Uint8Array, options: F
   } catch (e) {
     shared.delete(href);
     throw e;
+  }
+}
+
+/**
+ * The shipped database, the way the defaults load it: its first part (`DEFAULT_FIRST_PART`,
+ * ~0.5 MB compressed: the first frame comes after it; characters move to the whole after it),
+ * or the whole when the first part is not there (an asset folder without it). @internal
+ */
+export async function loadDefaultDatabase(options: FetchOptions = {}): Promise<Database> {
+  try {
+    return await loadDatabase(assetUrl(DEFAULT_FIRST_PART), options);
+  } catch (e) {
+    if (options.signal?.aborted) throw e;
+    return loadDatabase(assetUrl(DEFAULT_DATABASE), options);
   }
 }
 

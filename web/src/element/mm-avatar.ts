@@ -24,10 +24,10 @@
  * - removing the element frees its WASM memory and GPU objects; adding it again rebuilds it.
  */
 import * as THREE from 'three';
-import { DEFAULT_AVATAR, DEFAULT_DATABASE, assetUrl } from '../assets.ts';
+import { DEFAULT_AVATAR, DEFAULT_FIRST_PART, assetUrl } from '../assets.ts';
 import { Avatar } from '../avatar/avatar.ts';
 import { Character, type MoveOptions, type PathOptions, type Root } from '../character/character.ts';
-import { type Database, loadDatabase } from '../core/database.ts';
+import { type Database, loadDatabase, loadDefaultDatabase } from '../core/database.ts';
 import { checkTimeStep, parseChoice, parseControls, parseUrl, quote } from './attributes.ts';
 import { type FetchProgress, errorMessage } from '../fetch.ts';
 import { MoveControls } from '../input/move-controls.ts';
@@ -261,7 +261,8 @@ export class MMAvatarElement extends ElementBase {
     let databaseUrl: string;
     let avatarUrl: string | null;
     try {
-      databaseUrl = this.url('database', DEFAULT_DATABASE);
+      // No `database`: the shipped one, its first part first (the whole follows the first frame).
+      databaseUrl = this.url('database', DEFAULT_FIRST_PART);
       avatarUrl = this.getAttribute('avatar')?.trim() === 'none' ? null : this.url('avatar', DEFAULT_AVATAR);
     } catch (e) {
       this.fail(errorMessage(e), this.getAttribute('database') ?? '');
@@ -288,7 +289,8 @@ export class MMAvatarElement extends ElementBase {
     };
     try {
       const avatarLoad = avatarUrl ? Avatar.load(avatarUrl, { onProgress: progress, signal }).then(precompile, (e: unknown) => e as Error) : Promise.resolve(null);
-      database = await loadDatabase(databaseUrl, { onProgress: progress, signal });
+      const ownDatabase = databaseUrl !== assetUrl(DEFAULT_FIRST_PART).href;
+      database = await (ownDatabase ? loadDatabase(databaseUrl, { onProgress: progress, signal }) : loadDefaultDatabase({ onProgress: progress, signal }));
       const a = await avatarLoad;
       if (a instanceof Avatar) avatar = a;
       else if (a) {

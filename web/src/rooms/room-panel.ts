@@ -64,6 +64,8 @@ export class RoomPanel {
   readonly element: HTMLDivElement;
   readonly name: string;
   private readonly o: RoomPanelOptions;
+  /** The room last asked for (a join waiting on the whole database goes on only if still wanted). */
+  private joining = '';
   private readonly share: HTMLButtonElement;
   private readonly details: HTMLDivElement;
   private readonly status: HTMLDivElement;
@@ -99,6 +101,14 @@ export class RoomPanel {
   join(id: string, showLink = false): void {
     this.session?.close();
     this.session = null;
+    this.joining = id;
+    if (this.o.character.database.wholeUrl) {
+      // A first part: the others replay this person on the whole database, so join on it.
+      this.say('Joining once the whole database has loaded…');
+      const go = () => this.joining === id && this.join(id, showLink);
+      void this.o.character.whole().then(go, (e: unknown) => this.say(`Cannot join the room: ${errorMessage(e)}`));
+      return;
+    }
     const pageUrl = this.o.pageUrl ?? location.href;
     const link = roomUrl(id, pageUrl);
     if (!this.o.pageUrl && link !== location.href) history.replaceState(history.state, '', link);
@@ -123,6 +133,7 @@ export class RoomPanel {
   dispose(): void {
     this.session?.close();
     this.session = null;
+    this.joining = '';
     this.element.remove();
   }
 

@@ -182,6 +182,9 @@ export class RoomSession {
       compileNow(options.renderer, this.warmLabel.object, new THREE.PerspectiveCamera(), root instanceof THREE.Scene ? root : null);
     }
     const character = options.character;
+    if (character.database.wholeUrl) {
+      throw new Error(`${character.database.name} is a first part: await character.whole() before joining a room (the others replay this person on the whole database)`);
+    }
     const database = options.database ?? (character.database.name.split('?')[0].split('/').pop() ?? '').replace(/\.mmdb$/, '');
     this.databaseId = /^[A-Za-z0-9._-]{1,64}$/.test(database) ? database : 'locomotion';
     this.client = new RoomClient({

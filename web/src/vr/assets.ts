@@ -22,7 +22,11 @@ export function orientationModelUrl(fewerDevices = false): URL {
     : shippedAssetUrl(DEFAULT_ORIENTATION_MODEL, PACKAGE ? () => new URL(/* @vite-ignore */ '../models/orientation.onnx', import.meta.url) : null);
 }
 
-/** URL of the VR page's database (beside the site's other assets: `assetUrl`). */
-export function vrDatabaseUrl(): URL {
-  return assetUrl(DEFAULT_VR_DATABASE);
+/**
+ * URL of the VR page's database (beside the site's other assets: `assetUrl`); `firstPart`: its
+ * first part (`vr.first.mmdb`, a few clips the page starts on; the character moves to the whole
+ * after its first frame, `Character.whole()`).
+ */
+export function vrDatabaseUrl(firstPart = false): URL {
+  return assetUrl(firstPart ? DEFAULT_VR_DATABASE.replace(/\.mmdb$/, '.first.mmdb') : DEFAULT_VR_DATABASE);
 }

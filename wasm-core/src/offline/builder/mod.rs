@@ -433,6 +433,7 @@ pub fn build(config: &BuildConfig, sources: &[Source]) -> Result<BuildOutput> {
         feature_scale,
         features: out.features,
         valid,
+        part: None,
     };
     // Velocities are derived per clip from positions and rotations (as on load), reversed and
     // mirrored copies included.

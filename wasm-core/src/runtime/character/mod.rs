@@ -25,7 +25,7 @@ pub use schedule::CharacterStats;
 pub use settings::CharacterSettings;
 
 use crate::controller::{Input, Path, Simulation, MAX_PATH_COORDINATE};
-use crate::database::Database;
+use crate::database::{Database, Part};
 use crate::search::SearchIndex;
 use crate::skating::SkatingMeter;
 use drive::{Drive, Mode};
@@ -311,6 +311,16 @@ impl Character {
         self.schedule.mask = None;
         self.schedule.switching = true;
         self.schedule.force = true;
+    }
+
+    /// Moves the character from a first part of a database (`part`, its `PART`) to the whole:
+    /// it plays the same frame there, with every other state kept, so nothing it shows changes
+    /// (the pose, root and contacts of a part frame are the whole frame's). Its next searches
+    /// see the whole database. A search mask, made for the part's frames, is lifted.
+    pub fn enter_whole(&mut self, part: &Part) {
+        // Both map: the frame playing and the one last left are frames of the part.
+        self.frame = part.whole_frame(self.frame).unwrap_or(self.frame);
+        self.schedule.enter_whole(part);
     }
 
     pub fn frame(&self) -> usize {

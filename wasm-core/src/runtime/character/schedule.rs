@@ -4,7 +4,7 @@
 
 use super::query::Query;
 use super::settings::CharacterSettings;
-use crate::database::Database;
+use crate::database::{Database, Part};
 use crate::persist::{Persist, Visitor};
 use crate::search::{SearchIndex, SearchOptions};
 use crate::tag_query::{tag_bit, TagQuery};
@@ -89,6 +89,15 @@ impl Schedule {
             query.exclude |= tag_bit(db, "idle").unwrap_or(0);
         }
         query
+    }
+
+    /// From a first part to its whole ([`super::Character::enter_whole`]): the frame last left
+    /// becomes the same frame of the whole; the part's mask is lifted.
+    pub fn enter_whole(&mut self, part: &Part) {
+        if self.left > 0 {
+            self.left = part.whole_frame(self.left as usize - 1).map_or(0, |f| f as u32 + 1);
+        }
+        self.mask = None;
     }
 
     /// Whether the frame the last jump left is one of `num_frames` (a loaded state's check).

@@ -91,8 +91,9 @@ el.addEventListener('load', async () => {
     hook.avatarStandingToe = avatar?.standingToeHeight ?? NaN;
     apply();
   };
-  const loadedName = character.database.name.split('?')[0].split('/').pop()!.replace(/\.mmdb$/, '');
-  const databases: Record<string, Database | string> = { [loadedName]: character.database };
+  const loaded = character.database; // a first part goes by its whole's name (the character moves there)
+  const loadedName = (loaded.wholeUrl ?? loaded.name).split('?')[0].split('/').pop()!.replace(/\.mmdb$/, '');
+  const databases: Record<string, Database | string> = { [loadedName]: loaded.wholeUrl ?? loaded };
   let refreshStyles = () => {};
   const useDatabase = (db: Database, name: string) => {
     character.setDatabase(db);
@@ -101,7 +102,9 @@ el.addEventListener('load', async () => {
     refreshStyles();
     apply();
   };
-  [hook.database, hook.databaseFrames, hook.databaseLoads] = [loadedName, character.database.numFrames, 1];
+  [hook.database, hook.databaseFrames, hook.databaseLoads] = [loadedName, loaded.numFrames, 1];
+  const whole = (db: Database) => hook.database === loadedName && [hook.databaseFrames = db.numFrames, refreshStyles()];
+  void character.whole().then(whole, () => undefined); // a failure is the character's warning
   useAvatar(character.avatar);
   if (roles && avatarParam !== 'none') {
     const url = avatarParam ?? 'avatars/ubc_male.glb';
@@ -182,11 +185,7 @@ el.addEventListener('load', async () => {
     if (unknown.length) fileError(`Not used (drop .bvh, .vrma, .glb, .mmdb or .vrm): ${unknown.join(', ')}`);
     try {
       const db = await droppedDatabase(files);
-      if (db) {
-        databases[db.name] = db;
-        useDatabase(db, db.name);
-        showDatabases(db.name);
-      }
+      if (db) [databases[db.name] = db, useDatabase(db, db.name), showDatabases(db.name)];
       const [avatar] = files.avatars;
       if (avatar) useAvatar(await Avatar.load(new Uint8Array(await avatar.arrayBuffer()), { name: avatar.name }));
     } catch (e) {

@@ -62,7 +62,8 @@ async function main(): Promise<void> {
   const avatarParam = params.get('avatar');
   const loading = LoadingStatus.attach($('hud'));
   const avatar = avatarParam === 'none' ? null : (avatarParam ?? assetUrl(DEFAULT_AVATAR));
-  const loaded = await loadPageCharacter({ database: params.get('db') ?? vrDatabaseUrl(), avatar, status: loading });
+  const database = params.get('db') ?? vrDatabaseUrl(true); // its first part: the whole follows the first frame
+  const loaded = await loadPageCharacter({ database, avatar, status: loading });
   if (!loaded) return void (hook.error = $('hud').textContent);
   const { character, avatarNote } = loaded;
   loading.finish(avatarNote ? (showError(avatarNote), 'skeleton: the avatar did not load') : null);
