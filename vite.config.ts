@@ -60,10 +60,30 @@ function packagedAssetUrls(): Plugin {
   };
 }
 
+/**
+ * The site's pages ask for their core, database (its first part) and avatar only once their
+ * scripts have run; a `<link rel="preload">` per asset (build only: the versioned URL the
+ * library will request, `as="fetch"` + `crossorigin` to match its `fetch()`) starts them with
+ * the HTML instead, while the scripts download and parse.
+ */
+function preloadFirstAssets(versions: Record<string, { v: string }>): Plugin {
+  const first = (db: string) => ['mmcore_bg.wasm', `databases/${db}.first.mmdb`, 'avatars/ubc_male.glb'];
+  const pages: Record<string, string[]> = { 'index.html': first('locomotion'), 'vr.html': first('vr') };
+  return {
+    name: 'mm-preload-first-assets',
+    transformIndexHtml(_html, ctx) {
+      const assets = (pages[path.basename(ctx.filename)] ?? []).filter((a) => versions[a]);
+      const attrs = (a: string) => ({ rel: 'preload', as: 'fetch', crossorigin: '', href: `${a}?v=${versions[a].v}` });
+      return assets.map((a) => ({ tag: 'link', attrs: attrs(a), injectTo: 'head-prepend' as const }));
+    },
+  };
+}
+
 export default defineConfig(({ command, mode }) => {
   const build = command === 'build';
   const base = { root, publicDir: 'public' };
-  const versions = build ? { __MM_ASSET_VERSIONS__: JSON.stringify(assetVersions()) } : {};
+  const assets = build ? assetVersions() : {};
+  const versions = build ? { __MM_ASSET_VERSIONS__: JSON.stringify(assets) } : {};
   if (build && mode === 'element') {
     return {
       ...base,
@@ -105,7 +125,11 @@ export default defineConfig(({ command, mode }) => {
     // `npm start -- --https` / `npm run dev -- --https` (VITE_HTTPS=1): a self-signed certificate
     // made locally, because Quest Browser allows WebXR only on secure origins. The room server
     // shares the dev server's origin (/rooms/<id>).
-    plugins: [...(process.env.VITE_HTTPS === '1' ? [basicSsl({ name: 'mm-avatar-dev' })] : []), roomsPlugin()],
+    plugins: [
+      ...(process.env.VITE_HTTPS === '1' ? [basicSsl({ name: 'mm-avatar-dev' })] : []),
+      roomsPlugin(),
+      ...(build ? [preloadFirstAssets(assets)] : []),
+    ],
     server: { port: 5173, fs: { allow: [root] } },
     build: {
       outDir: 'dist',

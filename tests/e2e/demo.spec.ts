@@ -111,6 +111,14 @@ test('the character walks, turns and strafes under the keyboard', async ({ page 
   expect(-back.along).toBeGreaterThan(2 * back.across);
   expect(Math.min(e.steps[0] - d.steps[0], e.steps[1] - d.steps[1])).toBeGreaterThan(0);
 
+  // It started on the database's first part and moved to the whole after its first frame.
+  const marks = await page.evaluate(() => ['mm:first-frame', 'mm:whole-database'].map((m) => performance.getEntriesByName(m)[0]?.startTime ?? NaN));
+  const whole = await hook(page);
+  console.log(`first frame ${marks[0].toFixed(0)} ms, whole database (${whole.databaseFrames} frames) in use ${marks[1].toFixed(0)} ms`);
+  expect(marks[1]).toBeGreaterThan(marks[0]);
+  expect(whole.database).toBe('locomotion');
+  expect(whole.databaseFrames).toBeGreaterThan(20_000);
+
   fs.mkdirSync(path.join(ROOT, 'test-results'), { recursive: true });
   await page.screenshot({ path: path.join(ROOT, 'test-results/demo.png') });
   expect(errors).toEqual([]);

@@ -18,7 +18,7 @@ test.beforeAll(() => fs.mkdirSync(SHOTS, { recursive: true }));
 
 test('offline database: the element names the URL and offers Retry, which then loads', async ({ page }) => {
   test.setTimeout(120_000);
-  const db = '**/databases/locomotion.mmdb*';
+  const db = '**/databases/locomotion*.mmdb*'; // the first part, then the whole it falls back to
   await page.route(db, (route) => route.abort('internetdisconnected'));
   await page.goto('/');
   await expect(status(page)).toHaveClass(/error/);
@@ -34,11 +34,11 @@ test('offline database: the element names the URL and offers Retry, which then l
 
 test('stalled database: after 5 s the element says what it is waiting for', async ({ page }) => {
   test.setTimeout(60_000);
-  await page.route('**/databases/locomotion.mmdb*', () => undefined); // never answered
+  await page.route('**/databases/locomotion.first.mmdb*', () => undefined); // never answered
   await page.goto('/');
   await expect(status(page)).toContainText('Loading', { timeout: 10_000 });
   const t0 = Date.now();
-  await expect(status(page)).toContainText(/Still waiting for the database \/databases\/locomotion\.mmdb: nothing received for 5 s/, { timeout: 15_000 });
+  await expect(status(page)).toContainText(/Still waiting for the database \/databases\/locomotion\.first\.mmdb: nothing received for 5 s/, { timeout: 15_000 });
   const waited = Date.now() - t0;
   console.log(`stall reported after ${waited} ms of the page's loading status`);
   await expect(status(page)).toHaveClass(/stalled/);
@@ -162,7 +162,7 @@ test.describe('production server (dist/)', () => {
         const cached = new Set<string>();
         for (const k of await caches.keys()) for (const r of await (await caches.open(k)).keys()) cached.add(r.url.split('?')[0]);
         const loaded = performance.getEntriesByType('resource').map((e) => e.name.split('?')[0]).filter((u) => u.startsWith(location.origin) && /\.(js|css)$/.test(u));
-        const need = [location.origin + '/', ...loaded, ...['mmcore_bg.wasm', 'databases/locomotion.mmdb', 'avatars/ubc_male.glb'].map((f) => `${location.origin}/${f}`)];
+        const need = [location.origin + '/', ...loaded, ...['mmcore_bg.wasm', 'databases/locomotion.first.mmdb', 'databases/locomotion.mmdb', 'avatars/ubc_male.glb'].map((f) => `${location.origin}/${f}`)];
         return [...(reg?.active ? [] : ['an active service worker']), ...need.filter((u) => !cached.has(u))];
       });
     await expect.poll(missing, { timeout: 60_000, intervals: [500] }).toEqual([]);

@@ -17,7 +17,7 @@ import { CharacterRuntime, type RuntimeSettings } from '../core/character.ts';
 import { createDrive, type Drive, type MoveInput } from '../core/drive.ts';
 import { type Database, loadDatabase, loadDefaultDatabase } from '../core/database.ts';
 import { DEFAULT_AVATAR, assetUrl } from '../assets.ts';
-import { type FetchOptions, errorMessage } from '../fetch.ts';
+import { type FetchOptions, errorMessage, mark } from '../fetch.ts';
 import { DebugViews } from '../views/debug-views.ts';
 import { SkeletonView } from '../views/skeleton-view.ts';
 
@@ -527,6 +527,7 @@ export class Character {
         throw new Error(`${url} is not the database ${part.name} is the first part of (another build?): the character keeps the part`);
       }
       this.runtime.enterWhole(whole);
+      mark('mm:whole-database'); // for load benchmarks: the whole in use (scripts/bench-load.mjs)
       return whole;
     } finally {
       whole.release(); // the runtime holds its own reference
