@@ -435,9 +435,12 @@ fn the_first_part_moves_to_the_whole_without_a_jump() {
             );
         }
         assert_eq!(p.whole_frame(part.num_frames), None);
+        // A new character stands as it would on the whole: the same first frame.
+        let settings = CharacterSettings::default();
+        let start = mmcore::character::start_frame(&part, &settings);
+        assert_eq!(p.whole_frame(start), Some(mmcore::character::start_frame(&whole, &settings)), "{name}");
 
         let (part_index, whole_index) = (SearchIndex::new(&part).unwrap(), SearchIndex::new(&whole).unwrap());
-        let settings = CharacterSettings::default();
         // 12 s: stand, walk, turn, side-step, back, stop — a new input every 1.5 s.
         let inputs = [(0.0, 0.0), (0.0, 1.0), (0.7, 0.7), (1.0, 0.0), (0.0, -1.0), (0.0, 0.0), (-1.0, 0.0), (0.0, 1.0)];
         let input_at = |u: usize| {

@@ -7,6 +7,7 @@
 //! derived velocities depend on its clip (clamped offsets, one-sided differences at the ends),
 //! so a window of a clip would not be the same frame as in the whole, and the swap would show.
 
+use crate::character::{start_frame, CharacterSettings};
 use crate::database::{Database, Part, Tag};
 use crate::error::{Error, Result};
 use serde::Deserialize;
@@ -56,7 +57,8 @@ fn overlap(tag: &Tag, start: u32, end: u32) -> u32 {
     tag.ranges.iter().map(|&(s, e)| e.min(end).saturating_sub(s.max(start))).sum()
 }
 
-/// The clips of the first part (indices into `db.clips`, ascending). Each tag of
+/// The clips of the first part (indices into `db.clips`, ascending): the clip pair a new
+/// character starts on, then, by tag: each tag of
 /// `spec.tags` has a quota, an equal share of `spec.seconds`. In turns over the tags, a tag
 /// short of its quota adds the clip pair (a clip and its mirrored copy) that brings the most
 /// of what it lacks, the shorter on a tie, among those not taken, free of `spec.exclude` and
@@ -96,6 +98,18 @@ pub fn choose(db: &Database, spec: &FirstPartSpec) -> Result<Vec<usize>> {
     let quota = budget / tags.len() as u32;
     let (mut taken, mut used) = (vec![false; pairs.len()], 0u32);
     let mut covered = vec![0u32; tags.len()];
+    // First the clip a new character starts on (`character::start_frame`, default settings): the
+    // part then opens on the very pose the whole does, and a visitor sees the same first frame.
+    let start = db.clip_at(start_frame(db, &CharacterSettings::default()));
+    if let Some(p) = pairs.iter().position(|(_, members)| members.contains(&start)) {
+        let n = frames_of(&pairs[p].1);
+        if n <= budget {
+            (taken[p], used) = (true, n);
+            for (c, t) in covered.iter_mut().zip(&tags) {
+                *c += under(t, &pairs[p].1);
+            }
+        }
+    }
     loop {
         let mut added = false;
         for (k, tag) in tags.iter().enumerate() {
