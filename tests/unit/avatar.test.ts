@@ -154,3 +154,42 @@ describe('Avatar.clone (a shared room shows others with the page own model)', ()
     fresh.dispose();
   });
 });
+
+describe('Avatar.coreSkinning (the crowd: bone and skin matrices from the core)', () => {
+  it('gives the bones and skins the matrices three.js computes, walking, turning and running; off again, three.js poses', async () => {
+    const model = await Avatar.load(glbScene(GLB), { name: 'ubc_male' });
+    const core = model.clone();
+    const character = new Character(db, model);
+    core.bind(db);
+    core.coreSkinning = true;
+    expect(core.coreSkinning).toBe(true);
+    const skeletons = (a: Avatar) => {
+      const out = new Set<THREE.Skeleton>();
+      a.object.traverse((o) => (o as THREE.SkinnedMesh).isSkinnedMesh && out.add((o as THREE.SkinnedMesh).skeleton));
+      return [...out];
+    };
+    let worst = 0;
+    for (let step = 0; step < 240; step++) {
+      const phase = Math.floor(step / 60);
+      character.setMove(phase === 2 ? 1 : 0, phase === 2 ? 0 : 1, { run: phase === 1 });
+      character.update(1 / 60); // poses `model` the three.js way (it is the character's)
+      core.pose(character.runtime, 1 / 60);
+      for (const [a, b] of skeletons(model).map((k, i) => [k, skeletons(core)[i]] as const)) {
+        a.update();
+        b.update();
+        for (let k = 0; k < a.boneMatrices!.length; k++) worst = Math.max(worst, Math.abs(a.boneMatrices![k] - b.boneMatrices![k]));
+      }
+      model.bones.forEach((bone, i) => {
+        const e = core.bones[i].matrixWorld.elements;
+        bone.matrixWorld.elements.forEach((v, k) => (worst = Math.max(worst, Math.abs(v - e[k]))));
+      });
+      expect(core.toeHeights[0]).toBeCloseTo(model.toeHeights[0], 4);
+    }
+    console.log(`core skinning vs three.js over 240 frames: largest matrix element difference ${worst.toExponential(2)}`);
+    expect(worst).toBeLessThan(1e-4);
+    core.coreSkinning = false;
+    expect([core.coreSkinning, core.bones.every((b) => b.matrixAutoUpdate && b.matrixWorldAutoUpdate)]).toEqual([false, true]);
+    core.dispose();
+    character.dispose();
+  });
+});

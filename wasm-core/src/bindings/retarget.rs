@@ -6,7 +6,8 @@ use super::database::RawDatabase;
 use super::{Kind, LiveToken};
 use crate::retarget::{Retargeter, TargetSkeleton};
 use crate::roles::{Role, Roles, NUM_ROLES};
-use glam::{Quat, Vec3};
+use crate::skinning::Skinning;
+use glam::{Mat4, Quat, Vec3};
 use wasm_bindgen::prelude::*;
 
 #[wasm_bindgen]
@@ -17,6 +18,10 @@ pub struct RawRetargeter {
     source_joints: usize,
     local_rotations: Vec<Quat>,
     hips_position: [f32; 3],
+    /// The bone and skinning matrices (`enable_skinning`), and the carrier's world matrix JS
+    /// writes before each `skin` (`carrier_ptr`: no copy, no allocation per frame).
+    skinning: Option<Skinning>,
+    carrier: [f32; 16],
     _live: LiveToken,
 }
 
@@ -71,6 +76,8 @@ impl RawRetargeter {
             source_joints,
             local_rotations: vec![Quat::IDENTITY; t],
             hips_position: [0.0; 3],
+            skinning: None,
+            carrier: Mat4::IDENTITY.to_cols_array(),
             _live: LiveToken::new(Kind::Retargeter),
         })
     }
@@ -95,6 +102,74 @@ impl RawRetargeter {
         let p = self.retargeter.apply(c.world_rotations(), hips, lift, &mut self.local_rotations);
         self.hips_position = p.to_array();
         Ok(())
+    }
+
+    /// Computes the bones' world matrices and the skins' matrices in the core from now on
+    /// (`skin`), instead of three.js (`runtime/skinning.rs`): `parents` and `rest_positions`
+    /// as given to the constructor; per skin `skin_lengths[s]` slots, their bones in
+    /// `skin_bones` (concatenated) and inverse bind matrices in `inverse_binds` (16 f32 each,
+    /// column-major). Throws on inconsistent input (nothing changes).
+    pub fn enable_skinning(
+        &mut self,
+        parents: &[i32],
+        rest_positions: &[f32],
+        skin_lengths: &[u32],
+        skin_bones: &[u32],
+        inverse_binds: &[f32],
+    ) -> Result<(), JsError> {
+        let total: usize = skin_lengths.iter().map(|&n| n as usize).sum();
+        if rest_positions.len() != 3 * parents.len() || skin_bones.len() != total || inverse_binds.len() != 16 * total {
+            return Err(JsError::new(&format!(
+                "skinning: {} bones need {} rest position floats, {total} slots need as many bones and {} inverse bind floats; got {}, {}, {}",
+                parents.len(),
+                3 * parents.len(),
+                16 * total,
+                rest_positions.len(),
+                skin_bones.len(),
+                inverse_binds.len()
+            )));
+        }
+        let positions: Vec<Vec3> = rest_positions.chunks_exact(3).map(Vec3::from_slice).collect();
+        let mut at = 0;
+        let skins = skin_lengths
+            .iter()
+            .map(|&n| {
+                let range = at..at + n as usize;
+                at += n as usize;
+                let bones = skin_bones[range.clone()].iter().map(|&b| b as usize).collect();
+                let binds = range.map(|k| Mat4::from_cols_slice(&inverse_binds[16 * k..16 * k + 16])).collect();
+                (bones, binds)
+            })
+            .collect();
+        let skinning =
+            Skinning::new(parents, &positions, self.retargeter.target_hips, skins).map_err(|e| JsError::new(&e))?;
+        self.skinning = Some(skinning);
+        Ok(())
+    }
+
+    /// Where JS writes the carrier's world matrix (16 f32, column-major) before `skin`.
+    pub fn carrier_ptr(&mut self) -> *mut f32 {
+        self.carrier.as_mut_ptr()
+    }
+
+    /// After [`Self::apply`]: the bones' world matrices and the skins' matrices (nothing without
+    /// `enable_skinning`).
+    pub fn skin(&mut self) {
+        let carrier = Mat4::from_cols_array(&self.carrier);
+        let hips = Vec3::from_array(self.hips_position);
+        if let Some(s) = &mut self.skinning {
+            s.update(&carrier, &self.local_rotations, hips);
+        }
+    }
+
+    /// `T×16` f32: every bone's world matrix after `skin` (null before `enable_skinning`).
+    pub fn world_matrices_ptr(&self) -> *const f32 {
+        self.skinning.as_ref().map_or(std::ptr::null(), |s| s.world().as_ptr().cast())
+    }
+
+    /// Skin `s`'s matrices after `skin`, 16 f32 per slot (null for a skin that is not there).
+    pub fn skin_matrices_ptr(&self, s: usize) -> *const f32 {
+        self.skinning.as_ref().filter(|k| s < k.num_skins()).map_or(std::ptr::null(), |k| k.skin(s).as_ptr().cast())
     }
 
     /// `T×4` f32: the avatar's local rotations after [`Self::apply`].

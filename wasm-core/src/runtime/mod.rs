@@ -17,5 +17,6 @@ pub mod retarget;
 pub mod roles;
 pub mod search;
 pub mod skating;
+pub mod skinning;
 pub mod spring;
 pub mod tag_query;

@@ -63,7 +63,7 @@ pub struct Retargeter {
 ///
 /// # Errors
 /// A parent cycle or an out-of-range parent.
-fn parent_first_order(parents: &[i32]) -> Result<Vec<usize>, String> {
+pub(crate) fn parent_first_order(parents: &[i32]) -> Result<Vec<usize>, String> {
     let n = parents.len();
     let mut order = Vec::with_capacity(n);
     let mut state = vec![0u8; n]; // 0 new, 1 visiting, 2 done

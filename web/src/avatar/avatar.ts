@@ -73,6 +73,8 @@ export class Avatar {
   private readonly grounding: Grounding;
   private readonly toes: (number | undefined)[];
   private retargeter: Retargeter | null = null;
+  /** The core poses the bones' and skins' matrices (`coreSkinning`): the skins and the root bones' carrier. */
+  private core: { skeletons: THREE.Skeleton[]; carrier: THREE.Object3D } | null = null;
   /** Avatars sharing these geometries, materials and textures (`clone`): the last one disposed frees them. */
   private readonly assets: { users: number };
   private disposed = false;
@@ -210,7 +212,60 @@ export class Avatar {
       rootParentRotation: this.rootParentRotation.toArray(),
     });
     this.grounding.offset = 0;
+    if (this.core) this.enableCoreSkinning(this.retargeter, this.core.skeletons);
     return this.retargeter.hipsScale * this.carrierScale;
+  }
+
+  /**
+   * Whether the core computes the bones' world matrices and the skins' matrices (one FK pass
+   * in WASM, runtime/skinning.rs) instead of three.js (`updateMatrixWorld` over every bone, then
+   * `Skeleton.update`): for many avatars at once — the crowd page sets it. The bones' world
+   * matrices are written each `pose` (read them as usual), their `position` and `quaternion`
+   * are not, so code that edits bones after `pose` (the VR page's upper body) keeps the
+   * default (false). Models it cannot take (a VRM, bones with a scale, bones under a node that
+   * is not a bone, skins with bones of their own) stay with three.js: reading it back says so.
+   */
+  get coreSkinning(): boolean {
+    return this.core !== null;
+  }
+
+  set coreSkinning(on: boolean) {
+    if (on === (this.core !== null)) return;
+    const skeletons = new Set<THREE.Skeleton>();
+    this.object.traverse((o) => (o as THREE.SkinnedMesh).isSkinnedMesh && skeletons.add((o as THREE.SkinnedMesh).skeleton));
+    if (!on) {
+      for (const k of skeletons) delete (k as { update?: unknown }).update; // three.js' own again
+      for (const b of this.bones) b.matrixAutoUpdate = b.matrixWorldAutoUpdate = true;
+      this.core = null;
+      return;
+    }
+    const index = new Set<THREE.Object3D>(this.bones);
+    const carrier = this.bones[this.rootBone()].parent;
+    const fits =
+      !this.vrm &&
+      carrier !== null &&
+      this.bones.every((b, i) => (this.parents[i] >= 0 ? index.has(b.parent!) : b.parent === carrier)) &&
+      this.bones.every((b) => Math.abs(b.scale.x - 1) + Math.abs(b.scale.y - 1) + Math.abs(b.scale.z - 1) < 1e-4) &&
+      [...skeletons].every((k) => k.bones.every((b) => index.has(b)));
+    if (!fits) return;
+    this.core = { skeletons: [...skeletons], carrier };
+    if (this.retargeter) this.enableCoreSkinning(this.retargeter, this.core.skeletons);
+    for (const b of this.bones) b.matrixAutoUpdate = b.matrixWorldAutoUpdate = false;
+    // The renderer calls `update` once a frame per skeleton: the matrices are already in place.
+    for (const k of skeletons) k.update = () => void (k.boneTexture && (k.boneTexture.needsUpdate = true));
+  }
+
+  private enableCoreSkinning(r: Retargeter, skeletons: THREE.Skeleton[]): void {
+    const bone = new Map(this.bones.map((b, i) => [b as THREE.Object3D, i]));
+    const skins = skeletons.map((k) => ({ bones: k.bones.map((b) => bone.get(b)!), inverseBinds: k.boneInverses.flatMap((m) => m.elements) }));
+    r.enableSkinning({ parents: this.parents, restPositions: this.restPositions }, skins);
+  }
+
+  /** The topmost bone above the hips (whose parent carries the skeleton). */
+  private rootBone(): number {
+    let top = this.roles.get('hips')!;
+    while (this.parents[top] >= 0) top = this.parents[top];
+    return top;
   }
 
   /** Puts every bone back in its rest pose (until the next `pose`), matrices updated. */
@@ -236,12 +291,25 @@ export class Avatar {
     const r = this.retargeter;
     if (!r) throw new Error(`${this.name}: pose() before bind()`);
     r.apply(runtime, this.grounding.offset / this.carrierScale);
-    const q = r.localRotations;
     const bones = this.bones;
-    for (let b = 0; b < bones.length; b++) bones[b].quaternion.set(q[4 * b], q[4 * b + 1], q[4 * b + 2], q[4 * b + 3]);
-    const h = r.hipsPosition;
-    bones[r.targetHips].position.set(h[0], h[1], h[2]);
-    this.object.updateMatrixWorld(true);
+    if (this.core) {
+      // The core's FK: world matrices straight into the bones, skin matrices into the skeletons.
+      this.core.carrier.updateWorldMatrix(true, false);
+      r.skin(this.core.carrier.matrixWorld.elements);
+      const w = r.worldMatrices;
+      for (let b = 0; b < bones.length; b++) {
+        const e = bones[b].matrixWorld.elements;
+        for (let k = 0; k < 16; k++) e[k] = w[16 * b + k];
+      }
+      const skeletons = this.core.skeletons;
+      for (let s = 0; s < skeletons.length; s++) skeletons[s].boneMatrices!.set(r.skinMatrices(s));
+    } else {
+      const q = r.localRotations;
+      for (let b = 0; b < bones.length; b++) bones[b].quaternion.set(q[4 * b], q[4 * b + 1], q[4 * b + 2], q[4 * b + 3]);
+      const h = r.hipsPosition;
+      bones[r.targetHips].position.set(h[0], h[1], h[2]);
+      this.object.updateMatrixWorld(true);
+    }
     for (let side = 0; side < 2; side++) {
       const t = this.toes[side];
       this.toeHeights[side] = t === undefined ? NaN : this.heightOf(bones[t]);

@@ -243,6 +243,7 @@ export class Character {
     const old = this.runtime;
     this.runtime_ = new CharacterRuntime(database, settings);
     old.free();
+    [this.whole_, this.advances] = [null, 0]; // a first part given here loads its own whole
     this.leavePath();
     this.databaseSpace.remove(this.skeletonView.object);
     disposeObject(this.skeletonView.object);
@@ -494,7 +495,7 @@ export class Character {
   advance(dt: number): void {
     // On a first part, the whole loads once the first frame is out (its bytes must not delay it).
     if (this.advances < 2 && ++this.advances === 2 && this.runtime.database.wholeUrl) {
-      this.whole().catch((e: unknown) => console.warn(errorMessage(e)));
+      this.whole().catch((e: unknown) => this.disposed || console.warn(errorMessage(e)));
     }
     this.runtime.update(dt);
   }

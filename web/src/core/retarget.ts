@@ -34,6 +34,9 @@ export class Retargeter {
   private raw: RawRetargeter | null;
   private readonly rotations: ViewCache<Float32Array>;
   private readonly hips = new ViewCache(Float32Array, 3);
+  private readonly carrier = new ViewCache(Float32Array, 16);
+  private readonly world: ViewCache<Float32Array>;
+  private skinViews: ViewCache<Float32Array>[] = [];
 
   constructor(database: Database, target: TargetSkeleton) {
     const roles = Int32Array.from(ROLE_NAMES, (r) => target.roles.get(r) ?? -1);
@@ -54,6 +57,7 @@ export class Retargeter {
     this.targetHips = this.raw.target_hips();
     this.hipsScale = this.raw.hips_scale();
     this.rotations = new ViewCache(Float32Array, this.numJoints * 4);
+    this.world = new ViewCache(Float32Array, this.numJoints * 16);
   }
 
   private get live(): RawRetargeter {
@@ -71,6 +75,47 @@ export class Retargeter {
     } catch (e) {
       throw asError(e);
     }
+  }
+
+  /**
+   * From now on `skin` computes the bones' world matrices and the skins' matrices in the core
+   * (wasm-core/src/runtime/skinning.rs) instead of three.js: `parents`, `restPositions` as
+   * given to the constructor; per skin (a three.js `Skeleton`), its bones (indices into the
+   * avatar's) and `boneInverses` (16 column-major floats each). Throws on inconsistent input.
+   */
+  enableSkinning(target: Pick<TargetSkeleton, 'parents' | 'restPositions'>, skins: readonly { bones: ArrayLike<number>; inverseBinds: ArrayLike<number> }[]): void {
+    try {
+      this.live.enable_skinning(
+        Int32Array.from(target.parents),
+        Float32Array.from(target.restPositions),
+        Uint32Array.from(skins, (k) => k.bones.length),
+        Uint32Array.from(skins.flatMap((k) => Array.from(k.bones))),
+        Float32Array.from(skins.flatMap((k) => Array.from(k.inverseBinds))),
+      );
+    } catch (e) {
+      throw asError(e);
+    }
+    this.skinViews = skins.map((k) => new ViewCache(Float32Array, k.bones.length * 16));
+  }
+
+  /**
+   * After `apply`: every bone's world matrix and each skin's matrices (bone world · inverse
+   * bind), the root bones hanging from `carrier` (its world matrix, 16 column-major floats).
+   */
+  skin(carrier: ArrayLike<number>): void {
+    const raw = this.live;
+    this.carrier.get(wasmMemory(), raw.carrier_ptr()).set(carrier); // in place: no allocation
+    raw.skin();
+  }
+
+  /** The bones' world matrices after `skin` (T×16, zero-copy). */
+  get worldMatrices(): Float32Array {
+    return this.world.get(wasmMemory(), this.live.world_matrices_ptr());
+  }
+
+  /** Skin `s`'s matrices after `skin` (16 floats a slot, zero-copy). */
+  skinMatrices(s: number): Float32Array {
+    return this.skinViews[s].get(wasmMemory(), this.live.skin_matrices_ptr(s));
   }
 
   /** The avatar's local rotations after `apply` (T×4, zero-copy). */

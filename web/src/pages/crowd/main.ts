@@ -9,7 +9,8 @@
  * the render (bone uploads and draw calls), with the draw calls. The public entry only.
  *
  * URL parameters: `n=200` (1–1000), `lod=0` (every character every frame), `dt=fixed` (1/60 s a
- * frame, for the bench; `dt=0.1`: that many s), `seed=1`. Tests and `npm run bench -- --crowd`: `window.__crowd`.
+ * frame, for the bench; `dt=0.1`: that many s), `seed=1`, `skinning=three` (three.js poses the
+ * bones and skins instead of the core: `Avatar.coreSkinning`). Tests and `npm run bench -- --crowd`: `window.__crowd`.
  */
 import * as THREE from 'three';
 import {
@@ -21,6 +22,7 @@ import { catchPageErrors, errorMessage } from '../kit.ts';
 const params = new URLSearchParams(location.search);
 const n = Math.max(1, Math.min(1000, Math.floor(Number(params.get('n') ?? 200)) || 200));
 const lod = params.get('lod') !== '0';
+const core = params.get('skinning') !== 'three';
 const fixedDt = params.get('dt') === 'fixed' ? 1 / 60 : Math.min(0.25, Number(params.get('dt')) || 0);
 
 /** Per frame, per character updated (ms): medians over the last `WINDOW` frames (`window=60`). */
@@ -97,6 +99,7 @@ async function start(): Promise<void> {
   ]);
   for (let i = 0; i < n; i++) {
     const character = new Character(database, i === 0 ? template : template.clone());
+    character.avatar!.coreSkinning = core; // bone and skin matrices from the core's FK
     const [x, z] = point();
     character.teleport(x, z, random() * Math.PI * 2);
     stage.scene.add(character.object3d);
