@@ -159,6 +159,8 @@ describe('Avatar.coreSkinning (the crowd: bone and skin matrices from the core)'
   it('gives the bones and skins the matrices three.js computes, walking, turning and running; off again, three.js poses', async () => {
     const model = await Avatar.load(glbScene(GLB), { name: 'ubc_male' });
     const core = model.clone();
+    core.object.updateMatrixWorld(true);
+    const restY = core.bones.map((b) => b.matrixWorld.elements[13]); // heights at rest
     const character = new Character(db, model);
     core.bind(db);
     core.coreSkinning = true;
@@ -187,6 +189,13 @@ describe('Avatar.coreSkinning (the crowd: bone and skin matrices from the core)'
     }
     console.log(`core skinning vs three.js over 240 frames: largest matrix element difference ${worst.toExponential(2)}`);
     expect(worst).toBeLessThan(1e-4);
+    // A clone of it starts at rest like any clone, and it keeps the core's skinning.
+    const copy = core.clone();
+    expect(copy.coreSkinning).toBe(false);
+    copy.object.updateMatrixWorld(true);
+    copy.bones.forEach((b, i) => expect(b.matrixWorld.elements[13]).toBeCloseTo(restY[i], 4));
+    expect(core.coreSkinning).toBe(true);
+    copy.dispose();
     core.coreSkinning = false;
     expect([core.coreSkinning, core.bones.every((b) => b.matrixAutoUpdate && b.matrixWorldAutoUpdate)]).toEqual([false, true]);
     core.dispose();

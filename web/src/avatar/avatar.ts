@@ -326,6 +326,9 @@ export class Avatar {
    */
   clone(): Avatar {
     if (this.vrm) throw new Error(`${this.name}: a VRM model is not cloned; load it again`);
+    // Cloned from three.js' own posing (the core's leaves the bones' local transforms behind).
+    const core = this.coreSkinning;
+    this.coreSkinning = false;
     const posed = this.bones.map((b) => [b.position.clone(), b.quaternion.clone()] as const);
     this.resetToRest();
     let copy: Avatar;
@@ -334,6 +337,7 @@ export class Avatar {
     } finally {
       this.bones.forEach((b, i) => (b.position.copy(posed[i][0]), b.quaternion.copy(posed[i][1])));
       this.object.updateMatrixWorld(true);
+      this.coreSkinning = core;
     }
     this.assets.users++;
     return copy;
