@@ -201,7 +201,12 @@ pub struct RangeSpec {
 impl BuildConfig {
     /// Parses a JSON configuration; the error names the line, column and key.
     pub fn from_json(text: &str) -> Result<BuildConfig> {
-        let config: BuildConfig = serde_json::from_str(text).map_err(|e| Error::config(e.to_string()))?;
+        // Where first: a long message (an unknown key lists every known one) is cut at its end.
+        let config: BuildConfig = serde_json::from_str(text).map_err(|e| {
+            let what = e.to_string();
+            let what = what.rsplit_once(" at line ").map_or(what.as_str(), |(w, _)| w).to_string();
+            Error::config(format!("line {}, column {}: {what}", e.line(), e.column()))
+        })?;
         config.validate()?;
         Ok(config)
     }
