@@ -217,6 +217,9 @@ test('a joiner blocked 8 s right after opening its socket is not dropped and sho
   }, 1000 / 30);
   try {
     const cy = await open(browser, 'Cy', roomId, 8000);
+    // It joins once its character plays the whole database (the first part's whole, loaded after
+    // its first frame): the socket opens, and the block with it, a little after the page is ready.
+    await cy.waitForFunction(() => (window as unknown as { __resumedAt: number }).__resumedAt > 0, null, { timeout: 60_000, polling: 100 });
     const t = await cy.evaluate(() => {
       const w = window as unknown as { __roomSockets: number; __resumedAt: number };
       return { sockets: w.__roomSockets, resumedAt: w.__resumedAt };

@@ -458,6 +458,14 @@ export class RoomSession {
   /** A member's database by id (`[A-Za-z0-9._-]{1,64}`, checked by the protocol): `databases/<id>.mmdb` beside the default assets. */
   private databaseFor(id: string): Promise<Database> {
     let db = this.databases.get(id);
+    // The page's own database when the member plays the same one (the usual case): no second
+    // download and decode of it on the way to showing them.
+    const own = this.o.character.database;
+    const ownId = (own.name.split('?')[0].split('/').pop() ?? '').replace(/\.mmdb$/, '');
+    if (!db && id === ownId && !own.wholeUrl) {
+      db = Promise.resolve(own.retain());
+      this.databases.set(id, db);
+    }
     if (!db) {
       db = Database.fetch(assetUrl(`databases/${id}.mmdb`));
       this.databases.set(id, db);
