@@ -169,8 +169,10 @@ describe('first part (PART): a character starts on it and moves to the whole', (
     const { Character, loadDatabase } = await import('../../web/src/index.ts');
     const http = await import('node:http');
     // The site's files on loopback: the character fetches the whole as a page does.
+    let redirect = { from: '', to: '' };
     const server = http.createServer((req, res) => {
-      const file = path.join(ROOT, 'public', decodeURIComponent(new URL(req.url ?? '/', 'http://x').pathname));
+      const asked = decodeURIComponent(new URL(req.url ?? '/', 'http://x').pathname);
+      const file = path.join(ROOT, 'public', asked === redirect.from ? redirect.to : asked);
       if (!file.startsWith(path.join(ROOT, 'public')) || !fs.existsSync(file)) return void res.writeHead(404).end();
       res.writeHead(200, { 'content-type': 'application/octet-stream' }).end(fs.readFileSync(file));
     });
@@ -204,8 +206,19 @@ describe('first part (PART): a character starts on it and moves to the whole', (
       expect(Math.hypot(c.root.x - root.x, c.root.z - root.z)).toBeGreaterThan(0.5);
       expect(() => c.runtime.enterWhole(loaded)).toThrow(/not a first part/);
       c.dispose();
-      whole.release();
-      other.release();
+
+      // A whole that is missing, or of another build, leaves the character on its part, saying so.
+      const lone = Database.fromBytes(fs.readFileSync(path.join(ROOT, 'public/databases/locomotion.first.mmdb')), `${base}nowhere/locomotion.first.mmdb`);
+      const stays = new Character(lone);
+      await expect(stays.whole()).rejects.toThrow(/is a first part; its whole did not load, so the character keeps the part: .*nowhere\/locomotion\.mmdb: HTTP 404/);
+      expect(stays.database).toBe(lone);
+      const renamed = Database.fromBytes(fs.readFileSync(path.join(ROOT, 'public/databases/vr.first.mmdb')), `${base}vr.first.mmdb`);
+      const wrong = new Character(renamed);
+      redirect = { from: '/databases/vr.mmdb', to: 'databases/locomotion.mmdb' }; // another file under the whole's name
+      await expect(wrong.whole()).rejects.toThrow(/vr\.mmdb is not the database .* is the first part of \(another build\?\)/);
+      expect(wrong.database).toBe(renamed);
+      for (const x of [stays, wrong]) x.update(1 / 60); // and they play on
+      [stays, wrong, lone, renamed, whole, other].forEach((x) => ('dispose' in x ? x.dispose() : x.release()));
     } finally {
       server.close();
     }
