@@ -170,8 +170,10 @@ describe('first part (PART): a character starts on it and moves to the whole', (
     const http = await import('node:http');
     // The site's files on loopback: the character fetches the whole as a page does.
     let redirect = { from: '', to: '' };
+    const hits = new Map<string, number>();
     const server = http.createServer((req, res) => {
       const asked = decodeURIComponent(new URL(req.url ?? '/', 'http://x').pathname);
+      hits.set(asked, (hits.get(asked) ?? 0) + 1);
       const file = path.join(ROOT, 'public', asked === redirect.from ? redirect.to : asked);
       if (!file.startsWith(path.join(ROOT, 'public')) || !fs.existsSync(file)) return void res.writeHead(404).end();
       res.writeHead(200, { 'content-type': 'application/octet-stream' }).end(fs.readFileSync(file));
@@ -212,6 +214,8 @@ describe('first part (PART): a character starts on it and moves to the whole', (
       const stays = new Character(lone);
       await expect(stays.whole()).rejects.toThrow(/is a first part; its whole did not load, so the character keeps the part: .*nowhere\/locomotion\.mmdb: HTTP 404/);
       expect(stays.database).toBe(lone);
+      await expect(stays.whole()).rejects.toThrow(/HTTP 404/);
+      expect(hits.get('/databases/nowhere/locomotion.mmdb')).toBe(2); // tried again, not a kept failure
       const renamed = Database.fromBytes(fs.readFileSync(path.join(ROOT, 'public/databases/vr.first.mmdb')), `${base}vr.first.mmdb`);
       const wrong = new Character(renamed);
       redirect = { from: '/databases/vr.mmdb', to: 'databases/locomotion.mmdb' }; // another file under the whole's name

@@ -506,12 +506,17 @@ export class Character {
    * the whole after its first frame, or when this is called, and moves onto it as soon as it is
    * here, between two updates, playing the same frame there: nothing it shows changes. Resolves
    * at once on a database that is no first part. Rejects, the character staying on the part,
-   * when the whole cannot be loaded or is not the file the part names (another build).
+   * when the whole cannot be loaded or is not the file the part names (another build); calling
+   * it again then tries again.
    */
   whole(): Promise<Database> {
     const part = this.runtime.database;
     if (!part.wholeUrl) return Promise.resolve(part);
-    return (this.whole_ ??= this.loadWhole(part, part.wholeUrl));
+    // A failed load is not kept: the next call tries again.
+    return (this.whole_ ??= this.loadWhole(part, part.wholeUrl).catch((e: unknown) => {
+      this.whole_ = null;
+      throw e;
+    }));
   }
 
   private async loadWhole(part: Database, url: string): Promise<Database> {
