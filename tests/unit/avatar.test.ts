@@ -196,6 +196,9 @@ describe('Avatar.coreSkinning (the crowd: bone and skin matrices from the core)'
     copy.bones.forEach((b, i) => expect(b.matrixWorld.elements[13]).toBeCloseTo(restY[i], 4));
     expect(core.coreSkinning).toBe(true);
     copy.dispose();
+    core.resetToRest(); // at rest too, still the core's
+    core.bones.forEach((b, i) => expect(b.matrixWorld.elements[13]).toBeCloseTo(restY[i], 4));
+    expect(core.coreSkinning).toBe(true);
     core.coreSkinning = false;
     expect([core.coreSkinning, core.bones.every((b) => b.matrixAutoUpdate && b.matrixWorldAutoUpdate)]).toEqual([false, true]);
     core.dispose();

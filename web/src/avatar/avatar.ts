@@ -270,11 +270,14 @@ export class Avatar {
 
   /** Puts every bone back in its rest pose (until the next `pose`), matrices updated. */
   resetToRest(): void {
+    const core = this.coreSkinning; // three.js' pass computes the rest matrices
+    this.coreSkinning = false;
     this.bones.forEach((b, i) => {
       b.quaternion.fromArray(this.restRotations, i * 4);
       b.position.fromArray(this.restPositions, i * 3);
     });
     this.object.updateMatrixWorld(true);
+    this.coreSkinning = core;
   }
 
   /** The bone of a role, if the avatar has it. */
