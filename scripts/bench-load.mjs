@@ -95,6 +95,10 @@ async function visit(context, server, pageDef, network, log) {
   // A page that starts on a database's first part moves to the whole after its first frame.
   await page.waitForFunction(() => performance.getEntriesByName('mm:whole-database').length > 0, null, { timeout: 30_000, polling: 50 }).catch(() => undefined);
   const wholeMark = await page.evaluate(() => performance.getEntriesByName('mm:whole-database')[0]?.startTime ?? null);
+  // The whole's own stage (its download), for where its time goes.
+  const wholeFetched = await page.evaluate(() => performance.getEntriesByName('mm:fetched:whole database')[0]?.startTime ?? null);
+  if (wholeFetched !== null) marks.entries['mm:fetched:whole database'] = wholeFetched;
+  if (wholeMark !== null) marks.entries['mm:whole-database'] = wholeMark;
   const firstFrame = marks.entries['mm:first-frame'];
   // CDP timestamps are monotonic seconds; the page's marks are ms after its time origin (epoch ms).
   const toMono = (pageMs) => (marks.origin + pageMs) / 1000 - (events.wallOffset ?? 0);

@@ -522,7 +522,7 @@ export class Character {
   private async loadWhole(part: Database, url: string): Promise<Database> {
     let whole: Database;
     try {
-      whole = await loadDatabase(url);
+      whole = await loadDatabase(url, { stage: 'whole database', background: true });
     } catch (e) {
       throw new Error(`${part.name} is a first part; its whole did not load, so the character keeps the part: ${errorMessage(e)}`);
     }

@@ -372,6 +372,9 @@ export class MMAvatarElement extends ElementBase {
     stage.render();
     if (!this.loadedOnce) {
       this.loadedOnce = true;
+      // A first part's whole downloads from now on, before the page's own work on `load`
+      // (the character warns if it fails, at its next update).
+      character.whole().catch(() => undefined);
       // For load benchmarks: the page's first animated frame (scripts/bench-load.mjs).
       if (performance.getEntriesByName('mm:first-frame').length === 0) performance.mark('mm:first-frame');
       this.resolveReady();
