@@ -34,9 +34,9 @@ export interface FetchOptions {
   /** Use the library's cache for versioned URLs; default true. */
   cache?: boolean;
   /**
-   * A download in the background (a first part's whole): the request goes out at once, at low
-   * priority, while the library's cache is looked at (the request is dropped on a hit), so a
-   * main thread busy after the first frame does not hold it back.
+   * A download in the background (a first part's whole): the request goes out at once, while
+   * the library's cache is looked at (the request is dropped on a hit), so a main thread busy
+   * after the first frame does not hold it back.
    */
   background?: boolean;
 }
@@ -57,7 +57,7 @@ export async function fetchBytes(url: string | URL, options: FetchOptions = {}):
   const drop = new AbortController();
   if (options.background) {
     options.signal?.addEventListener('abort', () => drop.abort(), { once: true });
-    early = fetch(href, { signal: drop.signal, priority: 'low' } as RequestInit);
+    early = fetch(href, { signal: drop.signal });
     early.catch(() => undefined); // awaited below, or dropped
   }
   if (useCache) {
