@@ -54,8 +54,8 @@ export async function fetchBytes(url: string | URL, options: FetchOptions = {}):
   const report = (p: Omit<FetchProgress, 'stage' | 'url'>) => options.onProgress?.({ stage, url: href, ...p });
   const useCache = options.cache !== false;
   let early: Promise<Response> | null = null;
-  const drop = new AbortController();
-  if (options.background) {
+  const drop = options.background ? new AbortController() : null;
+  if (drop) {
     options.signal?.addEventListener('abort', () => drop.abort(), { once: true });
     early = fetch(href, { signal: drop.signal });
     early.catch(() => undefined); // awaited below, or dropped
@@ -63,7 +63,7 @@ export async function fetchBytes(url: string | URL, options: FetchOptions = {}):
   if (useCache) {
     const hit = await cachedBytes(href);
     if (hit) {
-      drop.abort();
+      drop?.abort();
       report({ loaded: hit.length, total: hit.length, done: true, cached: true });
       mark(`mm:fetched:${stage}`);
       return hit;

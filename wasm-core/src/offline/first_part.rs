@@ -98,16 +98,20 @@ pub fn choose(db: &Database, spec: &FirstPartSpec) -> Result<Vec<usize>> {
     let quota = budget / tags.len() as u32;
     let (mut taken, mut used) = (vec![false; pairs.len()], 0u32);
     let mut covered = vec![0u32; tags.len()];
+    // Takes pair `p`: its frames count toward the budget and toward every tag they carry.
+    let take = |p: usize, taken: &mut [bool], used: &mut u32, covered: &mut [u32]| {
+        taken[p] = true;
+        *used += frames_of(&pairs[p].1);
+        for (c, t) in covered.iter_mut().zip(&tags) {
+            *c += under(t, &pairs[p].1);
+        }
+    };
     // First the clip a new character starts on (`character::start_frame`, default settings): the
     // part then opens on the very pose the whole does, and a visitor sees the same first frame.
     let start = db.clip_at(start_frame(db, &CharacterSettings::default()));
     if let Some(p) = pairs.iter().position(|(_, members)| members.contains(&start)) {
-        let n = frames_of(&pairs[p].1);
-        if n <= budget {
-            (taken[p], used) = (true, n);
-            for (c, t) in covered.iter_mut().zip(&tags) {
-                *c += under(t, &pairs[p].1);
-            }
+        if frames_of(&pairs[p].1) <= budget {
+            take(p, &mut taken, &mut used, &mut covered);
         }
     }
     loop {
@@ -131,13 +135,9 @@ pub fn choose(db: &Database, spec: &FirstPartSpec) -> Result<Vec<usize>> {
                     best = Some((p, score, n));
                 }
             }
-            if let Some((p, _, n)) = best {
-                taken[p] = true;
-                used += n;
+            if let Some((p, _, _)) = best {
+                take(p, &mut taken, &mut used, &mut covered);
                 added = true;
-                for (c, t) in covered.iter_mut().zip(&tags) {
-                    *c += under(t, &pairs[p].1);
-                }
             }
         }
         if !added {

@@ -133,9 +133,7 @@ export class Avatar {
       b.position.toArray(this.restPositions, i * 3);
     });
     // Whatever carries the root bones (an "Armature" node, a VRM 0 turn) turns and scales the rest pose.
-    let top = this.roles.get('hips')!;
-    while (this.parents[top] >= 0) top = this.parents[top];
-    const carrier = bones[top].parent;
+    const carrier = bones[this.rootBone()].parent;
     this.rootParentRotation = carrier ? carrier.getWorldQuaternion(new THREE.Quaternion()) : new THREE.Quaternion();
     this.carrierScale = carrier ? carrier.getWorldScale(new THREE.Vector3()).x / root.getWorldScale(new THREE.Vector3()).x : 1;
     this.toes = [this.roles.get('left_toe'), this.roles.get('right_toe')];

@@ -185,7 +185,7 @@ export class RoomSession {
     if (character.database.wholeUrl) {
       throw new Error(`${character.database.name} is a first part: await character.whole() before joining a room (the others replay this person on the whole database)`);
     }
-    const database = options.database ?? (character.database.name.split('?')[0].split('/').pop() ?? '').replace(/\.mmdb$/, '');
+    const database = options.database ?? databaseId(character.database);
     this.databaseId = /^[A-Za-z0-9._-]{1,64}$/.test(database) ? database : 'locomotion';
     this.client = new RoomClient({
       ...options.client,
@@ -461,8 +461,7 @@ export class RoomSession {
     // The page's own database when the member plays the same one (the usual case): no second
     // download and decode of it on the way to showing them.
     const own = this.o.character.database;
-    const ownId = (own.name.split('?')[0].split('/').pop() ?? '').replace(/\.mmdb$/, '');
-    if (!db && id === ownId && !own.wholeUrl) {
+    if (!db && id === databaseId(own) && !own.wholeUrl) {
       db = Promise.resolve(own.retain());
       this.databases.set(id, db);
     }
@@ -547,4 +546,9 @@ export class RoomSession {
     if (list.length >= 50_000) list.splice(0, 10_000);
     list.push(row);
   }
+}
+
+/** A database's id in a room: its file name without `.mmdb` (`locomotion`). */
+function databaseId(database: Database): string {
+  return (database.name.split('?')[0].split('/').pop() ?? '').replace(/\.mmdb$/, '');
 }
