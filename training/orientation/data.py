@@ -102,19 +102,22 @@ def database_config(folder: str, subject: str, mocap_dir: Path, config_dir: Path
 def ensure_database(
     folder: str, subject: str, data_dir: Path = DATA_DIR, mocap_dir: Path = MOCAP_DIR, cli: Path = MMDB_BIN, log=print
 ) -> Path:
-    """Path of the subject's `.mmdb`, (re)built with the CLI when missing or stale.
+    """Path of the subject's `.mmdb`, (re)built with the CLI when missing or stale."""
+    config = database_config(folder, subject, mocap_dir, data_dir)
+    sources = list((mocap_dir / folder).glob(file_pattern(folder, subject)))
+    return build_database(subject_name(folder, subject), config, sources, data_dir, cli, log)
 
-    Stale means: the config text changed, or the CLI binary or a source BVH is newer.
-    """
+
+def build_database(name: str, config: dict, sources: list[Path], data_dir: Path, cli: Path, log=print) -> Path:
+    """`data_dir/<name>.mmdb` built from `config` with the CLI when missing or stale: the config
+    text changed, or the CLI binary or a source BVH is newer."""
     data_dir.mkdir(parents=True, exist_ok=True)
-    name = subject_name(folder, subject)
     config_path, out = data_dir / f"{name}.json", data_dir / f"{name}.mmdb"
-    text = json.dumps(database_config(folder, subject, mocap_dir, data_dir), indent=1) + "\n"
+    text = json.dumps(config, indent=1) + "\n"
     if not config_path.exists() or config_path.read_text() != text:
         config_path.write_text(text)
     if not cli.is_file():
         raise DataError(f"mmdb CLI not built at {cli} (run `npm run build` or `cargo build --release` in wasm-core/)")
-    sources = list((mocap_dir / folder).glob(file_pattern(folder, subject)))
     newest = max([config_path.stat().st_mtime, cli.stat().st_mtime] + [p.stat().st_mtime for p in sources])
     if out.exists() and out.stat().st_mtime >= newest:
         return out
@@ -123,11 +126,66 @@ def ensure_database(
         f"from {len(sources)} takes"
     )
     proc = subprocess.run(
-        [str(cli), "build", "--config", str(config_path), "-o", str(out)], capture_output=True, text=True, timeout=300
+        [str(cli), "build", "--config", str(config_path), "-o", str(out)], capture_output=True, text=True, timeout=600
     )
     if proc.returncode != 0:
         raise DataError(f"mmdb build --config {config_path} failed ({proc.returncode}):\n{proc.stderr}")
     return out
+
+
+def people(mocap_dir: Path = MOCAP_DIR) -> dict[str, dict[str, list[str]]]:
+    """Every person of the mocap manifest (its `person` field), in manifest order: person →
+    folder → file names. The manifest grows; nothing here names a person."""
+    path = mocap_dir / "manifest.json"
+    try:
+        entries = json.loads(path.read_text())
+    except (OSError, ValueError) as e:
+        raise DataError(f"{path}: cannot read the mocap manifest ({e})") from e
+    out: dict[str, dict[str, list[str]]] = {}
+    for i, e in enumerate(entries):
+        missing = [k for k in ("person", "folder", "file") if not isinstance(e.get(k), str) or not e.get(k)]
+        if missing:
+            raise DataError(f"{path}: entry {i} lacks {', '.join(missing)}")
+        out.setdefault(e["person"], {}).setdefault(e["folder"], []).append(e["file"])
+    return out
+
+
+def person_databases(
+    person: str,
+    folders: dict[str, list[str]],
+    data_dir: Path = DATA_DIR,
+    mocap_dir: Path = MOCAP_DIR,
+    cli: Path = MMDB_BIN,
+    log=print,
+) -> list[Path]:
+    """One `.mmdb` per folder (skeleton) of a person's takes: 120 fps, mirrored, units auto, the
+    person's own bone lengths; 100STYLE takes cut to its Frame_Cuts.csv windows."""
+    paths = []
+    for folder, files in folders.items():
+        bvh_dir = mocap_dir / folder
+        sources = [bvh_dir / f for f in files]
+        absent = [str(p) for p in sources if not p.is_file()]
+        if absent:
+            raise DataError(f"{mocap_dir / 'manifest.json'}: person {person}: missing file(s) {', '.join(absent[:3])}")
+        rel = os.path.relpath(bvh_dir, data_dir)
+        config = {"fps": SOURCE_FPS, "mirror": True, "scale": "auto", "clips": [{"file": f"{rel}/{f}"} for f in files]}
+        if (bvh_dir / "Frame_Cuts.csv").exists():
+            config["frame_cuts"] = f"{rel}/Frame_Cuts.csv"
+        paths.append(build_database(f"person_{person}_{folder}", config, sources, data_dir, cli, log))
+    return paths
+
+
+def load_people(names, mirrored: bool | None = None, log=print, **kw) -> list[MocapClip]:
+    """Clips of the people `names` (manifest `person` values), `subject` set to the person."""
+    everyone = people(kw.get("mocap_dir", MOCAP_DIR))
+    unknown = [n for n in names if n not in everyone]
+    if unknown:
+        raise DataError(f"no person {', '.join(unknown)} in the mocap manifest (known: {', '.join(everyone)})")
+    clips = []
+    for name in names:
+        for path in person_databases(name, everyone[name], log=log, **kw):
+            clips += load_clips(path, name, mirrored)
+    return clips
 
 
 @dataclass
@@ -248,6 +306,10 @@ class MocapClip:
     hand_pos: np.ndarray  # (2, n, 3) left, right
     hand_rot: np.ndarray  # (2, n, 4)
     rig: Rig
+    # The head's height standing upright (m): the 90th percentile over the database's frames.
+    # `classes` leaves crouching out (the VR recordings and the headset calibration predate it);
+    # `motion_classes.with_crouching` adds it where a score wants it.
+    upright_head: float = 0.0
 
     @property
     def num_frames(self) -> int:
@@ -296,6 +358,9 @@ def load_clips(path: Path, subject: str, mirrored: bool | None = None) -> list[M
                 rig=rig,
             )
         )
+    upright = float(np.percentile(pos[:, rig.head, 1], 90)) if len(pos) else 0.0
+    for c in clips:
+        c.upright_head = upright
     for side in (False, True):
         group = [c for c in clips if c.mirrored == side]
         calibrated = calibrate_headset(group) if group else None

@@ -9,6 +9,8 @@ wrists; the head), per frame:
 - **in place** (root speed < 0.2 m/s): `turn_in_place` if the facing turns faster than 30°/s
   (over ±0.5 s); else `gesturing` if a wrist moves faster than 0.35 m/s relative to the root
   (over ±0.25 s) or is raised above the head minus 0.3 m; else `standing`;
+- **crouching** (before all of the above): the head lower than `CROUCH_RATIO` of its height
+  standing upright (the person's 90th percentile) — crouching, kneeling, bending over;
 - `other`: 0.2–0.3 m/s (shuffling, starting, stopping) — scored in the overall numbers only.
 
 The speed and angle thresholds are the ones the shared mocap's survey uses (its SOURCES.md),
@@ -19,7 +21,7 @@ from __future__ import annotations
 
 import numpy as np
 
-CLASSES = ("forward", "backward", "sideways", "turn_in_place", "standing", "gesturing")
+CLASSES = ("forward", "backward", "sideways", "turn_in_place", "standing", "gesturing", "crouching")
 OTHER = -1
 
 MOVING_SPEED = 0.3  # m/s
@@ -29,6 +31,7 @@ HAND_SPEED = 0.35  # m/s, relative to the root
 HAND_RAISED = 0.3  # m below the head
 SPEED_WINDOW = 0.25  # s, half-width
 TURN_WINDOW = 0.5  # s, half-width
+CROUCH_RATIO = 0.8  # of the upright head height
 
 
 def _central(x: np.ndarray, k: int, fps: float) -> np.ndarray:
@@ -49,12 +52,18 @@ def travel_of(root_pos: np.ndarray, fps: float) -> tuple[np.ndarray, np.ndarray]
 
 
 def classify(
-    root_pos: np.ndarray, body_yaw: np.ndarray, hand_pos: np.ndarray, head_pos: np.ndarray, fps: float
+    root_pos: np.ndarray,
+    body_yaw: np.ndarray,
+    hand_pos: np.ndarray,
+    head_pos: np.ndarray,
+    fps: float,
+    upright_head: float = 0.0,
 ) -> np.ndarray:
     """Class index per frame (into `CLASSES`, or `OTHER`).
 
     root_pos (n, 3) virtual-root position, body_yaw (n,) unwrapped facing (0 = +Z), hand_pos
-    (2, n, 3) wrists, head_pos (n, 3); world, metres.
+    (2, n, 3) wrists, head_pos (n, 3); world, metres; `upright_head` the head's height standing
+    (0: no crouching class).
     """
     n = len(body_yaw)
     k = max(1, int(round(SPEED_WINDOW * fps)))
@@ -80,7 +89,14 @@ def classify(
     gesture = (hand_speed > HAND_SPEED) | raised
     out[calm & gesture] = CLASSES.index("gesturing")
     out[calm & ~gesture] = CLASSES.index("standing")
+    if upright_head > 0:
+        out[head_pos[:, 1] < CROUCH_RATIO * upright_head] = CLASSES.index("crouching")
     return out
+
+
+def with_crouching(clip) -> np.ndarray:
+    """A clip's classes with `crouching` (its head under `CROUCH_RATIO` of its upright height)."""
+    return classify(clip.root_pos, clip.body_yaw, clip.hand_pos, clip.head_pos, clip.fps, clip.upright_head)
 
 
 def seconds_per_class(classes: np.ndarray, fps: float) -> dict[str, float]:

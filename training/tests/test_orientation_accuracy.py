@@ -1,5 +1,8 @@
-"""The committed models on the held-out subjects (never trained on): the issue's acceptance
-numbers, and the feedback loop's robustness over 10 minutes of simulated input."""
+"""The committed models on the fixed split's held-out subjects, and the feedback loop's
+robustness over 10 minutes of simulated input. The shipped network now trains on every person
+(those subjects included), so here its bounds guard a level it should keep, not a held-out
+figure; the held-out judgment is leave-one-person-out (`test_orientation_lopo.py`, `npm run
+eval`). The r = 1, no-look-around and GRU models are still the split's."""
 
 import numpy as np
 import pytest
@@ -148,11 +151,16 @@ def test_the_vr_pages_choice_per_device_set_is_the_better_one(held_out):
         r = evaluate.evaluate([evaluate.with_absent(q, absent) for q in seqs], models, absent)[0]
         r["feed-back"] = r["network r=50"]
         if not absent:
-            # Both hands: the mean of the two models beats either.
+            # Both hands: the mean of the two models beat either on these people while both were
+            # held out from them (19.3° against 20.9° and 22.1°). The shipped network has since
+            # trained on them (the GRU has not), so here the mean must stay within 0.5° of the
+            # better model and beat the other: a held-out verdict on the mix needs a GRU trained
+            # leave-one-person-out too.
             print(
                 f"{name}: page {r[evaluate.PAGE].mean:.1f}°, feed-back {r['feed-back'].mean:.1f}°, recurrent {r['recurrent'].mean:.1f}°"
             )
-            assert r[evaluate.PAGE].mean < min(r["feed-back"].mean, r["recurrent"].mean)
+            best, worst = sorted((r["feed-back"].mean, r["recurrent"].mean))
+            assert r[evaluate.PAGE].mean < best + 0.5 and r[evaluate.PAGE].mean < worst
             continue
         # The page's yaw is the recurrent model's once it has warmed up (1.5 s after a reset).
         page = r[evaluate.PAGE].mean

@@ -165,3 +165,31 @@ def test_noise_is_there_but_small(clips):
     clean = simulate(clips[0], np.random.default_rng(7), QUIET, fps=90.0)
     d = np.linalg.norm(noisy.pos - clean.pos, axis=-1)
     assert 0.0005 < d.mean() < 0.003
+
+
+def test_how_the_devices_are_held_and_worn(clips):
+    """The device-variation options: a fixed grip turn rotates each controller about its own
+    axes (the left one mirrored) and nothing else; a headset pitch turns the headset about its
+    x axis; a head height scales the person; none draws a random number when fixed."""
+    clip = clips[0]
+    clip.upright_head = float(np.percentile(clip.head_pos[:, 1], 90))
+    base = simulate(clip, np.random.default_rng(3), QUIET, fps=90.0)
+
+    def rel(a, b):  # rotation from b to a, in b's own frame: conj(b) · a
+        return quat_mul(b * np.array([-1, -1, -1, 1.0]), a)
+
+    turned = simulate(clip, np.random.default_rng(3), replace(QUIET, grip_rot=(0.0, 30.0, 0.0)), fps=90.0)
+    assert np.allclose(turned.pos, base.pos) and np.allclose(turned.rot[:, 0], base.rot[:, 0])
+    for s, sign in ((1, -1.0), (2, 1.0)):  # left mirrored: about its −y
+        r = rel(turned.rot[:, s], base.rot[:, s])
+        r *= np.sign(r[:, 3:4])
+        assert np.allclose(r[:, 1], sign * np.sin(np.radians(15.0)), atol=1e-9), s
+        assert np.allclose(r[:, [0, 2]], 0.0, atol=1e-9)
+    pitched = simulate(clip, np.random.default_rng(3), replace(QUIET, hmd_pitch=15.0), fps=90.0)
+    r = rel(pitched.rot[:, 0], base.rot[:, 0])
+    r *= np.sign(r[:, 3:4])
+    assert np.allclose(r[:, 0], np.sin(np.radians(7.5)), atol=1e-9) and np.allclose(pitched.rot[:, 1:], base.rot[:, 1:])
+    tall = simulate(clip, np.random.default_rng(3), replace(QUIET, head_height=(1.9, 1.9)), fps=90.0)
+    k = 1.9 / clip.upright_head
+    assert np.allclose(tall.rot, base.rot)
+    assert np.percentile(tall.pos[:, 0, 1], 90) == pytest.approx(np.percentile(base.pos[:, 0, 1], 90) * k, rel=0.02)
