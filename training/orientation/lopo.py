@@ -14,8 +14,8 @@ over every scored frame, each person's frames weighted to the same total.
 All the folds train at once, as one stacked model (`StackedNets`: K independent networks whose
 weights are (K, ...) tensors; Adam is per element, so this is K separate trainings, bit for bit
 up to the order of float sums): one simulated epoch serves every fold, each drawing its windows
-only from the people it may see. One extra member sees everybody: with `--ship` it becomes the
-shipped model (`public/models/orientation.onnx`).
+only from the people it may see. With `--weights`, one extra member sees everybody, and every
+member's weights are written (the shipped model itself comes from `npm run train`).
 """
 
 from __future__ import annotations
@@ -494,7 +494,6 @@ def run(
     folds: list[str] | None = None,
     cfg: TrainConfig | None = None,
     jobs: int = 1,
-    ship: Path | None = None,
     log=print,
     clips: list | None = None,
     device: str = "cpu",
@@ -502,8 +501,7 @@ def run(
     time_budget: float | None = None,
     devices: bool = False,
 ) -> dict:
-    """Train the folds (and, with `ship` or `weights`, the member that sees everybody) and score
-    them. `clips`: already loaded (`unpack_clips`) instead of built from the manifest."""
+    """Train the folds (and, with `weights`, the member that sees everybody) and score them. `clips`: already loaded (`unpack_clips`) instead of built from the manifest."""
     cfg = cfg or MODELS["main"]
     everyone = list(dict.fromkeys(c.subject for c in clips)) if clips is not None else list(data.people())
     names = names or everyone
@@ -516,10 +514,10 @@ def run(
     else:
         clips = [c for c in clips if c.subject in names]
     owners = np.array([names.index(c.subject) for c in clips])
-    members: list[int | None] = [names.index(f) for f in folds] + ([None] if ship or weights else [])
+    members: list[int | None] = [names.index(f) for f in folds] + ([None] if weights else [])
     log(
         f"{len(names)} people, {len(clips)} clips ({sum(c.seconds for c in clips):.0f} s with mirrors); "
-        f"{len(folds)} folds{' + the shipped model' if ship else ''}, {cfg.epochs} epochs ≤ "
+        f"{len(folds)} folds{' + one on everybody' if weights else ''}, {cfg.epochs} epochs ≤ "
         f"{cfg.max_batches_per_epoch} batches of {cfg.batch}, seed {cfg.seed}"
     )
     nets = train_folds(clips, owners, members, cfg, jobs, log, device, time_budget)
@@ -546,11 +544,6 @@ def run(
             results["standing offset"] = standing_offsets(scored)
     if devices:
         results["devices"] = device_variations(nets, clips, folds, log)
-    if ship:
-        from .train import save
-
-        save(nets.member(len(members) - 1), replace(cfg, subjects=()), [], ship, data.MODELS_DIR, "main")
-        results["shipped"] = str(ship)
     results["recipe"] = {
         "epochs": cfg.epochs,
         "epochs_done": getattr(nets, "epochs_done", 0),
@@ -583,7 +576,6 @@ def main(argv=None) -> int:
     ap.add_argument("--time-budget", type=float, help="stop training after the epoch that passes this many seconds")
     ap.add_argument("--jobs", type=int, default=max(1, multiprocessing.cpu_count()), help="simulation workers")
     ap.add_argument("--json", type=Path, help="write the results here")
-    ap.add_argument("--ship", action="store_true", help="also train on everybody and write the shipped model")
     ap.add_argument("--pack", type=Path, help="write the people's clips, packed, to this file and stop")
     ap.add_argument("--clips", type=Path, help="read the clips from a --pack file instead of the mocap")
     ap.add_argument("--device", default="cpu", help="train on this torch device (cuda: the folds' rollouts)")
@@ -610,11 +602,6 @@ def main(argv=None) -> int:
         cfg = replace(cfg, lr=args.lr)
     t0 = time.perf_counter()
     split = lambda s: [x for x in s.split(",") if x] if s else None  # noqa: E731
-    ship = data.PUBLIC_MODEL if args.ship else None
-    if ship:
-        from .train import quiet_exporter
-
-        quiet_exporter()
     if args.pack:
         names = split(args.people) or list(data.people())
         pack_clips(data.load_people(names, mirrored=None), args.pack)
@@ -626,7 +613,6 @@ def main(argv=None) -> int:
         split(args.folds),
         cfg,
         args.jobs,
-        ship,
         clips=clips,
         device=args.device,
         weights=args.weights,

@@ -6,18 +6,9 @@ import pytest
 import torch
 
 from orientation import data, lopo
-from orientation.model import OrientationNet
 from orientation.motion_classes import CLASSES
 from orientation.train import Epoch, fast_rollout
-
-
-def random_net(seed):
-    torch.manual_seed(seed)
-    rng = np.random.default_rng(seed)
-    net = OrientationNet(rng.normal(0, 1, 42), np.abs(rng.normal(1, 0.3, 42)))
-    for p in net.parameters():
-        p.data.normal_(0, 0.4)
-    return net
+from test_orientation_model import random_net
 
 
 @pytest.mark.parametrize("r", [1, 2, 9])
