@@ -194,10 +194,11 @@ class StackedNets(torch.nn.Module):
             net.inv_std.copy_(self.inv_std[k])
         return net.eval()
 
-    def rollout(self, feats: torch.Tensor, dyaw: torch.Tensor, prev0: torch.Tensor) -> torch.Tensor:
+    def rollout(self, feats: torch.Tensor, dyaw: torch.Tensor, prev0: torch.Tensor, previous: bool = False):
         """`train.fast_rollout` for every member at once: feats (K, B, r, 36), dyaw (K, B, r),
         prev0 (K, B, 2) → last outputs (K, B, 6). The first r − 1 steps run without autograd
-        (the fed-back estimates are inputs, as in `fast_rollout`)."""
+        (the fed-back estimates are inputs, as in `fast_rollout`). With `previous`, also the
+        step before's estimate as (cos φ, sin φ) (K, B, 1) each, φ in the last frame's HMD frame."""
         w1, b1 = self.weights[0], self.biases[0]
         m, iv = self.mean[:, 36:], self.inv_std[:, 36:]
         fixed = torch.tensor([0.0, 0.0, 0.0, 0.0, 1.0, 0.0], device=m.device)
@@ -234,7 +235,14 @@ class StackedNets(torch.nn.Module):
         if r > 1:
             c, s = turn(c, s, r - 1)
         h = torch.relu(pre[:, :, r - 1] + c * wc + s * ws)
-        return torch.baddbmm(b3[:, None], hidden(h), w3.transpose(1, 2))
+        out = torch.baddbmm(b3[:, None], hidden(h), w3.transpose(1, 2))
+        return (out, c, s) if previous else out
+
+
+def turned_truth(ep: Epoch, starts: np.ndarray, r: int) -> np.ndarray:
+    """The body's true change of yaw into the last frame of each window (radians)."""
+    last = starts + r - 1
+    return wrap_angle(ep.body_yaw[last] - ep.body_yaw[last - 1])
 
 
 def train_folds(
@@ -276,9 +284,20 @@ def train_folds(
                     batch_tensors(v, o[b * cfg.batch : (b + 1) * cfg.batch], cfg, rng) for v, o in zip(views, orders)
                 ]
                 feats, dyaw, prev0, target = (torch.stack(x).to(device) for x in zip(*parts))
-                out = nets.rollout(feats, dyaw, prev0)
+                out, c, s = nets.rollout(feats, dyaw, prev0, previous=True)
                 # Sum over members of each member's mean: every member's gradient is its own.
                 loss = ((out - target) ** 2).mean(dim=(1, 2)).sum()
+                if cfg.smooth > 0 and cfg.r > 1:
+                    # Temporal consistency: the step before's estimate turned by the body's true
+                    # change of yaw; the fed-back estimate is an input (no gradient), as above.
+                    d = np.stack(
+                        [turned_truth(v, o[b * cfg.batch : (b + 1) * cfg.batch], cfg.r) for v, o in zip(views, orders)]
+                    )
+                    d = torch.from_numpy(d.astype(np.float32)).to(device)[..., None]
+                    a = torch.atan2(s, c) + d
+                    z = torch.zeros_like(a)
+                    smooth = torch.cat([torch.cos(a), z, -torch.sin(a), z, torch.ones_like(a), z], dim=-1)
+                    loss = loss + cfg.smooth * ((out - smooth) ** 2).mean(dim=(1, 2)).sum()
                 opt.zero_grad(set_to_none=True)
                 loss.backward()
                 opt.step()
@@ -312,6 +331,7 @@ class Scored:
     classes: np.ndarray  # (F,)
     dt: np.ndarray  # (F,) seconds
     signed: np.ndarray  # (F,) the network's error with its sign (degrees, + = counter-clockwise)
+    jerk: np.ndarray  # (F,) |second difference| of the network's yaw, degrees per frame²
 
 
 def score_person(net: OrientationNet, clips, aug, fps_list=EVAL_FPS, seed: int = EVAL_SEED) -> Scored:
@@ -321,7 +341,7 @@ def score_person(net: OrientationNet, clips, aug, fps_list=EVAL_FPS, seed: int =
     seqs = [simulate(c, rng, aug, fps=f) for c in clips for f in fps_list]
     feats, hmd, lengths = sequence_features(seqs)
     pred = run_network(TorchModel(net), feats, hmd)
-    out = {"net": [], "hmd": [], "classes": [], "dt": [], "signed": []}
+    out = {"net": [], "hmd": [], "classes": [], "dt": [], "signed": [], "jerk": []}
     for b, s in enumerate(seqs):
         n = s.num_frames
         times = np.cumsum(s.dt) - s.dt[0]
@@ -331,7 +351,9 @@ def score_person(net: OrientationNet, clips, aug, fps_list=EVAL_FPS, seed: int =
         out["hmd"].append(yaw_error_deg(hmd_forward(hmd[b, :n]), s.body_yaw)[keep])
         out["classes"].append(s.classes[keep])
         out["dt"].append(s.dt[keep])
-    return Scored(*(np.concatenate(out[k]) for k in ("net", "hmd", "classes", "dt", "signed")))
+        y = np.unwrap(pred[b, :n])
+        out["jerk"].append(np.degrees(np.abs(np.diff(y, 2, prepend=y[:1], append=y[-1:])))[keep])
+    return Scored(*(np.concatenate(out[k]) for k in ("net", "hmd", "classes", "dt", "signed", "jerk")))
 
 
 # The device-variation table: one change at a time from the evaluation's devices (with looking
@@ -391,6 +413,7 @@ def summarize(scored: dict[str, Scored]) -> dict:
             "mean": float(s.net.mean()) if len(s.net) else float("nan"),
             "p95": float(np.percentile(s.net, 95)) if len(s.net) else float("nan"),
             "hmd": float(s.hmd.mean()) if len(s.net) else float("nan"),
+            "jerk": float(s.jerk.mean()) if len(s.net) else float("nan"),
             "classes": {},
         }
         for i, c in enumerate(CLASSES):
@@ -417,6 +440,7 @@ def totals(per_person: dict, p95: float) -> dict:
     rows = [r for r in per_person.values() if r["frames"]]
     mean = float(np.mean([r["mean"] for r in rows]))
     hmd = float(np.mean([r["hmd"] for r in rows]))
+    jerk = float(np.mean([r["jerk"] for r in rows]))
     classes = {}
     for c in CLASSES:
         have = [r["classes"][c] for r in rows if c in r["classes"] and r["classes"][c]["seconds"] >= MIN_CLASS_SECONDS]
@@ -426,7 +450,8 @@ def totals(per_person: dict, p95: float) -> dict:
                 "mean": float(np.mean([h["mean"] for h in have])),
                 "hmd": float(np.mean([h["hmd"] for h in have])),
             }
-    return {"mean": mean, "p95": p95, "hmd": hmd, "ratio": mean / hmd if hmd > 0 else float("nan"), "classes": classes}
+    ratio = mean / hmd if hmd > 0 else float("nan")
+    return {"mean": mean, "p95": p95, "hmd": hmd, "ratio": ratio, "jerk": jerk, "classes": classes}
 
 
 def table(results: dict) -> str:
@@ -565,6 +590,7 @@ def main(argv=None) -> int:
     ap.add_argument("--seed", type=int)
     ap.add_argument("--hidden", help="hidden layer sizes, e.g. 64,64")
     ap.add_argument("--batch", type=int)
+    ap.add_argument("--smooth", type=float, help="TrainConfig.smooth: the temporal-consistency loss's weight")
     ap.add_argument("--lr", type=float)
     ap.add_argument("--devices", action="store_true", help="also the device-variation table")
     ap.add_argument(
@@ -594,6 +620,8 @@ def main(argv=None) -> int:
         cfg = replace(cfg, hidden=tuple(int(h) for h in args.hidden.split(",")))
     if args.batch:
         cfg = replace(cfg, batch=args.batch)
+    if args.smooth is not None:
+        cfg = replace(cfg, smooth=args.smooth)
     for a in args.augment or ():
         field, value = a.split("=", 1)
         nums = tuple(float(v) for v in value.split(","))
@@ -626,7 +654,7 @@ def main(argv=None) -> int:
         worst = max(t["classes"].items(), key=lambda kv: kv[1]["mean"]) if t["classes"] else ("-", {"mean": 0})
         print(
             f"{cond}: mean {t['mean']:.1f}° over people, p95 {t['p95']:.1f}°, ×{t['ratio']:.2f} HMD forward; "
-            f"worst class {worst[0]} {worst[1]['mean']:.1f}°"
+            f"worst class {worst[0]} {worst[1]['mean']:.1f}°; yaw jerk (mean |Δ²yaw|) {t['jerk']:.2f}°/frame²"
         )
     if "devices" in results:
         print()

@@ -71,6 +71,9 @@ class TrainConfig:
     # (folder, subject) pairs of the fixed split, or None: every person of the mocap manifest.
     subjects: tuple | None = data.TRAIN_SUBJECTS
     max_batches_per_epoch: int | None = None
+    # Weight of a temporal-consistency loss (`lopo.train_folds` only, an experiment): the last
+    # step's output against the step before's estimate turned by the body's true change of yaw.
+    smooth: float = 0.0
 
 
 MODELS = {
@@ -79,6 +82,8 @@ MODELS = {
     # mean) — longer runs fit the training people's ways of moving more closely.
     # Trained on every person in the manifest: a VR user is always someone else, and the
     # leave-one-person-out score (`npm run eval`, `lopo.py`) judges this recipe person by person.
+    # Not yet with the temporal-consistency loss (`TrainConfig.smooth`, `npm run eval -- --smooth
+    # 1`): README, "Judged person by person".
     "main": TrainConfig(epochs=12, max_batches_per_epoch=500, subjects=None),
     # Ablations only: fewer steps keep `npm run train` within its time budget.
     "r1": TrainConfig(r=1, init_mix=(1.0, 0.0, 0.0), epochs=6, max_batches_per_epoch=500),

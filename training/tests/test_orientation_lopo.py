@@ -69,3 +69,16 @@ def test_the_reduced_leave_one_person_out_run():
     assert "| cmu-05 |" in text and "| cmu-12 |" in text and "mean over 2 people" in text
     # A trained network beats a coin: far under the 90° of a random facing.
     assert res["without look-around"]["total"]["mean"] < 60
+
+
+def test_the_temporal_consistency_loss_trains_and_the_jerk_is_scored():
+    """`TrainConfig.smooth` (an experiment): the run still trains and scores; every person gets
+    a finite yaw jerk (mean |second difference|), and the totals carry its mean."""
+    from dataclasses import replace
+
+    cfg = replace(lopo.MODELS["main"], epochs=1, max_batches_per_epoch=10, smooth=1.0)
+    res = lopo.run(["cmu-05", "cmu-06", "cmu-10"], ["cmu-05"], cfg, jobs=1, log=lambda *_: None)
+    for cond in lopo.CONDITIONS:
+        r = res[cond]["people"]["cmu-05"]
+        assert np.isfinite(r["mean"]) and np.isfinite(r["jerk"]) and r["jerk"] > 0
+        assert res[cond]["total"]["jerk"] == pytest.approx(r["jerk"])
