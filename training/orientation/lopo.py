@@ -38,11 +38,11 @@ from .model import OrientationNet
 from .motion_classes import CLASSES, with_crouching
 from .predictors import TorchModel, hmd_forward, run_network, sequence_features, yaw_error_deg
 from .simulate import EVAL_AUGMENT, simulate, without_look_around
-from .train import MODELS, Epoch, TrainConfig, batch_tensors, normalization
 
-WARMUP = 1.0  # s: every predictor starts from "HMD forward"; a running session has long left it
-EVAL_FPS = (72.0, 90.0, 120.0)
-EVAL_SEED = 20220
+# The fixed split's scoring constants: the same frames count, at the same rates, from the same seed.
+from .evaluate import EVAL_FPS, EVAL_SEED, WARMUP
+from .train import MODELS, Epoch, TrainConfig, batch_tensors, normalization, add_override_arguments, with_overrides
+
 CONDITIONS = ("with look-around", "without look-around")
 MIN_CLASS_SECONDS = 2.0  # a person's class counts in the class means from this much scored time
 
@@ -334,10 +334,15 @@ class Scored:
     jerk: np.ndarray  # (F,) |second difference| of the network's yaw, degrees per frame²
 
 
+def originals(clips, person: str) -> list:
+    """A person's original (not mirrored) clips, the ones scored."""
+    return [c for c in clips if c.subject == person and not c.mirrored]
+
+
 def score_person(net: OrientationNet, clips, aug, fps_list=EVAL_FPS, seed: int = EVAL_SEED) -> Scored:
+    """One network on `clips` (their classes with crouching: `run` sets them) simulated with
+    `aug` at each of `fps_list`, frame by frame from a reset as at run time."""
     rng = np.random.default_rng(seed)
-    for c in clips:
-        c._classes = with_crouching(c)
     seqs = [simulate(c, rng, aug, fps=f) for c in clips for f in fps_list]
     feats, hmd, lengths = sequence_features(seqs)
     pred = run_network(TorchModel(net), feats, hmd)
@@ -391,7 +396,7 @@ def device_variations(nets: "StackedNets", clips, folds: list[str], log=print) -
         aug = replace(EVAL_AUGMENT, **change)
         means = []
         for k, person in enumerate(folds):
-            held = [c for c in clips if c.subject == person and not c.mirrored]
+            held = originals(clips, person)
             means.append(float(score_person(nets.member(k), held, aug, (fps,)).net.mean()))
         out[row] = float(np.mean(means))
         log(f"  {row}: {out[row]:.1f}°")
@@ -539,6 +544,9 @@ def run(
     else:
         clips = [c for c in clips if c.subject in names]
     owners = np.array([names.index(c.subject) for c in clips])
+    for c in clips:  # the scored clips' classes with crouching, once for every score below
+        if not c.mirrored and c.subject in folds:
+            c._classes = with_crouching(c)
     members: list[int | None] = [names.index(f) for f in folds] + ([None] if weights else [])
     log(
         f"{len(names)} people, {len(clips)} clips ({sum(c.seconds for c in clips):.0f} s with mirrors); "
@@ -561,7 +569,7 @@ def run(
         aug = EVAL_AUGMENT if look else without_look_around(EVAL_AUGMENT)
         scored = {}
         for k, person in enumerate(folds):
-            held = [c for c in clips if c.subject == person and not c.mirrored]
+            held = originals(clips, person)
             scored[person] = score_person(nets.member(k), held, aug)
         per = summarize(scored)
         results[cond] = {"people": per, "total": totals(per, weighted_p95(scored))}
@@ -585,10 +593,7 @@ def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--people", help="comma-separated manifest persons to use (default: everyone)")
     ap.add_argument("--folds", help="comma-separated persons to hold out (default: each of --people)")
-    ap.add_argument("--epochs", type=int)
-    ap.add_argument("--max-batches", type=int)
-    ap.add_argument("--seed", type=int)
-    ap.add_argument("--hidden", help="hidden layer sizes, e.g. 64,64")
+    add_override_arguments(ap)
     ap.add_argument("--batch", type=int)
     ap.add_argument("--smooth", type=float, help="TrainConfig.smooth: the temporal-consistency loss's weight")
     ap.add_argument("--lr", type=float)
@@ -609,15 +614,7 @@ def main(argv=None) -> int:
     args = ap.parse_args(argv)
     if hasattr(sys.stdout, "reconfigure"):
         sys.stdout.reconfigure(line_buffering=True)
-    cfg = MODELS["main"]
-    if args.epochs:
-        cfg = replace(cfg, epochs=args.epochs)
-    if args.max_batches:
-        cfg = replace(cfg, max_batches_per_epoch=args.max_batches)
-    if args.seed is not None:
-        cfg = replace(cfg, seed=args.seed)
-    if args.hidden:
-        cfg = replace(cfg, hidden=tuple(int(h) for h in args.hidden.split(",")))
+    cfg = with_overrides(MODELS["main"], args)
     if args.batch:
         cfg = replace(cfg, batch=args.batch)
     if args.smooth is not None:

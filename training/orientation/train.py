@@ -287,16 +287,35 @@ def quiet_exporter() -> None:
         logging.getLogger(name).setLevel(logging.ERROR)
 
 
+def add_override_arguments(ap) -> None:
+    """The options `with_overrides` reads."""
+    ap.add_argument("--epochs", type=int)
+    ap.add_argument("--hidden", help="hidden layer sizes, e.g. 64,64 (an experiment)")
+    ap.add_argument("--seed", type=int)
+    ap.add_argument("--max-batches", type=int, help="batches per epoch at most (a cheaper experiment)")
+
+
+def with_overrides(cfg: TrainConfig, args) -> TrainConfig:
+    """`cfg` with the command line's --epochs, --hidden, --seed and --max-batches (here and in
+    `lopo`)."""
+    if args.epochs:
+        cfg = replace(cfg, epochs=args.epochs)
+    if args.hidden:
+        cfg = replace(cfg, hidden=tuple(int(h) for h in args.hidden.split(",")))
+    if args.seed is not None:
+        cfg = replace(cfg, seed=args.seed)
+    if args.max_batches:
+        cfg = replace(cfg, max_batches_per_epoch=args.max_batches)
+    return cfg
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument(
         "--only", choices=sorted(MODELS), action="append", help="train only this model (repeatable); default: all"
     )
     ap.add_argument("--quick", action="store_true", help="tiny smoke run: one small subject, 3 short epochs")
-    ap.add_argument("--epochs", type=int)
-    ap.add_argument("--hidden", help="hidden layer sizes, e.g. 64,64 (an experiment: with --out-dir)")
-    ap.add_argument("--seed", type=int)
-    ap.add_argument("--max-batches", type=int, help="batches per epoch at most (a cheaper experiment)")
+    add_override_arguments(ap)
     ap.add_argument("--arms", type=float, help="Augment.arms_prob (an experiment)")
     ap.add_argument("--absent", type=float, help="Augment.absent_prob (an experiment)")
     ap.add_argument("--arms-idle", type=float, help="Augment.arms_idle_prob (an experiment)")
@@ -313,14 +332,7 @@ def main(argv=None) -> int:
         cfg = MODELS[name]
         if args.quick:
             cfg = replace(cfg, subjects=(("cmu-daz", "05"),), epochs=3, variants_per_clip=8, max_batches_per_epoch=40)
-        if args.epochs:
-            cfg = replace(cfg, epochs=args.epochs)
-        if args.hidden:
-            cfg = replace(cfg, hidden=tuple(int(h) for h in args.hidden.split(",")))
-        if args.seed is not None:
-            cfg = replace(cfg, seed=args.seed)
-        if args.max_batches:
-            cfg = replace(cfg, max_batches_per_epoch=args.max_batches)
+        cfg = with_overrides(cfg, args)
         if args.arms is not None:
             cfg = replace(cfg, augment=replace(cfg.augment, arms_prob=args.arms))
         if args.absent is not None:
