@@ -77,7 +77,7 @@ export function moveBytes(seq: number, rootX: number, steps = 3): Uint8Array {
  */
 export function stateBytes(seq: number, rootX: number, restart = true): Uint8Array {
   const move = quantizeMoveStep({ ...createMoveStep(), moveX: 0, moveZ: 1 });
-  const tracked = quantizeTrackedStep({ ticks: 0, headX: rootX, headZ: 0, velocityX: 0, velocityZ: 0, yaw: 0, hipsDrop: 0, bend: 0 });
+  const tracked = quantizeTrackedStep({ ticks: 0, headX: rootX, headZ: 0, velocityX: 0, velocityZ: 0, yaw: 0, body: false, hipsDrop: 0, bend: 0 });
   return encodeState({ seq, time: seq * 50, frame: 1, rootX, rootZ: 0, rootYaw: 0, drive: 'move', pathTime: 0, scale: 1, alpha: 0.2, move, tracked, restart });
 }
 

@@ -9,6 +9,11 @@ Two sets:
   of issue 14 are measured on these. A window of each take is chosen where the named motion
   classes (`orientation.motion_classes`) fill most of it.
 
+`body-moving-about` also carries the body joints a body-tracking headset reports (WebXR Body
+Tracking: the hips, hip joints and shoulders, from the mocap skeleton's joints; docs/vr-recording.md
+`body`), so a replay and the body-tracking e2e drive the avatar from the tracked hips. The others
+stand for headsets without body tracking.
+
 Each take becomes headset and controller poses by the tracker simulation
 (`orientation.simulate`, the evaluation augmentation: real speed, 72 Hz, tracker noise, looking
 around up to ±60°), written in the VR page's recording format (docs/vr-recording.md, JSON
@@ -89,6 +94,27 @@ RECORDINGS = (
         ("forward", "backward", "sideways"),
     ),
     ("walk-69", "cmu-asf", "69", "cmu_69_01", "a forward walk, 3.9 s", False, None, ()),
+    (
+        "body-moving-about",
+        "cmu-asf",
+        "14",
+        "cmu_14_18",
+        "body tracked: stepping about, forward, back, sideways",
+        False,
+        8.0,
+        ("forward", "backward", "sideways"),
+    ),
+)
+
+# Recordings that carry the tracked body, and the WebXR body joints they carry with the mocap
+# skeleton role each is read from (the page's `BODY_JOINTS`, web/src/vr/tracker-sample.ts).
+BODY_RECORDINGS = ("body-moving-about",)
+BODY_JOINTS = (
+    ("hips", "hips"),
+    ("left-upper-leg", "left_upper_leg"),
+    ("right-upper-leg", "right_upper_leg"),
+    ("left-arm-upper", "left_upper_arm"),
+    ("right-arm-upper", "right_upper_arm"),
 )
 
 
@@ -105,14 +131,31 @@ def window(clip: MocapClip, seconds: float | None, classes: tuple[str, ...]) -> 
     return s, s + length
 
 
+def _at_times(values: np.ndarray, fps: float, times: np.ndarray) -> np.ndarray:
+    """Per-frame `values` (frames, …) linearly interpolated at `times` (s from the first frame)."""
+    n = len(values)
+    f = np.clip(times * fps, 0.0, n - 1.0)
+    i0 = np.minimum(np.floor(f).astype(int), n - 2)
+    a = (f - i0).reshape((-1,) + (1,) * (values.ndim - 1))
+    return values[i0] + a * (values[i0 + 1] - values[i0])
+
+
 def _root_floor(db: mmdb.Database, start: int, end: int, times: np.ndarray) -> np.ndarray:
     """Joint 0 (the virtual root: hips on the floor) x, z at `times` (s from the clip start)."""
-    root = db.local_positions[start:end, 0].astype(np.float64)
-    f = np.clip(times * db.fps, 0.0, end - start - 1.0)
-    i0 = np.minimum(np.floor(f).astype(int), end - start - 2)
-    a = (f - i0)[:, None]
-    p = root[i0] + a * (root[i0 + 1] - root[i0])
-    return p[:, [0, 2]]
+    return _at_times(db.local_positions[start:end, 0].astype(np.float64), db.fps, times)[:, [0, 2]]
+
+
+def _body(db: mmdb.Database, start: int, end: int, times: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The `BODY_JOINTS` of frames [start, end) at `times`: world positions (n, J, 3) and
+    rotations (n, J, 4) — the mocap joints' own frames, on the near hemisphere, nlerped."""
+    joints = [db.sites[site][0] for _, site in BODY_JOINTS]
+    pos, rot = mmdb.world_transforms_all(db)
+    pos, rot = pos[start:end, joints], rot[start:end, joints].astype(np.float64)
+    for k in range(1, len(rot)):
+        flip = np.sum(rot[k] * rot[k - 1], axis=-1) < 0
+        rot[k, flip] *= -1
+    q = _at_times(rot, db.fps, times)
+    return _at_times(pos.astype(np.float64), db.fps, times), q / np.linalg.norm(q, axis=-1, keepdims=True)
 
 
 def _cut(clip: MocapClip, s: int, e: int) -> MocapClip:
@@ -161,6 +204,7 @@ def make(
     seq = simulate(clip, np.random.default_rng(seed), aug, fps=FPS)
     t = np.cumsum(seq.dt) - seq.dt[0]  # speed 1: the clip's own clock
     root = _root_floor(db, dbclip.start + s, dbclip.start + e, t)
+    body = _body(db, dbclip.start + s, dbclip.start + e, t) if name in BODY_RECORDINGS else None
     origin = root[0].copy()
     pos = seq.pos.copy()
     pos[:, :, 0] -= origin[0]
@@ -169,6 +213,17 @@ def make(
     n = seq.num_frames
     eye = float(np.percentile(pos[:, 0, 1], 90))
     r = lambda a, d: [round(float(v), d) for v in np.asarray(a).ravel()]  # noqa: E731
+    extra = {}
+    if body is not None:
+        bpos = body[0].copy()
+        bpos[:, :, 0] -= origin[0]
+        bpos[:, :, 2] -= origin[1]
+        extra["body"] = {
+            "joints": [name for name, _ in BODY_JOINTS],
+            "position": r(bpos, 5),
+            "rotation": r(body[1], 6),
+            "tracked": [1] * (n * len(BODY_JOINTS)),
+        }
     return {
         "format": "mm-vr-recording",
         "version": 1,
@@ -184,6 +239,7 @@ def make(
             "seed": seed,
             "eyeHeight": round(eye, 4),
             "lookAround": True,
+            "bodyTracking": body is not None,
             "generator": "training/make_recordings.py",
         },
         "time": r(t, 6),
@@ -191,6 +247,7 @@ def make(
         "rotation": r(seq.rot / np.linalg.norm(seq.rot, axis=-1, keepdims=True), 6),
         "tracked": [1] * (3 * n),
         "truth": {"bodyYaw": r(seq.body_yaw, 5), "root": r(root, 5), "motionClass": [int(c) for c in seq.classes]},
+        **extra,
     }
 
 

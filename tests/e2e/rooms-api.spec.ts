@@ -161,7 +161,7 @@ test('room API lists the others where they are in two browsers; a flood shows at
   ws.send(encodeJoin({ name: 'Mallory', avatar: { kind: 'builtin', id: 0 }, database: 'locomotion', height: 0, mode: 'desktop', devices: { keyboard: true } }));
   await welcomed;
   const step = quantizeMoveStep({ ...createMoveStep(), ticks: 120, moveX: 0, moveZ: 1 });
-  const tracked = quantizeTrackedStep({ ticks: 0, headX: 0, headZ: 0, velocityX: 0, velocityZ: 0, yaw: 0, hipsDrop: 0, bend: 0 });
+  const tracked = quantizeTrackedStep({ ticks: 0, headX: 0, headZ: 0, velocityX: 0, velocityZ: 0, yaw: 0, body: false, hipsDrop: 0, bend: 0 });
   const forged = new Uint8Array(4716);
   const v = new DataView(forged.buffer);
   [0x53524d4d, 3, 32, 50_000, 27].forEach((x, i) => v.setUint32(4 * i, x, true));

@@ -248,7 +248,7 @@ fn the_tracked_drive_follows_a_straight_walk_at_every_speed() {
                 let (mut sum, mut count, mut max) = (0.0, 0, 0.0f32);
                 for step in 0..(10.0 * hz) as usize {
                     head += velocity * dt;
-                    c.set_tracked(Tracked { position: head, velocity, yaw: direction });
+                    c.set_tracked(Tracked { position: head, velocity, yaw: direction, body: false });
                     c.update(db, &index, &Input::default(), dt);
                     if step as f32 * dt > 4.0 {
                         let r = c.root_position();

@@ -287,6 +287,7 @@ fn a_tracked_user_is_followed() {
             position: head + sway,
             velocity: velocity + Vec3::new(0.18 * (t * 6.0).cos(), 0.0, 0.0),
             yaw,
+            body: false,
         });
         c.update(db, index(), &Input::default(), dt);
         let r = c.root_position();
@@ -313,6 +314,94 @@ fn a_tracked_user_is_followed() {
         "tracked: root↔head distance mean {:.3} m, max {max_distance:.3} m; final yaw {final_yaw:.3} rad",
         sum_distance / (72.0 * 11.0)
     );
+}
+
+/// VR body tracking (docs/vr.md): the sample is the user's tracked hips — walking with the pelvis
+/// swaying ±3 cm and swinging ±6° each step, side-stepping, turning in place. The shown hips
+/// stay on the tracked ones (floor distance and facing), the feet keep their locks by IK; when
+/// tracking is lost the head sample takes over and the hips go back to the animation's without
+/// a jump.
+#[test]
+fn tracked_hips_are_followed_and_losing_them_is_smooth() {
+    use mmcore::character::Tracked;
+    let db = db();
+    let j = db.num_joints();
+    let hips = (0..j).find(|&k| db.skeleton.parents[k] == 0).unwrap();
+    let leg = |n: &str| db.skeleton.site(n).unwrap().joint as usize;
+    let (left, right) = (leg("left_upper_leg"), leg("right_upper_leg"));
+    let settings = CharacterSettings {
+        clamp_distance: 0.1,
+        clamp_angle: 0.35,
+        adjustment_min_speed: 0.15,
+        adjustment_position_halflife: 0.05,
+        adjustment_max_ratio: 2.0,
+        ..Default::default()
+    };
+    let mut c = Character::new(db, settings);
+    let dt = 1.0 / 72.0;
+    let (mut path, mut yaw) = (Vec3::ZERO, 0.0f32);
+    let (mut n, mut sum_d, mut max_d, mut sum_a, mut max_a) = (0, 0.0f32, 0.0f32, 0.0f32, 0.0f32);
+    let mut last_hips = Vec3::ZERO;
+    let mut max_jump = 0.0f32;
+    for step in 0..(72 * 12) {
+        let t = step as f32 * dt;
+        let velocity = match t {
+            t if t < 4.0 => Vec3::new(0.0, 0.0, 1.2),
+            t if t < 6.0 => Vec3::new(-0.5, 0.0, 0.0),
+            _ => Vec3::ZERO,
+        };
+        if (7.0..9.0).contains(&t) {
+            yaw += dt * 0.8;
+        }
+        path += velocity * dt;
+        let moving = velocity.length() > 0.0;
+        let phase = t * std::f32::consts::TAU * 0.9; // a stride a second and a bit
+        let side = Quat::from_rotation_y(yaw) * Vec3::X;
+        let sway = if moving { side * (0.03 * phase.sin()) } else { Vec3::ZERO };
+        let swing = if moving { 6f32.to_radians() * phase.cos() } else { 0.0 };
+        let hips_now = path + sway;
+        let body = t < 10.5;
+        let sample = if body {
+            Tracked { position: hips_now, velocity, yaw: yaw + swing, body: true }
+        } else {
+            // The head is 12 cm in front of the hips; the network's yaw is 8° off.
+            let ahead = Quat::from_rotation_y(yaw) * Vec3::Z * 0.12;
+            Tracked { position: path + ahead, velocity, yaw: yaw + 8f32.to_radians(), body: false }
+        };
+        c.set_tracked(sample);
+        c.update(db, index(), &Input::default(), dt);
+        let w = c.world_positions();
+        let shown = w[hips];
+        if step > 0 {
+            max_jump = max_jump.max(Vec2::new(shown.x - last_hips.x, shown.z - last_hips.z).length());
+        }
+        last_hips = shown;
+        if body && t > 0.5 {
+            let d = Vec2::new(shown.x - hips_now.x, shown.z - hips_now.z).length();
+            let f = (w[left] - w[right]).cross(Vec3::Y);
+            let facing = f.x.atan2(f.z);
+            let a = ((yaw + swing - facing + std::f32::consts::PI).rem_euclid(std::f32::consts::TAU)
+                - std::f32::consts::PI)
+                .abs();
+            n += 1;
+            sum_d += d;
+            max_d = max_d.max(d);
+            sum_a += a;
+            max_a = max_a.max(a);
+        }
+    }
+    let (mean_d, mean_a) = (sum_d / n as f32, (sum_a / n as f32).to_degrees());
+    println!(
+        "tracked hips: shown hips {:.1} cm mean / {:.1} cm max from them, facing {mean_a:.2}° mean / {:.2}° max; \
+         largest hips move in a frame {:.1} cm (walking 1.2 m/s: 1.7 cm)",
+        100.0 * mean_d,
+        100.0 * max_d,
+        max_a.to_degrees(),
+        100.0 * max_jump
+    );
+    assert!(mean_d < 0.03 && mean_a < 3.0, "shown hips {mean_d} m, {mean_a}° from the tracked ones");
+    assert!(max_jump < 0.05, "the hips jumped {max_jump} m in a frame");
+    assert_eq!(c.stats.recoveries, 0);
 }
 
 /// VR crouching without a crouch database: a hips drop lowers the hips by that much while the
@@ -369,7 +458,7 @@ fn a_tracked_user_bending_over_bends_the_torso_not_the_knees() {
         let mut c = Character::new(db, settings.clone());
         for step in 0..(72 * 5) {
             let t = step as f32 / 72.0;
-            c.set_tracked(Tracked { position: Vec3::ZERO, velocity: Vec3::ZERO, yaw: 0.0 });
+            c.set_tracked(Tracked { position: Vec3::ZERO, velocity: Vec3::ZERO, yaw: 0.0, body: false });
             if let (Some(p), true) = (pitch, t > 1.0) {
                 c.set_crouch(0.36, p);
             }
@@ -518,6 +607,7 @@ fn a_copy_loaded_with_the_senders_state_is_the_sender() {
                     position: Vec3::new(0.9 * (t * 0.5).sin(), 0.0, 0.6 * t),
                     velocity: Vec3::new(0.45 * (t * 0.5).cos(), 0.0, 0.6),
                     yaw,
+                    body: false,
                 });
                 c.set_hips_drop(0.1 * (t * 0.9).sin().max(0.0));
             }

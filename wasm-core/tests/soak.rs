@@ -79,7 +79,7 @@ fn an_hour_of_random_input_with_faults_never_nan_recovers_within_a_second_alloca
     let dt = 1.0 / 60.0;
     let steps = 60 * 60 * 60; // one simulated hour at 60 Hz
     let (mut input, mut tracked_mode, mut frozen) = (Input::default(), false, 0u32);
-    let mut head = Tracked { position: Vec3::ZERO, velocity: Vec3::ZERO, yaw: 0.0 };
+    let mut head = Tracked { position: Vec3::ZERO, velocity: Vec3::ZERO, yaw: 0.0, body: false };
     let (mut next_change, mut next_fault) = (0usize, 300usize);
     let (mut faults, mut worst_recovery, mut pending): (u32, f32, Option<(usize, Fault, u64)>) = (0, 0.0, None);
     let mut worst_gap = 0.0f32;
@@ -229,9 +229,9 @@ fn each_probe_failure_is_refused_or_recovered_at_once() {
     // NaN tracked head position, velocity, yaw: the last good value is used; searches go on.
     let mut c = fresh();
     for bad in [
-        Tracked { position: Vec3::splat(f32::NAN), velocity: Vec3::Z, yaw: 0.0 },
-        Tracked { position: Vec3::ZERO, velocity: Vec3::splat(f32::NAN), yaw: 0.0 },
-        Tracked { position: Vec3::ZERO, velocity: Vec3::Z, yaw: f32::NAN },
+        Tracked { position: Vec3::splat(f32::NAN), velocity: Vec3::Z, yaw: 0.0, body: false },
+        Tracked { position: Vec3::ZERO, velocity: Vec3::splat(f32::NAN), yaw: 0.0, body: false },
+        Tracked { position: Vec3::ZERO, velocity: Vec3::Z, yaw: f32::NAN, body: false },
     ] {
         c.set_tracked(bad);
         c.update(&db, &index, &walk, 1.0 / 60.0);
@@ -241,6 +241,7 @@ fn each_probe_failure_is_refused_or_recovered_at_once() {
                 position: Vec3::new(0.0, 0.0, 0.02 * k as f32),
                 velocity: Vec3::new(0.0, 0.0, 1.2),
                 yaw: 0.0,
+                body: false,
             });
             c.update(&db, &index, &walk, 1.0 / 60.0);
         }

@@ -75,7 +75,7 @@ pub fn check_character(data: &[u8]) {
                 true
             }
             1 => {
-                c.set_tracked(Tracked { position: r.vec3(), velocity: r.vec3(), yaw: r.f32() });
+                c.set_tracked(Tracked { position: r.vec3(), velocity: r.vec3(), yaw: r.f32(), body: r.f32() > 0.0 });
                 false
             }
             2 => {

@@ -166,6 +166,7 @@ pub fn replay(
                 position: Vec3::new(floor.x / scale, 0.0, floor.y / scale),
                 velocity: Vec3::new(velocity.x, 0.0, velocity.z) / scale,
                 yaw: body_yaw,
+                body: false,
             },
             hips_drop: crouch.hips_drop,
             bend: crouch.bend,

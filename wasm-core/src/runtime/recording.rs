@@ -67,6 +67,27 @@ impl Recording {
         let tracked: Vec<u8> =
             numbers("tracked")?.into_iter().map(|t| if t == 0.0 || t == 1.0 { t as u8 } else { 255 }).collect();
         validate(frames, &time, &p, &r, &tracked, truth.as_ref().map(|(y, r)| (y.as_slice(), r.as_slice())))?;
+        if let Some(b) = o.get("body") {
+            let b = b.as_object().ok_or("\"body\" must be an object")?;
+            let joints =
+                b.get("joints").and_then(Value::as_array).ok_or("\"body.joints\" must be an array of names")?;
+            if joints.is_empty() || !joints.iter().all(Value::is_string) {
+                return Err("\"body.joints\" must be an array of names".into());
+            }
+            let arr = |name: &str| -> Result<Vec<f64>, String> {
+                let a = b
+                    .get(name)
+                    .and_then(Value::as_array)
+                    .ok_or(format!("\"body.{name}\" must be an array of numbers"))?;
+                a.iter()
+                    .enumerate()
+                    .map(|(i, x)| x.as_f64().ok_or(format!("\"body.{name}\"[{i}] is not a number")))
+                    .collect()
+            };
+            let flags: Vec<u8> =
+                arr("tracked")?.into_iter().map(|t| if t == 0.0 || t == 1.0 { t as u8 } else { 255 }).collect();
+            validate_body(frames, joints.len(), &arr("position")?, &arr("rotation")?, &flags)?;
+        }
         let n = time.len();
         if n > crate::limits::MAX_FRAMES {
             return Err(format!("{n} frames, more than {}", crate::limits::MAX_FRAMES));
@@ -100,9 +121,7 @@ pub const NUM_TRACKERS: usize = 3;
 /// and by the page (`validateRecording` in `web/src/vr/recording.ts`, through the WASM binding
 /// `validate_recording`): a positive whole frame count; arrays of frames × 1 (time), × 9
 /// (positions), × 12 (rotations), × 3 (tracked flags) values; truth (when given) of frames × 1
-/// and × 2 finite values; finite times that strictly increase; tracked flags 0 or 1; finite
-/// positions; finite unit quaternions (|q| within 10⁻³ of 1, so a zero or a 10³⁰⁰ quaternion
-/// is refused).
+/// and × 2 finite values; finite times that strictly increase; then the poses ([`check_poses`]).
 ///
 /// # Errors
 /// The first thing wrong, as the page says it.
@@ -151,25 +170,63 @@ pub fn validate(
                 js_number(time[f - 1])
             ));
         }
-        for t in 0..NUM_TRACKERS {
-            let k = f * NUM_TRACKERS + t;
-            if tracked[k] > 1 {
-                return Err(format!("tracked[{k}] must be 0 or 1 (got {})", tracked[k]));
-            }
-            if !position[3 * k..3 * k + 3].iter().all(|v| v.is_finite()) {
-                return Err(format!("position of frame {f}, tracker {t} is not finite"));
-            }
-            let q = &rotation[4 * k..4 * k + 4];
-            if !q.iter().all(|v| v.is_finite()) {
-                return Err(format!("rotation of frame {f}, tracker {t} is not finite"));
-            }
-            let length = q.iter().map(|v| v * v).sum::<f64>().sqrt();
-            if !((length - 1.0).abs() <= 1e-3) {
-                return Err(format!(
-                    "rotation of frame {f}, tracker {t} is not a unit quaternion (length {})",
-                    js_fixed4(length)
-                ));
-            }
+    }
+    check_poses("", "tracker", NUM_TRACKERS, position, rotation, tracked)
+}
+
+/// The body joints of a recording (optional `body`, docs/vr-recording.md): frames × `joints` ×
+/// 3 positions, × 4 rotations and × 1 tracked flags, checked as the trackers are.
+///
+/// # Errors
+/// The first thing wrong, as the page says it.
+pub fn validate_body(
+    frames: f64,
+    joints: usize,
+    position: &[f64],
+    rotation: &[f64],
+    tracked: &[u8],
+) -> Result<(), String> {
+    for (name, length, per) in
+        [("position", position.len(), 3), ("rotation", rotation.len(), 4), ("tracked", tracked.len(), 1)]
+    {
+        if length as f64 != frames * (joints * per) as f64 {
+            return Err(format!(
+                "body.{name} has {length} values, expected frames × {joints} joints × {per} = {}",
+                js_number(frames * (joints * per) as f64)
+            ));
+        }
+    }
+    check_poses("body.", "body joint", joints, position, rotation, tracked)
+}
+
+/// Flags 0 or 1, finite positions and finite unit quaternions (|q| within 10⁻³ of 1, so a zero
+/// or a 10³⁰⁰ quaternion is refused) of `per_frame` poses a frame; lengths already checked.
+fn check_poses(
+    prefix: &str,
+    what: &str,
+    per_frame: usize,
+    position: &[f64],
+    rotation: &[f64],
+    tracked: &[u8],
+) -> Result<(), String> {
+    for k in 0..tracked.len() {
+        let (f, t) = (k / per_frame.max(1), k % per_frame.max(1));
+        if tracked[k] > 1 {
+            return Err(format!("{prefix}tracked[{k}] must be 0 or 1 (got {})", tracked[k]));
+        }
+        if !position[3 * k..3 * k + 3].iter().all(|v| v.is_finite()) {
+            return Err(format!("{prefix}position of frame {f}, {what} {t} is not finite"));
+        }
+        let q = &rotation[4 * k..4 * k + 4];
+        if !q.iter().all(|v| v.is_finite()) {
+            return Err(format!("{prefix}rotation of frame {f}, {what} {t} is not finite"));
+        }
+        let length = q.iter().map(|v| v * v).sum::<f64>().sqrt();
+        if !((length - 1.0).abs() <= 1e-3) {
+            return Err(format!(
+                "{prefix}rotation of frame {f}, {what} {t} is not a unit quaternion (length {})",
+                js_fixed4(length)
+            ));
         }
     }
     Ok(())

@@ -434,9 +434,11 @@ export class Character {
 
   /**
    * Tracked drive (VR): the head's floor position and ground velocity (parent frame, m, m/s)
-   * and the body yaw (rad) this frame. See `TrackedDrive` for the whole VR recipe.
+   * and the body yaw (rad) this frame; with `body`, the tracked hips' floor position, velocity
+   * and facing instead, which the shown hips follow (WebXR body tracking). See `TrackedDrive`
+   * for the whole VR recipe.
    */
-  setTracked(headX: number, headZ: number, velocityX: number, velocityZ: number, yaw: number): void {
+  setTracked(headX: number, headZ: number, velocityX: number, velocityZ: number, yaw: number, body = false): void {
     this.live();
     const d = this.drive_;
     const p = this.toDatabase(headX, headZ);
@@ -446,6 +448,7 @@ export class Character {
     d.velocityX = v.x;
     d.velocityZ = v.z;
     d.yaw = yaw - this.frameYaw;
+    d.body = body;
     d.mode = 'tracked';
   }
 

@@ -40,9 +40,10 @@ export function copyMoveInput(from: Readonly<MoveInput>, to: MoveInput): void {
 /**
  * What a tracked user (VR) asks of the character this frame, on the floor: the head centre's
  * floor position, its ground velocity, the body yaw (rad, 0 = +Z), how far the hips go down
- * (crouching) and how far the torso bends forward (rad, bending over). Metres of the caller's
- * frame where a page writes it (`Character.setTracked`, a room's wire), database units in a
- * `Drive`.
+ * (crouching) and how far the torso bends forward (rad, bending over). With `body` (WebXR body
+ * tracking) the position, velocity and yaw are the tracked hips', which the shown hips follow.
+ * Metres of the caller's frame where a page writes it (`Character.setTracked`, a room's wire),
+ * database units in a `Drive`.
  */
 export interface TrackedInput {
   headX: number;
@@ -50,12 +51,13 @@ export interface TrackedInput {
   velocityX: number;
   velocityZ: number;
   yaw: number;
+  body: boolean;
   hipsDrop: number;
   bend: number;
 }
 
 export function createTrackedInput(): TrackedInput {
-  return { headX: 0, headZ: 0, velocityX: 0, velocityZ: 0, yaw: 0, hipsDrop: 0, bend: 0 };
+  return { headX: 0, headZ: 0, velocityX: 0, velocityZ: 0, yaw: 0, body: false, hipsDrop: 0, bend: 0 };
 }
 
 /** `move`: the move input; `path`: along `path`; `tracked`: the tracked sample (VR). */
@@ -98,6 +100,7 @@ export const DRIVE_FIELDS = [
   'velocity_x',
   'velocity_z',
   'yaw',
+  'body',
   'hips_drop',
   'bend',
   'clamp_distance',
@@ -119,8 +122,9 @@ export function writeDrive(d: Readonly<Drive>, out: Float32Array): Float32Array 
   out[9] = d.velocityX;
   out[10] = d.velocityZ;
   out[11] = d.yaw;
-  out[12] = d.hipsDrop;
-  out[13] = d.bend;
-  out[14] = d.clampDistance;
+  out[12] = d.body ? 1 : 0;
+  out[13] = d.hipsDrop;
+  out[14] = d.bend;
+  out[15] = d.clampDistance;
   return out;
 }

@@ -81,7 +81,7 @@ export function measureBandwidth(o: BandwidthOptions): BandwidthResult {
       trackers[2].position = [x + 0.3 * Math.cos(yaw), 1.0 - 0.1 * Math.sin(t * 5), z - 0.3 * Math.sin(yaw)];
       trackers[2].rotation = [-Math.sin(t) * 0.3, -0.2, 0.1, 0.93];
       stream.setTrackers(trackers);
-      stream.recordTracked({ ticks: stream.clock.ticksFor(dt), headX: x, headZ: z, velocityX: 1.4 * Math.cos(a), velocityZ: -1.4 * Math.sin(a), yaw, hipsDrop: 0.02, bend: 0 });
+      stream.recordTracked({ ticks: stream.clock.ticksFor(dt), headX: x, headZ: z, velocityX: 1.4 * Math.cos(a), velocityZ: -1.4 * Math.sin(a), yaw, body: false, hipsDrop: 0.02, bend: 0 });
     }
     stream.report(x, z, a, f);
     if (t >= nextState) {

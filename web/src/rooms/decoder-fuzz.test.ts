@@ -48,7 +48,7 @@ it('200,000 mutated or random inputs: a valid message or a ProtocolError, nothin
   const rand = seededRandom(99);
   const int = (n: number) => Math.floor(rand() * n);
   const step = quantizeMoveStep({ ...createMoveStep(), ticks: 120, moveX: 0.3, moveZ: 0.9 });
-  const tracked = quantizeTrackedStep({ ticks: 80, headX: 1, headZ: 2, velocityX: 1, velocityZ: 0, yaw: 1, hipsDrop: 0.1, bend: 0.5 });
+  const tracked = quantizeTrackedStep({ ticks: 80, headX: 1, headZ: 2, velocityX: 1, velocityZ: 0, yaw: 1, body: false, hipsDrop: 0.1, bend: 0.5 });
   const pose = { tracked: true, fromHand: false, position: [1, 1.6, 2] as [number, number, number], rotation: [0, 0.38, 0, 0.92] as [number, number, number, number] };
   const join = encodeJoin({ name: 'Zoë', avatar: { kind: 'url', url: '/a.vrm' }, database: 'locomotion', height: 1.7, mode: 'vr', devices: { headset: true } });
   const client = [

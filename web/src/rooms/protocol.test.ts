@@ -87,7 +87,7 @@ const state: Omit<StateMessage, 'type'> = {
   scale: 1.05,
   alpha: 0.2,
   move: moveStep(0, 0.6, 0.8, 0, 1, true),
-  tracked: quantizeTrackedStep({ ticks: 0, headX: 10.6, headZ: -3.2, velocityX: 1.2, velocityZ: -0.3, yaw: 2.4, hipsDrop: 0.12, bend: 0.7 }),
+  tracked: quantizeTrackedStep({ ticks: 0, headX: 10.6, headZ: -3.2, velocityX: 1.2, velocityZ: -0.3, yaw: 2.4, body: true, hipsDrop: 0.12, bend: 0.7 }),
 };
 
 describe('room ids', () => {
@@ -202,7 +202,7 @@ describe('client messages round trip', () => {
     const rand = seeded(3);
     const steps: TrackedStep[] = [];
     for (let i = 0; i < 5; i++) {
-      steps.push(quantizeTrackedStep({ ticks: 80, headX: 1 + rand(), headZ: -3 + rand(), velocityX: rand() * 2 - 1, velocityZ: rand(), yaw: rand() * 6 - 3, hipsDrop: rand() * 0.3, bend: rand() * 1.4 }));
+      steps.push(quantizeTrackedStep({ ticks: 80, headX: 1 + rand(), headZ: -3 + rand(), velocityX: rand() * 2 - 1, velocityZ: rand(), yaw: rand() * 6 - 3, body: i % 2 === 1, hipsDrop: rand() * 0.3, bend: rand() * 1.4 }));
     }
     const t = trackers();
     const bytes = encodeTracked({ seq: 3, time: 5, rootX: 1.3, rootZ: -3.3, rootYaw: 0.5, scale: 0.97, alpha: 0.3, trackers: t, steps });
@@ -309,7 +309,7 @@ describe('malformed messages are rejected, never half-decoded', () => {
   const valid = () => [
     encodeJoin(join),
     encodeMove({ seq: 1, time: 0, rootX: 0, rootZ: 0, rootYaw: 0, steps: [moveStep(120, 0, 1, 0, 1), moveStep(120, 1, 0, 0, 1)] }),
-    encodeTracked({ seq: 1, time: 0, rootX: 1, rootZ: 1, rootYaw: 0, scale: 1, alpha: 0.2, trackers: trackers(), steps: [quantizeTrackedStep({ ticks: 100, headX: 1, headZ: 1, velocityX: 0, velocityZ: 0, yaw: 0, hipsDrop: 0, bend: 0 })] }),
+    encodeTracked({ seq: 1, time: 0, rootX: 1, rootZ: 1, rootYaw: 0, scale: 1, alpha: 0.2, trackers: trackers(), steps: [quantizeTrackedStep({ ticks: 100, headX: 1, headZ: 1, velocityX: 0, velocityZ: 0, yaw: 0, body: false, hipsDrop: 0, bend: 0 })] }),
     encodePath({ seq: 1, time: 0, points: new Float32Array([0, 0, 1, 1]), speeds: new Float32Array([2]), looped: false }),
     encodeState(state),
   ];

@@ -84,7 +84,7 @@ export const MAX_RUNTIME_STATE_BYTES = 16_000;
  * u32 of its header): the room server checks it (server/content.ts); a test compares it with
  * what the runtime writes.
  */
-export const RUNTIME_STATE_VERSION = 4;
+export const RUNTIME_STATE_VERSION = 5;
 export const MAX_MEMBERS_LIMIT = 64;
 /** Positions relative to a message origin are int16 mm: ±32.767 m. */
 export const MAX_RELATIVE_MM = 32767;
@@ -658,7 +658,7 @@ export function createMoveStep(): MoveStep {
 }
 
 export function createTrackedStep(): TrackedStep {
-  return { ticks: 0, headX: 0, headZ: 0, velocityX: 0, velocityZ: 0, yaw: 0, hipsDrop: 0, bend: 0 };
+  return { ticks: 0, headX: 0, headZ: 0, velocityX: 0, velocityZ: 0, yaw: 0, body: false, hipsDrop: 0, bend: 0 };
 }
 
 /**
@@ -696,6 +696,17 @@ function u8ToBend(q: number): number {
   return (q * Math.PI) / 360;
 }
 
+/**
+ * The hips drop and the body flag share a u16: bits 0–14 the drop in mm (0–32.767 m), bit 15 set
+ * when the step is the tracked hips' (body tracking).
+ */
+function dropToU16(drop: number, body: boolean): number {
+  return Math.max(0, Math.min(0x7fff, toMm(drop))) | (body ? 0x8000 : 0);
+}
+function dropFromU16(q: number): { hipsDrop: number; body: boolean } {
+  return { hipsDrop: fromMm(q & 0x7fff), body: (q & 0x8000) !== 0 };
+}
+
 /** Quantizes a tracked step in place (positions to absolute mm, velocity mm/s, yaw int16, drop mm, bend ½°). */
 export function quantizeTrackedStep(s: TrackedStep): TrackedStep {
   s.headX = fromMm(toMm(s.headX));
@@ -703,7 +714,8 @@ export function quantizeTrackedStep(s: TrackedStep): TrackedStep {
   s.velocityX = fromMm(clampI16(toMm(s.velocityX)));
   s.velocityZ = fromMm(clampI16(toMm(s.velocityZ)));
   s.yaw = i16ToAngle(angleToI16(s.yaw));
-  s.hipsDrop = fromMm(Math.max(0, Math.min(65535, toMm(s.hipsDrop))));
+  s.hipsDrop = fromMm(dropToU16(s.hipsDrop, false));
+  s.body = s.body === true;
   s.bend = u8ToBend(bendToU8(s.bend));
   return s;
 }
@@ -835,7 +847,7 @@ export function encodeTracked(m: Omit<TrackedMessage, 'type'>): Uint8Array {
     w.i16(clampI16(toMm(s.velocityX)));
     w.i16(clampI16(toMm(s.velocityZ)));
     w.i16(angleToI16(s.yaw));
-    w.u16(Math.max(0, Math.min(65535, toMm(s.hipsDrop))));
+    w.u16(dropToU16(s.hipsDrop, s.body));
     w.u8(bendToU8(s.bend));
   }
   return w.finish();
@@ -879,7 +891,7 @@ function decodeTrackedBody(r: Reader, h: StreamHeader): TrackedMessage {
       velocityX: fromMm(r.i16('velocity x')),
       velocityZ: fromMm(r.i16('velocity z')),
       yaw: i16ToAngle(r.i16('yaw')),
-      hipsDrop: fromMm(r.u16('hips drop')),
+      ...dropFromU16(r.u16('hips drop')),
       bend: u8ToBend(r.u8('torso bend')),
     });
   }
@@ -947,7 +959,7 @@ export function encodeState(m: Omit<StateMessage, 'type'>): Uint8Array {
   w.i16(clampI16(toMm(t.velocityX)));
   w.i16(clampI16(toMm(t.velocityZ)));
   w.i16(angleToI16(t.yaw));
-  w.u16(Math.max(0, Math.min(65535, toMm(t.hipsDrop))));
+  w.u16(dropToU16(t.hipsDrop, t.body));
   w.u8(bendToU8(t.bend));
   if (runtime) {
     if (runtime.length < 1 || runtime.length > MAX_RUNTIME_STATE_BYTES) fail(`runtime state of ${runtime.length} bytes (1–${MAX_RUNTIME_STATE_BYTES})`);
@@ -981,7 +993,7 @@ function decodeStateBody(r: Reader, h: StreamHeader): StateMessage {
     velocityX: fromMm(r.i16('velocity x')),
     velocityZ: fromMm(r.i16('velocity z')),
     yaw: i16ToAngle(r.i16('yaw')),
-    hipsDrop: fromMm(r.u16('hips drop')),
+    ...dropFromU16(r.u16('hips drop')),
     bend: u8ToBend(r.u8('torso bend')),
   };
   let runtime: Uint8Array | null = null;

@@ -135,7 +135,7 @@ function simulate(o: Options) {
       trackers[1].position = [headX - 0.2, 1.0, headZ + 0.1];
       trackers[2].position = [headX + 0.2, 1.0, headZ - 0.1];
       local.setTrackers(trackers);
-      local.setTracked({ headX, headZ, velocityX: vx, velocityZ: vz, yaw: ang + Math.PI / 2, hipsDrop: t > 2 && t < 3 ? 0.3 : 0, bend: t > 2.5 && t < 3.5 ? 0.6 : 0 }, 1.08, 0.2);
+      local.setTracked({ headX, headZ, velocityX: vx, velocityZ: vz, yaw: ang + Math.PI / 2, body: false, hipsDrop: t > 2 && t < 3 ? 0.3 : 0, bend: t > 2.5 && t < 3.5 ? 0.6 : 0 }, 1.08, 0.2);
     } else if (t > 2 && t < 2 + dt) {
       local.setPath(new Float32Array([a.rootX + 2, a.rootZ, a.rootX + 2, a.rootZ + 2, a.rootX, a.rootZ + 2]), new Float32Array([1.4, 3.5]), false);
     } else if (t < 2 || t > 3.5) {

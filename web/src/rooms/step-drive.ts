@@ -33,6 +33,7 @@ export function driveFromTracked(step: Readonly<TrackedInput>, scale: number, al
   out.velocityX = step.velocityX / scale;
   out.velocityZ = step.velocityZ / scale;
   out.yaw = step.yaw;
+  out.body = step.body;
   out.hipsDrop = step.hipsDrop / scale;
   out.bend = step.bend;
   out.clampDistance = alpha / scale;
@@ -46,6 +47,7 @@ export function trackedFromDrive(drive: Readonly<Drive>, scale: number, out: Tra
   out.velocityX = drive.velocityX * scale;
   out.velocityZ = drive.velocityZ * scale;
   out.yaw = drive.yaw;
+  out.body = drive.body;
   out.hipsDrop = drive.hipsDrop * scale;
   out.bend = drive.bend;
   return out;

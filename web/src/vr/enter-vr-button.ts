@@ -8,7 +8,7 @@ import type * as THREE from 'three';
 
 export const SESSION_INIT: XRSessionInit = {
   requiredFeatures: ['local-floor'],
-  optionalFeatures: ['bounded-floor', 'hand-tracking'],
+  optionalFeatures: ['bounded-floor', 'hand-tracking', 'body-tracking'],
 };
 
 export class EnterVrButton {

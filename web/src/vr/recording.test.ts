@@ -4,7 +4,7 @@ import { beforeAll, describe, expect, it } from 'vitest';
 import { initWasmSync } from '../core/wasm.ts';
 import { decodeRecording, encodeRecordingBinary, encodeRecordingJson, type Recording, RecordingPlayer, TrackerRecorder } from './recording.ts';
 import { SCRIPT_DURATION, scriptedSample } from './scripted-motion.ts';
-import { HEAD, RIGHT, TrackerSample } from './tracker-sample.ts';
+import { BODY_JOINTS, HEAD, HIPS, NUM_BODY_JOINTS, RIGHT, TrackerSample } from './tracker-sample.ts';
 
 function scripted(hz = 72, seconds = SCRIPT_DURATION): Recording {
   const recorder = new TrackerRecorder(16); // grows
@@ -75,6 +75,36 @@ describe('recordings', () => {
     for (let i = 0; i < r.position.length; i++) expect(Math.abs(back.position[i] - r.position[i])).toBeLessThan(1e-6);
     expect(Array.from(back.tracked)).toEqual(Array.from(r.tracked));
     expect(decodeRecording(new TextEncoder().encode(encodeRecordingJson(r))).frames).toBe(r.frames);
+  });
+
+  it('carries the tracked body: recorded when tracked, JSON and binary (version 2) round trips, replayed by joint name', () => {
+    const recorder = new TrackerRecorder(4);
+    const s = new TrackerSample();
+    for (let f = 0; f < 30; f++) {
+      scriptedSample(f / 60, s);
+      s.bodyTracked.fill(f >= 10 ? 1 : 0);
+      for (let j = 0; j < NUM_BODY_JOINTS; j++) s.bodyPosition.set([0.1 * j, 0.9, -0.01 * f], 3 * j);
+      recorder.add(s);
+    }
+    const r = recorder.toRecording();
+    expect(r.body?.joints).toEqual([...BODY_JOINTS]);
+    expect(r.body?.tracked[9 * NUM_BODY_JOINTS]).toBe(0);
+    for (const back of [decodeRecording(encodeRecordingJson(r), 'b.json'), decodeRecording(encodeRecordingBinary(r), 'b.mmtr')]) {
+      expect(back.body?.joints).toEqual([...BODY_JOINTS]);
+      expect(Array.from(back.body!.tracked)).toEqual(Array.from(r.body!.tracked));
+      for (let i = 0; i < r.body!.position.length; i++) expect(Math.abs(back.body!.position[i] - r.body!.position[i])).toBeLessThan(1e-5);
+    }
+    expect(new DataView(encodeRecordingBinary(r).buffer).getUint32(4, true)).toBe(2);
+    expect(new DataView(encodeRecordingBinary(scripted(30, 1)).buffer).getUint32(4, true)).toBe(1);
+    // Never tracked: no body at all. Replayed: joints found by name, whatever the recording's order.
+    expect(scripted(30, 1).body).toBeUndefined();
+    const reordered = { ...r, body: { ...r.body!, joints: [...BODY_JOINTS].reverse() } };
+    const out = new TrackerSample();
+    new RecordingPlayer(reordered).sampleAt(20 / 60, out);
+    expect(out.bodyTracked[HIPS]).toBe(1);
+    expect(out.bodyPosition[3 * HIPS]).toBeCloseTo(0.1 * (NUM_BODY_JOINTS - 1), 6);
+    new RecordingPlayer(r).sampleAt(5 / 60, out);
+    expect(Array.from(out.bodyTracked)).toEqual(new Array(NUM_BODY_JOINTS).fill(0));
   });
 
   it('rejects bad files with messages that say what is wrong', () => {

@@ -20,12 +20,20 @@
  * put — measuring the headset made looking down crouch the avatar. Before a calibration the
  * reference is the highest head-centre height seen since the last reset. Standing taller
  * (tip-toe) leaves the avatar standing.
+ *
+ * Body tracking (docs/vr.md): when the headset tracks the body (`TrackerSample.bodyTracked`: the
+ * hips and the hip joints' or the shoulders' line), the body yaw is the tracked hips' facing and
+ * the root's target their floor point (`Character.setTracked(…, body = true)`: the runtime moves
+ * and turns the shown hips onto them, the motion-matched legs keeping the feet), and α tightens
+ * to `BODY_ALPHA`. The network still runs every frame, so when tracking is lost it takes over at
+ * once from a warm state; the runtime blends the hips back to the animation's.
  */
+import * as THREE from 'three';
 import type { Character } from '../character/character.ts';
 import type { RuntimeSettings } from '../core/character.ts';
 import { headingYaw } from '../yaw.ts';
 import type { BodyYawPredictor } from './body-yaw.ts';
-import type { TrackerSample } from './tracker-sample.ts';
+import { HIPS, type TrackerSample } from './tracker-sample.ts';
 import { TrackerState } from './trackers.ts';
 import { UpperBody } from './upper-body.ts';
 import vrSettings from '../../../settings/vr-settings.json' with { type: 'json' };
@@ -57,6 +65,22 @@ export const VR_SETTINGS: Readonly<RuntimeSettings> = vrSettings;
 /** Default α (m): the avatar root stays within it of the head's floor projection. */
 export const DEFAULT_ALPHA = 0.2;
 
+/**
+ * α while the body is tracked (m): the root stays within it of the tracked hips, and the runtime
+ * moves the shown hips the rest of the way (at most 15 cm from the animation's).
+ */
+export const BODY_ALPHA = 0.1;
+
+/** Smoothing of the tracked hips' ground velocity (half-life, s): body tracking jitters a little every frame. */
+const HIPS_VELOCITY_HALFLIFE = 0.05;
+
+/** Body joint pairs a facing is read from, left then right (`BODY_JOINTS` indices): the hip joints, else the shoulders. */
+const FACING_PAIRS = [
+  [1, 2],
+  [3, 4],
+] as const;
+const _h = new THREE.Vector3(), _l = new THREE.Vector3(), _r = new THREE.Vector3();
+
 export class TrackedDrive {
   readonly trackers = new TrackerState();
   readonly upperBody: UpperBody | null;
@@ -79,6 +103,13 @@ export class TrackedDrive {
   headsetPitch = 0;
   /** The avatar's hips height in its rest pose at scale 1, m (NaN without an avatar or hips). */
   readonly avatarHipsHeight: number;
+  /** Whether the last frame drove from the tracked body; the tracked hips on the floor (x, z, room m), their ground velocity. */
+  bodyTracked = false;
+  readonly hipsFloor = new Float64Array(2);
+  readonly hipsVelocity = new Float64Array(2);
+  /** The network's (or heuristic's) yaw of the last frame, also while the body drives. */
+  predictedYaw = 0;
+  private hadHips = false;
   /** α in room metres. */
   private alpha = DEFAULT_ALPHA;
 
@@ -148,6 +179,40 @@ export class TrackedDrive {
     this.trackers.reset();
     this.predictor.reset();
     this.referenceEyeHeight = this.calibratedEyeHeight;
+    this.hadHips = false;
+  }
+
+  /**
+   * The tracked body's facing (rad, 0 = +Z), from the first joint pair both tracked in `sample`:
+   * forward = (left − right) × up, the builder's virtual-root rule; NaN without the hips or a
+   * pair. Also moves `hipsFloor` and `hipsVelocity` on.
+   */
+  private bodyYaw(sample: TrackerSample, dt: number): number {
+    const tracked = sample.bodyTracked, p = sample.bodyPosition;
+    if (!tracked[HIPS]) {
+      this.hadHips = false;
+      return NaN;
+    }
+    const x = p[3 * HIPS], z = p[3 * HIPS + 2];
+    if (this.hadHips && dt > 0) {
+      const k = 1 - 2 ** (-dt / HIPS_VELOCITY_HALFLIFE);
+      this.hipsVelocity[0] += ((x - this.hipsFloor[0]) / dt - this.hipsVelocity[0]) * k;
+      this.hipsVelocity[1] += ((z - this.hipsFloor[1]) / dt - this.hipsVelocity[1]) * k;
+    } else {
+      this.hipsVelocity[0] = this.trackers.head.velocity[0];
+      this.hipsVelocity[1] = this.trackers.head.velocity[2];
+    }
+    this.hipsFloor[0] = x;
+    this.hipsFloor[1] = z;
+    this.hadHips = true;
+    for (const [l, r] of FACING_PAIRS) {
+      if (!tracked[l] || !tracked[r]) continue;
+      // (lx, ly, lz) × (0, 1, 0) = (−lz, 0, lx) with l = left − right.
+      const lx = p[3 * l] - p[3 * r], lz = p[3 * l + 2] - p[3 * r + 2];
+      if (lx * lx + lz * lz < 1e-6) continue;
+      return Math.atan2(-lz, lx);
+    }
+    return NaN;
   }
 
   /** Runs one frame. `dt` overrides the animation step (fixed-step tests); default the trackers' dt. */
@@ -157,7 +222,10 @@ export class TrackedDrive {
     tr.update(sample);
     const step = dt ?? tr.dt;
     const head = tr.head;
-    this.yaw = this.predictor.update(head, tr.left, tr.right, step);
+    this.predictedYaw = this.predictor.update(head, tr.left, tr.right, step);
+    const bodyYaw = this.bodyYaw(sample, step);
+    this.bodyTracked = bodyYaw === bodyYaw;
+    this.yaw = this.bodyTracked ? bodyYaw : this.predictedYaw;
     const q = head.rotation;
     const heading = headingYaw(q[0], q[1], q[2], q[3]);
     this.headFloor[0] = head.position[0] - HMD_TO_HEAD_CENTRE * Math.sin(heading);
@@ -174,13 +242,38 @@ export class TrackedDrive {
     const d = this.referenceEyeHeight > 0 ? this.referenceEyeHeight - eye : 0;
 
     const character = this.character;
-    character.setTracked(this.headFloor[0], this.headFloor[1], head.velocity[0], head.velocity[2], this.yaw);
+    if (this.bodyTracked) {
+      character.setTracked(this.hipsFloor[0], this.hipsFloor[1], this.hipsVelocity[0], this.hipsVelocity[1], this.yaw, true);
+      character.setAlpha(Math.min(this.alpha, BODY_ALPHA));
+    } else {
+      character.setTracked(this.headFloor[0], this.headFloor[1], head.velocity[0], head.velocity[2], this.yaw);
+      character.setAlpha(this.alpha);
+    }
     character.setCrouch(d, this.headsetPitch);
     this.hipsDrop = character.drive.hipsDrop * character.metresPerDatabaseUnit;
     this.torsoBend = character.drive.bend;
     character.update(step);
     this.upperBody?.apply(head, tr.left, tr.right, character.root.yaw);
     this.lastUpdateMs = performance.now() - t0;
+  }
+
+  /**
+   * The shown hips on the floor and the way they face: (x, z, yaw) into `out` (room m, rad,
+   * 0 = +Z; the facing from the hip joints, as the tracked body's) — the avatar's bones (world
+   * matrices current: after `update`), else the character's pose.
+   */
+  shownHips(out: Float64Array | number[]): void {
+    const avatar = this.character.avatar;
+    const at = (role: 'hips' | 'left_upper_leg' | 'right_upper_leg', v: THREE.Vector3) => {
+      const bone = avatar?.bone(role);
+      if (bone) return v.setFromMatrixPosition(bone.matrixWorld);
+      const j = this.character.database.roles.get(role);
+      return j === undefined ? v.set(NaN, NaN, NaN) : this.character.jointPosition(j, v);
+    };
+    const h = at('hips', _h), l = at('left_upper_leg', _l), r = at('right_upper_leg', _r);
+    out[0] = h.x;
+    out[1] = h.z;
+    out[2] = Math.atan2(-(l.z - r.z), l.x - r.x);
   }
 
   dispose(): void {

@@ -1,7 +1,7 @@
 /**
  * One frame of raw tracker data — HMD and both controllers' grip poses in the `local-floor`
- * reference space (docs/method.md §9) — as structure-of-arrays, and the sampling of a WebXR frame
- * into it. The same sample is what a recording stores (recording.ts) and what a replay feeds
+ * reference space (docs/method.md §9), and the body joints where the headset tracks the body
+ * (WebXR Body Tracking) — as structure-of-arrays, and the sampling of a WebXR frame into it. The same sample is what a recording stores (recording.ts) and what a replay feeds
  * back, so the live and replayed pipelines start from identical data.
  */
 
@@ -12,6 +12,21 @@ export const HEAD = 0;
 export const LEFT = 1;
 export const RIGHT = 2;
 export const NUM_TRACKERS = 3;
+
+/**
+ * The body joints kept from WebXR body tracking (`XRFrame.body`, its joint names), the order of
+ * every body array: the hips (where the root goes) and the two lines a body's facing is read
+ * from — the hip joints' (the database builder's virtual-root rule) and, for devices that track
+ * only the upper body, the shoulders'.
+ */
+export const BODY_JOINTS = ['hips', 'left-upper-leg', 'right-upper-leg', 'left-arm-upper', 'right-arm-upper'] as const;
+export const NUM_BODY_JOINTS = BODY_JOINTS.length;
+export const HIPS = 0;
+
+/** `XRFrame.body` (WebXR Body Tracking): joint name → joint space. Not in the WebXR typings yet. */
+interface XRBodyLike {
+  get(joint: string): XRSpace | undefined;
+}
 
 export class TrackerSample {
   /** Seconds (the XR animation-frame timestamp / 1000). */
@@ -24,9 +39,14 @@ export class TrackerSample {
   readonly tracked = new Uint8Array(NUM_TRACKERS);
   /** 1 when that pose is a tracked hand's rather than a controller's (live only; recordings do not keep it). */
   readonly hand = new Uint8Array(NUM_TRACKERS);
+  /** Body joints (`BODY_JOINTS` order): positions (m), rotations (x, y, z, w), 1 when tracked this frame. */
+  readonly bodyPosition = new Float64Array(NUM_BODY_JOINTS * 3);
+  readonly bodyRotation = new Float64Array(NUM_BODY_JOINTS * 4);
+  readonly bodyTracked = new Uint8Array(NUM_BODY_JOINTS);
 
   constructor() {
     for (let t = 0; t < NUM_TRACKERS; t++) this.rotation[4 * t + 3] = 1;
+    for (let j = 0; j < NUM_BODY_JOINTS; j++) this.bodyRotation[4 * j + 3] = 1;
   }
 
   /** Sets one tracker's pose and marks it tracked. */
@@ -47,6 +67,9 @@ export class TrackerSample {
     this.rotation.set(other.rotation);
     this.tracked.set(other.tracked);
     this.hand.set(other.hand);
+    this.bodyPosition.set(other.bodyPosition);
+    this.bodyRotation.set(other.bodyRotation);
+    this.bodyTracked.set(other.bodyTracked);
   }
 }
 
@@ -60,6 +83,10 @@ export class TrackerSample {
  * Hand tracking: a hand input source is read through its grip space like a controller (Quest
  * Browser gives hands one); a hand without one gets a grip-like pose from its joints
  * (`gripFromHand`). `hand` flags which trackers are hands.
+ *
+ * Body tracking: where the frame has a body (`XRFrame.body`, the session granted the optional
+ * `body-tracking` feature), each of `BODY_JOINTS` is read by `getPose` and flagged in
+ * `bodyTracked`; a joint the device does not track this frame keeps its previous values.
  *
  * WebXR itself allocates the XRPose objects it returns; nothing else is allocated here.
  */
@@ -88,6 +115,23 @@ export function sampleXRFrame(frame: XRFrame, space: XRReferenceSpace, time: num
       }
     }
     if (out.tracked[t] && source.hand) out.hand[t] = 1;
+  }
+  out.bodyTracked.fill(0);
+  const body = (frame as XRFrame & { body?: XRBodyLike | null }).body;
+  if (!body) return;
+  for (let j = 0; j < NUM_BODY_JOINTS; j++) {
+    const joint = body.get(BODY_JOINTS[j]);
+    const pose = joint && frame.getPose(joint, space);
+    if (!pose || (!acceptEmulated && pose.emulatedPosition)) continue;
+    const p = pose.transform.position, q = pose.transform.orientation;
+    out.bodyPosition[3 * j] = p.x;
+    out.bodyPosition[3 * j + 1] = p.y;
+    out.bodyPosition[3 * j + 2] = p.z;
+    out.bodyRotation[4 * j] = q.x;
+    out.bodyRotation[4 * j + 1] = q.y;
+    out.bodyRotation[4 * j + 2] = q.z;
+    out.bodyRotation[4 * j + 3] = q.w;
+    out.bodyTracked[j] = 1;
   }
 }
 

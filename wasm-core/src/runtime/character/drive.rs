@@ -59,7 +59,7 @@ impl Default for DriveInput {
 
 impl DriveInput {
     /// The flat order: `mode` is 0 move, 1 path, 2 tracked; flags are 0 or 1.
-    pub const FIELDS: [&'static str; 15] = [
+    pub const FIELDS: [&'static str; 16] = [
         "mode",
         "move_x",
         "move_z",
@@ -72,6 +72,7 @@ impl DriveInput {
         "velocity_x",
         "velocity_z",
         "yaw",
+        "body",
         "hips_drop",
         "bend",
         "clamp_distance",
@@ -105,10 +106,11 @@ impl DriveInput {
                 position: Vec3::new(v[7], 0.0, v[8]),
                 velocity: Vec3::new(v[9], 0.0, v[10]),
                 yaw: v[11],
+                body: v[12] != 0.0,
             },
-            hips_drop: v[12],
-            bend: v[13],
-            clamp_distance: v[14],
+            hips_drop: v[13],
+            bend: v[14],
+            clamp_distance: v[15],
         })
     }
 }
@@ -137,12 +139,18 @@ impl Character {
 /// A tracked user (VR), as given each frame: raw, the drive smooths it.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct Tracked {
-    /// The head centre projected on the floor (y ignored), m.
+    /// The head centre projected on the floor (y ignored), m; with `body`, the hips'.
     pub position: Vec3,
-    /// The head's ground velocity (y ignored), m/s.
+    /// The head's ground velocity (y ignored), m/s; with `body`, the hips'.
     pub velocity: Vec3,
-    /// Predicted body yaw, radians, 0 = facing +Z.
+    /// Body yaw, radians, 0 = facing +Z: predicted from the head and hands, or with `body` the
+    /// tracked hips' facing.
     pub yaw: f32,
+    /// The sample is the user's tracked hips (WebXR body tracking, docs/vr.md), not their head:
+    /// the root's target is the hips' floor point itself (no head or bend offset), and the shown
+    /// hips are moved and turned onto them ([`super::legs::Legs::follow`]), the legs keeping the
+    /// feet by IK.
+    pub body: bool,
 }
 
 /// The source of motion.
@@ -177,6 +185,7 @@ impl Persist for Tracked {
         self.position.persist(v, "tracked position");
         self.velocity.persist(v, "tracked velocity");
         self.yaw.persist(v, "tracked yaw");
+        self.body.persist(v, "tracked body");
     }
 }
 

@@ -2,7 +2,9 @@
 //! contact where the contact began (blended in and out by [`FootLock`]) and the leg reaches it
 //! by the two-bone IK; a hips drop (VR crouching) lowers the hips with the feet kept where they
 //! are, and a torso bend (VR bending over, [`super::crouch`]) pitches the spine forward about the
-//! root's lateral axis. Only the touched subtrees are recomputed by FK afterwards.
+//! root's lateral axis; with body tracking the hips are moved and turned onto the user's tracked
+//! hips ([`Legs::follow`]), the feet again kept by IK. Only the touched subtrees are recomputed
+//! by FK afterwards.
 
 use super::crouch::MAX_BEND;
 use super::pose::Pose;
@@ -20,6 +22,19 @@ const MAX_CHAIN_BEND: f32 = 100.0 * std::f32::consts::PI / 180.0;
 
 /// A foot lifted more than this by its corrective step (m) is in the air.
 const STEP_AIRBORNE: f32 = 0.01;
+
+/// How fast the shown hips go onto tracked ones when body tracking starts, and back to the
+/// animation's when it is lost (half-life, s): a tenth of a second hides the switch without
+/// lagging a walking user (a 10 cm offset moves ≤ 1.2 cm per 60 Hz frame).
+const FOLLOW_HALFLIFE: f32 = 0.08;
+
+/// Farthest the shown hips move from where the animation has them to reach tracked hips (m):
+/// the rest is the root's clamp's (α), or the body would lean out over its feet.
+pub const MAX_FOLLOW_SHIFT: f32 = 0.15;
+
+/// Most the shown hips turn about the vertical to face as the tracked ones do (rad, 35°): a
+/// pelvis swings ±5–10° in a step; the root's own yaw follows the tracked facing (the clamp).
+const MAX_FOLLOW_TURN: f32 = 35.0 * std::f32::consts::PI / 180.0;
 
 #[derive(Clone, Debug)]
 pub struct Legs {
@@ -49,9 +64,17 @@ pub struct Legs {
     /// How far the last update's bend moved the head on the floor (world): the tracked root's
     /// target is that much behind the user's head, where bent-over people's hips are.
     pub bend_shift: Vec3,
-    /// The drop applied to the pose by the last update, undone before the next one: like the
-    /// leg IK it is a touch-up of the output, never a state the animation continues.
-    applied_drop: f32,
+    /// Body tracking: the user's hips on the floor (world) and the way they face (yaw, rad),
+    /// which the shown hips are moved and turned onto this update; `None`: the animation's hips.
+    pub follow: Option<(Vec3, f32)>,
+    /// How much of the way onto the tracked hips the shown ones go (0–1, blended in and out over
+    /// [`FOLLOW_HALFLIFE`]), and the last tracked hips (what it blends out from when lost).
+    follow_weight: f32,
+    follow_last: (Vec3, f32),
+    /// The hips move (drop, follow) applied to the pose by the last update in the root's frame,
+    /// undone before the next one: like the leg IK it is a touch-up of the output, never a state
+    /// the animation continues.
+    applied_shift: Vec3,
     previous_toes: [Vec3; 2],
     /// Toe points of the shown pose (world), after the touch-ups.
     pub toes: [Vec3; 2],
@@ -62,7 +85,10 @@ impl Persist for Legs {
     fn persist(&mut self, v: &mut dyn Visitor, _: &'static str) {
         self.locks.persist(v, "");
         self.hips_drop.persist(v, "hips drop");
-        self.applied_drop.persist(v, "applied hips drop");
+        self.applied_shift.persist(v, "applied hips shift");
+        self.follow_weight.persist(v, "hips follow weight");
+        self.follow_last.0.persist(v, "followed hips");
+        self.follow_last.1.persist(v, "followed hips yaw");
         self.bend.persist(v, "torso bend");
         self.bend_shift.persist(v, "bend shift");
         self.previous_toes.persist(v, "previous toes");
@@ -122,7 +148,10 @@ impl Legs {
             hips_drop: 0.0,
             hips_range: hips.map_or(0..0, |h| subtree_range(parents, h)),
             hips,
-            applied_drop: 0.0,
+            follow: None,
+            follow_weight: 0.0,
+            follow_last: (Vec3::ZERO, 0.0),
+            applied_shift: Vec3::ZERO,
             bend: 0.0,
             spine,
             spine_count,
@@ -152,12 +181,58 @@ impl Legs {
         }
     }
 
-    /// Undoes the last update's hips drop on the inertialized pose (call before playing on).
+    /// Undoes the last update's hips drop and follow on the inertialized pose (call before
+    /// playing on).
     pub fn undo_drop(&mut self, pose: &mut Pose) {
-        if let (Some(h), true) = (self.hips, self.applied_drop != 0.0) {
-            pose.positions[h].y += self.applied_drop;
-            self.applied_drop = 0.0;
+        if let (Some(h), true) = (self.hips, self.applied_shift != Vec3::ZERO) {
+            pose.positions[h] -= self.applied_shift;
+            self.applied_shift = Vec3::ZERO;
         }
+    }
+
+    /// Forgets any tracked hips: the next update shows the animation's (a recovery).
+    pub fn reset_follow(&mut self) {
+        self.follow = None;
+        self.follow_weight = 0.0;
+    }
+
+    /// Which way the shown hips face (yaw, rad, 0 = +Z): (left hip − right hip) × up, the
+    /// builder's virtual-root rule; `None` without both legs. World transforms current.
+    fn hips_facing(&self, pose: &Pose) -> Option<f32> {
+        let [Some(l), Some(r)] = &self.legs else { return None };
+        let f = (pose.world_positions[l.upper_leg] - pose.world_positions[r.upper_leg]).cross(Vec3::Y);
+        (f.x * f.x + f.z * f.z > 1e-12).then(|| f.x.atan2(f.z))
+    }
+
+    /// Body tracking: moves the shown hips toward the tracked ones on the floor (at most
+    /// [`MAX_FOLLOW_SHIFT`]) and turns them about the vertical to their facing (at most
+    /// [`MAX_FOLLOW_TURN`]), by the blend weight. The root is a pure yaw, so a turn about the
+    /// world vertical is the same turn of the hips' local rotation, and a floor shift is the
+    /// root's inverse yaw of it in the hips' local position. Returns whether the hips moved.
+    fn follow_hips(&mut self, pose: &mut Pose, dt: f32) -> bool {
+        let Some(h) = self.hips else { return false };
+        if let Some(t) = self.follow {
+            self.follow_last = t;
+        }
+        let goal = if self.follow.is_some() { 1.0 } else { 0.0 };
+        self.follow_weight += (goal - self.follow_weight) * (1.0 - (-dt.max(0.0) / FOLLOW_HALFLIFE).exp2());
+        if !(self.follow_weight > 1e-3) {
+            self.follow_weight = 0.0;
+            return false;
+        }
+        let w = self.follow_weight;
+        let (target, yaw) = self.follow_last;
+        if let Some(facing) = self.hips_facing(pose) {
+            let d = (yaw - facing + std::f32::consts::PI).rem_euclid(std::f32::consts::TAU) - std::f32::consts::PI;
+            let turn = d.clamp(-MAX_FOLLOW_TURN, MAX_FOLLOW_TURN) * w;
+            pose.output_rotations[h] = (Quat::from_rotation_y(turn) * pose.output_rotations[h]).normalize();
+        }
+        let at = pose.world_positions[h];
+        let shift = (Vec3::new(target.x - at.x, 0.0, target.z - at.z) * w).clamp_length_max(MAX_FOLLOW_SHIFT);
+        let local = pose.rotations[0].inverse() * shift;
+        pose.positions[h] += local;
+        self.applied_shift += local;
+        true
     }
 
     /// Pitches the spine joints forward by `bend` in all, about the root's lateral axis (world
@@ -269,11 +344,12 @@ impl Legs {
                 // The root is a pure yaw, so the hips' local y is world height above the root.
                 let drop = self.hips_drop.min(0.6 * pose.positions[h].y.max(0.0));
                 pose.positions[h].y -= drop;
-                self.applied_drop = drop;
+                self.applied_shift.y -= drop;
                 drop > 0.0
             }
             _ => false,
         };
+        let dropped = self.follow_hips(pose, dt) || dropped;
         let head_before = self.bend_torso(parents, pose, facing);
         if dropped || head_before.is_some() {
             pose.forward_kinematics(parents, self.hips_range.clone());

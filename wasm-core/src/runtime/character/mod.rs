@@ -244,6 +244,7 @@ impl Character {
             position: Vec3::new(tracked.position.x, 0.0, tracked.position.z),
             velocity: Vec3::new(tracked.velocity.x, 0.0, tracked.velocity.z),
             yaw: tracked.yaw,
+            body: tracked.body,
         };
         let last = self.tracked;
         if !(t.position.x.abs() <= MAX_PATH_COORDINATE && t.position.z.abs() <= MAX_PATH_COORDINATE) {
@@ -469,6 +470,10 @@ impl Character {
         self.root.keep_with(&self.simulation, s, dt);
         self.pose.set_root(self.root.position, self.root.rotation);
         self.pose.reset_output(&db.skeleton.parents);
+        self.legs.follow = match &self.drive.mode {
+            Mode::Tracked(t) if t.body => Some((t.position, t.yaw)),
+            _ => None,
+        };
         self.legs.apply(db, &mut self.pose, &self.settings, self.root.rotation, dt);
         if self.is_finite() {
             self.last_good =
@@ -511,6 +516,7 @@ impl Character {
         self.frame_fraction = 0.0;
         self.pose.cut();
         self.legs.undo_drop(&mut self.pose);
+        self.legs.reset_follow();
         self.legs.hips_drop = 0.0;
         self.legs.bend = 0.0;
         self.legs.bend_shift = Vec3::ZERO;
@@ -522,9 +528,17 @@ impl Character {
 
     /// Tracked mode: the shown head's floor offset from the root (last frame's pose), smoothed in
     /// the root's frame, handed to the drive in world space — with `tracked_head_offset`, else
-    /// only what the torso bend moved the head.
+    /// only what the torso bend moved the head. With body tracking the sample is the hips' own
+    /// floor point: no offset at all.
     fn update_head_offset(&mut self, dt: f32) {
-        let bend_shift = if matches!(self.drive.mode, Mode::Tracked(_)) { self.legs.bend_shift } else { Vec3::ZERO };
+        let bend_shift = match self.drive.mode {
+            Mode::Tracked(Tracked { body: true, .. }) => {
+                self.drive.head_offset = Vec3::ZERO;
+                return;
+            }
+            Mode::Tracked(_) => self.legs.bend_shift,
+            _ => Vec3::ZERO,
+        };
         let (Some(head), true, Mode::Tracked(_)) = (self.head, self.settings.tracked_head_offset, &self.drive.mode)
         else {
             self.drive.head_offset = bend_shift;

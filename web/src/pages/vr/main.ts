@@ -34,6 +34,7 @@ const hook = {
   avatarScale: 1, handErrors: [NaN, NaN], trackerStatus: [0, 0, 0], updateMs: { median: NaN, p95: NaN, last: NaN },
   replayDone: false, replayDuration: NaN, bench: null as ReplayBenchResult | null,
   eyeHeight: NaN, headTrianglesHidden: 0, deviceSet: '', hands: [0, 0, 0, 0, 0, 0], room: null as RoomPanel | null,
+  body: false, shownHips: [0, 0, 0], // body tracking drives; the avatar's hips on the floor (x, z) and facing
   views: () => ({ headsetWhole: false, headsetHeadless: false, spectatorWhole: false, pageWhole: false }),
   emulator: null as unknown, beforeFrame: null as ((frame: number) => void) | null,
   enterVR: () => Promise.reject(new Error('not ready')) as Promise<void>, exitVR: () => Promise.resolve(),
@@ -225,7 +226,8 @@ async function main(): Promise<void> {
     [hook.trackerStatus[0], hook.trackerStatus[1]] = [tr.status[0], tr.status[LEFT]];
     hook.trackerStatus[2] = tr.status[RIGHT];
     if (drive.upperBody) for (let k = 0; k < 6; k++) hook.hands[k] = drive.upperBody.handPositions[k];
-    const devices = deviceSetName(tr.status, sample.hand);
+    drive.shownHips(hook.shownHips);
+    const devices = deviceSetName(tr.status, sample.hand, (hook.body = drive.bodyTracked));
     if (devices !== hook.deviceSet) $('devices').textContent = hook.deviceSet = devices;
     hook.updateMs.last = drive.lastUpdateMs;
     if (hook.frames % 30 === 0) {
