@@ -20,7 +20,7 @@ export interface YawPredictorChoiceOptions {
  * The VR page's body-yaw predictor: the heuristic until the orientation network has loaded
  * (`load()`), the network then, the heuristic for good if it cannot load (its option disabled);
  * a `<select>` switches, and a status line says which drives and why (the model's URL, or why it
- * did not load, in its title).
+ * did not load, in its title) — or that the tracked body does (`showBody`), the predictor standing by.
  */
 export class YawPredictorChoice {
   /** The network, once loaded. */
@@ -28,6 +28,7 @@ export class YawPredictorChoice {
   /** Why the network did not load (the heuristic drives for good), or null. */
   fallback: string | null = null;
   private loading: Promise<void> | null = null;
+  private body = false;
 
   constructor(
     private readonly drive: TrackedDrive,
@@ -61,6 +62,13 @@ export class YawPredictorChoice {
     this.show();
   }
 
+  /** Whether the tracked body drives the yaw now (body tracking); the status says so. Call every frame: it redraws on a change only. */
+  showBody(tracked: boolean): void {
+    if (tracked === this.body) return;
+    this.body = tracked;
+    this.show();
+  }
+
   private show(): void {
     const { select, status, model } = this.options;
     const name = this.drive.predictor.name;
@@ -69,7 +77,7 @@ export class YawPredictorChoice {
     const waiting = failed
       ? 'fallback: heuristic — the orientation model did not load'
       : 'body yaw: heuristic (loading the network…)';
-    status.textContent = this.network ? `body yaw: ${name}` : waiting;
+    status.textContent = this.body ? 'body yaw: tracked hips' : this.network ? `body yaw: ${name}` : waiting;
     status.title = this.fallback ?? `model: ${model}`;
     status.classList.toggle('fallback', failed);
     this.options.onChange?.(this);

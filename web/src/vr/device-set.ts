@@ -24,13 +24,7 @@ const SET_NAMES: readonly string[] = [0, 1, 2].flatMap((l) =>
   }),
 );
 
-/** The same with the body tracked (WebXR body tracking drives the hips). */
-const BODY_SET_NAMES: readonly string[] = SET_NAMES.map((n) => `${n} + body`);
-
-/**
- * A short name of the set: "headset only", "headset + 2 controllers", "headset + hands",
- * "headset + left controller", …, and " + body" while the headset tracks the body (`body`).
- */
-export function deviceSetName(status: ArrayLike<number>, hand: ArrayLike<number>, body = false): string {
-  return (body ? BODY_SET_NAMES : SET_NAMES)[3 * deviceKind(status, hand, LEFT) + deviceKind(status, hand, RIGHT)];
+/** A short name of the set: "headset only", "headset + 2 controllers", "headset + hands", "headset + left controller", … */
+export function deviceSetName(status: ArrayLike<number>, hand: ArrayLike<number>): string {
+  return SET_NAMES[3 * deviceKind(status, hand, LEFT) + deviceKind(status, hand, RIGHT)];
 }

@@ -37,6 +37,8 @@ export interface ReplayBenchResult {
   modelRuns: number;
   /** With ground truth: avatar root ↔ user root on the floor, m. */
   rootDistance: Stats | null;
+  /** With ground truth: the avatar's shown hips on the floor ↔ the user's root (their hips' floor point), m. */
+  hipsDistance: Stats | null;
   /** Avatar root ↔ head centre floor projection (what α clamps), m. */
   headGap: Stats;
   /** Body-yaw error vs ground truth, degrees: the network, the heuristic, raw HMD forward. */
@@ -115,7 +117,7 @@ export async function benchReplay(drive: TrackedDrive, player: RecordingPlayer, 
   const sample = new TrackerSample();
   const timer = new UpdateTimer(n);
   const modelTimer = new UpdateTimer(n);
-  const dist = new Float64Array(n), gap = new Float64Array(n), yawErr = new Float64Array(n), hmdErr = new Float64Array(n);
+  const dist = new Float64Array(n), hipsDist = new Float64Array(n), shown = new Float64Array(3), gap = new Float64Array(n), yawErr = new Float64Array(n), hmdErr = new Float64Array(n);
   let headPath = 0, rootPath = 0;
   const last = new Float64Array(4);
   const hips = character.avatar?.bone('hips') ?? null;
@@ -178,6 +180,8 @@ export async function benchReplay(drive: TrackedDrive, player: RecordingPlayer, 
         [last[0], last[1], last[2], last[3]] = [drive.headFloor[0], drive.headFloor[1], root.x, root.z];
       }
       if (truth) dist[count] = Math.hypot(root.x - truth.root[2 * f], root.z - truth.root[2 * f + 1]);
+      if (truth && timed) drive.shownHips(shown);
+      if (truth && timed) hipsDist[count] = Math.hypot(shown[0] - truth.root[2 * f], shown[1] - truth.root[2 * f + 1]);
       count++;
     }
     return { count, runs: (network?.runs ?? 0) - runs0 };
@@ -200,6 +204,7 @@ export async function benchReplay(drive: TrackedDrive, player: RecordingPlayer, 
     predictor: main.name,
     modelRuns: timed.runs,
     rootDistance: truth ? stats(dist, timed.count) : null,
+    hipsDistance: truth ? stats(hipsDist, timed.count) : null,
     headGap: stats(gap, timed.count) ?? { mean: NaN, median: NaN, p95: NaN, max: NaN },
     yawError: { network: truth && network ? stats(yawErr, timed.count) : null, heuristic: null, hmdForward: truth ? stats(hmdErr, timed.count) : null },
     rootDistanceHeuristic: null,

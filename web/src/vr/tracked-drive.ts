@@ -224,7 +224,7 @@ export class TrackedDrive {
     const head = tr.head;
     this.predictedYaw = this.predictor.update(head, tr.left, tr.right, step);
     const bodyYaw = this.bodyYaw(sample, step);
-    this.bodyTracked = bodyYaw === bodyYaw;
+    this.bodyTracked = !Number.isNaN(bodyYaw);
     this.yaw = this.bodyTracked ? bodyYaw : this.predictedYaw;
     const q = head.rotation;
     const heading = headingYaw(q[0], q[1], q[2], q[3]);
@@ -253,7 +253,8 @@ export class TrackedDrive {
     this.hipsDrop = character.drive.hipsDrop * character.metresPerDatabaseUnit;
     this.torsoBend = character.drive.bend;
     character.update(step);
-    this.upperBody?.apply(head, tr.left, tr.right, character.root.yaw);
+    // The spine twists from the way the shown hips face: the tracked hips' while the body drives.
+    this.upperBody?.apply(head, tr.left, tr.right, this.bodyTracked ? this.yaw : character.root.yaw);
     this.lastUpdateMs = performance.now() - t0;
   }
 

@@ -192,6 +192,7 @@ async function main(): Promise<void> {
       hook.mode = 'idle';
       if (hook.frames === 0) scriptedSample(0, sample), (sample.tracked[LEFT] = sample.tracked[RIGHT] = 0);
       sample.time = hook.frames / 60;
+      sample.bodyTracked.fill(0); // no stale body after a session
     }
     hook.inXR = renderer.xr.isPresenting;
     $('try-hint').hidden = hook.mode !== 'idle' || emulated;
@@ -218,16 +219,14 @@ async function main(): Promise<void> {
     if (net) [hook.predictorRuns, hook.predictorSkipped, hook.yawModel] = [net.runs, net.skipped, net.source];
     if (net) hook.predictorFailures = net.failures + (net.fewer?.failures ?? 0);
     hook.hipsHeight = hips ? hips.matrixWorld.elements[13] : NaN;
-    const scale = character.object3d.scale.x;
-    const toes = character.avatar?.toeHeights ?? [NaN, NaN];
-    [hook.toeHeights[0], hook.toeHeights[1]] = [toes[0] * scale, toes[1] * scale];
-    hook.hipsDrop = drive.hipsDrop;
+    const [scale, toes] = [character.object3d.scale.x, character.avatar?.toeHeights ?? [NaN, NaN]];
+    [hook.toeHeights[0], hook.toeHeights[1], hook.hipsDrop] = [toes[0] * scale, toes[1] * scale, drive.hipsDrop];
     if (drive.upperBody) [hook.handErrors[0], hook.handErrors[1]] = drive.upperBody.handError;
-    [hook.trackerStatus[0], hook.trackerStatus[1]] = [tr.status[0], tr.status[LEFT]];
-    hook.trackerStatus[2] = tr.status[RIGHT];
+    for (let k = 0; k < 3; k++) hook.trackerStatus[k] = tr.status[k]; // head, LEFT, RIGHT
     if (drive.upperBody) for (let k = 0; k < 6; k++) hook.hands[k] = drive.upperBody.handPositions[k];
     drive.shownHips(hook.shownHips);
-    const devices = deviceSetName(tr.status, sample.hand, (hook.body = drive.bodyTracked));
+    yaw.showBody((hook.body = drive.bodyTracked));
+    const devices = deviceSetName(tr.status, sample.hand);
     if (devices !== hook.deviceSet) $('devices').textContent = hook.deviceSet = devices;
     hook.updateMs.last = drive.lastUpdateMs;
     if (hook.frames % 30 === 0) {
