@@ -77,7 +77,9 @@ pub struct BuildConfig {
     pub motion_tags: bool,
     /// Frames whose head is lower than this share of the skeleton's standing (rest) head height
     /// are never searched — played only on the way from a frame that was: a tracked (VR) avatar
-    /// takes its crouch and bend from its user's head (`character::crouch`), not from the data.
+    /// takes its bend from its user's head (`character::crouch`), not from the data. Clips tagged
+    /// `crouch` are crouch data: their low frames stay searchable, tagged `crouched`, which the
+    /// runtime searches only while its character crouches.
     pub min_head_height: Option<f64>,
     /// A 100STYLE `Frame_Cuts.csv` (path relative to the config): each `<Style>_<TYPE>.bvh`
     /// without its own `frames` uses the usable window the CSV gives (read by the CLI into

@@ -27,6 +27,13 @@ pub const STYLE_PREFIX: &str = "style:";
 /// The style a character prefers unless told otherwise.
 pub const NEUTRAL_STYLE: &str = "neutral";
 
+/// Crouch data (docs/database.md "Crouch data"): the builder tags the low-head frames of clips
+/// tagged `crouch` with this, and keeps them searchable under `min_head_height`. A character
+/// searches them only while its hips are dropped into a crouch ([`crate::character::legs::Legs::crouched`]),
+/// and never otherwise, so a standing user never gets a crouched body.
+pub const CROUCH_TAG: &str = "crouch";
+pub const CROUCHED_TAG: &str = "crouched";
+
 /// A query resolved against one database's tags (bit `i` = `db.tags[i]`).
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct TagQuery {

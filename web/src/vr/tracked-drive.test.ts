@@ -10,6 +10,7 @@ import * as THREE from 'three';
 import { beforeAll, describe, expect, it } from 'vitest';
 import { Character, Database, initWasmSync } from '../index.ts';
 import { HeadingYawPredictor } from './fallback-yaw.ts';
+import { SCRIPT_DURATION, scriptedSample } from './scripted-motion.ts';
 import { decodeRecording, RecordingPlayer } from './recording.ts';
 import { BODY_ALPHA, TrackedDrive } from './tracked-drive.ts';
 import { HIPS, TrackerSample } from './tracker-sample.ts';
@@ -90,6 +91,39 @@ describe('TrackedDrive with body tracking', () => {
       expect(deg(mean(angles))).toBeLessThan(3);
       expect(jump).toBeLessThan(0.05);
       expect(character.runtime.faults()).toEqual({ rejectedInputs: 0, gaps: 0, recoveries: 0 });
+    } finally {
+      drive.dispose();
+      character.dispose();
+    }
+  });
+
+  it('a crouching user gets a crouched body from the crouch data; a standing one never does', () => {
+    // The scripted user (scripted-motion.ts): stand, walk, side-step, turn, then crouch to 65 %
+    // of their eye height (7.5–8.5 s), hold, stand up (9–10 s).
+    const character = new Character(db);
+    const drive = new TrackedDrive(character, new HeadingYawPredictor());
+    const sample = new TrackerSample();
+    drive.calibrate(1.6);
+    const hips = db.roles.get('hips')!;
+    const h = new THREE.Vector3();
+    let upright = 0, uprightCrouched = 0, deep = 0, deepCrouched = 0, lowest = Infinity, ikAtLowest = NaN;
+    try {
+      for (let f = 0; f * DT <= SCRIPT_DURATION; f++) {
+        scriptedSample(f * DT, sample);
+        drive.update(sample, DT);
+        const crouched = character.tags.includes('crouched');
+        const headDrop = drive.referenceEyeHeight - drive.headCentreHeight;
+        if (headDrop < 0.1) (upright++, (uprightCrouched += crouched ? 1 : 0));
+        if (headDrop > 0.45) (deep++, (deepCrouched += crouched ? 1 : 0));
+        character.jointPosition(hips, h);
+        if (headDrop > 0.45 && h.y < lowest) [lowest, ikAtLowest] = [h.y, drive.hipsDrop];
+      }
+      console.log(`crouch from data: ${deepCrouched} of ${deep} deep-crouch frames play crouched mocap, ${uprightCrouched} of ${upright} upright ones; lowest hips ${lowest.toFixed(2)} m for an asked drop of ${ikAtLowest.toFixed(2)} m (the crouched mocap's own, the legs' IK the rest)`);
+      expect(db.tags.some((t) => t.name === 'crouched')).toBe(true);
+      expect(uprightCrouched).toBe(0);
+      expect(deep).toBeGreaterThan(30);
+      expect(deepCrouched / deep).toBeGreaterThan(0.8);
+      expect(lowest).toBeLessThan(0.75);
     } finally {
       drive.dispose();
       character.dispose();

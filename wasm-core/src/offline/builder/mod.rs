@@ -439,12 +439,13 @@ pub fn build(config: &BuildConfig, sources: &[Source]) -> Result<BuildOutput> {
     // mirrored copies included.
     database.compute_velocities();
     if let Some(ratio) = config.min_head_height {
-        let (excluded, searchable) = exclude_low_heads(&mut database, ratio as f32);
+        let (excluded, searchable, crouched) = exclude_low_heads(&mut database, ratio as f32);
         if searchable == 0 {
             return Err(Error::config(format!("min_head_height {ratio}: no frame has its head that high (the head role is missing or the data never stands)")));
         }
         warnings.push(format!(
-            "min_head_height {ratio}: {excluded} frames with the head lower are not searched ({searchable} are)"
+            "min_head_height {ratio}: {excluded} frames with the head lower are not searched ({searchable} are, {crouched} of them the crouch clips' low frames, tagged `{}`)",
+            crate::tag_query::CROUCHED_TAG
         ));
     }
     // The loader's own value checks: whatever got past the limits above, `build` never returns
@@ -479,14 +480,21 @@ fn ensure_unique_names(clips: &mut [Clip]) {
     }
 }
 
-/// Marks every valid frame whose head is below `ratio` × the rest pose's head height above its
-/// floor as invalid (never searched). Returns (frames excluded, frames still valid); without a
-/// head role nothing is searchable.
-fn exclude_low_heads(db: &mut Database, ratio: f32) -> (usize, usize) {
-    let (Some(head), Some(standing)) = (db.skeleton.site_joint("head"), db.rest_head_height()) else { return (0, 0) };
+/// `min_head_height`: frames whose head is below `ratio` of the rest head height are not
+/// searched — except in clips tagged [`crate::tag_query::CROUCH_TAG`] (crouch data), whose low
+/// frames stay searchable and are tagged [`crate::tag_query::CROUCHED_TAG`]: the runtime searches
+/// them only while its character crouches. Returns (frames excluded, frames searchable, of them
+/// crouched).
+fn exclude_low_heads(db: &mut Database, ratio: f32) -> (usize, usize, usize) {
+    let (Some(head), Some(standing)) = (db.skeleton.site_joint("head"), db.rest_head_height()) else {
+        return (0, 0, 0);
+    };
     let limit = ratio * standing;
     let j = db.num_joints();
     let (mut p, mut r) = (vec![Vec3::ZERO; j], vec![Quat::IDENTITY; j]);
+    let crouch: Vec<(u32, u32)> =
+        db.tags.iter().find(|t| t.name == crate::tag_query::CROUCH_TAG).map_or(Vec::new(), |t| t.ranges.clone());
+    let mut crouched: Vec<(u32, u32)> = Vec::new();
     let mut excluded = 0;
     for f in 0..db.num_frames {
         if db.valid[f] == 0 {
@@ -495,9 +503,21 @@ fn exclude_low_heads(db: &mut Database, ratio: f32) -> (usize, usize) {
         db.forward_kinematics(f, &mut p, &mut r);
         // The virtual root stands on the floor: world height is height above it.
         if p[head].y < limit {
-            db.valid[f] = 0;
-            excluded += 1;
+            let frame = f as u32;
+            if crouch.iter().any(|&(s, e)| (s..e).contains(&frame)) {
+                match crouched.last_mut() {
+                    Some(last) if last.1 == frame => last.1 = frame + 1,
+                    _ => crouched.push((frame, frame + 1)),
+                }
+            } else {
+                db.valid[f] = 0;
+                excluded += 1;
+            }
         }
     }
-    (excluded, db.valid.iter().filter(|&&v| v != 0).count())
+    let low = crouched.iter().map(|&(s, e)| (e - s) as usize).sum();
+    if !crouched.is_empty() {
+        db.tags.push(Tag { name: crate::tag_query::CROUCHED_TAG.to_string(), ranges: crouched });
+    }
+    (excluded, db.valid.iter().filter(|&&v| v != 0).count(), low)
 }

@@ -32,6 +32,17 @@ const FOLLOW_HALFLIFE: f32 = 0.08;
 /// the rest is the root's clamp's (α), or the body would lean out over its feet.
 pub const MAX_FOLLOW_SHIFT: f32 = 0.15;
 
+/// A hips drop beyond this share of the standing hips height is a crouch: the database's crouched
+/// frames are searched ([`crate::tag_query::CROUCHED_TAG`]); back under the lower share, the
+/// upright ones again (hysteresis: a user hovering at the edge does not flip every frame). The
+/// crouch data's crouched idle has the hips at 45–60 % of standing; a quarter is well into a squat.
+const CROUCH_ENTER: f32 = 0.25;
+const CROUCH_LEAVE: f32 = 0.18;
+
+/// Most the legs' IK raises the hips of a crouch from the data that goes deeper than the user
+/// (m): bent knees have that much to give.
+const MAX_CROUCH_RAISE: f32 = 0.15;
+
 /// Most the shown hips turn about the vertical to face as the tracked ones do (rad, 35°): a
 /// pelvis swings ±5–10° in a step; the root's own yaw follows the tracked facing (the clamp).
 const MAX_FOLLOW_TURN: f32 = 35.0 * std::f32::consts::PI / 180.0;
@@ -64,6 +75,13 @@ pub struct Legs {
     /// How far the last update's bend moved the head on the floor (world): the tracked root's
     /// target is that much behind the user's head, where bent-over people's hips are.
     pub bend_shift: Vec3,
+    /// The hips are dropped into a crouch ([`CROUCH_ENTER`]): crouched frames are searched, and
+    /// the drop by IK is only what the animation's own hips do not already go down.
+    pub crouched: bool,
+    /// The hips' and the head's heights in the rest pose (standing, above its lowest joint), m;
+    /// 0 without them.
+    rest_hips_height: f32,
+    rest_head_height: f32,
     /// Body tracking: the user's hips on the floor (world) and the way they face (yaw, rad),
     /// which the shown hips are moved and turned onto this update; `None`: the animation's hips.
     pub follow: Option<(Vec3, f32)>,
@@ -86,6 +104,7 @@ impl Persist for Legs {
         self.locks.persist(v, "");
         self.hips_drop.persist(v, "hips drop");
         self.applied_shift.persist(v, "applied hips shift");
+        self.crouched.persist(v, "crouched");
         self.follow_weight.persist(v, "hips follow weight");
         self.follow_last.0.persist(v, "followed hips");
         self.follow_last.1.persist(v, "followed hips yaw");
@@ -148,6 +167,10 @@ impl Legs {
             hips_drop: 0.0,
             hips_range: hips.map_or(0..0, |h| subtree_range(parents, h)),
             hips,
+            crouched: false,
+            // Above the rest pose's lowest joint (its toes on the floor).
+            rest_hips_height: hips.map_or(0.0, |h| height_at_rest(db, h)),
+            rest_head_height: head.map_or(0.0, |h| height_at_rest(db, h)),
             follow: None,
             follow_weight: 0.0,
             follow_last: (Vec3::ZERO, 0.0),
@@ -188,6 +211,13 @@ impl Legs {
             pose.positions[h] -= self.applied_shift;
             self.applied_shift = Vec3::ZERO;
         }
+    }
+
+    /// Moves the crouch state on from the hips drop; returns whether it changed (a search is due).
+    pub fn update_crouched(&mut self) -> bool {
+        let h = self.rest_hips_height;
+        let crouched = h > 0.0 && self.hips_drop > if self.crouched { CROUCH_LEAVE } else { CROUCH_ENTER } * h;
+        std::mem::replace(&mut self.crouched, crouched) != crouched
     }
 
     /// Forgets any tracked hips: the next update shows the animation's (a recovery).
@@ -342,10 +372,24 @@ impl Legs {
         let dropped = match self.hips {
             Some(h) if self.hips_drop > 0.0 => {
                 // The root is a pure yaw, so the hips' local y is world height above the root.
-                let drop = self.hips_drop.min(0.6 * pose.positions[h].y.max(0.0));
+                let y = pose.positions[h].y.max(0.0);
+                // Crouched, the animation (crouch data) is already down: the legs' IK takes the
+                // hips only the rest of the way to where the user's head is — measured at the
+                // head, since a crouching body leans and its head goes down further than its
+                // hips — or raises them by up to `MAX_CROUCH_RAISE` where the mocap crouches
+                // deeper than the user.
+                let drop = match (self.crouched, self.head) {
+                    (true, Some(hd)) => {
+                        let animated = self.rest_head_height - (pose.world_positions[hd].y - pose.positions[0].y);
+                        (self.hips_drop - animated.max(0.0)).max(-MAX_CROUCH_RAISE)
+                    }
+                    (true, None) => self.hips_drop - (self.rest_hips_height - y).max(0.0),
+                    (false, _) => self.hips_drop,
+                }
+                .min(0.6 * y);
                 pose.positions[h].y -= drop;
                 self.applied_shift.y -= drop;
-                drop > 0.0
+                drop != 0.0
             }
             _ => false,
         };
@@ -396,6 +440,12 @@ impl Legs {
             }
         }
     }
+}
+
+/// Joint `j`'s height in the rest pose above its lowest joint.
+fn height_at_rest(db: &Database, j: usize) -> f32 {
+    let rest = db.rest_positions();
+    rest[j].y - rest.iter().map(|p| p.y).fold(f32::INFINITY, f32::min)
 }
 
 /// Whether joint `j` is in the subtree of `root` (parents precede children).

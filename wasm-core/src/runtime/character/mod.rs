@@ -432,6 +432,9 @@ impl Character {
             self.schedule.force = true;
         }
         self.legs.undo_drop(&mut self.pose);
+        if self.legs.update_crouched() {
+            self.schedule.force = true;
+        }
         self.update_head_offset(dt);
         let s = &self.settings;
         let thresholds = (s.velocity_change_threshold, s.rotation_change_threshold);
@@ -576,7 +579,7 @@ impl Character {
         );
         let speed = self.settings.idle_exclude_speed;
         let moving = speed > 0.0 && self.simulation.velocity.length() > speed && !self.schedule.switching;
-        let tags = Schedule::tag_query(db, &self.settings, moving);
+        let tags = Schedule::tag_query(db, &self.settings, moving, self.legs.crouched);
         if let Outcome::Jump(frame) =
             self.schedule.search(index, &self.settings, self.frame, &self.query, &mut self.stats, tags)
         {

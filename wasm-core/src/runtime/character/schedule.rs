@@ -76,7 +76,10 @@ impl Schedule {
     /// frames tagged `idle` excluded while the character is asked to move (`moving`: faster
     /// than `idle_exclude_speed`) so a walking user is never matched with standing frames.
     /// Resolved per search, by name, so it follows a database switch; allocates nothing.
-    pub fn tag_query(db: &Database, settings: &CharacterSettings, moving: bool) -> TagQuery {
+    /// `crouched`: the character's hips are dropped into a crouch (a tracked user crouching):
+    /// the database's crouched frames are then required, else excluded; idle frames are not
+    /// excluded while crouched (the crouch data is mostly crouched idle).
+    pub fn tag_query(db: &Database, settings: &CharacterSettings, moving: bool, crouched: bool) -> TagQuery {
         let mut query = TagQuery::resolve(
             db,
             settings.require_tags.iter().map(String::as_str),
@@ -85,7 +88,12 @@ impl Schedule {
             &settings.style,
             settings.style_bias,
         );
-        if moving {
+        match tag_bit(db, crate::tag_query::CROUCHED_TAG) {
+            Some(bit) if crouched => query.require |= bit,
+            Some(bit) => query.exclude |= bit,
+            None => {}
+        }
+        if moving && !(crouched && query.require != 0) {
             query.exclude |= tag_bit(db, "idle").unwrap_or(0);
         }
         query
