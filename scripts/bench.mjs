@@ -278,6 +278,21 @@ async function vrBenchmark(log) {
   const only = args.includes('--recordings') ? args[args.indexOf('--recordings') + 1].split(',').map((n) => n.replace(/\.json$/, '') + '.json') : null;
   const names = JSON.parse(fs.readFileSync(index, 'utf8')).filter((n) => !only || only.includes(n));
   const alpha = args.includes('--alpha') ? Number(args[args.indexOf('--alpha') + 1]) : 0.3;
+  // --lopo: each recording's body yaw from the network that never saw its person
+  // (public/models/lopo/<person>.onnx: `python -m orientation.lopo --onnx ../public/models/lopo`);
+  // --model URL: one network for all (e.g. models/orientation.onnx alone, the same-sitting
+  // baseline: a model URL turns the page's per-device-set mix off).
+  const model = args.includes('--model') ? args[args.indexOf('--model') + 1] : null;
+  const manifest = JSON.parse(fs.readFileSync(path.join(ROOT, '..', 'shared', 'mocap', 'manifest.json'), 'utf8'));
+  const entries = Array.isArray(manifest) ? manifest : manifest.files;
+  const personOf = (source) => entries.find((e) => source.startsWith(`${e.folder}/${e.file.replace(/\.bvh$/, '')}`))?.person;
+  const modelParam = (meta) => {
+    if (model) return `&model=${encodeURIComponent(model)}`;
+    if (!args.includes('--lopo')) return '';
+    const person = personOf(String(meta.source ?? ''));
+    const found = person && fs.existsSync(path.join(ROOT, 'public', 'models', 'lopo', `${person}.onnx`));
+    return found ? `&model=models/lopo/${person}.onnx` : null; // no fold for this person: skipped
+  };
   const server = await startVite();
   const browser = await launchBenchChromium({ webgl: true });
   const rows = [];
@@ -286,12 +301,18 @@ async function vrBenchmark(log) {
       const page = await browser.newPage({ viewport: { width: 320, height: 200 } });
       const errors = [];
       page.on('pageerror', (e) => errors.push(e.message));
-      await page.goto(`${server.resolvedUrls.local[0]}vr.html?replay=recordings/${name}&bench=1&mirror=0&alpha=${alpha}`);
+      const meta = JSON.parse(fs.readFileSync(path.join(dir, name), 'utf8')).meta ?? {};
+      const modelArg = modelParam(meta);
+      if (modelArg === null) {
+        log(`--lopo: no fold network for ${name} (${meta.source}): skipped`);
+        await page.close();
+        continue;
+      }
+      await page.goto(`${server.resolvedUrls.local[0]}vr.html?replay=recordings/${name}&bench=1&mirror=0&alpha=${alpha}${modelArg}`);
       await page.waitForFunction(() => window.__vr?.ready || window.__vr?.error, null, { timeout: 600_000, polling: 250 });
       const r = await page.evaluate(() => ({ error: window.__vr.error, bench: window.__vr.bench, isolated: crossOriginIsolated }));
       await page.close();
       if (r.error || errors.length) throw new Error(`vr.html replay ${name}: ${[r.error, ...errors].filter(Boolean).join('\n')}`);
-      const meta = JSON.parse(fs.readFileSync(path.join(dir, name), 'utf8')).meta ?? {};
       rows.push({ name, heldIn: meta.heldIn !== false, body: meta.bodyTracking === true, isolated: r.isolated, ...r.bench });
     }
     return { alpha, chromium: browser.version(), load_average_1min: os.loadavg()[0], recordings: rows };

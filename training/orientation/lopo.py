@@ -530,6 +530,7 @@ def run(
     weights: Path | None = None,
     time_budget: float | None = None,
     devices: bool = False,
+    onnx_dir: Path | None = None,
 ) -> dict:
     """Train the folds (and, with `weights`, the member that sees everybody) and score them. `clips`: already loaded (`unpack_clips`) instead of built from the manifest."""
     cfg = cfg or MODELS["main"]
@@ -564,6 +565,15 @@ def run(
             if k < len(members)
         }
         np.savez(weights, folds=np.array(json.dumps(folds + ["everyone"])), **states)
+    if onnx_dir:
+        # Each fold's network as the page loads one (`vr.html?model=`): the replays of a person's
+        # recordings run on the network that never saw them (`npm run bench -- --vr --lopo`).
+        from .model import export_onnx
+
+        for k, person in enumerate(folds):
+            meta = {"held_out_person": person, "trained_on": ",".join(n for n in names if n != person)}
+            export_onnx(nets.member(k), onnx_dir / f"{person}.onnx", meta)
+            log(f"wrote {onnx_dir / f'{person}.onnx'}")
     results = {}
     for look, cond in zip((True, False), CONDITIONS):
         aug = EVAL_AUGMENT if look else without_look_around(EVAL_AUGMENT)
@@ -611,6 +621,9 @@ def main(argv=None) -> int:
     ap.add_argument("--clips", type=Path, help="read the clips from a --pack file instead of the mocap")
     ap.add_argument("--device", default="cpu", help="train on this torch device (cuda: the folds' rollouts)")
     ap.add_argument("--weights", type=Path, help="also train on everybody; write every member's weights (.npz)")
+    ap.add_argument(
+        "--onnx", type=Path, help="write each fold's network to this folder as <person>.onnx (the VR bench's --lopo)"
+    )
     args = ap.parse_args(argv)
     if hasattr(sys.stdout, "reconfigure"):
         sys.stdout.reconfigure(line_buffering=True)
@@ -643,6 +656,7 @@ def main(argv=None) -> int:
         weights=args.weights,
         time_budget=args.time_budget,
         devices=args.devices,
+        onnx_dir=args.onnx,
     )
     print()
     print(table(results))
