@@ -74,11 +74,8 @@ export const BODY_ALPHA = 0.1;
 /** Smoothing of the tracked hips' ground velocity (half-life, s): body tracking jitters a little every frame. */
 const HIPS_VELOCITY_HALFLIFE = 0.05;
 
-/** Body joint pairs a facing is read from, left then right (`BODY_JOINTS` indices): the hip joints, else the shoulders. */
-const FACING_PAIRS = [
-  [1, 2],
-  [3, 4],
-] as const;
+/** Body joints a facing is read from, in pairs left then right (`BODY_JOINTS` indices): the hip joints, else the shoulders. */
+const FACING_PAIRS = [1, 2, 3, 4] as const;
 const _h = new THREE.Vector3(), _l = new THREE.Vector3(), _r = new THREE.Vector3();
 
 export class TrackedDrive {
@@ -205,7 +202,8 @@ export class TrackedDrive {
     this.hipsFloor[0] = x;
     this.hipsFloor[1] = z;
     this.hadHips = true;
-    for (const [l, r] of FACING_PAIRS) {
+    for (let k = 0; k < FACING_PAIRS.length; k += 2) {
+      const l = FACING_PAIRS[k], r = FACING_PAIRS[k + 1];
       if (!tracked[l] || !tracked[r]) continue;
       // (lx, ly, lz) × (0, 1, 0) = (−lz, 0, lx) with l = left − right.
       const lx = p[3 * l] - p[3 * r], lz = p[3 * l + 2] - p[3 * r + 2];

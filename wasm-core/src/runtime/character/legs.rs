@@ -30,7 +30,7 @@ const FOLLOW_HALFLIFE: f32 = 0.08;
 
 /// Farthest the shown hips move from where the animation has them to reach tracked hips (m):
 /// the rest is the root's clamp's (α), or the body would lean out over its feet.
-pub const MAX_FOLLOW_SHIFT: f32 = 0.15;
+const MAX_FOLLOW_SHIFT: f32 = 0.15;
 
 /// A hips drop beyond this share of the standing hips height is a crouch: the database's crouched
 /// frames are searched ([`crate::tag_query::CROUCHED_TAG`]); back under the lower share, the
@@ -76,7 +76,7 @@ pub struct Legs {
     /// target is that much behind the user's head, where bent-over people's hips are.
     pub bend_shift: Vec3,
     /// The hips are dropped into a crouch ([`CROUCH_ENTER`]): crouched frames are searched, and
-    /// the drop by IK is only what the animation's own hips do not already go down.
+    /// the IK drop is only what the animation's own head does not already go down.
     pub crouched: bool,
     /// The hips' and the head's heights in the rest pose (standing, above its lowest joint), m;
     /// 0 without them.
