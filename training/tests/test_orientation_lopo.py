@@ -48,15 +48,22 @@ def test_people_come_from_the_manifest(mocap):
         data.load_people(["nobody"])
 
 
-def test_the_reduced_leave_one_person_out_run():
+def test_the_reduced_leave_one_person_out_run(tmp_path):
     """CI's form: four small people, two folds, a few batches. Every fold is scored on its own
-    person only, in both conditions, and the table has a row per person and the mean."""
+    person only, in both conditions, and the table has a row per person and the mean; each
+    fold's network is written as the page loads one (`--onnx`, the VR bench's `--lopo`)."""
     cfg = lopo.MODELS["main"]
     from dataclasses import replace
 
     cfg = replace(cfg, epochs=2, max_batches_per_epoch=30)
     names = ["cmu-05", "cmu-06", "cmu-10", "cmu-12"]
-    res = lopo.run(names, ["cmu-05", "cmu-12"], cfg, jobs=2, log=lambda *_: None)
+    res = lopo.run(names, ["cmu-05", "cmu-12"], cfg, jobs=2, log=lambda *_: None, onnx_dir=tmp_path)
+    import onnx
+
+    for person in ("cmu-05", "cmu-12"):
+        model = onnx.load(tmp_path / f"{person}.onnx")
+        meta = {p.key: p.value for p in model.metadata_props}
+        assert meta["held_out_person"] == person and person not in meta["trained_on"].split(",")
     for cond in lopo.CONDITIONS:
         per = res[cond]["people"]
         assert list(per) == ["cmu-05", "cmu-12"]

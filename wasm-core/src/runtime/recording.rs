@@ -37,10 +37,7 @@ impl Recording {
         if o.get("version").and_then(Value::as_f64) != Some(1.0) {
             return Err(format!("unsupported version {} (this page reads version 1)", shown(o.get("version"))));
         }
-        let numbers = |name: &str| -> Result<Vec<f64>, String> {
-            let a = o.get(name).and_then(Value::as_array).ok_or(format!("\"{name}\" must be an array of numbers"))?;
-            a.iter().enumerate().map(|(i, x)| x.as_f64().ok_or(format!("\"{name}\"[{i}] is not a number"))).collect()
-        };
+        let numbers = |name: &str| numbers_in(o, "", name);
         if o.get("meta").is_some_and(|m| !m.is_object()) {
             return Err("\"meta\" must be an object".into());
         }
@@ -74,16 +71,7 @@ impl Recording {
             if joints.is_empty() || !joints.iter().all(Value::is_string) {
                 return Err("\"body.joints\" must be an array of names".into());
             }
-            let arr = |name: &str| -> Result<Vec<f64>, String> {
-                let a = b
-                    .get(name)
-                    .and_then(Value::as_array)
-                    .ok_or(format!("\"body.{name}\" must be an array of numbers"))?;
-                a.iter()
-                    .enumerate()
-                    .map(|(i, x)| x.as_f64().ok_or(format!("\"body.{name}\"[{i}] is not a number")))
-                    .collect()
-            };
+            let arr = |name: &str| numbers_in(b, "body.", name);
             let flags: Vec<u8> =
                 arr("tracked")?.into_iter().map(|t| if t == 0.0 || t == 1.0 { t as u8 } else { 255 }).collect();
             validate_body(frames, joints.len(), &arr("position")?, &arr("rotation")?, &flags)?;
@@ -112,6 +100,16 @@ impl Recording {
     pub fn num_frames(&self) -> usize {
         self.time.len()
     }
+}
+
+/// `obj[name]` as numbers, or what is wrong with it as the page says it (`"body.position"[4] is
+/// not a number`); `prefix` names the object (`body.`).
+fn numbers_in(obj: &serde_json::Map<String, serde_json::Value>, prefix: &str, name: &str) -> Result<Vec<f64>, String> {
+    let a = obj
+        .get(name)
+        .and_then(serde_json::Value::as_array)
+        .ok_or(format!("\"{prefix}{name}\" must be an array of numbers"))?;
+    a.iter().enumerate().map(|(i, x)| x.as_f64().ok_or(format!("\"{prefix}{name}\"[{i}] is not a number"))).collect()
 }
 
 /// Trackers per recorded frame: head, left grip, right grip.

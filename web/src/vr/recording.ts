@@ -111,13 +111,15 @@ function fromJson(text: string, source: string): Recording {
   const o = data as Record<string, unknown>;
   if (o.format !== RECORDING_FORMAT) fail(`"format" must be "${RECORDING_FORMAT}" (got ${JSON.stringify(o.format)})`);
   if (o.version !== RECORDING_VERSION) fail(`unsupported version ${JSON.stringify(o.version)} (this page reads version ${RECORDING_VERSION})`);
-  const numbers = (name: string): number[] => {
-    const v = o[name];
-    if (!Array.isArray(v)) fail(`"${name}" must be an array of numbers`);
+  // `obj[name]` as numbers, or what is wrong with it (`"body.position"[4] is not a number`).
+  const numbersIn = (obj: Record<string, unknown>, prefix: string, name: string): number[] => {
+    const v = obj[name];
+    if (!Array.isArray(v)) fail(`"${prefix}${name}" must be an array of numbers`);
     const a = v as unknown[];
-    for (let i = 0; i < a.length; i++) if (typeof a[i] !== 'number') fail(`"${name}"[${i}] is not a number`);
+    for (let i = 0; i < a.length; i++) if (typeof a[i] !== 'number') fail(`"${prefix}${name}"[${i}] is not a number`);
     return a as number[];
   };
+  const numbers = (name: string): number[] => numbersIn(o, '', name);
   const meta = o.meta ?? {};
   if (typeof meta !== 'object' || meta === null || Array.isArray(meta)) fail('"meta" must be an object');
   const frames = o.frames;
@@ -139,13 +141,7 @@ function fromJson(text: string, source: string): Recording {
     if (typeof b !== 'object' || b === null || Array.isArray(b)) fail('"body" must be an object');
     const joints = b.joints;
     if (!Array.isArray(joints) || joints.length === 0 || joints.some((j) => typeof j !== 'string')) fail('"body.joints" must be an array of names');
-    const arr = (name: string): number[] => {
-      const v = b[name];
-      if (!Array.isArray(v)) fail(`"body.${name}" must be an array of numbers`);
-      const a = v as unknown[];
-      for (let i = 0; i < a.length; i++) if (typeof a[i] !== 'number') fail(`"body.${name}"[${i}] is not a number`);
-      return a as number[];
-    };
+    const arr = (name: string): number[] => numbersIn(b, 'body.', name);
     body = {
       joints: joints as string[],
       position: Float64Array.from(arr('position')),
