@@ -16,6 +16,15 @@ export function yawOf(x: number, z: number): number {
 }
 
 /**
+ * Facing yaw (0 = +Z) of a body from the line between its left and right joints (hips or
+ * shoulders), `(dx, dz)` = left − right on the floor: forward = (left − right) × up = (−dz, 0, dx),
+ * the database builder's virtual-root rule.
+ */
+export function facingYaw(dx: number, dz: number): number {
+  return Math.atan2(-dz, dx);
+}
+
+/**
  * Heading yaw of a head-mounted display with rotation (x, y, z, w): where its view direction
  * (−Z) points on the floor. Looking straight down or up the view direction has no horizontal
  * part, so the head's up axis fills in (it points forward when looking down, backward when

@@ -180,8 +180,10 @@ export async function benchReplay(drive: TrackedDrive, player: RecordingPlayer, 
         [last[0], last[1], last[2], last[3]] = [drive.headFloor[0], drive.headFloor[1], root.x, root.z];
       }
       if (truth) dist[count] = Math.hypot(root.x - truth.root[2 * f], root.z - truth.root[2 * f + 1]);
-      if (truth && timed) drive.shownHips(shown);
-      if (truth && timed) hipsDist[count] = Math.hypot(shown[0] - truth.root[2 * f], shown[1] - truth.root[2 * f + 1]);
+      if (truth && timed) {
+        drive.shownHips(shown);
+        hipsDist[count] = Math.hypot(shown[0] - truth.root[2 * f], shown[1] - truth.root[2 * f + 1]);
+      }
       count++;
     }
     return { count, runs: (network?.runs ?? 0) - runs0 };

@@ -9,6 +9,7 @@ import path from 'node:path';
 import * as THREE from 'three';
 import { beforeAll, describe, expect, it } from 'vitest';
 import { Character, Database, initWasmSync } from '../index.ts';
+import { facingYaw, wrapAngle } from '../yaw.ts';
 import { HeadingYawPredictor } from './fallback-yaw.ts';
 import { SCRIPT_DURATION, scriptedSample } from './scripted-motion.ts';
 import { decodeRecording, RecordingPlayer } from './recording.ts';
@@ -24,14 +25,6 @@ beforeAll(() => {
   db = Database.fromBytes(new Uint8Array(fs.readFileSync(path.join(ROOT, 'public/databases/vr.mmdb'))), 'vr.mmdb');
 });
 
-/** Heading of the line from the right to the left joint turned a quarter (the builder's rule), rad. */
-function facing(left: THREE.Vector3, right: THREE.Vector3): number {
-  return Math.atan2(-(left.z - right.z), left.x - right.x);
-}
-
-function wrap(a: number): number {
-  return a - 2 * Math.PI * Math.round(a / (2 * Math.PI));
-}
 
 describe('TrackedDrive with body tracking', () => {
   it('keeps the shown hips on the tracked ones; losing and regaining the body is smooth', () => {
@@ -74,8 +67,8 @@ describe('TrackedDrive with body tracking', () => {
           roots.push(Math.hypot(character.root.x - p[3 * HIPS], character.root.z - p[3 * HIPS + 2]));
           character.jointPosition(left, l);
           character.jointPosition(right, r);
-          const tracked = Math.atan2(-(p[5] - p[8]), p[3] - p[6]);
-          angles.push(Math.abs(wrap(facing(l, r) - tracked)));
+          const tracked = facingYaw(p[3] - p[6], p[5] - p[8]);
+          angles.push(Math.abs(wrapAngle(facingYaw(l.x - r.x, l.z - r.z) - tracked)));
         }
       }
       const mean = (a: number[]) => a.reduce((s, v) => s + v, 0) / a.length;

@@ -31,7 +31,7 @@
 import * as THREE from 'three';
 import type { Character } from '../character/character.ts';
 import type { RuntimeSettings } from '../core/character.ts';
-import { headingYaw } from '../yaw.ts';
+import { facingYaw, headingYaw } from '../yaw.ts';
 import type { BodyYawPredictor } from './body-yaw.ts';
 import { HIPS, type TrackerSample } from './tracker-sample.ts';
 import { TrackerState } from './trackers.ts';
@@ -107,6 +107,8 @@ export class TrackedDrive {
   /** The network's (or heuristic's) yaw of the last frame, also while the body drives. */
   predictedYaw = 0;
   private hadHips = false;
+  /** Whether α was last set for a tracked body (`BODY_ALPHA`): it changes with the body only. */
+  private alphaForBody = false;
   /** α in room metres. */
   private alpha = DEFAULT_ALPHA;
 
@@ -143,7 +145,8 @@ export class TrackedDrive {
   /** α (room m): how far the avatar root may be from the head's floor projection. */
   setAlpha(alpha: number): void {
     this.alpha = alpha;
-    this.character.setAlpha(alpha);
+    this.alphaForBody = this.bodyTracked;
+    this.character.setAlpha(this.bodyTracked ? Math.min(alpha, BODY_ALPHA) : alpha);
   }
 
   get clampDistance(): number {
@@ -205,10 +208,9 @@ export class TrackedDrive {
     for (let k = 0; k < FACING_PAIRS.length; k += 2) {
       const l = FACING_PAIRS[k], r = FACING_PAIRS[k + 1];
       if (!tracked[l] || !tracked[r]) continue;
-      // (lx, ly, lz) × (0, 1, 0) = (−lz, 0, lx) with l = left − right.
       const lx = p[3 * l] - p[3 * r], lz = p[3 * l + 2] - p[3 * r + 2];
       if (lx * lx + lz * lz < 1e-6) continue;
-      return Math.atan2(-lz, lx);
+      return facingYaw(lx, lz);
     }
     return NaN;
   }
@@ -242,11 +244,10 @@ export class TrackedDrive {
     const character = this.character;
     if (this.bodyTracked) {
       character.setTracked(this.hipsFloor[0], this.hipsFloor[1], this.hipsVelocity[0], this.hipsVelocity[1], this.yaw, true);
-      character.setAlpha(Math.min(this.alpha, BODY_ALPHA));
     } else {
       character.setTracked(this.headFloor[0], this.headFloor[1], head.velocity[0], head.velocity[2], this.yaw);
-      character.setAlpha(this.alpha);
     }
+    if (this.bodyTracked !== this.alphaForBody) this.setAlpha(this.alpha);
     character.setCrouch(d, this.headsetPitch);
     this.hipsDrop = character.drive.hipsDrop * character.metresPerDatabaseUnit;
     this.torsoBend = character.drive.bend;
@@ -272,7 +273,7 @@ export class TrackedDrive {
     const h = at('hips', _h), l = at('left_upper_leg', _l), r = at('right_upper_leg', _r);
     out[0] = h.x;
     out[1] = h.z;
-    out[2] = Math.atan2(-(l.z - r.z), l.x - r.x);
+    out[2] = facingYaw(l.x - r.x, l.z - r.z);
   }
 
   dispose(): void {

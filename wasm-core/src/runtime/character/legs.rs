@@ -139,10 +139,12 @@ impl Legs {
             }
         }
         let head = db.skeleton.site_joint("head");
+        // The rest pose once (an FK pass): the torso's segments and the standing heights.
+        let rest = db.rest_positions();
+        let floor = rest.iter().map(|p| p.y).fold(f32::INFINITY, f32::min);
         let mut segments = [(0.0, 0.0); 3];
         let torso = match (hips, head, spine_count) {
             (Some(h), Some(hd), 1..) => {
-                let rest = db.rest_positions();
                 // Facing at rest: (left hip − right hip) × up, the builder's virtual-root rule.
                 let forward = match &legs {
                     [Some(l), Some(r)] => {
@@ -169,8 +171,8 @@ impl Legs {
             hips,
             crouched: false,
             // Above the rest pose's lowest joint (its toes on the floor).
-            rest_hips_height: hips.map_or(0.0, |h| height_at_rest(db, h)),
-            rest_head_height: head.map_or(0.0, |h| height_at_rest(db, h)),
+            rest_hips_height: hips.map_or(0.0, |h| rest[h].y - floor),
+            rest_head_height: head.map_or(0.0, |h| rest[h].y - floor),
             follow: None,
             follow_weight: 0.0,
             follow_last: (Vec3::ZERO, 0.0),
@@ -440,12 +442,6 @@ impl Legs {
             }
         }
     }
-}
-
-/// Joint `j`'s height in the rest pose above its lowest joint.
-fn height_at_rest(db: &Database, j: usize) -> f32 {
-    let rest = db.rest_positions();
-    rest[j].y - rest.iter().map(|p| p.y).fold(f32::INFINITY, f32::min)
 }
 
 /// Whether joint `j` is in the subtree of `root` (parents precede children).
