@@ -16,6 +16,7 @@ import { createHash } from 'node:crypto';
 import fs from 'node:fs';
 import path from 'node:path';
 import { fileURLToPath } from 'node:url';
+import { promisify } from 'node:util';
 import zlib from 'node:zlib';
 
 const ROOT = path.resolve(path.dirname(fileURLToPath(import.meta.url)), '..');
@@ -39,9 +40,14 @@ function walk(dir, out = []) {
   return out;
 }
 
+// Asynchronous: zlib runs them on libuv's thread pool, so the files encode side by side (a fresh
+// build's brotli 11 on one core was the setup's longest single-threaded tail).
+const brotliCompress = promisify(zlib.brotliCompress);
+const gzipCompress = promisify(zlib.gzip);
+
 function brotli(bytes) {
   const big = bytes.length > BIG;
-  return zlib.brotliCompressSync(bytes, {
+  return brotliCompress(bytes, {
     params: {
       [zlib.constants.BROTLI_PARAM_QUALITY]: big ? 5 : 11,
       [zlib.constants.BROTLI_PARAM_LGWIN]: 24,
@@ -50,7 +56,7 @@ function brotli(bytes) {
   });
 }
 
-const gzip = (bytes) => zlib.gzipSync(bytes, { level: bytes.length > BIG ? 6 : 9 });
+const gzip = (bytes) => gzipCompress(bytes, { level: bytes.length > BIG ? 6 : 9 });
 
 const t0 = performance.now();
 fs.mkdirSync(CACHE, { recursive: true });
@@ -60,6 +66,7 @@ let cached = 0;
 let rawTotal = 0;
 let brTotal = 0;
 const hashes = new Map();
+const jobs = [];
 for (const file of files) {
   if (/\.(br|gz)$/.test(file)) continue;
   const bytes = fs.readFileSync(file);
@@ -67,28 +74,30 @@ for (const file of files) {
   hashes.set(path.relative(DIST, file).split(path.sep).join('/'), hash);
   if (!COMPRESSIBLE.test(file) || bytes.length < 1024) continue;
   for (const [ext, encode] of [['.br', brotli], ['.gz', gzip]]) {
-    const out = file + ext;
-    const key = path.join(CACHE, `${hash}.${bytes.length > BIG ? 'b5g6' : 'b11g9'}${ext}`); // content and settings
-    let encoded;
-    if (fs.existsSync(key)) {
-      encoded = fs.readFileSync(key);
-      cached++;
-    } else {
-      encoded = encode(bytes);
-      fs.writeFileSync(key, encoded);
-      written++;
-    }
-    if (ext === '.br') {
-      rawTotal += bytes.length;
-      brTotal += Math.min(bytes.length, encoded.length);
-    }
-    if (encoded.length > bytes.length * 0.95) {
-      fs.rmSync(out, { force: true });
-      continue;
-    }
-    fs.writeFileSync(out, encoded);
+    jobs.push(
+      (async () => {
+        const out = file + ext;
+        const key = path.join(CACHE, `${hash}.${bytes.length > BIG ? 'b5g6' : 'b11g9'}${ext}`); // content and settings
+        let encoded;
+        if (fs.existsSync(key)) {
+          encoded = fs.readFileSync(key);
+          cached++;
+        } else {
+          encoded = await encode(bytes);
+          fs.writeFileSync(key, encoded);
+          written++;
+        }
+        if (ext === '.br') {
+          rawTotal += bytes.length;
+          brTotal += Math.min(bytes.length, encoded.length);
+        }
+        if (encoded.length > bytes.length * 0.95) fs.rmSync(out, { force: true });
+        else fs.writeFileSync(out, encoded);
+      })(),
+    );
   }
 }
+await Promise.all(jobs);
 
 // The service worker: its shell list is every page, script, style and small asset of the site
 // (not the databases, avatars, recordings or onnxruntime's 14 MB module, which are cached as
@@ -101,7 +110,7 @@ const shell = [...hashes.keys()]
 const version = sha([...hashes.entries()].sort().map(([f, h]) => `${f} ${h}`).join('\n')).slice(0, 16);
 const sw = template.replace('self.__MM_VERSION__', JSON.stringify(version)).replace('self.__MM_SHELL__', JSON.stringify(['./', ...shell]));
 fs.writeFileSync(path.join(DIST, 'sw.js'), sw);
-for (const [ext, encode] of [['.br', brotli], ['.gz', gzip]]) fs.writeFileSync(path.join(DIST, `sw.js${ext}`), encode(Buffer.from(sw)));
+for (const [ext, encode] of [['.br', brotli], ['.gz', gzip]]) fs.writeFileSync(path.join(DIST, `sw.js${ext}`), await encode(Buffer.from(sw)));
 
 const mb = (n) => (n / 1e6).toFixed(1);
 console.log(

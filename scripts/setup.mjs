@@ -221,7 +221,7 @@ function otherWasmBindgenInstalls() {
   return pids;
 }
 
-async function stepWasmBindgen() {
+async function stepWasmBindgen(logFile) {
   await step('wasm-bindgen', 'wasm-bindgen CLI', async () => {
     const want = pinnedWasmBindgenVersion();
     const current = () => probe(wasmBindgenBin(), ['--version']).stdout.trim().split(/\s+/)[1];
@@ -244,10 +244,10 @@ async function stepWasmBindgen() {
     // --force: cargo's own record may say it is installed when the binary is gone.
     const install = ['install', 'wasm-bindgen-cli', '--version', `=${want}`, '--debug', '--force'];
     try {
-      await run('cargo', [...install, '--locked']);
+      await run('cargo', [...install, '--locked'], { logFile });
     } catch {
       log('  --locked install failed; retrying with freshly resolved dependencies');
-      await run('cargo', install);
+      await run('cargo', install, { logFile });
     }
     if (current() !== want) throw new StepError(`wasm-bindgen --version still does not report ${want} after install`);
   });
@@ -379,12 +379,16 @@ async function stepDist() {
     if (mtime(stamp) > Math.max(...inputs)) return 'dist/ is newer than its sources';
     const vite = path.join(ROOT, 'node_modules', '.bin', 'vite');
     fs.rmSync(dist, { recursive: true, force: true });
-    // The site (every page, public/ copied beside it), then the standalone element and the
-    // module for bundlers next to it (vite.config.ts has the three modes), then types.
-    await run(vite, ['build', '--logLevel', 'warn']);
-    await run(vite, ['build', '--mode', 'element', '--logLevel', 'warn']);
-    await run(vite, ['build', '--mode', 'lib', '--logLevel', 'warn']);
-    await run(path.join(ROOT, 'node_modules', '.bin', 'tsc'), ['-p', 'tsconfig.lib.json']);
+    // The site (every page, public/ copied beside it), the standalone element and the module
+    // for bundlers next to it (vite.config.ts has the three modes), and types.
+    // Side by side: they write to different files (only the site copies public/; the module
+    // build empties dist/lib/ alone) and each has single-threaded stretches.
+    await Promise.all([
+      run(vite, ['build', '--logLevel', 'warn']),
+      run(vite, ['build', '--mode', 'element', '--logLevel', 'warn']),
+      run(vite, ['build', '--mode', 'lib', '--logLevel', 'warn']),
+      run(path.join(ROOT, 'node_modules', '.bin', 'tsc'), ['-p', 'tsconfig.lib.json']),
+    ]);
     fs.mkdirSync(path.join(dist, 'examples'), { recursive: true });
     for (const f of embedExamples()) fs.copyFileSync(f, path.join(dist, 'examples', path.basename(f)));
     // .br/.gz beside every compressible file (cached by content hash) and the service worker.
@@ -438,14 +442,23 @@ async function stepNats() {
 }
 
 /**
- * The venv is mostly downloading and unpacking PyTorch's wheels (~3 min on a bare machine), so
- * `npm test` runs it beside the Rust builds (which keep both cores busy) with its output in a file.
+ * uv installs the venv's wheels: PyTorch's ~3 GB (its CUDA libraries come with it from PyPI) took
+ * pip 110–140 s of a busy core unpacking and byte-compiling on a bare machine, uv 33 s (parallel
+ * downloads and unpacking; modules compile when first imported). Pinned here, and part of the
+ * venv's stamp.
+ */
+const UV_VERSION = '0.13.9';
+
+/**
+ * The venv (training/.venv): made with pip, filled by uv (pip if uv cannot be had), then every
+ * package the code imports is imported once — a check that the install works, and the byte
+ * code of what is used compiled before two pytest processes would both compile it.
  */
 async function stepVenv(logFile) {
   await step('venv', 'Python venv (training/.venv)', async () => {
     const req = path.join(ROOT, 'training', 'requirements.txt');
     if (!fs.existsSync(req)) return 'no training/requirements.txt';
-    const hash = createHash('sha256').update(fs.readFileSync(req)).digest('hex');
+    const hash = createHash('sha256').update(`uv ${UV_VERSION}\n`).update(fs.readFileSync(req)).digest('hex');
     const stamp = path.join(VENV, '.requirements.sha256');
     const py = path.join(VENV, 'bin', 'python');
     if (fs.existsSync(py) && fs.existsSync(stamp) && fs.readFileSync(stamp, 'utf8').trim() === hash) {
@@ -453,7 +466,18 @@ async function stepVenv(logFile) {
     }
     if (!fs.existsSync(py)) await run('python3', ['-m', 'venv', VENV]);
     fs.mkdirSync(path.dirname(logFile), { recursive: true });
-    await run(py, ['-m', 'pip', 'install', '--disable-pip-version-check', '-r', req], { logFile });
+    const pip = ['-m', 'pip', 'install', '--disable-pip-version-check'];
+    try {
+      await run(py, [...pip, `uv==${UV_VERSION}`], { logFile });
+      // uv reads its own settings: the system's certificates as pip uses them, pip's index if set.
+      const env = { ...process.env, UV_NATIVE_TLS: '1' };
+      if (process.env.PIP_INDEX_URL && !env.UV_INDEX_URL) env.UV_INDEX_URL = process.env.PIP_INDEX_URL;
+      await run(path.join(VENV, 'bin', 'uv'), ['pip', 'install', '--python', py, '-r', req], { logFile, env });
+    } catch (e) {
+      log(`  uv could not install the requirements (${e.message}); pip instead`);
+      await run(py, [...pip, '-r', req], { logFile });
+    }
+    await run(py, ['-c', 'import numpy, torch, onnx, onnxscript, onnxruntime, matplotlib, pytest'], { logFile });
     fs.writeFileSync(stamp, `${hash}\n`);
   });
 }
@@ -586,30 +610,43 @@ async function runSuites() {
 
 async function main() {
   log(`mode: ${mode}`);
-  await stepNpm();
-  const venv = mode === 'test' ? stepVenv(path.join(ROOT, 'test-results', 'pip-install.log')) : null;
-  venv?.catch(() => undefined); // awaited below; a failure is reported there
-  await stepRustTarget();
-  // Two lanes side by side, each ending in a long single-threaded step (the LTO of a release
-  // build) that leaves a core to the other: on 2 cores 158 s for what took 276 s one after the
-  // other (three lanes took 177 s). The native lane writes its output to a file, shown if it fails.
   const logs = path.join(ROOT, 'test-results');
   fs.mkdirSync(logs, { recursive: true });
-  const native = stepCli(path.join(logs, 'setup-cli.log')).then(stepDatabases);
-  native.catch(() => undefined); // awaited below; a failure is reported there
-  await stepWasmBindgen();
+  // Lanes side by side from the start (2 cores; the lanes that run beside the streamed one write
+  // their output to a file, shown if they fail):
+  // - system packages (Chromium, nats-server) and the Python venv: downloads and unpacking;
+  // - npm packages;
+  // - native: the CLI, the databases it builds, then the recordings (the venv's Python and the CLI);
+  // - the wasm-bindgen CLI (compiled from source where it is missing);
+  // - WASM (streamed): the release build, its long single-threaded LTO leaving a core to the
+  //   others, then its bindings.
+  // Two Rust lanes took 158 s on 2 cores where one after the other took 276 s (three: 177 s).
+  // Each lane is awaited where the next step needs it; a failure is reported there.
+  const lane = (p) => {
+    p.catch(() => undefined);
+    return p;
+  };
+  const system = lane(mode === 'test' ? stepChromium().then(stepNats) : Promise.resolve());
+  const venv = lane(mode === 'test' ? stepVenv(path.join(logs, 'pip-install.log')) : Promise.resolve());
+  const npm = lane(stepNpm());
+  await stepRustTarget();
+  const native = lane(
+    stepCli(path.join(logs, 'setup-cli.log'))
+      .then(stepDatabases)
+      .then(() => venv)
+      .then(() => (mode === 'build' ? undefined : stepRecordings())),
+  );
+  const bindgen = lane(stepWasmBindgen(path.join(logs, 'wasm-bindgen-install.log')));
   await stepWasmBuild();
+  await bindgen;
   await stepWasmBindings();
-  await native;
+  await npm;
   await stepAvatars();
-  if (mode === 'test') {
-    await stepChromium();
-    await stepNats();
-    await venv;
-  }
-  if (mode !== 'build') await stepRecordings();
+  await native;
   if (mode !== 'dev') await stepDist();
   if (mode !== 'dev') await stepServer();
+  await system;
+  await venv;
   log(`setup finished in ${secs(t0All)}`);
 
   if (mode === 'build') return 0;

@@ -3,11 +3,13 @@
 // from the registry, built with its own `npm run build`. Cached in
 // node_modules/.cache/mm-examples/: the install is redone when the example's package.json
 // changes (a new tarball only reinstalls the package), the build when the tarball or the
-// example's files change; an unchanged checkout reuses both.
-import { execFileSync } from 'node:child_process';
+// example's files change; an unchanged checkout reuses both. Asynchronous, so the apps install
+// and build side by side (the installs mostly wait on the registry).
+import { execFile, execFileSync } from 'node:child_process';
 import { createHash } from 'node:crypto';
 import fs from 'node:fs';
 import path from 'node:path';
+import { promisify } from 'node:util';
 
 const ROOT = path.resolve(import.meta.dirname, '../..');
 const CACHE = path.join(ROOT, 'node_modules', '.cache', 'mm-examples');
@@ -29,10 +31,10 @@ export interface Example {
 const sha = (data: string | Buffer) => createHash('sha256').update(data).digest('hex').slice(0, 16);
 const log = (m: string) => console.log(`[examples] ${m}`);
 
-function run(cmd: string, args: string[], cwd: string): void {
+async function run(cmd: string, args: string[], cwd: string): Promise<void> {
   const t0 = performance.now();
   try {
-    execFileSync(cmd, args, { cwd, stdio: 'pipe', encoding: 'utf8', env: { ...process.env, npm_config_update_notifier: 'false' } });
+    await promisify(execFile)(cmd, args, { cwd, encoding: 'utf8', maxBuffer: 64 << 20, env: { ...process.env, npm_config_update_notifier: 'false' } });
   } catch (e) {
     const err = e as { stdout?: string; stderr?: string; message: string };
     throw new Error(`\`${cmd} ${args.join(' ')}\` failed in ${path.relative(ROOT, cwd)}:\n${err.stdout ?? ''}${err.stderr ?? err.message}`);
@@ -64,7 +66,7 @@ function sourceFiles(dir: string, prefix = ''): string[] {
 }
 
 /** Installs (from the tarball and the registry) and builds examples/<name>, reusing the cache. */
-export function prepareExample(name: string, packed: Packed): Example {
+export async function prepareExample(name: string, packed: Packed): Promise<Example> {
   const src = path.join(ROOT, 'examples', name);
   const dir = path.join(CACHE, name);
   const dist = path.join(dir, 'dist');
@@ -92,17 +94,17 @@ export function prepareExample(name: string, packed: Packed): Example {
   fs.writeFileSync(path.join(dir, 'package.json'), pkgText);
   const npm = ['--no-audit', '--no-fund', '--prefer-offline', '--loglevel=error'];
   if (read('install') !== installKey) {
-    run('npm', ['install', ...npm], dir);
+    await run('npm', ['install', ...npm], dir);
     fs.writeFileSync(stamp('install'), installKey);
     fs.writeFileSync(stamp('package'), packed.hash);
   } else if (read('package') !== packed.hash) {
     // Same dependencies, a new tarball: only the package is reinstalled.
-    run('npm', ['install', ...npm, packed.tarball], dir);
+    await run('npm', ['install', ...npm, packed.tarball], dir);
     fs.writeFileSync(stamp('package'), packed.hash);
   }
   if (read('build') !== buildKey || !fs.existsSync(dist)) {
     fs.rmSync(dist, { recursive: true, force: true });
-    run('npm', ['run', 'build', '--silent'], dir);
+    await run('npm', ['run', 'build', '--silent'], dir);
     fs.writeFileSync(stamp('build'), buildKey);
   } else log(`${name}: build up to date (tarball ${packed.hash})`);
   return { name, dir, dist };

@@ -23,11 +23,19 @@ const SHOTS = path.join(ROOT, 'test-results');
 test.describe.configure({ mode: 'serial' });
 
 let packed: Packed;
+/** The three apps, installed and built side by side from the start; each test awaits its own. */
+const examples = new Map<string, Promise<Example>>();
+const example = (name: string) => examples.get(name) ?? Promise.reject(new Error(`${name} was not prepared`));
 test.beforeAll(async () => {
   test.setTimeout(300_000);
   expect(fs.existsSync(path.join(ROOT, 'dist', 'lib', 'index.js')), 'dist/ is built by `npm run build` (npm test builds it)').toBe(true);
   packed = packTarball();
   fs.mkdirSync(SHOTS, { recursive: true });
+  for (const name of ['vite-app', 'webpack-app', 'r3f-app']) {
+    const ready = prepareExample(name, packed);
+    ready.catch(() => undefined); // reported by the test that awaits it
+    examples.set(name, ready);
+  }
 });
 
 type Root = { x: number; z: number };
@@ -72,8 +80,8 @@ async function walksInChromium(page: Page, example: Example, root: string, walkT
 
 test('vite app (Character from code): builds from the tarball, walks; no onnxruntime or VR file in its output', async ({ page }) => {
   test.setTimeout(420_000);
-  const example = prepareExample('vite-app', packed);
-  const files = listFiles(example.dist);
+  const app = await example('vite-app');
+  const files = listFiles(app.dist);
   console.log(`vite-app output: ${files.join(', ')}`);
   // The shipped assets were found and emitted by vite itself (hashed names).
   expect(files.some((f) => /\.wasm$/.test(f))).toBe(true);
@@ -81,29 +89,29 @@ test('vite app (Character from code): builds from the tarball, walks; no onnxrun
   expect(files.some((f) => /ubc_male.*\.glb$/.test(f))).toBe(true);
   // A desktop app pays for no VR: no onnxruntime JS or WASM, no orientation model, no VR database.
   expect(files.filter((f) => /onnx|ort[-.]|orientation|vr\.mmdb/i.test(f))).toEqual([]);
-  const js = files.filter((f) => f.endsWith('.js')).map((f) => fs.readFileSync(path.join(example.dist, f), 'utf8')).join('\n');
+  const js = files.filter((f) => f.endsWith('.js')).map((f) => fs.readFileSync(path.join(app.dist, f), 'utf8')).join('\n');
   expect(js).not.toMatch(/onnxruntime|InferenceSession/);
-  await walksInChromium(page, example, 'window.character?.root', 'window.character.walkTo', 'vite');
+  await walksInChromium(page, app, 'window.character?.root', 'window.character.walkTo', 'vite');
 });
 
 test('webpack app (the element): builds from the tarball, <mm-avatar> loads and walks', async ({ page }) => {
   test.setTimeout(420_000);
-  const example = prepareExample('webpack-app', packed);
-  const files = listFiles(example.dist);
+  const app = await example('webpack-app');
+  const files = listFiles(app.dist);
   console.log(`webpack-app output: ${files.join(', ')}`);
   expect(files.some((f) => /\.wasm$/.test(f)) && files.some((f) => /\.mmdb$/.test(f)) && files.some((f) => /\.glb$/.test(f))).toBe(true);
   expect(files.filter((f) => /onnx|ort[-.]/i.test(f))).toEqual([]);
-  await walksInChromium(page, example, "document.querySelector('mm-avatar')?.character && document.querySelector('mm-avatar').root", "document.querySelector('mm-avatar').walkTo", 'webpack');
+  await walksInChromium(page, app, "document.querySelector('mm-avatar')?.character && document.querySelector('mm-avatar').root", "document.querySelector('mm-avatar').walkTo", 'webpack');
 });
 
 test('React Three Fiber app: builds from the tarball, the <primitive> character walks', async ({ page }) => {
   test.setTimeout(420_000);
-  const example = prepareExample('r3f-app', packed);
-  await walksInChromium(page, example, 'window.character?.root', 'window.character.walkTo', 'r3f');
+  const app = await example('r3f-app');
+  await walksInChromium(page, app, 'window.character?.root', 'window.character.walkTo', 'r3f');
 });
 
-test('SSR: importing every entry in plain Node touches no window, document or customElements', () => {
-  const example = prepareExample('vite-app', packed);
+test('SSR: importing every entry in plain Node touches no window, document or customElements', async () => {
+  const app = await example('vite-app');
   // three.js itself looks for `window` (its devtools hook): it is imported before the traps.
   const script = `
     await import('three'); await import('three/addons/loaders/GLTFLoader.js');
@@ -119,7 +127,7 @@ test('SSR: importing every entry in plain Node touches no window, document or cu
     const element = await import('mm-avatar/element');
     console.log(JSON.stringify({ entries, beforeElement, afterElement: touched, defined: element.defineMMAvatar() }));
   `;
-  const out = JSON.parse(execFileSync(process.execPath, ['--input-type=module', '-e', script], { cwd: example.dir, encoding: 'utf8' }).trim().split('\n').pop()!) as {
+  const out = JSON.parse(execFileSync(process.execPath, ['--input-type=module', '-e', script], { cwd: app.dir, encoding: 'utf8' }).trim().split('\n').pop()!) as {
     entries: Record<string, number>;
     beforeElement: string[];
     afterElement: string[];
@@ -160,9 +168,9 @@ export async function main(scene: THREE.Scene): Promise<number> {
 `;
 
 for (const resolution of ['bundler', 'node16'] as const) {
-  test(`types: a consumer project type-checks against the packed package (moduleResolution ${resolution})`, () => {
-    const example = prepareExample('vite-app', packed);
-    const dir = path.join(example.dir, `types-${resolution}`);
+  test(`types: a consumer project type-checks against the packed package (moduleResolution ${resolution})`, async () => {
+    const app = await example('vite-app');
+    const dir = path.join(app.dir, `types-${resolution}`);
     fs.rmSync(dir, { recursive: true, force: true });
     fs.mkdirSync(dir);
     fs.writeFileSync(path.join(dir, 'consumer.ts'), CONSUMER);
@@ -170,7 +178,7 @@ for (const resolution of ['bundler', 'node16'] as const) {
     // No skipLibCheck: the package's declarations are checked too.
     const config = { compilerOptions: { target: 'ES2022', module, moduleResolution: resolution, lib: ['ES2022', 'DOM', 'DOM.Iterable'], strict: true, noEmit: true, types: [], skipLibCheck: false }, files: ['consumer.ts'] };
     fs.writeFileSync(path.join(dir, 'tsconfig.json'), JSON.stringify(config, null, 2));
-    const tsc = path.join(example.dir, 'node_modules', 'typescript', 'bin', 'tsc');
+    const tsc = path.join(app.dir, 'node_modules', 'typescript', 'bin', 'tsc');
     let output = '';
     try {
       output = execFileSync(process.execPath, [tsc, '-p', dir], { cwd: dir, encoding: 'utf8' });
