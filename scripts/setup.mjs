@@ -16,7 +16,8 @@
 //
 // Environment:
 //   SETUP_SKIP=step,step   skip named steps: npm, rust-target, wasm-bindgen, wasm, cli, databases,
-//                          avatars, dist, server, chromium, nats, venv, recordings (for working on one part while another is broken)
+//                          avatars, dist, server, chromium, nats, venv, recordings, cargo-tests (for working on
+//                          one part while another is broken)
 //   TEST_SUITES=a,b        run only these suites: lint, cargo, vitest, pytest, playwright
 //
 // Node builtins only: this runs before node_modules exists.
@@ -33,7 +34,13 @@ const CORE = path.join(ROOT, 'wasm-core');
 const SHARED_MOCAP = path.resolve(ROOT, '..', 'shared', 'mocap');
 const SHARED_AVATARS = path.resolve(ROOT, '..', 'shared', 'avatars');
 const WASM_TARGET = 'wasm32-unknown-unknown';
-const WASM_OUT = path.join(CORE, 'target', WASM_TARGET, 'release', 'mmcore.wasm');
+/**
+ * The WASM build's own target folder: cargo locks a target folder for a whole build (the host
+ * tools a wasm32 build compiles share target/release with the native CLI), so in one folder the
+ * WASM build waited for the CLI's (the two LTOs ran one after the other).
+ */
+const WASM_TARGET_DIR = path.join(CORE, 'target', 'wasm');
+const WASM_OUT = path.join(WASM_TARGET_DIR, WASM_TARGET, 'release', 'mmcore.wasm');
 const PKG_DIR = path.join(ROOT, 'web', 'src', 'core', 'pkg');
 const MMDB_BIN = path.join(CORE, 'target', 'release', process.platform === 'win32' ? 'mmdb.exe' : 'mmdb');
 const VENV = path.join(ROOT, 'training', '.venv');
@@ -259,7 +266,7 @@ async function stepWasmBuild(logFile) {
     // target dir, host artifacts) is not invalidated by alternating flags.
     const env = { ...process.env, CARGO_TARGET_WASM32_UNKNOWN_UNKNOWN_RUSTFLAGS: '-C target-feature=+simd128' };
     if (process.env.RUSTFLAGS) log('  note: RUSTFLAGS is set and overrides the simd128 target flag');
-    await run('cargo', ['build', '--release', '--target', WASM_TARGET, '--lib'], { cwd: CORE, env, logFile });
+    await run('cargo', ['build', '--release', '--target', WASM_TARGET, '--lib', '--target-dir', WASM_TARGET_DIR], { cwd: CORE, env, logFile });
   });
 }
 
@@ -497,6 +504,31 @@ async function stepRecordings() {
   });
 }
 
+/** The cargo suite's command (built ahead by set-up, then run by the suite). */
+const CARGO_TEST = ['test', '--profile', 'test-opt', '--no-fail-fast'];
+const suiteSelected = (id) => {
+  const only = (process.env.TEST_SUITES ?? '').split(',').map((s) => s.trim()).filter(Boolean);
+  return only.length === 0 || only.includes(id);
+};
+
+/**
+ * `npm test`: the Rust test binaries compiled during set-up, in the native lane after the
+ * recordings, where the WASM build's single-threaded LTO and dist's single-threaded stretches
+ * leave a core free; the cargo suite then only runs them.
+ */
+async function stepTestBuild(logFile) {
+  await step('cargo-tests', 'Rust test binaries (built ahead for the cargo suite)', async () => {
+    if (!suiteSelected('cargo')) return 'the cargo suite is not selected';
+    try {
+      await run('cargo', [...CARGO_TEST, '--no-run'], { cwd: CORE, logFile });
+    } catch {
+      // Not a set-up failure: the cargo suite builds them again and reports the error, while
+      // the other suites still run.
+      return 'did not build; the cargo suite will say why';
+    }
+  });
+}
+
 // ---------------------------------------------------------------- test suites
 
 const stripAnsi = (s) => s.replace(/\x1b\[[0-9;?]*[A-Za-z]/g, '');
@@ -542,17 +574,16 @@ const parsers = {
 };
 
 async function runSuites() {
-  const only = new Set((process.env.TEST_SUITES ?? '').split(',').map((s) => s.trim()).filter(Boolean));
   const bin = (name) => path.join(ROOT, 'node_modules', '.bin', name);
   const suites = [
     // Formatters and linters first: a finding fails `npm test` (scripts/lint.mjs).
     { id: 'lint', title: 'lint (rustfmt, clippy, ruff, biome, tsc)', cmd: process.execPath, args: [path.join(ROOT, 'scripts', 'lint.mjs')] },
-    { id: 'cargo', title: 'cargo test (wasm-core)', cmd: 'cargo', args: ['test', '--profile', 'test-opt', '--no-fail-fast'], cwd: CORE },
+    { id: 'cargo', title: 'cargo test (wasm-core)', cmd: 'cargo', args: CARGO_TEST, cwd: CORE },
     { id: 'vitest', title: 'vitest', cmd: bin('vitest'), args: ['run'] },
     // Two processes, whole files each (their module fixtures fit and train once): 80 s → 46 s.
     { id: 'pytest', title: 'pytest (training)', cmd: path.join(VENV, 'bin', 'pytest'), args: ['-q', '-n', '2', '--dist', 'loadfile'], cwd: path.join(ROOT, 'training') },
     { id: 'playwright', title: 'playwright', cmd: bin('playwright'), args: ['test'] },
-  ].filter((s) => only.size === 0 || only.has(s.id));
+  ].filter((s) => suiteSelected(s.id));
 
   const results = [];
   for (const s of suites) {
@@ -616,11 +647,11 @@ async function main() {
   // their output to a file, shown if they fail):
   // - system packages (Chromium, nats-server) and the Python venv: downloads and unpacking;
   // - npm packages;
-  // - native: the CLI, the databases it builds, then the recordings (the venv's Python and the CLI);
+  // - native: the CLI, the databases it builds, then the recordings (the venv's Python and the
+  //   CLI), then (`npm test`) the Rust test binaries;
   // - the wasm-bindgen CLI (compiled from source where it is missing);
-  // - WASM (streamed): the release build, its long single-threaded LTO leaving a core to the
-  //   others, then its bindings.
-  // Two Rust lanes took 158 s on 2 cores where one after the other took 276 s (three: 177 s).
+  // - WASM (streamed, in its own target folder): the release build, its long single-threaded
+  //   LTO leaving a core to the others, then its bindings.
   // Each lane is awaited where the next step needs it; a failure is reported there.
   const lane = (p) => {
     p.catch(() => undefined);
@@ -636,6 +667,7 @@ async function main() {
       .then(() => venv)
       .then(() => (mode === 'build' ? undefined : stepRecordings())),
   );
+  const testBuild = lane(mode === 'test' ? native.then(() => stepTestBuild(path.join(logs, 'setup-cargo-tests.log'))) : Promise.resolve());
   const bindgen = lane(stepWasmBindgen(path.join(logs, 'wasm-bindgen-install.log')));
   await stepWasmBuild();
   await bindgen;
@@ -647,6 +679,7 @@ async function main() {
   if (mode !== 'dev') await stepServer();
   await system;
   await venv;
+  await testBuild;
   log(`setup finished in ${secs(t0All)}`);
 
   if (mode === 'build') return 0;
