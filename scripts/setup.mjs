@@ -512,9 +512,9 @@ const suiteSelected = (id) => {
 };
 
 /**
- * `npm test`: the Rust test binaries compiled during set-up, in the native lane after the
- * recordings, where the WASM build's single-threaded LTO and dist's single-threaded stretches
- * leave a core free; the cargo suite then only runs them.
+ * `npm test`: the Rust test binaries compiled during set-up, beside the recordings, the WASM
+ * build's single-threaded LTO and dist, which leave a core free; the cargo suite then only runs
+ * them (and the lint's native clippy reuses their host tools).
  */
 async function stepTestBuild(logFile) {
   await step('cargo-tests', 'Rust test binaries (built ahead for the cargo suite)', async () => {
@@ -647,8 +647,8 @@ async function main() {
   // their output to a file, shown if they fail):
   // - system packages (Chromium, nats-server) and the Python venv: downloads and unpacking;
   // - npm packages;
-  // - native: the CLI, the databases it builds, then the recordings (the venv's Python and the
-  //   CLI), then (`npm test`) the Rust test binaries;
+  // - native: the CLI and the databases it builds; then, side by side, the recordings (the
+  //   venv's Python and the CLI; one core) and (`npm test`) the Rust test binaries;
   // - the wasm-bindgen CLI (compiled from source where it is missing);
   // - WASM (streamed, in its own target folder): the release build, its long single-threaded
   //   LTO leaving a core to the others, then its bindings.
@@ -661,20 +661,16 @@ async function main() {
   const venv = lane(mode === 'test' ? stepVenv(path.join(logs, 'pip-install.log')) : Promise.resolve());
   const npm = lane(stepNpm());
   await stepRustTarget();
-  const native = lane(
-    stepCli(path.join(logs, 'setup-cli.log'))
-      .then(stepDatabases)
-      .then(() => venv)
-      .then(() => (mode === 'build' ? undefined : stepRecordings())),
-  );
-  const testBuild = lane(mode === 'test' ? native.then(() => stepTestBuild(path.join(logs, 'setup-cargo-tests.log'))) : Promise.resolve());
+  const databases = lane(stepCli(path.join(logs, 'setup-cli.log')).then(stepDatabases));
+  const recordings = lane(Promise.all([databases, venv]).then(() => (mode === 'build' ? undefined : stepRecordings())));
+  const testBuild = lane(mode === 'test' ? databases.then(() => stepTestBuild(path.join(logs, 'setup-cargo-tests.log'))) : Promise.resolve());
   const bindgen = lane(stepWasmBindgen(path.join(logs, 'wasm-bindgen-install.log')));
   await stepWasmBuild();
   await bindgen;
   await stepWasmBindings();
   await npm;
   await stepAvatars();
-  await native;
+  await recordings;
   if (mode !== 'dev') await stepDist();
   if (mode !== 'dev') await stepServer();
   await system;
