@@ -23,7 +23,7 @@ const wasmEnv = { ...process.env, CARGO_TARGET_WASM32_UNKNOWN_UNKNOWN_RUSTFLAGS:
 
 const checks = [
   { name: 'rustfmt', cmd: 'cargo', args: ['fmt', ...(fix ? [] : ['--check'])], cwd: CORE },
-  { name: 'clippy (native)', cmd: 'cargo', args: ['clippy', '--all-targets', '--profile', 'test-opt', '--quiet', '--', '-D', 'warnings'], cwd: CORE },
+  { name: 'clippy (native)', cmd: 'cargo', args: ['clippy', '--all-targets', '--profile', 'opt', '--quiet', '--', '-D', 'warnings'], cwd: CORE },
   {
     name: 'clippy (wasm32)',
     cmd: 'cargo',
@@ -40,7 +40,7 @@ const checks = [
 // Side by side, each check's output kept and printed whole when it ends: the two clippy runs
 // use different target folders (cargo locks one for a whole build, host tools included) and,
 // with tsc, spend most of their time on one core each. Each uses the profile and folder of a
-// build set-up has made (the native one `npm test`'s test-opt, the wasm32 one the release WASM
+// build set-up has made (the native one the CLI's and the tests' `opt`, the wasm32 one the release WASM
 // build's target/wasm), so the host tools (proc macros) are not compiled again; the crate has no
 // `cfg(debug_assertions)` code that the release profiles would leave unlinted. `--fix` runs them one at a time
 // (formatters rewrite files the linters read).

@@ -4,7 +4,7 @@ import path from 'node:path';
 import { expect, test, type ConsoleMessage, type Page } from '@playwright/test';
 
 const ROOT = path.resolve(import.meta.dirname, '../..');
-const MMDB = path.join(ROOT, 'wasm-core/target/release/mmdb');
+const MMDB = path.join(ROOT, 'wasm-core/target/opt/mmdb');
 const DB = path.join(ROOT, 'public/databases/locomotion.mmdb');
 
 function cliNumFrames(): number {

@@ -8,7 +8,7 @@ import { wasmMemory } from '../../web/src/core/wasm.ts';
 import { Database, DatabaseBuilder, ROLE_NAMES, initWasmSync } from '../../web/src/index.ts';
 
 const ROOT = path.resolve(import.meta.dirname, '../..');
-const MMDB = path.join(ROOT, 'wasm-core/target/release/mmdb');
+const MMDB = path.join(ROOT, 'wasm-core/target/opt/mmdb');
 const DB_PATH = path.join(ROOT, 'public/databases/locomotion.mmdb');
 const BVH = path.resolve(ROOT, '../shared/mocap/cmu-asf/cmu_16_15.bvh');
 

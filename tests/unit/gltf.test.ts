@@ -13,7 +13,7 @@ import { CharacterRuntime, Database, DatabaseBuilder, createDrive, initWasmSync,
 import { CMU_VRM_BONES, bvhToGltf, editGlbJson, readBvh } from './gltf-fixtures.ts';
 
 const ROOT = path.resolve(import.meta.dirname, '../..');
-const MMDB = path.join(ROOT, 'wasm-core/target/release/mmdb');
+const MMDB = path.join(ROOT, 'wasm-core/target/opt/mmdb');
 const BVH_FILE = path.resolve(ROOT, '../shared/mocap/cmu-asf/cmu_16_15.bvh');
 const ROLES: RoleName[] = ['hips', 'left_foot', 'right_foot', 'left_toe', 'head', 'left_hand', 'right_hand'];
 

@@ -16,7 +16,7 @@ import { CharacterRuntime, Crowd, Database, createDrive, initWasmSync, liveObjec
 
 const ROOT = path.resolve(import.meta.dirname, '../..');
 const CORE = path.join(ROOT, 'wasm-core');
-const CASES_BIN = path.join(CORE, 'target/test-opt/mmdb-cases'); // built by `npm test`'s cargo suite
+const CASES_BIN = path.join(CORE, 'target/opt/mmdb-cases'); // built by `npm test`'s cargo suite
 
 interface Case {
   kind: 'bvh' | 'mmdb';
@@ -43,7 +43,7 @@ function outcome(label: string, f: () => void): { ok: boolean; message: string }
 beforeAll(() => {
   initWasmSync(fs.readFileSync(path.join(ROOT, 'web/src/core/pkg/mmcore_bg.wasm')));
   // The cases come from the native test suite's generator (one source of truth).
-  execFileSync('cargo', ['build', '--profile', 'test-opt', '--bin', 'mmdb-cases'], { cwd: CORE, stdio: 'ignore' });
+  execFileSync('cargo', ['build', '--profile', 'opt', '--bin', 'mmdb-cases'], { cwd: CORE, stdio: 'ignore' });
   dir = fs.mkdtempSync(path.join(os.tmpdir(), 'mm-hostile-'));
   execFileSync(CASES_BIN, [dir], { stdio: 'ignore' });
   cases = JSON.parse(fs.readFileSync(path.join(dir, 'cases.json'), 'utf8')) as Case[];

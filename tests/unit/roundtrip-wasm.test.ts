@@ -14,7 +14,7 @@ import { CharacterRuntime, Database, DatabaseBuilder, createDrive, initWasmSync,
 
 const ROOT = path.resolve(import.meta.dirname, '../..');
 const CORE = path.join(ROOT, 'wasm-core');
-const CASES_BIN = path.join(CORE, 'target/test-opt/mmdb-cases'); // built by `npm test`'s cargo suite
+const CASES_BIN = path.join(CORE, 'target/opt/mmdb-cases'); // built by `npm test`'s cargo suite
 /** Cases per run (the first of the native test's 600): bounded for `npm test`. */
 const CASES = 200;
 
@@ -31,7 +31,7 @@ let cases: Case[] = [];
 
 beforeAll(() => {
   initWasmSync(fs.readFileSync(path.join(ROOT, 'web/src/core/pkg/mmcore_bg.wasm')));
-  execFileSync('cargo', ['build', '--profile', 'test-opt', '--bin', 'mmdb-cases'], { cwd: CORE, stdio: 'ignore' });
+  execFileSync('cargo', ['build', '--profile', 'opt', '--bin', 'mmdb-cases'], { cwd: CORE, stdio: 'ignore' });
   dir = fs.mkdtempSync(path.join(os.tmpdir(), 'mm-roundtrip-'));
   execFileSync(CASES_BIN, ['--roundtrip', dir, String(CASES)], { stdio: 'ignore' });
   cases = JSON.parse(fs.readFileSync(path.join(dir, 'roundtrip.json'), 'utf8')) as Case[];

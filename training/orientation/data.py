@@ -28,7 +28,7 @@ TRAINING = Path(__file__).resolve().parent.parent
 REPO = TRAINING.parent
 DATA_DIR = Path(os.environ.get("ORIENTATION_DATA_DIR", TRAINING / "data"))
 MOCAP_DIR = Path(os.environ.get("MMDB_MOCAP_DIR", REPO.parent / "shared" / "mocap"))
-MMDB_BIN = Path(os.environ.get("MMDB_BIN", REPO / "wasm-core" / "target" / "release" / "mmdb"))
+MMDB_BIN = Path(os.environ.get("MMDB_BIN", REPO / "wasm-core" / "target" / "opt" / "mmdb"))
 # The models the site serves: the feed-back network and the recurrent one (fewer devices).
 PUBLIC_MODEL = REPO / "public" / "models" / "orientation.onnx"
 GRU_MODEL = REPO / "public" / "models" / "orientation_gru.onnx"
@@ -117,7 +117,7 @@ def build_database(name: str, config: dict, sources: list[Path], data_dir: Path,
     if not config_path.exists() or config_path.read_text() != text:
         config_path.write_text(text)
     if not cli.is_file():
-        raise DataError(f"mmdb CLI not built at {cli} (run `npm run build` or `cargo build --release` in wasm-core/)")
+        raise DataError(f"mmdb CLI not built at {cli} (run `npm run build`, or `cargo build --profile opt --bin mmdb` in wasm-core/)")
     newest = max([config_path.stat().st_mtime, cli.stat().st_mtime] + [p.stat().st_mtime for p in sources])
     if out.exists() and out.stat().st_mtime >= newest:
         return out

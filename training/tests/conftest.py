@@ -18,7 +18,7 @@ for p in (TRAINING, TESTS):
     if str(p) not in sys.path:
         sys.path.insert(0, str(p))
 
-MMDB_BIN = REPO / "wasm-core" / "target" / "release" / "mmdb"
+MMDB_BIN = REPO / "wasm-core" / "target" / "opt" / "mmdb"
 # shared/ sits beside the repo on developer machines and in CI; MMDB_MOCAP_DIR overrides.
 MOCAP = Path(os.environ.get("MMDB_MOCAP_DIR", REPO.parent / "shared" / "mocap"))
 
@@ -37,7 +37,7 @@ def mmdb_cli():
     Skipped only when the binary has not been built; CI builds it before running pytest.
     """
     if not MMDB_BIN.is_file():
-        pytest.skip(f"Rust CLI not built: {MMDB_BIN} does not exist (cargo build --release)")
+        pytest.skip(f"Rust CLI not built: {MMDB_BIN} does not exist (cargo build --profile opt --bin mmdb)")
 
     def run(*args, timeout: float = 120.0) -> subprocess.CompletedProcess:
         return subprocess.run([str(MMDB_BIN), *map(str, args)], capture_output=True, text=True, timeout=timeout)
