@@ -117,7 +117,9 @@ def build_database(name: str, config: dict, sources: list[Path], data_dir: Path,
     if not config_path.exists() or config_path.read_text() != text:
         config_path.write_text(text)
     if not cli.is_file():
-        raise DataError(f"mmdb CLI not built at {cli} (run `npm run build`, or `cargo build --profile opt --bin mmdb` in wasm-core/)")
+        raise DataError(
+            f"mmdb CLI not built at {cli} (run `npm run build`, or `cargo build --profile opt --bin mmdb` in wasm-core/)"
+        )
     newest = max([config_path.stat().st_mtime, cli.stat().st_mtime] + [p.stat().st_mtime for p in sources])
     if out.exists() and out.stat().st_mtime >= newest:
         return out
