@@ -450,11 +450,13 @@ async function stepNats() {
 
 /**
  * uv installs the venv's wheels: PyTorch's ~3 GB (its CUDA libraries come with it from PyPI) took
- * pip 110–140 s of a busy core unpacking and byte-compiling on a bare machine, uv 33 s (parallel
- * downloads and unpacking; modules compile when first imported). Pinned here, and part of the
- * venv's stamp.
+ * pip 110–140 s of a busy core downloading, unpacking and byte-compiling on a bare machine, uv
+ * 33 s with nothing in its cache (parallel downloads and unpacking), plus ~20 s to byte-compile.
+ * Pinned here, and part of the venv's stamp.
  */
 const UV_VERSION = '0.13.9';
+/** The install command (it and the version are part of the venv's stamp). */
+const UV_INSTALL = ['pip', 'install', '--compile-bytecode'];
 
 /**
  * The venv (training/.venv): made with pip, filled by uv (pip if uv cannot be had), then every
@@ -464,7 +466,7 @@ async function stepVenv(logFile) {
   await step('venv', 'Python venv (training/.venv)', async () => {
     const req = path.join(ROOT, 'training', 'requirements.txt');
     if (!fs.existsSync(req)) return 'no training/requirements.txt';
-    const hash = createHash('sha256').update(`uv ${UV_VERSION}\n`).update(fs.readFileSync(req)).digest('hex');
+    const hash = createHash('sha256').update(`uv ${UV_VERSION} ${UV_INSTALL.join(' ')}\n`).update(fs.readFileSync(req)).digest('hex');
     const stamp = path.join(VENV, '.requirements.sha256');
     const py = path.join(VENV, 'bin', 'python');
     if (fs.existsSync(py) && fs.existsSync(stamp) && fs.readFileSync(stamp, 'utf8').trim() === hash) {
@@ -478,25 +480,15 @@ async function stepVenv(logFile) {
       // uv reads its own settings: the system's certificates as pip uses them, pip's index if set.
       const env = { ...process.env, UV_NATIVE_TLS: '1' };
       if (process.env.PIP_INDEX_URL && !env.UV_INDEX_URL) env.UV_INDEX_URL = process.env.PIP_INDEX_URL;
-      await run(path.join(VENV, 'bin', 'uv'), ['pip', 'install', '--python', py, '-r', req], { logFile, env });
+      // --compile-bytecode, as pip does: uv otherwise leaves it to the first import, which writes
+      // nothing where PYTHONDONTWRITEBYTECODE is set (as on this machine), so every Python process
+      // compiled torch again (`import torch` 5.2 s against 1.9 s; pytest 64–72 s against 56 s).
+      await run(path.join(VENV, 'bin', 'uv'), [...UV_INSTALL, '--python', py, '-r', req], { logFile, env });
     } catch (e) {
       log(`  uv could not install the requirements (${e.message}); pip instead`);
       await run(py, [...pip, '-r', req], { logFile });
     }
     await run(py, ['-c', 'import numpy, torch, onnx, onnxscript, onnxruntime, matplotlib, pytest'], { logFile });
-    // The byte code of what the tests use, compiled once here: uv leaves it to the first import,
-    // where pytest's two processes would both compile it (pytest 47 s with pip's venv, 62–64 s
-    // with uv's alone). The training package, and one ONNX export for the exporter's modules.
-    const warm = [
-      'import pathlib, tempfile, torch, matplotlib.pyplot, onnxruntime',
-      'from orientation import crouch_fit, evaluate, gru, lopo, model, predictors, replay, train',
-      'model.export_onnx(torch.nn.Linear(model.NUM_INPUTS, 6), pathlib.Path(tempfile.mkdtemp()) / "warm.onnx")',
-    ].join('\n');
-    try {
-      await run(py, ['-c', warm], { cwd: path.join(ROOT, 'training'), logFile });
-    } catch {
-      log('  the warm-up import failed (its output is above); pytest will say more');
-    }
     fs.writeFileSync(stamp, `${hash}\n`);
   });
 }
