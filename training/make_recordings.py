@@ -30,6 +30,7 @@ They are derived from the mocap, so they are not committed: `node scripts/setup.
 from __future__ import annotations
 
 import argparse
+import functools
 import json
 import sys
 from pathlib import Path
@@ -178,6 +179,15 @@ def _cut(clip: MocapClip, s: int, e: int) -> MocapClip:
     return out
 
 
+@functools.cache
+def _subject(folder: str, subject: str) -> tuple[Path, list[MocapClip], mmdb.Database]:
+    """A subject's database, its clips and the database read: once per subject (several
+    recordings share one; the clips' forward kinematics over the whole database was most of
+    the time)."""
+    path = ensure_database(folder, subject)
+    return path, load_clips(path, f"{folder}_{subject}", mirrored=False), mmdb.load(path)
+
+
 def make(
     name: str,
     folder: str,
@@ -191,14 +201,13 @@ def make(
 ) -> dict:
     if held_in != ((folder, subject) in TRAIN_SUBJECTS) or (not held_in and (folder, subject) not in TEST_SUBJECTS):
         raise SystemExit(f"{folder} {subject}: recording {name} must be {'held in' if held_in else 'held out'}")
-    path = ensure_database(folder, subject)
-    clips = [c for c in load_clips(path, f"{folder}_{subject}", mirrored=False) if c.name.startswith(take)]
+    path, subject_clips, db = _subject(folder, subject)
+    clips = [c for c in subject_clips if c.name.startswith(take)]
     if len(clips) != 1:
         raise SystemExit(f"{path}: expected one un-mirrored clip named like {take}, found {[c.name for c in clips]}")
     whole = clips[0]
     s, e = window(whole, seconds, classes)
     clip = _cut(whole, s, e)
-    db = mmdb.load(path)
     dbclip = next(c for c in db.clips if not c.mirrored and c.name == whole.name)
     aug = EVAL_AUGMENT.__class__(**{**EVAL_AUGMENT.__dict__, "global_yaw": False})
     seq = simulate(clip, np.random.default_rng(seed), aug, fps=FPS)
