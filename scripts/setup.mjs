@@ -261,8 +261,8 @@ async function stepWasmBindgen(logFile) {
 
 async function stepWasmBuild(logFile) {
   await step('wasm', 'WASM build (cargo)', async () => {
-    // The flag goes in the target-specific variable, not RUSTFLAGS, so the native build (same
-    // target dir, host artifacts) is not invalidated by alternating flags.
+    // The flag goes in the target-specific variable, not RUSTFLAGS, so the host tools built
+    // beside it (proc macros, which the wasm32 clippy reuses) are not invalidated by alternating flags.
     const env = { ...process.env, CARGO_TARGET_WASM32_UNKNOWN_UNKNOWN_RUSTFLAGS: '-C target-feature=+simd128' };
     if (process.env.RUSTFLAGS) log('  note: RUSTFLAGS is set and overrides the simd128 target flag');
     await run('cargo', ['build', '--release', '--target', WASM_TARGET, '--lib', '--target-dir', WASM_TARGET_DIR], { cwd: CORE, env, logFile });
