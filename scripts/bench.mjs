@@ -46,11 +46,9 @@ if (args.includes('--load')) {
 const mmdb = path.join(ROOT, 'wasm-core', 'target', 'release', 'mmdb');
 execFileSync('cargo', ['build', '--release', '--bin', 'mmdb'], { cwd: path.join(ROOT, 'wasm-core'), stdio: ['ignore', 'ignore', 'inherit'] });
 const pkg = path.join(ROOT, 'web', 'src', 'core', 'pkg');
-for (const [what, p] of [['native CLI', mmdb], ['WASM package', path.join(pkg, 'mmcore.js')]]) {
-  if (!fs.existsSync(p)) {
-    console.error(`bench: ${what} missing at ${p}; run \`npm run build\` first (and keep ../shared beside the repo)`);
-    process.exit(1);
-  }
+if (!fs.existsSync(path.join(pkg, 'mmcore.js'))) {
+  console.error(`bench: WASM package missing at ${pkg}; run \`npm run build\` first (and keep ../shared beside the repo)`);
+  process.exit(1);
 }
 
 const RECIPES = recipes();

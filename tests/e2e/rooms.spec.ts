@@ -202,9 +202,8 @@ const fmt = (s: PairStats) => `${s.n} messages: root mean ${(s.mean * 100).toFix
 test('three people in one room (two desktop, one VR under iwer): each sees the others where they are; leave; late join', async ({ browser }) => {
   test.setTimeout(40 * 60_000);
   const roomId = createRoomId();
-  // Opened side by side: each page's start (module, database, avatar, the VR network) is mostly
-  // one thread of its own renderer.
-  const people: Person[] = await Promise.all(([[false, 'Ada'], [false, 'Bo'], [true, 'Vera']] as const).map(([vr, name]) => open(browser, vr, name, roomId)));
+  const people: Person[] = [];
+  for (const [vr, name] of [[false, 'Ada'], [false, 'Bo'], [true, 'Vera']] as const) people.push(await open(browser, vr, name, roomId));
   const [ada, bo, vera] = people;
 
   // Everyone sees the other two (by their names), placed by the stream.
