@@ -10,12 +10,18 @@ const hook = (page: Page) =>
     return { ...h, root: [...h.root], steps: [...h.steps], path: { points: [...h.path.points], following: h.path.following } };
   });
 
-/** Loads the demo (fixed dt, no shadows: software WebGL is slow enough) and waits for it. */
-async function open(page: Page, query = ''): Promise<string[]> {
+/**
+ * Loads the demo and waits for it: fixed 1/60 s updates, `steps` per drawn frame (software WebGL
+ * draws a few dozen frames a second; what the tests check is read per update), no shadows.
+ * Keys are pressed and released between frames, so the more updates a frame runs, the more a
+ * hold overruns: the keyboard test keeps 2 (at 4 its strafe turned 8–10° instead of 3–4°,
+ * the gaps between holds being a few updates longer).
+ */
+async function open(page: Page, query = '', steps = 2): Promise<string[]> {
   const errors: string[] = [];
   page.on('console', (m) => m.type() === 'error' && errors.push(m.text()));
   page.on('pageerror', (e) => errors.push(e.message));
-  await page.goto(`/?dt=fixed&shadows=0${query}`);
+  await page.goto(`/?dt=fixed&steps=${steps}&shadows=0${query}`);
   await page.waitForFunction(() => window.__mm?.ready || window.__mm?.error, null, { timeout: 60_000 });
   expect((await hook(page)).error).toBeNull();
   return errors;
@@ -124,6 +130,28 @@ test('the character walks, turns and strafes under the keyboard', async ({ page 
   expect(errors).toEqual([]);
 });
 
+/**
+ * From now on the page keeps the root (x, z) after every update in `window.__roots` and, once
+ * it is past `far` m from here, the largest hips ↔ root distance in `window.__worstHips`
+ * (the demo's own per-update hook runs first). Returns the update count at the start.
+ */
+async function recordRoots(page: Page, far = Infinity): Promise<number> {
+  return page.evaluate((far) => {
+    const el = document.getElementById('avatar') as unknown as { afterUpdate: ((dt: number) => void) | null };
+    const w = window as unknown as { __roots: number[]; __worstHips: number };
+    const previous = el.afterUpdate;
+    const [x0, z0] = [window.__mm.root[0], window.__mm.root[2]];
+    [w.__roots, w.__worstHips] = [[], 0];
+    el.afterUpdate = (dt) => {
+      previous?.(dt);
+      const [x, z, hips] = [window.__mm.root[0], window.__mm.root[2], window.__mm.hips];
+      w.__roots.push(x, z);
+      if (Math.hypot(x - x0, z - z0) > far) w.__worstHips = Math.max(w.__worstHips, Math.hypot(hips[0] - x, hips[1] - z));
+    };
+    return window.__mm.updates;
+  }, far);
+}
+
 /** Shortest distance from (x, z) to the closed polyline `points` (x, z pairs). */
 function distanceToLoop(x: number, z: number, points: number[]): number {
   let best = Infinity;
@@ -143,7 +171,7 @@ test.describe('at 1280×720', () => {
   test.use({ viewport: { width: 1280, height: 720 } });
   test('path mode: clicked keypoints make a 4 m square the character follows within α', async ({ page }) => {
     test.setTimeout(240_000);
-    const errors = await open(page, '&avatar=none');
+    const errors = await open(page, '&avatar=none', 4);
     // Zoom out so the whole square is on screen, and open the path folder's edit switch.
     await page.mouse.move(640, 360);
     for (let i = 0; i < 6; i++) await page.mouse.wheel(0, 400);
@@ -168,15 +196,15 @@ test.describe('at 1280×720', () => {
     await page.getByText('follow the path').click();
     expect((await hook(page)).path.following).toBe(true);
     const alpha = 0.15; // the default clamp_distance (docs/runtime.md)
-    // 16 m at 1.4 m/s: ~11.5 s, sampled every frame through the hook.
+    // 16 m at 1.4 m/s: ~11.5 s, the root recorded after every update.
+    const start = await recordRoots(page);
+    await page.waitForFunction((n) => window.__mm.updates >= n, start + 12 * 60, { timeout: 120_000, polling: 100 });
+    const roots = await page.evaluate(() => (window as unknown as { __roots: number[] }).__roots);
     const distances: number[] = [];
     const corners = new Set<number>();
-    const start = (await hook(page)).updates;
-    while ((await hook(page)).updates < start + 12 * 60) {
-      const s = await hook(page);
-      distances.push(distanceToLoop(s.root[0], s.root[2], square));
-      for (let c = 0; c < 4; c++) if (Math.hypot(s.root[0] - square[2 * c], s.root[2] - square[2 * c + 1]) < 0.5) corners.add(c);
-      await page.waitForTimeout(20);
+    for (let i = 0; i < roots.length; i += 2) {
+      distances.push(distanceToLoop(roots[i], roots[i + 1], square));
+      for (let c = 0; c < 4; c++) if (Math.hypot(roots[i] - square[2 * c], roots[i + 1] - square[2 * c + 1]) < 0.5) corners.add(c);
     }
     const max = Math.max(...distances);
     console.log(`path square: max distance to the path ${max.toFixed(3)} m over ${distances.length} samples`);
@@ -308,20 +336,16 @@ function vrmFromGlb(glb: Buffer): Buffer {
 test('one position space: after running 50 m the avatar’s hips are over the character root and the foot-lock rings under its feet', async ({ page }) => {
   test.setTimeout(300_000);
   await page.setViewportSize({ width: 480, height: 320 }); // software rendering: a small page is fast
-  const errors = await open(page);
+  const errors = await open(page, '', 4);
   await page.locator('#viewport canvas').click({ position: { x: 30, y: 150 } }); // left of the panel
-  // Run forward (Shift+W) until 50 m from the start; the avatar is drawn where the runtime is.
+  // Run forward (Shift+W) until 50 m from the start; the avatar is drawn where the runtime is
+  // (the hips checked after every update past 45 m).
   const a = await hook(page);
+  await recordRoots(page, 45);
   await page.keyboard.down('ShiftLeft');
   await page.keyboard.down('KeyW');
-  let worstHips = 0;
-  for (;;) {
-    const h = await hook(page);
-    const gone = Math.hypot(h.root[0] - a.root[0], h.root[2] - a.root[2]);
-    if (gone > 45) worstHips = Math.max(worstHips, Math.hypot(h.hips[0] - h.root[0], h.hips[1] - h.root[2]));
-    if (gone > 50) break;
-    await page.waitForTimeout(100);
-  }
+  await page.waitForFunction(([x, z]) => Math.hypot(window.__mm.root[0] - x, window.__mm.root[2] - z) > 50, [a.root[0], a.root[2]], { timeout: 240_000, polling: 100 });
+  const worstHips = await page.evaluate(() => (window as unknown as { __worstHips: number }).__worstHips);
   await page.keyboard.up('KeyW');
   await page.keyboard.up('ShiftLeft');
   // Standing again: both feet planted and locked; the rings are where the avatar's toes are.

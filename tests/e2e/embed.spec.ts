@@ -106,24 +106,27 @@ test('embed.html from dist/ under a strict CSP: two avatars, keyboard only where
   expect(errors).toEqual([]);
 });
 
-test('a timeStep set before <mm-avatar> is defined is taken through the element (not left hiding its accessor)', async ({ page }) => {
+test('a timeStep and stepsPerFrame set before <mm-avatar> is defined are taken through the element (not left hiding its accessors)', async ({ page }) => {
   // Any same-origin page without the element: the server's 404.
   await page.goto(`${server.url}/nothing-here`);
   const result = await page.evaluate(async (url) => {
-    const el = document.createElement('mm-avatar') as HTMLElement & { timeStep: number | null; warnings: string[] };
-    el.timeStep = 0.05; // before the element is defined: a plain own property
+    const el = document.createElement('mm-avatar') as HTMLElement & { timeStep: number | null; stepsPerFrame: number; warnings: string[] };
+    el.timeStep = 0.05; // before the element is defined: plain own properties
+    el.stepsPerFrame = 3;
     document.body.append(el);
     await import(url);
-    const own = Object.hasOwn(el, 'timeStep');
-    const kept = el.timeStep;
-    el.timeStep = 5; // the accessor refuses it (> 1 s) and keeps 0.05
-    const after = el.timeStep;
+    const own = Object.hasOwn(el, 'timeStep') || Object.hasOwn(el, 'stepsPerFrame');
+    const kept = [el.timeStep, el.stepsPerFrame];
+    el.timeStep = 5; // the accessors refuse these (> 1 s, not a whole number) and keep 0.05 and 3
+    el.stepsPerFrame = 2.5;
+    const after = [el.timeStep, el.stepsPerFrame];
     const warnings = [...el.warnings];
     el.remove();
     return { own, kept, after, warnings };
   }, '/mm-avatar.js');
   expect(result.own).toBe(false);
-  expect(result.kept).toBe(0.05);
-  expect(result.after).toBe(0.05);
+  expect(result.kept).toEqual([0.05, 3]);
+  expect(result.after).toEqual([0.05, 3]);
   expect(result.warnings.join('\n')).toContain('timeStep 5 refused');
+  expect(result.warnings.join('\n')).toContain('stepsPerFrame 2.5 refused');
 });

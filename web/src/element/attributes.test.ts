@@ -1,5 +1,5 @@
 import { describe, expect, it } from 'vitest';
-import { checkTimeStep, parseChoice, parseControls, parseUrl } from './attributes.ts';
+import { checkStepsPerFrame, checkTimeStep, parseChoice, parseControls, parseUrl } from './attributes.ts';
 
 const collect = () => {
   const warnings: string[] = [];
@@ -43,5 +43,14 @@ describe('<mm-avatar> attribute values', () => {
     for (const bad of [NaN, Infinity, -1, 0, 2, '0.1']) expect(checkTimeStep(bad, 0.25, warn)).toBe(0.25);
     expect(warnings).toHaveLength(6);
     expect(warnings[0]).toBe('timeStep NaN refused: null (real time) or seconds per frame in (0, 1]');
+  });
+
+  it('stepsPerFrame: a whole number 1 to 16; fractions, 0, 17, NaN and non-numbers refused, the previous value kept', () => {
+    const { warnings, warn } = collect();
+    expect(checkStepsPerFrame(4, 1, warn)).toBe(4);
+    expect(checkStepsPerFrame(16, 1, warn)).toBe(16);
+    for (const bad of [0, 1.5, 17, NaN, -2, '4', null]) expect(checkStepsPerFrame(bad, 3, warn)).toBe(3);
+    expect(warnings).toHaveLength(7);
+    expect(warnings[0]).toBe('stepsPerFrame 0 refused: a whole number of updates per drawn frame, 1 to 16');
   });
 });

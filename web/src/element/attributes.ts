@@ -75,3 +75,16 @@ export function checkTimeStep(value: unknown, previous: number | null, warn: (me
   warn(`timeStep ${String(value)} refused: null (real time) or seconds per frame in (0, 1]`);
   return previous;
 }
+
+/** Most updates one drawn frame may run (`stepsPerFrame`). */
+export const MAX_STEPS_PER_FRAME = 16;
+
+/**
+ * `stepsPerFrame`: a whole number of updates per drawn frame, 1 to 16; anything else is refused
+ * with a warning and leaves the previous value.
+ */
+export function checkStepsPerFrame(value: unknown, previous: number, warn: (message: string) => void): number {
+  if (Number.isInteger(value) && (value as number) >= 1 && (value as number) <= MAX_STEPS_PER_FRAME) return value as number;
+  warn(`stepsPerFrame ${String(value)} refused: a whole number of updates per drawn frame, 1 to ${MAX_STEPS_PER_FRAME}`);
+  return previous;
+}

@@ -12,13 +12,14 @@
  * - properties and methods: `character`, `root` ({x, y, z, yaw}, m / rad, the element's floor
  *   frame), `walkTo(x, z, {run})`, `setMove(x, z, {run})`, `stop()`, `ready` (a promise), `room`
  *   (the shared room its character is in, or null: `room.list()` — docs/rooms.md), and
- *   `timeStep` (null: real time; a number: fixed seconds per frame, for tests and recordings);
+ *   `timeStep` (null: real time; a number: fixed seconds per frame, for tests and recordings),
+ *   `stepsPerFrame` (updates per drawn frame, 1–16: simulate faster than the screen draws);
  * - events: `progress` (`detail: {stage, loaded, total, url, stalled, done, cached}`), `load`
  *   (first animated frame), `error` (`detail: {message, url}`), and a visible status inside the
  *   element: each stage with its URL and bytes, a stalled download after 5 s, a failed database
  *   with a Retry button (`retry()`), a failed avatar's note over the skeleton;
  * - a value it does not understand (a typo in `controls`, `camera`, `loading` or
- *   `motion-style`, a refused `timeStep`) is a console warning kept in `warnings`, and the
+ *   `motion-style`, a refused `timeStep` or `stepsPerFrame`) is a console warning kept in `warnings`, and the
  *   default is used; a
  *   `database`/`avatar` that is not a fetchable URL is an error shown in the element;
  * - removing the element frees its WASM memory and GPU objects; adding it again rebuilds it.
@@ -28,7 +29,7 @@ import { DEFAULT_AVATAR, DEFAULT_FIRST_PART, assetUrl } from '../assets.ts';
 import { Avatar } from '../avatar/avatar.ts';
 import { Character, type MoveOptions, type PathOptions, type Root } from '../character/character.ts';
 import { type Database, loadDatabase, loadDefaultDatabase } from '../core/database.ts';
-import { checkTimeStep, parseChoice, parseControls, parseUrl, quote } from './attributes.ts';
+import { checkStepsPerFrame, checkTimeStep, parseChoice, parseControls, parseUrl, quote } from './attributes.ts';
 import { type FetchProgress, errorMessage } from '../fetch.ts';
 import { MoveControls } from '../input/move-controls.ts';
 import { roomOf } from '../rooms/room-of.ts';
@@ -78,6 +79,7 @@ export class MMAvatarElement extends ElementBase {
    * last, at most 20; each is also a console warning. */
   readonly warnings: string[] = [];
   private timeStep_: number | null = null;
+  private stepsPerFrame_ = 1;
   /** Resolves at the first animated frame of the current load. */
   ready: Promise<void>;
   /** Called after every update, before rendering (pages read state here; nothing allocated). */
@@ -128,10 +130,11 @@ export class MMAvatarElement extends ElementBase {
     // A page (or a framework rendering before the script loads) may have set `timeStep` on the
     // element before <mm-avatar> was defined: that own property hides the accessor, so the value
     // would never be checked or used. Take it through the setter instead.
-    if (Object.hasOwn(this, 'timeStep')) {
-      const value = (this as { timeStep: number | null }).timeStep;
-      delete (this as { timeStep?: number | null }).timeStep;
-      this.timeStep = value;
+    for (const key of ['timeStep', 'stepsPerFrame'] as const) {
+      if (!Object.hasOwn(this, key)) continue;
+      const value = (this as Record<string, unknown>)[key];
+      delete (this as Record<string, unknown>)[key];
+      (this as Record<string, unknown>)[key] = value;
     }
     if (!this.hasAttribute('tabindex')) this.tabIndex = 0;
     this.setAttribute('role', 'img');
@@ -186,6 +189,16 @@ export class MMAvatarElement extends ElementBase {
   }
   set timeStep(value: number | null) {
     this.timeStep_ = checkTimeStep(value, this.timeStep_, (m) => this.warn(m));
+  }
+
+  /** Updates per drawn frame, 1 (default) to 16: each advances `timeStep` (or, in real time, the
+   * frame's time over their number), then one frame is drawn — a test or a recording simulates
+   * at its step while software WebGL draws a few frames a second. Others are refused (warning). */
+  get stepsPerFrame(): number {
+    return this.stepsPerFrame_;
+  }
+  set stepsPerFrame(value: number) {
+    this.stepsPerFrame_ = checkStepsPerFrame(value, this.stepsPerFrame_, (m) => this.warn(m));
   }
 
   /** Where the character stands ({x, y, z} m and yaw rad in the element's floor frame). */
@@ -352,17 +365,20 @@ export class MMAvatarElement extends ElementBase {
     const character = this.character;
     const stage = this.stage;
     if (!character || !stage || generation !== this.generation) return;
-    const dt = this.timeStep_ ?? Math.min(0.1, Math.max(0, (now - this.last) / 1000));
+    const steps = this.stepsPerFrame_;
+    const dt = this.timeStep_ ?? Math.min(0.1, Math.max(0, (now - this.last) / 1000)) / steps;
     this.last = now;
     stage.camera.getWorldDirection(_look);
-    const input = this.controls.read(_look.x, _look.z, character.root.yaw, dt);
-    if (input) character.setInput(input);
-    const t0 = performance.now();
-    character.update(dt);
-    this.lastUpdateMs = performance.now() - t0;
-    this.afterUpdate?.(dt);
+    for (let k = 0; k < steps; k++) {
+      const input = this.controls.read(_look.x, _look.z, character.root.yaw, dt);
+      if (input) character.setInput(input);
+      const t0 = performance.now();
+      character.update(dt);
+      this.lastUpdateMs = performance.now() - t0;
+      this.afterUpdate?.(dt);
+    }
     const r = character.root;
-    if (this.cameraMode === 'follow') this.orbit?.follow(r.x, r.z, dt);
+    if (this.cameraMode === 'follow') this.orbit?.follow(r.x, r.z, dt * steps);
     else if (this.orbit) {
       // A camera on a tripod: it stays where it is and turns to keep the character in view.
       this.orbit.controls.target.set(r.x, this.orbit.targetHeight, r.z);

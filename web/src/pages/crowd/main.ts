@@ -5,12 +5,13 @@
  * characters update less often (level of detail: every frame near the camera, every 2nd frame
  * past 20 m, every 4th past 32 m; their `dt` accumulates). The HUD splits the CPU per frame per
  * character updated into the runtime (drive + search + playback: `applyDrive` + `advance`), the
- * pose (retarget, bones, grounding: `pose`) and
- * the render (bone uploads and draw calls), with the draw calls. The public entry only.
+ * pose (retarget, bones, grounding: `pose`) and the render (bone uploads and draw calls), with the
+ * draw calls. The public entry only.
  *
  * URL parameters: `n=200` (1–1000), `lod=0` (every character every frame), `dt=fixed` (1/60 s a
- * frame, for the bench; `dt=0.1`: that many s), `seed=1`, `skinning=three` (three.js poses the
- * bones and skins instead of the core: `Avatar.coreSkinning`). Tests and `npm run bench -- --crowd`: `window.__crowd`.
+ * frame, for the bench; `dt=0.1`: that many s), `steps=1` (updates per drawn frame, 1–16),
+ * `seed=1`, `skinning=three` (three.js poses the bones and skins instead of the core:
+ * `Avatar.coreSkinning`). Tests and `npm run bench -- --crowd`: `window.__crowd`.
  */
 import * as THREE from 'three';
 import {
@@ -24,6 +25,7 @@ const n = Math.max(1, Math.min(1000, Math.floor(Number(params.get('n') ?? 200)) 
 const lod = params.get('lod') !== '0';
 const core = params.get('skinning') !== 'three';
 const fixedDt = params.get('dt') === 'fixed' ? 1 / 60 : Math.min(0.25, Number(params.get('dt')) || 0);
+const steps = Math.max(1, Math.min(16, Math.floor(Number(params.get('steps'))) || 1));
 
 /** Per frame, per character updated (ms): medians over the last `WINDOW` frames (`window=60`). */
 const WINDOW = Math.max(1, Number(params.get('window')) || 60);
@@ -34,14 +36,16 @@ const hook = {
   lod,
   crossOriginIsolated,
   frames: 0,
-  /** Characters updated a frame, mean over the window. */
+  /** Characters updated an update, mean over the window's frames. */
   updatedMean: NaN,
-  /** Character updates this frame by level (every frame, every 2nd, every 4th). */
+  /** Updates run (`steps` per drawn frame); the levels of detail count updates as frames. */
+  updates: 0,
+  /** Character updates in the last update by level (every update, every 2nd, every 4th). */
   levels: [0, 0, 0],
   perCharacter: { runtime: NaN, pose: NaN, render: NaN },
-  /** All characters this frame (ms) and the draw calls. */
+  /** All characters this frame (ms, its updates together) and the draw calls. */
   frame: { runtime: NaN, pose: NaN, render: NaN, drawCalls: 0, updated: 0 },
-  /** Root (x, z) of every character (at the start and every 15 frames), and how many are not finite. */
+  /** Root (x, z) of every character (at the start and every 15 updates), and how many are not finite (last update). */
   positions: [] as number[],
   start: [] as number[],
   /** What the GPU holds (shared by the clones: a handful, not one set per character). */
@@ -110,7 +114,7 @@ async function start(): Promise<void> {
   hook.ready = true;
   let last = performance.now();
   stage.renderer.setAnimationLoop((now) => {
-    frame(fixedDt || Math.min(0.1, (now - last) / 1000));
+    frame(fixedDt || Math.min(0.1, (now - last) / 1000) / steps);
     last = now;
   });
 }
@@ -146,14 +150,52 @@ const median = (v: number[]) => [...v].sort((a, b) => a - b)[v.length >> 1] ?? N
 const due: Walker[] = [];
 const dts: number[] = [];
 
+/** `steps` updates, then one drawn frame. */
 function frame(dt: number): void {
+  const f = hook.frame;
+  f.runtime = f.pose = f.updated = 0;
+  for (let s = 0; s < steps; s++) update(dt);
+  const t2 = performance.now();
+  orbit.follow(0, 0, dt * steps);
+  stage.render();
+  const t3 = performance.now();
+  f.render = t3 - t2;
+  f.drawCalls = stage.renderer.info.render.calls;
+  const { geometries, textures } = stage.renderer.info.memory;
+  Object.assign(hook.memory, { geometries, textures, programs: stage.renderer.info.programs?.length ?? 0 });
+  const per = (ms: number) => ms / Math.max(1, f.updated);
+  const frameSamples = [
+    ['runtime', per(f.runtime)],
+    ['pose', per(f.pose)],
+    ['render', f.render],
+    ['updated', f.updated / steps],
+  ] as const;
+  for (const [key, ms] of frameSamples) {
+    const s = samples[key];
+    s.push(ms);
+    if (s.length > WINDOW) s.shift();
+  }
+  const p = hook.perCharacter;
+  [p.runtime, p.pose, p.render] = [median(samples.runtime), median(samples.pose), median(samples.render) / n];
+  hook.updatedMean = samples.updated.reduce((a, b) => a + b, 0) / samples.updated.length;
+  hook.frames++;
+  if (hook.frames % 15 === 0) {
+    const ms = (v: number) => `${(v * 1000).toFixed(0)} µs`;
+    hud.textContent =
+      `${n} people · per person: runtime ${ms(p.runtime)}, pose ${ms(p.pose)}, render ${ms(p.render)} · ` +
+      `${f.drawCalls} draw calls · updated ${hook.levels.join('/')} (every frame/2nd/4th)`;
+  }
+}
+
+/** One update: the characters due (by level of detail) steer, advance and pose. */
+function update(dt: number): void {
   const cam = stage.camera.position;
   due.length = dts.length = 0;
   hook.levels.fill(0);
   walkers.forEach((w, i) => {
     w.pending += dt;
     const k = every(Math.hypot(w.x - cam.x, cam.y, w.z - cam.z));
-    if ((hook.frames + i) % k !== 0) return;
+    if ((hook.updates + i) % k !== 0) return;
     hook.levels[k === 1 ? 0 : k === 2 ? 1 : 2]++;
     const [mx, mz] = steer(w, i);
     w.character.setMove(mx, mz);
@@ -177,37 +219,10 @@ function frame(dt: number): void {
     [w.x, w.z] = [r.x, r.z];
   }
   const t2 = performance.now();
-  orbit.follow(0, 0, dt);
-  stage.render();
-  const t3 = performance.now();
   const f = hook.frame;
-  [f.runtime, f.pose, f.render, f.updated] = [t1 - t0, t2 - t1, t3 - t2, due.length];
-  f.drawCalls = stage.renderer.info.render.calls;
-  const { geometries, textures } = stage.renderer.info.memory;
-  Object.assign(hook.memory, { geometries, textures, programs: stage.renderer.info.programs?.length ?? 0 });
-  const per = (ms: number) => ms / Math.max(1, due.length);
-  const frameSamples = [
-    ['runtime', per(f.runtime)],
-    ['pose', per(f.pose)],
-    ['render', t3 - t2],
-    ['updated', due.length],
-  ] as const;
-  for (const [key, ms] of frameSamples) {
-    const s = samples[key];
-    s.push(ms);
-    if (s.length > WINDOW) s.shift();
-  }
-  const p = hook.perCharacter;
-  [p.runtime, p.pose, p.render] = [median(samples.runtime), median(samples.pose), median(samples.render) / n];
-  hook.updatedMean = samples.updated.reduce((a, b) => a + b, 0) / samples.updated.length;
-  hook.frames++;
-  if (hook.frames % 15 === 0) {
-    hook.positions = walkers.flatMap((w) => [w.x, w.z]);
-    const ms = (v: number) => `${(v * 1000).toFixed(0)} µs`;
-    hud.textContent =
-      `${n} people · per person: runtime ${ms(p.runtime)}, pose ${ms(p.pose)}, render ${ms(p.render)} · ` +
-      `${f.drawCalls} draw calls · updated ${hook.levels.join('/')} (every frame/2nd/4th)`;
-  }
+  [f.runtime, f.pose, f.updated] = [f.runtime + t1 - t0, f.pose + t2 - t1, f.updated + due.length];
+  hook.updates++;
+  if (hook.updates % 15 === 0) hook.positions = walkers.flatMap((w) => [w.x, w.z]);
 }
 
 start().catch((e) => {

@@ -6,8 +6,8 @@
  *
  * URL parameters: `db=<url>`, `avatar=<url>|none`, `roles=<JSON role → bone name>` (manual
  * joint map), `skeleton=1`, `shadows=0`, `dt=fixed` (exactly 1/60 s per frame, for tests;
- * `dt=0.05`: that many s), `room=<id>` and `name=` (a shared room: `RoomPanel`; the HUD reads
- * `el.room.list()`). Tests: `window.__mm`.
+ * `dt=0.05`: that many s), `steps=2` (updates per drawn frame), `room=<id>` and `name=` (a
+ * shared room: `RoomPanel`; the HUD reads `el.room.list()`). Tests: `window.__mm`.
  */
 import GUI from 'lil-gui';
 import * as THREE from 'three';
@@ -67,6 +67,7 @@ const avatarParam = params.get('avatar');
 if (avatarParam === 'none' || roles) el.setAttribute('avatar', 'none');
 else if (avatarParam) el.setAttribute('avatar', avatarParam);
 if (params.get('dt')) el.timeStep = params.get('dt') === 'fixed' ? 1 / 60 : Number(params.get('dt')) || null;
+if (params.get('steps')) el.stepsPerFrame = Number(params.get('steps'));
 document.getElementById('viewport')!.append(el);
 el.addEventListener('error', (e) => fileError((e as unknown as CustomEvent<{ message: string }>).detail.message));
 
