@@ -72,37 +72,12 @@ async function openVr(page: Page, query: string): Promise<string[]> {
   return errors;
 }
 
-test('VR under iwer: enter VR; scripted walk, side-step, 360° turn and crouch; avatar within α, hands on the controllers, the network runs every frame', async ({ page }) => {
-  test.setTimeout(360_000); // ~2.5 min alone; software WebGL under a loaded 2-core machine takes longer
-  const errors = await openVr(page, '&mirror=128');
-
-  // The network loads after the first frame (the heuristic drives meanwhile), then is the
-  // predictor; the page says so.
-  await page.waitForFunction(() => window.__vr.networkLoaded || window.__vr.predictorFallback, null, { timeout: 60_000 });
-  expect(await page.evaluate(() => [window.__vr.networkLoaded, window.__vr.predictor])).toEqual([true, 'network']);
-  await expect(page.locator('#predictor-status')).toHaveText('body yaw: network');
-
-  // Outside a session the spectator canvas is not shown and does not cover the page (three.js's
-  // inline display: block used to beat its `hidden`).
-  expect(await page.evaluate(() => {
-    const c = document.getElementById('spectator')!;
-    const top = document.elementFromPoint(innerWidth - 20, innerHeight - 20);
-    return [getComputedStyle(c).display, top === c];
-  })).toEqual(['none', false]);
-
-  // Enter VR through the button, as a person would.
-  await expect(page.locator('#enter-vr')).toHaveText('Enter VR');
-  await page.locator('#enter-vr').click();
-  await page.waitForFunction(() => window.__vr.inXR || window.__vr.error, null, { timeout: 30_000 });
-  expect(await page.evaluate(() => window.__vr.mode)).toBe('xr');
-  // First person: the headset's cameras draw the headless copy, not the whole avatar; the
-  // spectator (and the mirror, any camera but the headset's) the whole one.
-  await waitFrames(page, 2);
-  expect(await page.evaluate(() => window.__vr.headTrianglesHidden)).toBeGreaterThan(100);
-  expect(await page.evaluate(() => window.__vr.views())).toMatchObject({ headsetWhole: false, headsetHeadless: true, spectatorWhole: true });
-
-  // Script the emulated headset and controllers per frame, calibrate at 1.6 m once standing,
-  // and log every frame's state in the page.
+/**
+ * From the next frame on, moves the emulated headset and controllers along `SCRIPT` (60 frames a
+ * second of tracker time), calibrates at 1.6 m once standing, and logs every frame's state in
+ * the page (`window.__log`).
+ */
+async function startScript(page: Page): Promise<void> {
   await page.evaluate((script) => {
     type V = { set(x: number, y: number, z: number): void };
     type Q = { set(x: number, y: number, z: number, w: number): void };
@@ -133,6 +108,36 @@ test('VR under iwer: enter VR; scripted walk, side-step, 360° turn and crouch; 
       }
     };
   }, SCRIPT);
+}
+
+/** Enters VR through the button, as a person would. */
+async function enterVr(page: Page): Promise<void> {
+  await expect(page.locator('#enter-vr')).toHaveText('Enter VR');
+  await page.locator('#enter-vr').click();
+  await page.waitForFunction(() => window.__vr.inXR || window.__vr.error, null, { timeout: 30_000 });
+  expect(await page.evaluate(() => window.__vr.mode)).toBe('xr');
+}
+
+// The scripted run draws the headset's two views only: the mirror (drawn again for every camera
+// that sees it) and the spectator made each frame three times as long, and what they show is
+// the next test's.
+test('VR under iwer: enter VR; scripted walk, side-step, 360° turn and crouch; avatar within α, hands on the controllers, the network runs every frame', async ({ page }) => {
+  test.setTimeout(360_000); // ~1 min alone; software WebGL under a loaded 2-core machine takes longer
+  const errors = await openVr(page, '&mirror=0&spectator=0');
+
+  // The network loads after the first frame (the heuristic drives meanwhile), then is the
+  // predictor; the page says so.
+  await page.waitForFunction(() => window.__vr.networkLoaded || window.__vr.predictorFallback, null, { timeout: 60_000 });
+  expect(await page.evaluate(() => [window.__vr.networkLoaded, window.__vr.predictor])).toEqual([true, 'network']);
+  await expect(page.locator('#predictor-status')).toHaveText('body yaw: network');
+
+  await enterVr(page);
+  // First person: the headset's cameras draw the headless copy, not the whole avatar.
+  await waitFrames(page, 2);
+  expect(await page.evaluate(() => window.__vr.headTrianglesHidden)).toBeGreaterThan(100);
+  expect(await page.evaluate(() => window.__vr.views())).toMatchObject({ headsetWhole: false, headsetHeadless: true });
+
+  await startScript(page);
   await waitFrames(page, Math.ceil(60 * SCRIPT_SECONDS) + 2, 300_000);
   const log = (await page.evaluate(() => (window as unknown as { __log: unknown[] }).__log)) as Frame[];
   if (process.env.VR_LOG) for (const f of log) console.log(JSON.stringify(f));
@@ -181,7 +186,31 @@ test('VR under iwer: enter VR; scripted walk, side-step, 360° turn and crouch; 
   console.log(`network runs ${runs} over ${log.length - 1} frames, ${skipped} skipped`);
   expect(runs).toBeGreaterThanOrEqual(log.length - 2);
   expect(await page.evaluate(() => window.__vr.predictorFailures)).toBe(0);
+  expect(errors).toEqual([]);
+});
 
+test('VR views: the headset draws the headless copy, the mirror and the spectator the whole avatar; the spectator shows only while presenting, the page camera after', async ({ page }) => {
+  test.setTimeout(180_000);
+  const errors = await openVr(page, '&mirror=128');
+
+  // Outside a session the spectator canvas is not shown and does not cover the page (three.js's
+  // inline display: block used to beat its `hidden`).
+  expect(await page.evaluate(() => {
+    const c = document.getElementById('spectator')!;
+    const top = document.elementFromPoint(innerWidth - 20, innerHeight - 20);
+    return [getComputedStyle(c).display, top === c];
+  })).toEqual(['none', false]);
+
+  await enterVr(page);
+  // First person: the headset's cameras draw the headless copy, not the whole avatar; the
+  // spectator (and the mirror, any camera but the headset's) the whole one.
+  await waitFrames(page, 2);
+  expect(await page.evaluate(() => window.__vr.headTrianglesHidden)).toBeGreaterThan(100);
+  expect(await page.evaluate(() => window.__vr.views())).toMatchObject({ headsetWhole: false, headsetHeadless: true, spectatorWhole: true });
+
+  // Standing and calibrated (the script's first half second): the mirror in front shows the avatar.
+  await startScript(page);
+  await waitFrames(page, 32);
   fs.mkdirSync(SHOTS, { recursive: true });
   await page.screenshot({ path: path.join(SHOTS, 'vr-first-person.png') });
   // While presenting, the page shows the spectator's third-person view (picture-in-picture),

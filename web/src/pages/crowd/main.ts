@@ -179,7 +179,7 @@ function frame(dt: number): void {
   [p.runtime, p.pose, p.render] = [median(samples.runtime), median(samples.pose), median(samples.render) / n];
   hook.updatedMean = samples.updated.reduce((a, b) => a + b, 0) / samples.updated.length;
   hook.frames++;
-  if (hook.frames % 15 === 0) {
+  if (hook.frames % 15 === 1) { // from the first frame on: "loading…" never outlives the load
     const ms = (v: number) => `${(v * 1000).toFixed(0)} µs`;
     hud.textContent =
       `${n} people · per person: runtime ${ms(p.runtime)}, pose ${ms(p.pose)}, render ${ms(p.render)} · ` +
