@@ -19,9 +19,9 @@
  *   element: each stage with its URL and bytes, a stalled download after 5 s, a failed database
  *   with a Retry button (`retry()`), a failed avatar's note over the skeleton;
  * - a value it does not understand (a typo in `controls`, `camera`, `loading` or
- *   `motion-style`, a refused `timeStep` or `stepsPerFrame`) is a console warning kept in `warnings`, and the
- *   default is used; a
- *   `database`/`avatar` that is not a fetchable URL is an error shown in the element;
+ *   `motion-style`, a refused `timeStep` or `stepsPerFrame`) is a console warning kept in
+ *   `warnings`, and the default is used; a `database`/`avatar` that is not a fetchable URL is an
+ *   error shown in the element;
  * - removing the element frees its WASM memory and GPU objects; adding it again rebuilds it.
  */
 import * as THREE from 'three';
@@ -193,7 +193,8 @@ export class MMAvatarElement extends ElementBase {
 
   /** Updates per drawn frame, 1 (default) to 16: each advances `timeStep` (or, in real time, the
    * frame's time over their number), then one frame is drawn — a test or a recording simulates
-   * at its step while software WebGL draws a few frames a second. Others are refused (warning). */
+   * at its step while software WebGL draws a few frames a second (in a room, a frame's updates
+   * travel with one wall-clock time). Others are refused (warning). */
   get stepsPerFrame(): number {
     return this.stepsPerFrame_;
   }
