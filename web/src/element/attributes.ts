@@ -77,7 +77,7 @@ export function checkTimeStep(value: unknown, previous: number | null, warn: (me
 }
 
 /** Most updates one drawn frame may run (`stepsPerFrame`). */
-export const MAX_STEPS_PER_FRAME = 16;
+const MAX_STEPS_PER_FRAME = 16;
 
 /**
  * `stepsPerFrame`: a whole number of updates per drawn frame, 1 to 16; anything else is refused

@@ -119,7 +119,7 @@ async function start(): Promise<void> {
   });
 }
 
-/** How often (in frames) a character this far from the camera is updated. */
+/** How often (in updates: frames when `steps` is 1) a character this far from the camera is updated. */
 function every(distance: number): number {
   if (!lod || distance < 20) return 1;
   return distance < 32 ? 2 : 4;
