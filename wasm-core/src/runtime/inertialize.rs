@@ -22,6 +22,7 @@
 //! take's motion from where the character stands and inertializes only the velocity mismatch.
 
 use crate::persist::{Persist, Visitor};
+use crate::spring::DecayStep;
 use glam::{Quat, Vec3};
 
 /// Exact critically damped decay toward zero, the same spring as everywhere in the crate
@@ -41,17 +42,6 @@ pub fn decay_spring_vec3(x: Vec3, v: Vec3, halflife: f32, dt: f32) -> (Vec3, Vec
     (x, v)
 }
 
-/// [`decay_spring`] for a rotation offset: the offset's scaled axis-angle is decayed with
-/// `w` (radians/s) as its velocity (docs/method.md §4, "via scaled axis-angle").
-///
-/// Preconditions: `x` is unit length.
-#[inline]
-pub fn decay_spring_quat(x: Quat, w: Vec3, halflife: f32, dt: f32) -> (Quat, Vec3) {
-    let (mut x, mut w) = (x, w);
-    crate::spring::decay_spring_damper_exact_quat(&mut x, &mut w, halflife, dt);
-    (x, w)
-}
-
 pub use crate::spring::quat_abs;
 
 /// Transition of one vector channel (docs/method.md §5, additive form): folds the jump from the raw
@@ -68,21 +58,6 @@ pub fn inertialize_transition_vec3(
 ) {
     *offset = (*offset + src) - dst;
     *offset_vel = (*offset_vel + src_vel) - dst_vel;
-}
-
-/// Update of one vector channel: decays the offset over `dt` and returns the output
-/// `(input + d, input_vel + d_v)`.
-#[inline]
-pub fn inertialize_update_vec3(
-    offset: &mut Vec3,
-    offset_vel: &mut Vec3,
-    input: Vec3,
-    input_vel: Vec3,
-    halflife: f32,
-    dt: f32,
-) -> (Vec3, Vec3) {
-    (*offset, *offset_vel) = decay_spring_vec3(*offset, *offset_vel, halflife, dt);
-    (input + *offset, input_vel + *offset_vel)
 }
 
 /// Transition of one rotation channel (docs/method.md §5): `d_r' = abs(d_r · s_r · t_r⁻¹)`, so that
@@ -108,21 +83,6 @@ pub fn inertialize_transition_quat(
     *offset = new_offset;
 }
 
-/// Update of one rotation channel: decays the offset over `dt` ([`decay_spring_quat`]) and returns
-/// the output `(d_r · input, d_ω + d_r · input_vel)`.
-#[inline]
-pub fn inertialize_update_quat(
-    offset: &mut Quat,
-    offset_vel: &mut Vec3,
-    input: Quat,
-    input_vel: Vec3,
-    halflife: f32,
-    dt: f32,
-) -> (Quat, Vec3) {
-    (*offset, *offset_vel) = decay_spring_quat(*offset, *offset_vel, halflife, dt);
-    (*offset * input, *offset_vel + *offset * input_vel)
-}
-
 /// Per-joint inertialization offsets for a whole pose (local positions, velocities, rotations and
 /// angular velocities, as stored in [`crate::Database`]). Allocates only in [`Inertializer::new`].
 ///
@@ -135,16 +95,29 @@ pub fn inertialize_update_quat(
 pub struct Inertializer {
     offset_positions: Vec<Vec3>,
     offset_velocities: Vec<Vec3>,
+    /// `d_r` as a rotation vector (scaled axis, docs/method.md §4 "via scaled axis-angle"): the
+    /// spring decays this vector, so an update takes no logarithm of a quaternion (that `atan2`
+    /// per joint was a third of a character's update). Set from the quaternion at a transition.
+    offset_rotation_vectors: Vec<Vec3>,
+    /// `d_r = exp(offset_rotation_vectors)`, kept in step with it: what the output and the next
+    /// transition multiply by.
     offset_rotations: Vec<Quat>,
     offset_angular_velocities: Vec<Vec3>,
 }
 
+/// The rotation vectors are the state (the quaternions follow from them), so a copy that reads
+/// them computes the sender's floats.
 impl Persist for Inertializer {
     fn persist(&mut self, v: &mut dyn Visitor, _: &'static str) {
         self.offset_positions.persist(v, "inertialization position offsets");
         self.offset_velocities.persist(v, "inertialization velocity offsets");
-        self.offset_rotations.persist(v, "inertialization rotation offsets");
+        self.offset_rotation_vectors.persist(v, "inertialization rotation offsets");
         self.offset_angular_velocities.persist(v, "inertialization angular velocity offsets");
+        if v.reading() {
+            for (q, &r) in self.offset_rotations.iter_mut().zip(&self.offset_rotation_vectors) {
+                *q = Quat::from_scaled_axis(r);
+            }
+        }
     }
 }
 
@@ -154,6 +127,7 @@ impl Inertializer {
         Inertializer {
             offset_positions: vec![Vec3::ZERO; num_joints],
             offset_velocities: vec![Vec3::ZERO; num_joints],
+            offset_rotation_vectors: vec![Vec3::ZERO; num_joints],
             offset_rotations: vec![Quat::IDENTITY; num_joints],
             offset_angular_velocities: vec![Vec3::ZERO; num_joints],
         }
@@ -167,6 +141,7 @@ impl Inertializer {
     pub fn reset(&mut self) {
         self.offset_positions.fill(Vec3::ZERO);
         self.offset_velocities.fill(Vec3::ZERO);
+        self.offset_rotation_vectors.fill(Vec3::ZERO);
         self.offset_rotations.fill(Quat::IDENTITY);
         self.offset_angular_velocities.fill(Vec3::ZERO);
     }
@@ -241,6 +216,8 @@ impl Inertializer {
                 dst_rot[i],
                 dst_angvel[i],
             );
+            // The short way (w ≥ 0): an angle of at most π.
+            self.offset_rotation_vectors[i] = self.offset_rotations[i].to_scaled_axis();
         }
     }
 
@@ -303,23 +280,17 @@ impl Inertializer {
         ] {
             assert_eq!(len, n, "Inertializer::update: {name} has {len} joints, expected {n}");
         }
+        let decay = DecayStep::new(halflife, dt);
         for i in 0..n {
-            (out_pos[i], out_vel[i]) = inertialize_update_vec3(
-                &mut self.offset_positions[i],
-                &mut self.offset_velocities[i],
-                in_pos[i],
-                in_vel[i],
-                halflife,
-                dt,
-            );
-            (out_rot[i], out_angvel[i]) = inertialize_update_quat(
-                &mut self.offset_rotations[i],
-                &mut self.offset_angular_velocities[i],
-                in_rot[i],
-                in_angvel[i],
-                halflife,
-                dt,
-            );
+            decay.apply(&mut self.offset_positions[i], &mut self.offset_velocities[i]);
+            out_pos[i] = in_pos[i] + self.offset_positions[i];
+            out_vel[i] = in_vel[i] + self.offset_velocities[i];
+            // The rotation offset decays as a vector and only its exponential is taken (docs/method.md §4).
+            decay.apply(&mut self.offset_rotation_vectors[i], &mut self.offset_angular_velocities[i]);
+            let d = Quat::from_scaled_axis(self.offset_rotation_vectors[i]);
+            self.offset_rotations[i] = d;
+            out_rot[i] = d * in_rot[i];
+            out_angvel[i] = self.offset_angular_velocities[i] + d * in_angvel[i];
         }
     }
 }

@@ -77,14 +77,14 @@ export const MAX_URL_BYTES = 512;
 export const MAX_DATABASE_BYTES = 64;
 /** The largest client → server message but a STATE (a TRACKED message with 64 steps is 953 bytes). */
 export const MAX_CLIENT_MESSAGE_BYTES = 1024;
-/** The largest runtime state a STATE carries (a 32-joint character's is 4.7 KB; ~136 B a joint). */
+/** The largest runtime state a STATE carries (a 32-joint character's is 4.6 KB). */
 export const MAX_RUNTIME_STATE_BYTES = 16_000;
 /**
  * The runtime state's version (`STATE_VERSION` in wasm-core/src/runtime/character/state.rs, the second
  * u32 of its header): the room server checks it (server/content.ts); a test compares it with
  * what the runtime writes.
  */
-export const RUNTIME_STATE_VERSION = 5;
+export const RUNTIME_STATE_VERSION = 6;
 export const MAX_MEMBERS_LIMIT = 64;
 /** Positions relative to a message origin are int16 mm: ±32.767 m. */
 export const MAX_RELATIVE_MM = 32767;

@@ -14,7 +14,7 @@ use crate::persist::{Persist, StateReader, StateWriter, Visitor};
 
 const STATE_MAGIC: u32 = u32::from_le_bytes(*b"MMRS");
 /// Bumped whenever a field is added, removed or reordered.
-pub const STATE_VERSION: u32 = 5;
+pub const STATE_VERSION: u32 = 6;
 
 impl Persist for LastGood {
     fn persist(&mut self, v: &mut dyn Visitor, _: &'static str) {
