@@ -98,7 +98,7 @@ pub enum SearchMethod {
     Scalar = 0,
     /// Four frames per lane vector, every frame.
     Simd = 1,
-    /// A tree of bounding boxes (256, 64, 16 frames), SIMD inside the 16-frame boxes that survive.
+    /// A tree of bounding boxes (1024, 256, 64, 16 frames), SIMD inside the 16-frame boxes that survive.
     Aabb = 2,
 }
 
@@ -189,7 +189,7 @@ impl Best {
     }
 }
 
-/// Top-level groups whose bounds a search keeps on the stack (2 KiB; 128k frames).
+/// Top-level groups whose bounds a search keeps on the stack (2 KiB; 512k frames).
 const TOP_CACHE: usize = 128;
 
 /// A query and its per-dimension weights splatted across lanes, on the stack.
@@ -367,7 +367,7 @@ impl SearchIndex {
         let top = LEVELS - 1;
         let groups = self.bounds.num_boxes(top) / 4;
         // The top-level bounds, computed once (four groups at a time) and kept for the visit in
-        // frame order when they fit (`TOP_CACHE` groups: 128k frames), else computed again.
+        // frame order when they fit (`TOP_CACHE` groups: 512k frames), else computed again.
         let mut cache = [F32x4::ZERO; TOP_CACHE];
         let mut seed = (f32::INFINITY, usize::MAX);
         let mut note = |group: usize, bounds: F32x4| {
