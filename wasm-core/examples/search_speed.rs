@@ -4,6 +4,8 @@
 //! `cargo run --release --example search_speed -- DB.mmdb [QUERIES] [ROUNDS]`.
 //! Prints per-search median and p95 (each query its fastest round) for every method, so a change
 //! to the search can be measured natively before the WASM build (`npm run bench`).
+//! `AABB_ONLY=1`: only the AABB searches (no SIMD check or timing), for counting a search's
+//! instructions: `valgrind --tool=cachegrind --cache-sim=no` over it, divided by 20 × QUERIES × ROUNDS.
 
 use mmcore::database::{Axes, FeatureKind};
 use mmcore::search::{SearchIndex, SearchMethod, SearchOptions};
@@ -61,7 +63,7 @@ fn main() {
     let options =
         |source: usize| SearchOptions { exclude: Some((source.saturating_sub(20), source + 21)), ..Default::default() };
     let mut mismatches = 0;
-    for (source, q) in &qs {
+    for (source, q) in qs.iter().filter(|_| std::env::var_os("AABB_ONLY").is_none()) {
         let reference = index.search(SearchMethod::Simd, q, &options(*source), f32::INFINITY);
         if index.search(SearchMethod::Aabb, q, &options(*source), f32::INFINITY) != reference {
             mismatches += 1;
@@ -72,7 +74,9 @@ fn main() {
         db.num_frames,
         db.num_features()
     );
-    for method in [SearchMethod::Simd, SearchMethod::Aabb] {
+    let methods: &[SearchMethod] =
+        if std::env::var_os("AABB_ONLY").is_some() { &[SearchMethod::Aabb] } else { &[SearchMethod::Simd, SearchMethod::Aabb] };
+    for &method in methods {
         let reps = if method == SearchMethod::Aabb { 20 } else { 2 };
         let mut best = vec![f64::INFINITY; qs.len()];
         for _ in 0..rounds {

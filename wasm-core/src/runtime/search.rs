@@ -189,13 +189,19 @@ impl Best {
     }
 }
 
-/// Top-level groups whose bounds a search keeps on the stack (2 KiB; 512k frames).
-const TOP_CACHE: usize = 128;
+/// Top-level groups whose bounds a search keeps on the stack (512 B; 131k frames).
+const TOP_CACHE: usize = 32;
 
-/// A query and its per-dimension weights splatted across lanes, on the stack.
-struct LaneQuery {
-    query: [F32x4; MAX_DIMS],
-    weights: [F32x4; MAX_DIMS],
+/// Dimensions whose query lanes a search keeps in its small stack buffer (1 KiB, the default
+/// feature set's 27 fit); more take a buffer for [`MAX_DIMS`] (4 KiB). Zeroing 6 KiB of stack
+/// for every search (both buffers at their largest, and the top bounds' cache at 128 groups)
+/// was ~4k instructions of a ~50k-instruction search.
+const SMALL_DIMS: usize = 32;
+
+/// A query and its per-dimension weights splatted across lanes (`d` of each), on the stack.
+struct LaneQuery<'a> {
+    query: &'a [F32x4],
+    weights: &'a [F32x4],
 }
 
 impl SearchIndex {
@@ -346,7 +352,16 @@ impl SearchIndex {
     /// Every frame, four at a time. Same preconditions and panics as [`Self::search_scalar`].
     pub fn search_simd(&self, query: &[f32], options: &SearchOptions, bar: f32) -> Option<(usize, f32)> {
         self.check_query(query, options);
-        let q = self.lane_query(query, options);
+        // Only the buffer used is zeroed.
+        let (mut small, mut large);
+        let lanes: &mut [F32x4] = if self.num_dims <= SMALL_DIMS {
+            small = [F32x4::ZERO; 2 * SMALL_DIMS];
+            &mut small
+        } else {
+            large = [F32x4::ZERO; 2 * MAX_DIMS];
+            &mut large
+        };
+        let q = self.lane_query(query, options, lanes);
         let mut best = Best { frame: 0, cost: bar };
         for span in 0..self.lanes.len() / (4 * self.num_dims) {
             self.search_span(4 * span, &q, options, &mut best);
@@ -362,7 +377,16 @@ impl SearchIndex {
     /// keeps the result exact because ties go to the earliest frame ([`Best`]).
     pub fn search_aabb(&self, query: &[f32], options: &SearchOptions, bar: f32) -> Option<(usize, f32)> {
         self.check_query(query, options);
-        let q = self.lane_query(query, options);
+        // Only the buffer used is zeroed.
+        let (mut small, mut large);
+        let lanes: &mut [F32x4] = if self.num_dims <= SMALL_DIMS {
+            small = [F32x4::ZERO; 2 * SMALL_DIMS];
+            &mut small
+        } else {
+            large = [F32x4::ZERO; 2 * MAX_DIMS];
+            &mut large
+        };
+        let q = self.lane_query(query, options, lanes);
         let mut best = Best { frame: 0, cost: bar };
         let top = LEVELS - 1;
         let groups = self.bounds.num_boxes(top) / 4;
@@ -406,8 +430,7 @@ impl SearchIndex {
     /// frame's `fl(Σ + bias)` since rounding is monotone.
     #[inline(always)]
     fn box_bounds(&self, level: usize, group: usize, q: &LaneQuery, options: &SearchOptions) -> F32x4 {
-        let d = self.num_dims;
-        let bounds = self.bounds.lower_bounds(level, group, &q.query[..d], &q.weights[..d]);
+        let bounds = self.bounds.lower_bounds(level, group, q.query, q.weights);
         let tags = &options.tags;
         if tags.is_trivial() {
             return bounds;
@@ -418,8 +441,7 @@ impl SearchIndex {
     /// [`Self::box_bounds`] of groups `first .. first + 4`.
     #[inline(always)]
     fn box_bounds4(&self, level: usize, first: usize, q: &LaneQuery, options: &SearchOptions) -> [F32x4; 4] {
-        let d = self.num_dims;
-        let bounds = self.bounds.lower_bounds4(level, first, &q.query[..d], &q.weights[..d]);
+        let bounds = self.bounds.lower_bounds4(level, first, q.query, q.weights);
         if options.tags.is_trivial() {
             return bounds;
         }
@@ -530,13 +552,15 @@ impl SearchIndex {
         cost + options.tags.bias(self.tag_bits[frame])
     }
 
-    fn lane_query(&self, query: &[f32], options: &SearchOptions) -> LaneQuery {
-        let mut q = LaneQuery { query: [F32x4::ZERO; MAX_DIMS], weights: [F32x4::ZERO; MAX_DIMS] };
+    /// The query's lanes, written into `lanes` (at least twice the dimension count).
+    fn lane_query<'a>(&self, query: &[f32], options: &SearchOptions, lanes: &'a mut [F32x4]) -> LaneQuery<'a> {
+        let d = self.num_dims;
+        let (q, w) = lanes[..2 * d].split_at_mut(d);
         for (dim, &v) in query.iter().enumerate() {
-            q.query[dim] = F32x4::splat(v);
-            q.weights[dim] = F32x4::splat(self.weight(dim, options));
+            q[dim] = F32x4::splat(v);
+            w[dim] = F32x4::splat(self.weight(dim, options));
         }
-        q
+        LaneQuery { query: q, weights: w }
     }
 
     /// Costs of the 16 frames of blocks `first_block .. first_block + 4`, folded into `best`.
@@ -553,7 +577,7 @@ impl SearchIndex {
         let d = self.num_dims;
         let rows = &self.lanes[first_block * d..(first_block + 4) * d];
         let (r0, r1, r2, r3) = (&rows[..d], &rows[d..2 * d], &rows[2 * d..3 * d], &rows[3 * d..]);
-        let (qs, ws) = (&q.query[..d], &q.weights[..d]);
+        let (qs, ws) = (q.query, q.weights);
         let mut acc = [F32x4::ZERO; 4];
         for i in 0..d {
             let (qd, wd) = (qs[i], ws[i]);
@@ -668,12 +692,31 @@ mod tests {
     #[test]
     fn every_method_equals_brute_force_bit_for_bit_ties_included() {
         let mut rng = Rng(7);
-        // Sizes around the box and padding boundaries (4, 16, 64, 256, 1024 frames), with 1, 2
-        // and 3 top-level groups past the last whole four, and past the cached top bounds.
-        let beyond_cache = 1024 * (TOP_CACHE + 3) + 5;
-        for num_frames in
-            [1, 3, 4, 17, 63, 64, 65, 255, 256, 257, 1000, 1024, 1025, 4096, 5121, 6200, 7165, beyond_cache]
-        {
+        // Sizes around the box and padding boundaries (4, 16, 64, 256, 1024, 4096 frames), with
+        // 1, 2 and 3 top-level groups past the last whole four, and past the cached top bounds.
+        let beyond_cache = PADDING * (TOP_CACHE + 3) + 5;
+        for num_frames in [
+            1,
+            3,
+            4,
+            17,
+            63,
+            64,
+            65,
+            255,
+            256,
+            257,
+            1000,
+            1024,
+            1025,
+            4096,
+            4097,
+            16_385,
+            20_485,
+            24_600,
+            28_670,
+            beyond_cache,
+        ] {
             let db = synthetic(num_frames, &mut rng);
             let index = SearchIndex::new(&db).unwrap();
             let mask: Vec<bool> = (0..num_frames).map(|_| rng.below(3) != 0).collect();
@@ -719,7 +762,7 @@ mod tests {
     #[test]
     fn box_tree_equals_brute_force_on_coherent_features() {
         let mut rng = Rng(11);
-        for num_frames in [1024, 5121, 6200, 7165, 1024 * (TOP_CACHE + 3) + 5] {
+        for num_frames in [1024, 5121, 20_485, 24_600, 28_670, PADDING * (TOP_CACHE + 3) + 5] {
             let mut db = synthetic(num_frames, &mut rng);
             let phase: Vec<f32> = (0..6).map(|_| rng.below(1000) as f32 / 100.0).collect();
             for (i, f) in db.features.iter_mut().enumerate() {
