@@ -74,8 +74,11 @@ fn main() {
         db.num_frames,
         db.num_features()
     );
-    let methods: &[SearchMethod] =
-        if std::env::var_os("AABB_ONLY").is_some() { &[SearchMethod::Aabb] } else { &[SearchMethod::Simd, SearchMethod::Aabb] };
+    let methods: &[SearchMethod] = if std::env::var_os("AABB_ONLY").is_some() {
+        &[SearchMethod::Aabb]
+    } else {
+        &[SearchMethod::Simd, SearchMethod::Aabb]
+    };
     for &method in methods {
         let reps = if method == SearchMethod::Aabb { 20 } else { 2 };
         let mut best = vec![f64::INFINITY; qs.len()];
