@@ -134,7 +134,7 @@ impl BoxBounds {
     /// If `level ≥ LEVELS`, `group ≥ num_boxes(level) / 4` or the slices are shorter than the
     /// dimension count.
     #[inline(always)]
-    pub fn lower_bounds(&self, level: usize, group: usize, query: &[F32x4], weights: &[F32x4]) -> F32x4 {
+    pub fn lower_bounds(&self, level: usize, group: usize, query: &[F32x4], weights: Option<&[F32x4]>) -> F32x4 {
         let range = group * self.num_dims..(group + 1) * self.num_dims;
         lower_bounds(&self.min[level][range.clone()], &self.max[level][range], query, weights)
     }
@@ -146,16 +146,30 @@ impl BoxBounds {
     /// # Panics
     /// As [`Self::lower_bounds`], for group `first + 3`.
     #[inline(always)]
-    pub fn lower_bounds4(&self, level: usize, first: usize, query: &[F32x4], weights: &[F32x4]) -> [F32x4; 4] {
+    pub fn lower_bounds4(&self, level: usize, first: usize, query: &[F32x4], weights: Option<&[F32x4]>) -> [F32x4; 4] {
         let d = self.num_dims;
         let (min, max) = (&self.min[level][first * d..(first + 4) * d], &self.max[level][first * d..(first + 4) * d]);
-        let (query, weights) = (&query[..d], &weights[..d]);
+        let query = &query[..d];
         let mut acc = [F32x4::ZERO; 4];
-        for i in 0..d {
-            let (q, w) = (query[i], weights[i]);
-            for (g, a) in acc.iter_mut().enumerate() {
-                let gap = (min[g * d + i] - q).max(q - max[g * d + i]).max(F32x4::ZERO);
-                *a += w * gap * gap;
+        match weights {
+            Some(weights) => {
+                let weights = &weights[..d];
+                for i in 0..d {
+                    let (q, w) = (query[i], weights[i]);
+                    for (g, a) in acc.iter_mut().enumerate() {
+                        let gap = q - q.max(min[g * d + i]).min(max[g * d + i]);
+                        *a += w * gap * gap;
+                    }
+                }
+            }
+            None => {
+                for i in 0..d {
+                    let q = query[i];
+                    for (g, a) in acc.iter_mut().enumerate() {
+                        let gap = q - q.max(min[g * d + i]).min(max[g * d + i]);
+                        *a += gap * gap;
+                    }
+                }
             }
         }
         acc
@@ -170,17 +184,33 @@ impl BoxBounds {
 }
 
 /// `Σ_d w_d · gap_d²` per lane, in the operation order of the frame cost (see the module docs
-/// for why that order makes the bound exact).
+/// for why that order makes the bound exact); `weights` `None`: every weight 1, whose
+/// multiplication changes no bit and is left out.
+///
+/// The gap is `q − clamp(q, min, max)`: 0 inside the box, else `q − min` or `q − max`, the
+/// negation of `min − q` (IEEE subtraction is exact under a sign change), so its square is that
+/// of the distance to the box, in three lane operations instead of four.
 #[inline(always)]
-fn lower_bounds(min: &[F32x4], max: &[F32x4], query: &[F32x4], weights: &[F32x4]) -> F32x4 {
+fn lower_bounds(min: &[F32x4], max: &[F32x4], query: &[F32x4], weights: Option<&[F32x4]>) -> F32x4 {
     let n = min.len();
-    let (max, query, weights) = (&max[..n], &query[..n], &weights[..n]);
+    let (max, query) = (&max[..n], &query[..n]);
     let mut acc = F32x4::ZERO;
-    for d in 0..n {
-        let q = query[d];
-        // Below the box: min − q > 0 ≥ q − max; above: the reverse; inside: both ≤ 0.
-        let gap = (min[d] - q).max(q - max[d]).max(F32x4::ZERO);
-        acc += weights[d] * gap * gap;
+    match weights {
+        Some(weights) => {
+            let weights = &weights[..n];
+            for d in 0..n {
+                let q = query[d];
+                let gap = q - q.max(min[d]).min(max[d]);
+                acc += weights[d] * gap * gap;
+            }
+        }
+        None => {
+            for d in 0..n {
+                let q = query[d];
+                let gap = q - q.max(min[d]).min(max[d]);
+                acc += gap * gap;
+            }
+        }
     }
     acc
 }
@@ -234,7 +264,7 @@ mod tests {
         assert_eq!(b.bounds_of(1, 5, 0), (f32::INFINITY, f32::NEG_INFINITY));
         let q = [F32x4::splat(300.0), F32x4::splat(-300.0), F32x4::splat(3.0)];
         for w in [1.0, 0.0] {
-            let bounds = b.lower_bounds(2, 0, &q, &[F32x4::splat(w); 3]).to_array();
+            let bounds = b.lower_bounds(2, 0, &q, Some(&[F32x4::splat(w); 3])).to_array();
             // inf, or NaN when the weight is 0: either way `bound < best` is false.
             assert!(bounds[1] == f32::INFINITY || bounds[1].is_nan(), "{bounds:?}");
             assert!(bounds[3] == f32::INFINITY || bounds[3].is_nan(), "{bounds:?}");
@@ -251,17 +281,17 @@ mod tests {
         let w: Vec<F32x4> = wv.iter().map(|&v| F32x4::splat(v)).collect();
         // Leaf 2 = frames 32..48, valid range [32, 47] in dim 0, [-47, -32] in dim 1,
         // [0, 6] in dim 2 → gaps 0, 100 − 47 = 53, 3.
-        let leaf = b.lower_bounds(0, 0, &q, &w).to_array();
+        let leaf = b.lower_bounds(0, 0, &q, Some(&w)).to_array();
         assert_eq!(leaf[2], 0.5 * 0.0 + 2.0 * 53.0 * 53.0 + 1.0 * 3.0 * 3.0);
         for level in 0..LEVELS {
             for index in 0..b.num_boxes(level) {
-                let bound = b.lower_bounds(level, index / 4, &q, &w).to_array()[index % 4];
+                let bound = b.lower_bounds(level, index / 4, &q, Some(&w)).to_array()[index % 4];
                 if index + 16 <= b.num_boxes(level) {
-                    let four = b.lower_bounds4(level, index / 4, &q, &w)[0].to_array()[index % 4];
+                    let four = b.lower_bounds4(level, index / 4, &q, Some(&w))[0].to_array()[index % 4];
                     assert_eq!(four.to_bits(), bound.to_bits(), "level {level} box {index}: four at once differ");
                 }
                 if level > 0 {
-                    for (c, &child) in b.lower_bounds(level - 1, index, &q, &w).to_array().iter().enumerate() {
+                    for (c, &child) in b.lower_bounds(level - 1, index, &q, Some(&w)).to_array().iter().enumerate() {
                         assert!(
                             bound <= child || child.is_infinite(),
                             "level {level} box {index} bound {bound} > child {c} bound {child}"
@@ -274,6 +304,31 @@ mod tests {
                         .map(|d| wv[d] * (qv[d] - features[frame * 3 + d]) * (qv[d] - features[frame * 3 + d]))
                         .sum();
                     assert!(bound <= cost, "level {level} frame {frame}: bound {bound} > cost {cost}");
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn unit_weights_left_out_give_the_same_bits() {
+        let (b, _, _) = boxes(|i| i % 4 != 2);
+        let ones = [F32x4::splat(1.0); 3];
+        for qv in [[40.5f32, -100.0, 9.0], [-3.25, 0.0, -0.0], [599.5, -17.0, 3.5]] {
+            let q: Vec<F32x4> = qv.iter().map(|&v| F32x4::splat(v)).collect();
+            for level in 0..LEVELS {
+                for group in 0..b.num_boxes(level) / 4 {
+                    let (with, without) =
+                        (b.lower_bounds(level, group, &q, Some(&ones)), b.lower_bounds(level, group, &q, None));
+                    assert_eq!(with.to_array().map(f32::to_bits), without.to_array().map(f32::to_bits));
+                    if group + 4 <= b.num_boxes(level) / 4 {
+                        let (with4, without4) =
+                            (b.lower_bounds4(level, group, &q, Some(&ones)), b.lower_bounds4(level, group, &q, None));
+                        assert_eq!(
+                            with4.map(|v| v.to_array().map(f32::to_bits)),
+                            without4.map(|v| v.to_array().map(f32::to_bits))
+                        );
+                        assert_eq!(with4[0].to_array().map(f32::to_bits), without.to_array().map(f32::to_bits));
+                    }
                 }
             }
         }

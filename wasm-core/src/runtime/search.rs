@@ -199,9 +199,11 @@ const TOP_CACHE: usize = 32;
 const SMALL_DIMS: usize = 32;
 
 /// A query and its per-dimension weights splatted across lanes (`d` of each), on the stack.
+/// `weights` is `None` when every weight is 1 (the default β's): the kernels then skip the
+/// multiplication by 1, which changes no bit (`fl(1·x) = x`), so the result is the same.
 struct LaneQuery<'a> {
     query: &'a [F32x4],
-    weights: &'a [F32x4],
+    weights: Option<&'a [F32x4]>,
 }
 
 impl SearchIndex {
@@ -556,11 +558,14 @@ impl SearchIndex {
     fn lane_query<'a>(&self, query: &[f32], options: &SearchOptions, lanes: &'a mut [F32x4]) -> LaneQuery<'a> {
         let d = self.num_dims;
         let (q, w) = lanes[..2 * d].split_at_mut(d);
+        let mut unit = true;
         for (dim, &v) in query.iter().enumerate() {
             q[dim] = F32x4::splat(v);
-            w[dim] = F32x4::splat(self.weight(dim, options));
+            let weight = self.weight(dim, options);
+            unit &= weight == 1.0;
+            w[dim] = F32x4::splat(weight);
         }
-        LaneQuery { query: q, weights: w }
+        LaneQuery { query: q, weights: (!unit).then_some(&*w) }
     }
 
     /// Costs of the 16 frames of blocks `first_block .. first_block + 4`, folded into `best`.
@@ -577,14 +582,24 @@ impl SearchIndex {
         let d = self.num_dims;
         let rows = &self.lanes[first_block * d..(first_block + 4) * d];
         let (r0, r1, r2, r3) = (&rows[..d], &rows[d..2 * d], &rows[2 * d..3 * d], &rows[3 * d..]);
-        let (qs, ws) = (q.query, q.weights);
+        let qs = q.query;
         let mut acc = [F32x4::ZERO; 4];
-        for i in 0..d {
-            let (qd, wd) = (qs[i], ws[i]);
-            // Same steps as the scalar cost: (w · (q − f)) · (q − f), summed in dim order.
-            let diff = [qd - r0[i], qd - r1[i], qd - r2[i], qd - r3[i]];
-            for k in 0..4 {
-                acc[k] += wd * diff[k] * diff[k];
+        // Same steps as the scalar cost: (w · (q − f)) · (q − f), summed in dim order.
+        if let Some(ws) = q.weights {
+            for i in 0..d {
+                let (qd, wd) = (qs[i], ws[i]);
+                let diff = [qd - r0[i], qd - r1[i], qd - r2[i], qd - r3[i]];
+                for k in 0..4 {
+                    acc[k] += wd * diff[k] * diff[k];
+                }
+            }
+        } else {
+            for i in 0..d {
+                let qd = qs[i];
+                let diff = [qd - r0[i], qd - r1[i], qd - r2[i], qd - r3[i]];
+                for k in 0..4 {
+                    acc[k] += diff[k] * diff[k];
+                }
             }
         }
         // The bias last, as in the scalar cost (adding a 0 bias changes no bit).
