@@ -216,8 +216,12 @@ impl Inertializer {
                 dst_rot[i],
                 dst_angvel[i],
             );
-            // The short way (w ≥ 0): an angle of at most π.
+            // The short way (w ≥ 0): an angle of at most π. A rotation too small for a vector
+            // (glam's axis-angle returns none below 1e-8) is none: `update` skips zero offsets.
             self.offset_rotation_vectors[i] = self.offset_rotations[i].to_scaled_axis();
+            if self.offset_rotation_vectors[i] == Vec3::ZERO {
+                self.offset_rotations[i] = Quat::IDENTITY;
+            }
         }
     }
 
@@ -282,15 +286,29 @@ impl Inertializer {
         }
         let decay = DecayStep::new(halflife, dt);
         for i in 0..n {
-            decay.apply(&mut self.offset_positions[i], &mut self.offset_velocities[i]);
-            out_pos[i] = in_pos[i] + self.offset_positions[i];
-            out_vel[i] = in_vel[i] + self.offset_velocities[i];
-            // The rotation offset decays as a vector and only its exponential is taken (docs/method.md §4).
-            decay.apply(&mut self.offset_rotation_vectors[i], &mut self.offset_angular_velocities[i]);
-            let d = Quat::from_scaled_axis(self.offset_rotation_vectors[i]);
-            self.offset_rotations[i] = d;
-            out_rot[i] = d * in_rot[i];
-            out_angvel[i] = self.offset_angular_velocities[i] + d * in_angvel[i];
+            // A zero offset stays zero and changes nothing: most joints' local positions are the
+            // skeleton's constant bone offsets, so their position offsets are exactly zero after
+            // every transition (`(0 + s) − t` with `s = t`), and their velocities too.
+            if self.offset_positions[i] == Vec3::ZERO && self.offset_velocities[i] == Vec3::ZERO {
+                out_pos[i] = in_pos[i];
+                out_vel[i] = in_vel[i];
+            } else {
+                decay.apply(&mut self.offset_positions[i], &mut self.offset_velocities[i]);
+                out_pos[i] = in_pos[i] + self.offset_positions[i];
+                out_vel[i] = in_vel[i] + self.offset_velocities[i];
+            }
+            if self.offset_rotation_vectors[i] == Vec3::ZERO && self.offset_angular_velocities[i] == Vec3::ZERO {
+                out_rot[i] = in_rot[i];
+                out_angvel[i] = in_angvel[i];
+            } else {
+                // The rotation offset decays as a vector and only its exponential is taken
+                // (docs/method.md §4).
+                decay.apply(&mut self.offset_rotation_vectors[i], &mut self.offset_angular_velocities[i]);
+                let d = Quat::from_scaled_axis(self.offset_rotation_vectors[i]);
+                self.offset_rotations[i] = d;
+                out_rot[i] = d * in_rot[i];
+                out_angvel[i] = self.offset_angular_velocities[i] + d * in_angvel[i];
+            }
         }
     }
 }
