@@ -38,6 +38,12 @@ pub fn local_to_model<V, Q>(
     V: Copy + Add<Output = V>,
     Q: Copy + Mul<Q, Output = Q> + Mul<V, Output = V>,
 {
+    // Slices cut to the range up front: the loop's own indexing then needs no bounds checks
+    // (the full pose's FK runs every update).
+    let end = joints.end;
+    let (parents, local_positions, local_rotations) =
+        (&parents[..end], &local_positions[..end], &local_rotations[..end]);
+    let (model_positions, model_rotations) = (&mut model_positions[..end], &mut model_rotations[..end]);
     for j in joints {
         let (p, q) = (local_positions[j], local_rotations[j]);
         let parent = parents[j];
