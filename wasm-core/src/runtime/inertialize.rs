@@ -83,6 +83,13 @@ pub fn inertialize_transition_quat(
     *offset = new_offset;
 }
 
+/// Whether every component of `a` and `b` is ±0: their bits but the signs ORed, one branch
+/// instead of six comparisons.
+#[inline(always)]
+fn both_zero(a: Vec3, b: Vec3) -> bool {
+    ((a.x.to_bits() | a.y.to_bits() | a.z.to_bits() | b.x.to_bits() | b.y.to_bits() | b.z.to_bits()) << 1) == 0
+}
+
 /// Per-joint inertialization offsets for a whole pose (local positions, velocities, rotations and
 /// angular velocities, as stored in [`crate::Database`]). Allocates only in [`Inertializer::new`].
 ///
@@ -289,7 +296,7 @@ impl Inertializer {
             // A zero offset stays zero and changes nothing: most joints' local positions are the
             // skeleton's constant bone offsets, so their position offsets are exactly zero after
             // every transition (`(0 + s) − t` with `s = t`), and their velocities too.
-            if self.offset_positions[i] == Vec3::ZERO && self.offset_velocities[i] == Vec3::ZERO {
+            if both_zero(self.offset_positions[i], self.offset_velocities[i]) {
                 out_pos[i] = in_pos[i];
                 out_vel[i] = in_vel[i];
             } else {
@@ -297,7 +304,7 @@ impl Inertializer {
                 out_pos[i] = in_pos[i] + self.offset_positions[i];
                 out_vel[i] = in_vel[i] + self.offset_velocities[i];
             }
-            if self.offset_rotation_vectors[i] == Vec3::ZERO && self.offset_angular_velocities[i] == Vec3::ZERO {
+            if both_zero(self.offset_rotation_vectors[i], self.offset_angular_velocities[i]) {
                 out_rot[i] = in_rot[i];
                 out_angvel[i] = in_angvel[i];
             } else {
@@ -573,6 +580,15 @@ mod tests {
             assert!(prev[i].0 <= 0.01 * before[i].0 + 1e-6);
             assert!(prev[i].1 <= 0.01 * before[i].1 + 1e-5);
             assert!((out.rot[i].length() - 1.0).abs() < 1e-5);
+        }
+    }
+
+    #[test]
+    fn only_zeros_of_either_sign_are_zero() {
+        assert!(both_zero(Vec3::ZERO, Vec3::new(-0.0, 0.0, -0.0)));
+        for tiny in [f32::MIN_POSITIVE / 8.0, -1e-30, f32::NAN, f32::INFINITY] {
+            assert!(!both_zero(Vec3::new(0.0, tiny, 0.0), Vec3::ZERO), "{tiny}");
+            assert!(!both_zero(Vec3::ZERO, Vec3::new(0.0, 0.0, tiny)), "{tiny}");
         }
     }
 
