@@ -22,7 +22,7 @@
 //! take's motion from where the character stands and inertializes only the velocity mismatch.
 
 use crate::persist::{Persist, Visitor};
-use crate::spring::DecayStep;
+use crate::spring::{quat_from_rotation_vector, DecayStep};
 use glam::{Quat, Vec3};
 
 /// Exact critically damped decay toward zero, the same spring as everywhere in the crate
@@ -122,7 +122,7 @@ impl Persist for Inertializer {
         self.offset_angular_velocities.persist(v, "inertialization angular velocity offsets");
         if v.reading() {
             for (q, &r) in self.offset_rotations.iter_mut().zip(&self.offset_rotation_vectors) {
-                *q = Quat::from_scaled_axis(r);
+                *q = quat_from_rotation_vector(r);
             }
         }
     }
@@ -311,7 +311,7 @@ impl Inertializer {
                 // The rotation offset decays as a vector and only its exponential is taken
                 // (docs/method.md §4).
                 decay.apply(&mut self.offset_rotation_vectors[i], &mut self.offset_angular_velocities[i]);
-                let d = Quat::from_scaled_axis(self.offset_rotation_vectors[i]);
+                let d = quat_from_rotation_vector(self.offset_rotation_vectors[i]);
                 self.offset_rotations[i] = d;
                 out_rot[i] = d * in_rot[i];
                 out_angvel[i] = self.offset_angular_velocities[i] + d * in_angvel[i];
