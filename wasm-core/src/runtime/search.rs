@@ -354,21 +354,13 @@ impl SearchIndex {
     /// Every frame, four at a time. Same preconditions and panics as [`Self::search_scalar`].
     pub fn search_simd(&self, query: &[f32], options: &SearchOptions, bar: f32) -> Option<(usize, f32)> {
         self.check_query(query, options);
-        // Only the buffer used is zeroed.
-        let (mut small, mut large);
-        let lanes: &mut [F32x4] = if self.num_dims <= SMALL_DIMS {
-            small = [F32x4::ZERO; 2 * SMALL_DIMS];
-            &mut small
-        } else {
-            large = [F32x4::ZERO; 2 * MAX_DIMS];
-            &mut large
-        };
-        let q = self.lane_query(query, options, lanes);
-        let mut best = Best { frame: 0, cost: bar };
-        for span in 0..self.lanes.len() / (4 * self.num_dims) {
-            self.search_span(4 * span, &q, options, &mut best);
-        }
-        best.result(bar)
+        self.with_lane_query(query, options, |q| {
+            let mut best = Best { frame: 0, cost: bar };
+            for span in 0..self.lanes.len() / (4 * self.num_dims) {
+                self.search_span(4 * span, q, options, &mut best);
+            }
+            best.result(bar)
+        })
     }
 
     /// Pruned by the box tree, SIMD inside the 16-frame boxes it visits. Same preconditions
@@ -379,52 +371,44 @@ impl SearchIndex {
     /// keeps the result exact because ties go to the earliest frame ([`Best`]).
     pub fn search_aabb(&self, query: &[f32], options: &SearchOptions, bar: f32) -> Option<(usize, f32)> {
         self.check_query(query, options);
-        // Only the buffer used is zeroed.
-        let (mut small, mut large);
-        let lanes: &mut [F32x4] = if self.num_dims <= SMALL_DIMS {
-            small = [F32x4::ZERO; 2 * SMALL_DIMS];
-            &mut small
-        } else {
-            large = [F32x4::ZERO; 2 * MAX_DIMS];
-            &mut large
-        };
-        let q = self.lane_query(query, options, lanes);
-        let mut best = Best { frame: 0, cost: bar };
-        let top = LEVELS - 1;
-        let groups = self.bounds.num_boxes(top) / 4;
-        // The top-level bounds, computed once (four groups at a time) and kept for the visit in
-        // frame order when they fit (`TOP_CACHE` groups: 512k frames), else computed again.
-        let mut cache = [F32x4::ZERO; TOP_CACHE];
-        let mut seed = (f32::INFINITY, usize::MAX);
-        let mut note = |group: usize, bounds: F32x4| {
-            if group < TOP_CACHE {
-                cache[group] = bounds;
-            }
-            for (l, &b) in bounds.to_array().iter().enumerate() {
-                if b < seed.0 {
-                    seed = (b, 4 * group + l);
+        self.with_lane_query(query, options, |q| {
+            let mut best = Best { frame: 0, cost: bar };
+            let top = LEVELS - 1;
+            let groups = self.bounds.num_boxes(top) / 4;
+            // The top-level bounds, computed once (four groups at a time) and kept for the visit in
+            // frame order when they fit (`TOP_CACHE` groups: 131k frames), else computed again.
+            let mut cache = [F32x4::ZERO; TOP_CACHE];
+            let mut seed = (f32::INFINITY, usize::MAX);
+            let mut note = |group: usize, bounds: F32x4| {
+                if group < TOP_CACHE {
+                    cache[group] = bounds;
+                }
+                for (l, &b) in bounds.to_array().iter().enumerate() {
+                    if b < seed.0 {
+                        seed = (b, 4 * group + l);
+                    }
+                }
+            };
+            // Four groups at a time while there are four, then one at a time.
+            let whole = groups - groups % 4;
+            for first in (0..whole).step_by(4) {
+                for (g, bounds) in self.box_bounds4(top, first, q, options).into_iter().enumerate() {
+                    note(first + g, bounds);
                 }
             }
-        };
-        // Four groups at a time while there are four, then one at a time.
-        let whole = groups - groups % 4;
-        for first in (0..whole).step_by(4) {
-            for (g, bounds) in self.box_bounds4(top, first, &q, options).into_iter().enumerate() {
-                note(first + g, bounds);
+            for group in whole..groups {
+                note(group, self.box_bounds(top, group, q, options));
             }
-        }
-        for group in whole..groups {
-            note(group, self.box_bounds(top, group, &q, options));
-        }
-        if seed.1 != usize::MAX && seed.0 < best.cost {
-            self.visit(top, seed.1, &q, options, &mut best);
-        }
-        for group in 0..groups {
-            let skip = if seed.1 / 4 == group { 1 << (seed.1 % 4) } else { 0 };
-            let bounds = if group < TOP_CACHE { cache[group] } else { self.box_bounds(top, group, &q, options) };
-            self.visit_boxes(top, group, bounds, skip, &q, options, &mut best);
-        }
-        best.result(bar)
+            if seed.1 != usize::MAX && seed.0 < best.cost {
+                self.visit(top, seed.1, q, options, &mut best);
+            }
+            for group in 0..groups {
+                let skip = if seed.1 / 4 == group { 1 << (seed.1 % 4) } else { 0 };
+                let bounds = if group < TOP_CACHE { cache[group] } else { self.box_bounds(top, group, q, options) };
+                self.visit_boxes(top, group, bounds, skip, q, options, &mut best);
+            }
+            best.result(bar)
+        })
     }
 
     /// Lower bounds of boxes `4·group ..` of `level`, the tags' least bias added (+∞ for a box
@@ -552,6 +536,17 @@ impl SearchIndex {
             cost += self.weight(dim, options) * (q - f) * (q - f);
         }
         cost + options.tags.bias(self.tag_bits[frame])
+    }
+
+    /// Runs `search` with the query's lanes on the stack: in a 1 KiB buffer for up to
+    /// [`SMALL_DIMS`] dimensions, else in one for [`MAX_DIMS`]; only the buffer used is zeroed.
+    #[inline(always)]
+    fn with_lane_query<R>(&self, query: &[f32], options: &SearchOptions, search: impl FnOnce(&LaneQuery) -> R) -> R {
+        if self.num_dims <= SMALL_DIMS {
+            search(&self.lane_query(query, options, &mut [F32x4::ZERO; 2 * SMALL_DIMS]))
+        } else {
+            search(&self.lane_query(query, options, &mut [F32x4::ZERO; 2 * MAX_DIMS]))
+        }
     }
 
     /// The query's lanes, written into `lanes` (at least twice the dimension count).
