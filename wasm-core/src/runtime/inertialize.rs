@@ -103,8 +103,8 @@ pub struct Inertializer {
     offset_positions: Vec<Vec3>,
     offset_velocities: Vec<Vec3>,
     /// `d_r` as a rotation vector (scaled axis, docs/method.md §4 "via scaled axis-angle"): the
-    /// spring decays this vector, so an update takes no logarithm of a quaternion (that `atan2`
-    /// per joint was a third of a character's update). Set from the quaternion at a transition.
+    /// spring decays this vector, so an update takes no logarithm of a quaternion (an `atan2` per
+    /// joint per update, a tenth of a character's update). Set from the quaternion at a transition.
     offset_rotation_vectors: Vec<Vec3>,
     /// `d_r = exp(offset_rotation_vectors)`, kept in step with it: what the output and the next
     /// transition multiply by.
