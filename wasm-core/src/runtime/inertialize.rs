@@ -104,27 +104,18 @@ pub struct Inertializer {
     offset_velocities: Vec<Vec3>,
     /// `d_r` as a rotation vector (scaled axis, docs/method.md §4 "via scaled axis-angle"): the
     /// spring decays this vector, so an update takes no logarithm of a quaternion (an `atan2` per
-    /// joint per update, a tenth of a character's update). Set from the quaternion at a transition.
+    /// joint per update, a tenth of a character's update). `d_r` itself is its exponential
+    /// ([`Inertializer::offset_rotation`]); a transition sets the vector from the new `d_r`.
     offset_rotation_vectors: Vec<Vec3>,
-    /// `d_r = exp(offset_rotation_vectors)`, kept in step with it: what the output and the next
-    /// transition multiply by.
-    offset_rotations: Vec<Quat>,
     offset_angular_velocities: Vec<Vec3>,
 }
 
-/// The rotation vectors are the state (the quaternions follow from them), so a copy that reads
-/// them computes the sender's floats.
 impl Persist for Inertializer {
     fn persist(&mut self, v: &mut dyn Visitor, _: &'static str) {
         self.offset_positions.persist(v, "inertialization position offsets");
         self.offset_velocities.persist(v, "inertialization velocity offsets");
         self.offset_rotation_vectors.persist(v, "inertialization rotation offsets");
         self.offset_angular_velocities.persist(v, "inertialization angular velocity offsets");
-        if v.reading() {
-            for (q, &r) in self.offset_rotations.iter_mut().zip(&self.offset_rotation_vectors) {
-                *q = quat_from_rotation_vector(r);
-            }
-        }
     }
 }
 
@@ -135,7 +126,6 @@ impl Inertializer {
             offset_positions: vec![Vec3::ZERO; num_joints],
             offset_velocities: vec![Vec3::ZERO; num_joints],
             offset_rotation_vectors: vec![Vec3::ZERO; num_joints],
-            offset_rotations: vec![Quat::IDENTITY; num_joints],
             offset_angular_velocities: vec![Vec3::ZERO; num_joints],
         }
     }
@@ -149,7 +139,6 @@ impl Inertializer {
         self.offset_positions.fill(Vec3::ZERO);
         self.offset_velocities.fill(Vec3::ZERO);
         self.offset_rotation_vectors.fill(Vec3::ZERO);
-        self.offset_rotations.fill(Quat::IDENTITY);
         self.offset_angular_velocities.fill(Vec3::ZERO);
     }
 
@@ -162,9 +151,10 @@ impl Inertializer {
         &self.offset_velocities
     }
 
-    /// Current rotation offsets `d_r` (unit, w ≥ 0 right after a transition).
-    pub fn offset_rotations(&self) -> &[Quat] {
-        &self.offset_rotations
+    /// Joint `i`'s current rotation offset `d_r`, the exponential of its rotation vector (unit,
+    /// w ≥ 0 right after a transition).
+    pub fn offset_rotation(&self, i: usize) -> Quat {
+        quat_from_rotation_vector(self.offset_rotation_vectors[i])
     }
 
     pub fn offset_angular_velocities(&self) -> &[Vec3] {
@@ -215,20 +205,17 @@ impl Inertializer {
                 dst_pos[i],
                 dst_vel[i],
             );
+            let mut d = self.offset_rotation(i);
             inertialize_transition_quat(
-                &mut self.offset_rotations[i],
+                &mut d,
                 &mut self.offset_angular_velocities[i],
                 src_rot[i],
                 src_angvel[i],
                 dst_rot[i],
                 dst_angvel[i],
             );
-            // The short way (w ≥ 0): an angle of at most π. A rotation too small for a vector
-            // (glam's axis-angle returns none below 1e-8) is none: `update` skips zero offsets.
-            self.offset_rotation_vectors[i] = self.offset_rotations[i].to_scaled_axis();
-            if self.offset_rotation_vectors[i] == Vec3::ZERO {
-                self.offset_rotations[i] = Quat::IDENTITY;
-            }
+            // The short way (w ≥ 0): an angle of at most π.
+            self.offset_rotation_vectors[i] = d.to_scaled_axis();
         }
     }
 
@@ -312,7 +299,6 @@ impl Inertializer {
                 // (docs/method.md §4).
                 decay.apply(&mut self.offset_rotation_vectors[i], &mut self.offset_angular_velocities[i]);
                 let d = quat_from_rotation_vector(self.offset_rotation_vectors[i]);
-                self.offset_rotations[i] = d;
                 out_rot[i] = d * in_rot[i];
                 out_angvel[i] = self.offset_angular_velocities[i] + d * in_angvel[i];
             }
@@ -520,7 +506,7 @@ mod tests {
                     update(&mut inert, &input, h, 0.0, &mut out);
                     assert!(max_diff(&out, &prev) < 1e-5, "frame {frame}: output moved at the transition");
                     for (i, b) in bound.iter_mut().enumerate() {
-                        let r = inert.offset_rotations()[i].to_scaled_axis().length();
+                        let r = inert.offset_rotation(i).to_scaled_axis().length();
                         *b = (
                             inert.offset_positions()[i].length() + inert.offset_velocities()[i].length() / y,
                             r + inert.offset_angular_velocities()[i].length() / y,
@@ -544,7 +530,7 @@ mod tests {
             // below 0.07 % of x0 + v0/y, so < 1 % holds with margin.
             for (i, &(bp, br)) in bound.iter().enumerate() {
                 assert!(inert.offset_positions()[i].length() <= 0.01 * bp + 1e-6);
-                assert!(inert.offset_rotations()[i].to_scaled_axis().length() <= 0.01 * br + 1e-5);
+                assert!(inert.offset_rotation(i).to_scaled_axis().length() <= 0.01 * br + 1e-5);
             }
         }
     }
@@ -563,7 +549,7 @@ mod tests {
         let mut out = Pose::zeroed(n);
         transition(&mut inert, &src, &dst);
         let before: Vec<(f32, f32)> = (0..n)
-            .map(|i| (inert.offset_positions()[i].length(), inert.offset_rotations()[i].to_scaled_axis().length()))
+            .map(|i| (inert.offset_positions()[i].length(), inert.offset_rotation(i).to_scaled_axis().length()))
             .collect();
         let mut prev = before.clone();
         let dt = 1.0f32 / 60.0;
@@ -571,7 +557,7 @@ mod tests {
             update(&mut inert, &dst, h, dt, &mut out);
             for (i, p) in prev.iter_mut().enumerate() {
                 // Zero initial offset velocity: the critically damped decay never overshoots.
-                let now = (inert.offset_positions()[i].length(), inert.offset_rotations()[i].to_scaled_axis().length());
+                let now = (inert.offset_positions()[i].length(), inert.offset_rotation(i).to_scaled_axis().length());
                 assert!(now.0 <= p.0 + 1e-7 && now.1 <= p.1 + 1e-6, "joint {i}: {p:?} -> {now:?}");
                 *p = now;
             }
