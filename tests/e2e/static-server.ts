@@ -37,5 +37,13 @@ export async function serveStatic(root: string, headers: Record<string, string> 
   });
   await new Promise<void>((resolve) => server.listen(0, '127.0.0.1', resolve));
   const { port } = server.address() as AddressInfo;
-  return { url: `http://127.0.0.1:${port}`, close: () => new Promise((resolve) => server.close(() => resolve())) };
+  // close() waits for open connections; one the page still holds (a background download on a
+  // slow run) made a test wait for its own page until its timeout (7 min), so after 10 s the
+  // server drops whatever is left.
+  const close = () =>
+    new Promise<void>((resolve) => {
+      server.close(() => resolve());
+      setTimeout(() => server.closeAllConnections(), 10_000).unref();
+    });
+  return { url: `http://127.0.0.1:${port}`, close };
 }
