@@ -22,7 +22,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 MAGIC = b"\x89MMDB\r\n\x1a"
-VERSIONS = (1, 2)
+VERSIONS = (1, 2, 3)
 HEADER_SIZE = 32
 ENTRY_SIZE = 24
 ALIGNMENT = 16
@@ -30,6 +30,7 @@ ALIGNMENT = 16
 REQUIRED_SECTIONS = {
     1: ("INFO", "SKEL", "CLIP", "TAGS", "LPOS", "LROT", "LVEL", "LAVL", "CONT", "FDSC", "FNRM", "FEAT", "VALD"),
     2: ("INFO", "SKEL", "CLIP", "TAGS", "PANM", "QROT", "CONT", "FDSC", "FNRM", "FSHF", "VALD"),
+    3: ("INFO", "SKEL", "CLIP", "TAGS", "PANM", "QROT", "CONT", "FDSC", "FNRM", "VALD"),
 }
 ROTATION_SCALE = 32767.0
 # A decoded QROT value whose squared length is off by more than this (relative) is corruption.
@@ -384,7 +385,8 @@ def load(path_or_bytes) -> Database:
         local_velocities, local_angular_velocities = pose_velocities(
             fps, [(c.start, c.end) for c in clips], local_positions, local_rotations
         )
-        features = _decode_fshf(sections["FSHF"], F, D)
+        # Version 3 derives them once the database is assembled (below).
+        features = _decode_fshf(sections["FSHF"], F, D) if version == 2 else np.zeros((F, D), np.float32)
     db = Database(
         version=version,
         fps=fps,
@@ -408,6 +410,9 @@ def load(path_or_bytes) -> Database:
         valid=_check_flags("VALD", _array(sections, "VALD", "u1", (F,))),
         extra_sections={t: d for t, d in sections.items() if t not in REQUIRED_SECTIONS[version]},
     )
+    if version >= 3:
+        raw = pose_features(db)
+        db.features = ((raw - db.feature_mean) / db.feature_scale).astype(np.float32)
     return db
 
 
@@ -486,6 +491,42 @@ def pose_velocities(fps: float, clips: list[tuple[int, int]], positions: np.ndar
         qa_inv = q[a] * np.array([-1.0, -1.0, -1.0, 1.0])
         ang[f] = scaled_axis(quat_mul(q[b], qa_inv)) * inv_h
     return lin.astype(np.float32), ang.astype(np.float32)
+
+
+def pose_features(db: Database) -> np.ndarray:
+    """Version 3's derived raw features (F, D), before normalization: per clip, for frame `i`
+    and offset `k` of a group, frame `t = clamp(i + k)` to the clip, in the character space of
+    frame `i` (root position `r`, yaw `R`): position `R⁻¹(p_t − r)`, velocity `R⁻¹(p_{t+1} −
+    p_{t−1})·fps/2` (one-sided at the clip's ends), direction `R⁻¹·rot_t·axis`; f64, stored
+    as f32. An independent reading of docs/mmdb-format.md, not the Rust code."""
+    F, D = db.num_frames, db.num_features
+    out = np.zeros((F, D), dtype=np.float32)
+    pos, rot = _fk(db.parents, db.local_positions, db.local_rotations, character_space=False)
+    for c in db.clips:
+        f = np.arange(c.start, c.end)
+        root_p, root_q = pos[f, 0], rot[f, 0]
+        inv = root_q * np.array([-1.0, -1.0, -1.0, 1.0])
+        for g in db.feature_groups:
+            axis = np.asarray(g.direction, dtype=np.float64)
+
+            def point(t):
+                site = np.zeros(3) if g.kind == KIND_DIRECTION else axis
+                return pos[t, g.joint] + quat_rotate(rot[t, g.joint], np.broadcast_to(site, (len(t), 3)))
+
+            for k, o in enumerate(g.offsets):
+                t = np.clip(f + o, c.start, c.end - 1)
+                if g.kind == KIND_POSITION:
+                    v = quat_rotate(inv, point(t) - root_p)
+                elif g.kind == KIND_VELOCITY:
+                    a, b = np.maximum(t - 1, c.start), np.minimum(t + 1, c.end - 1)
+                    h = np.where(b > a, (b - a) / db.fps, 1.0)[:, None]
+                    v = quat_rotate(inv, np.where((b > a)[:, None], (point(b) - point(a)) / h, 0.0))
+                else:
+                    v = quat_rotate(inv, quat_rotate(rot[t, g.joint], np.broadcast_to(axis, (len(t), 3))))
+                dims = [0, 1, 2] if g.axes == AXES_XYZ else [0, 2]
+                d = g.first_dim + k * len(dims)
+                out[f, d : d + len(dims)] = v[:, dims]
+    return out
 
 
 # --- quaternions (x, y, z, w), vectorized over leading axes ------------------------------------

@@ -153,7 +153,7 @@ def _corruptions():
         ("shorter than header", good[:20], "truncated"),
         ("empty", b"", "truncated"),
         ("magic", b"\x89MMDX" + good[5:], "magic"),
-        ("version", patch(good, 8, struct.pack("<I", 3)), "unsupported version 3"),
+        ("version", patch(good, 8, struct.pack("<I", 4)), "unsupported version 4"),
         (
             "version 2 with version 1 sections",
             patch(good, 8, struct.pack("<I", 2)),

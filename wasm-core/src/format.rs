@@ -1,6 +1,7 @@
-//! The `.mmdb` binary format, version 2 (specified in `docs/mmdb-format.md`): writing a
-//! [`Database`] to bytes and reading it back (version 1 too) with every length, offset and
-//! value checked. The version-2 encodings of the pose and feature arrays are in `codec.rs`.
+//! The `.mmdb` binary format, version 3 (specified in `docs/mmdb-format.md`): writing a
+//! [`Database`] to bytes and reading it back (versions 1 and 2 too) with every length, offset
+//! and value checked. The encodings of the pose (and, in version 2, feature) arrays are in
+//! `codec.rs`; version 3 derives the features from the poses on load.
 
 pub mod codec;
 
@@ -17,16 +18,17 @@ use glam::{Quat, Vec3};
 compile_error!("the .mmdb writer and reader assume a little-endian target");
 
 pub const MAGIC: [u8; 8] = *b"\x89MMDB\r\n\x1a";
-/// The version this crate writes. It reads version 1 too (its pose arrays were plain f32,
-/// velocities included).
-pub const VERSION: u32 = 2;
+/// The version this crate writes. It reads versions 1 (pose arrays as plain f32, velocities
+/// and features included) and 2 (features stored, `FSHF`) too.
+pub const VERSION: u32 = 3;
 const HEADER_LEN: usize = 32;
+/// What a bad derived feature is called in messages: the sections it came from.
+const DERIVED_FEATURES: &str = "features derived from PANM and QROT";
 const ENTRY_LEN: usize = 24;
 const ALIGN: usize = 16;
 
-/// Section tags in the order they are written.
-const TAGS: [&[u8; 4]; 11] =
-    [b"INFO", b"SKEL", b"CLIP", b"TAGS", b"PANM", b"QROT", b"CONT", b"FDSC", b"FNRM", b"FSHF", b"VALD"];
+/// Section tags in the order they are written (no feature matrix: derived on load).
+const TAGS: [&[u8; 4]; 10] = [b"INFO", b"SKEL", b"CLIP", b"TAGS", b"PANM", b"QROT", b"CONT", b"FDSC", b"FNRM", b"VALD"];
 
 /// Serializes a database.
 ///
@@ -43,7 +45,6 @@ pub fn to_bytes(db: &Database) -> Vec<u8> {
             b"PANM" => codec::encode_positions(&db.local_positions, &db.skeleton.offsets).into(),
             b"QROT" => codec::encode_rotations(&db.local_rotations, db.num_joints()).into(),
             b"CONT" => db.contacts.as_slice().into(),
-            b"FSHF" => codec::shuffle_features(&db.features, db.num_features()).into(),
             b"VALD" => db.valid.as_slice().into(),
             _ => small_section(db, tag).into(),
         };
@@ -193,9 +194,9 @@ pub fn from_bytes(bytes: &[u8]) -> Result<Database> {
         return Err(Error::format("wrong magic bytes: not a .mmdb file"));
     }
     let version = le_u32(&bytes[8..12]);
-    if version != 1 && version != VERSION {
+    if !(1..=VERSION).contains(&version) {
         return Err(Error::format(format!(
-            "unsupported format version {version} (this reader reads versions 1 and {VERSION}); rebuild the database with this version's `mmdb build` or page builder"
+            "unsupported format version {version} (this reader reads versions 1 to {VERSION}); rebuild the database with this version's `mmdb build` or page builder"
         )));
     }
     let count = le_u32(&bytes[12..16]) as usize;
@@ -494,17 +495,22 @@ pub fn from_bytes(bytes: &[u8]) -> Result<Database> {
     let feature_mean = norm;
     check_feature_scale(&feature_scale)?;
     let num_values = num_frames.checked_mul(num_dims).ok_or_else(|| Error::format("INFO counts overflow"))?;
-    let features = if version == 1 {
-        section(b"FEAT")?.f32s(num_values)?
-    } else {
-        codec::unshuffle_features(section(b"FSHF")?.data, num_frames, num_dims).map_err(Error::format)?
+    // Version 3 derives them below, from the decoded poses.
+    let features = match version {
+        1 => section(b"FEAT")?.f32s(num_values)?,
+        2 => codec::unshuffle_features(section(b"FSHF")?.data, num_frames, num_dims).map_err(Error::format)?,
+        _ => Vec::new(),
     };
     let valid = section(b"VALD")?.flags(num_frames)?;
 
     // Every other float, in one place: finite and within ±MAX_ABS_STORED.
     check_floats("SKEL site offset", &skeleton.sites.iter().flat_map(|s| s.offset.to_array()).collect::<Vec<_>>())?;
     check_floats("FDSC feature axis", &groups.iter().flat_map(|g| g.axis.to_array()).collect::<Vec<_>>())?;
-    let (positions_tag, features_tag) = if version == 1 { ("LPOS", "FEAT") } else { ("PANM", "FSHF") };
+    let (positions_tag, features_tag) = match version {
+        1 => ("LPOS", "FEAT"),
+        2 => ("PANM", "FSHF"),
+        _ => ("PANM", DERIVED_FEATURES),
+    };
     check_floats(positions_tag, bytemuck::cast_slice(&local_positions))?;
     if let Some((v, w)) = &velocities {
         check_floats("LVEL", bytemuck::cast_slice(v))?;
@@ -540,6 +546,10 @@ pub fn from_bytes(bytes: &[u8]) -> Result<Database> {
     };
     if derive {
         db.compute_velocities();
+    }
+    if version >= 3 {
+        db.compute_features();
+        check_floats(features_tag, &db.features)?;
     }
     Ok(db)
 }
@@ -584,9 +594,12 @@ fn read_part(r: &mut Reader, num_frames: usize, clips: &[Clip]) -> Result<Part> 
 
 /// Checks that `loaded` is what writing `original` and reading it back may give: everything
 /// equal except the rotations, each within [`codec::MAX_ROTATION_ERROR`] of the original
-/// (version 2 quantizes them), and the velocities, which must be the ones the original's poses
-/// give ([`crate::database::pose_velocities`]): linear ones within 1e-4 m/s, angular ones
-/// within `2 · MAX_ROTATION_ERROR · fps` (the rotations they are derived from moved).
+/// (quantized to 16 bits a component), and what is derived from the poses: the velocities must
+/// be the ones the original's poses give ([`crate::database::pose_velocities`]; linear ones
+/// within 1e-4 m/s, angular ones within `2 · MAX_ROTATION_ERROR · fps`), and the features, where
+/// the original's are the ones its own poses derive (a built or version-3 database) and its
+/// rotations came back unchanged, the same bits. Written and read once more, `loaded` comes back bit for bit (a fixed point: the
+/// writer's quantization is stable, [`codec::quantize_rotation`]).
 ///
 /// # Errors
 /// The first difference beyond those bounds.
@@ -608,10 +621,32 @@ pub fn check_round_trip(original: &Database, loaded: &Database) -> std::result::
         &loaded.local_positions,
         &loaded.contacts,
     ) && (&original.groups, &original.feature_mean, &original.feature_scale, &original.valid)
-        == (&loaded.groups, &loaded.feature_mean, &loaded.feature_scale, &loaded.valid)
-        && original.features.iter().map(|f| f.to_bits()).eq(loaded.features.iter().map(|f| f.to_bits()));
+        == (&loaded.groups, &loaded.feature_mean, &loaded.feature_scale, &loaded.valid);
     if !exact {
-        return Err("the skeleton, clips, tags, positions, contacts, features or validity changed".into());
+        return Err("the skeleton, clips, tags, positions, contacts, feature groups or validity changed".into());
+    }
+    let bits = |f: &[f32]| f.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+    let mut derived = crate::pose_features::pose_features(
+        &original.skeleton.parents,
+        original.fps,
+        &original.clips,
+        &original.groups,
+        original.num_features(),
+        &original.local_positions,
+        &original.local_rotations,
+    );
+    crate::pose_features::apply_normalization(&mut derived, &original.feature_mean, &original.feature_scale);
+    let same_poses = bytemuck::cast_slice::<Quat, f32>(&original.local_rotations)
+        .iter()
+        .map(|x| x.to_bits())
+        .eq(bytemuck::cast_slice::<Quat, f32>(&loaded.local_rotations).iter().map(|x| x.to_bits()));
+    if same_poses && bits(&derived) == bits(&original.features) && bits(&loaded.features) != bits(&original.features) {
+        return Err("the features changed".into());
+    }
+    match from_bytes(&to_bytes(loaded)) {
+        Ok(again) if again == *loaded => {}
+        Ok(_) => return Err("written and read again, the loaded database changed".into()),
+        Err(e) => return Err(format!("written again, the loaded database does not load: {e}")),
     }
     if original.local_rotations.len() != loaded.local_rotations.len() {
         return Err("the rotation count changed".into());
@@ -684,7 +719,7 @@ pub fn check_database(db: &Database) -> Result<()> {
         )));
     }
     check_floats("FNRM mean", &db.feature_mean)?;
-    check_floats("FSHF", &db.features)?;
+    check_floats(DERIVED_FEATURES, &db.features)?;
     Ok(())
 }
 
@@ -950,11 +985,12 @@ mod tests {
             }],
             feature_mean: vec![0.5, 0.25],
             feature_scale: vec![2.0, 2.0],
-            features: vec![0.0, 1.0, 2.0, 3.0, 4.0, 5.0],
+            features: Vec::new(),
             valid: vec![1, 1, 0],
             part: None,
         };
         db.compute_velocities();
+        db.compute_features();
         db
     }
 
@@ -1009,8 +1045,8 @@ mod tests {
         b[0] = b'X';
         assert!(message(&b).contains("magic"));
         let mut b = bytes.clone();
-        b[8] = 3;
-        assert!(message(&b).contains("version 3 (this reader reads versions 1 and 2); rebuild"));
+        b[8] = 4;
+        assert!(message(&b).contains("version 4 (this reader reads versions 1 to 3); rebuild"));
         let mut b = bytes.clone();
         let last = b.len() - 20;
         b[last] ^= 0x40;
@@ -1047,6 +1083,14 @@ mod tests {
         assert!(message(&to_bytes(&db)).contains("section CONT is 5 bytes but INFO implies 6"));
     }
 
+    /// Frame 1's root 1e11 m away and a feature scale of 1e-3: every stored value is within
+    /// bounds, but the feature derived from them is not (and the builder's check derives the same).
+    fn huge_feature(db: &mut Database) {
+        db.local_positions[2].x = 1e11;
+        db.feature_scale[0] = 1e-3;
+        db.compute_features();
+    }
+
     /// Values, not only structure: each of these loaded before (with a valid checksum) and
     /// then froze, trapped or poisoned the runtime.
     #[test]
@@ -1057,7 +1101,11 @@ mod tests {
             ("zero fps", Box::new(|db| db.fps = 0.0), "INFO.fps"),
             ("nan fps", Box::new(|db| db.fps = f32::NAN), "INFO.fps"),
             ("nan position", Box::new(|db| db.local_positions[3].y = f32::NAN), "PANM: value 10 is NaN"),
-            ("inf feature", Box::new(|db| db.features[5] = f32::INFINITY), "FSHF: value 5 is inf"),
+            (
+                "a feature past 1e12 (a far root over a tiny scale)",
+                Box::new(huge_feature),
+                "features derived from PANM and QROT: value 0 is 9.999999e13",
+            ),
             ("zero scale", Box::new(|db| db.feature_scale[1] = 0.0), "FNRM: scale of dim 1 is 0"),
             ("nan clip scale", Box::new(|db| db.clips[0].scale = f32::NAN), "CLIP 'a': scale NaN"),
             (
@@ -1099,7 +1147,7 @@ mod tests {
         let edits: Vec<(&str, Edit)> = vec![
             ("huge fps", Box::new(|db| db.fps = 1e30)),
             ("nan position", Box::new(|db| db.local_positions[3].y = f32::NAN)),
-            ("inf feature", Box::new(|db| db.features[5] = f32::INFINITY)),
+            ("huge derived feature", Box::new(huge_feature)),
             ("zero scale", Box::new(|db| db.feature_scale[1] = 0.0)),
             ("huge scale", Box::new(|db| db.feature_scale[0] = 1.34e12)),
             ("nan clip scale", Box::new(|db| db.clips[0].scale = f32::NAN)),
@@ -1191,20 +1239,24 @@ mod tests {
         assert!(message(&b).contains("not a multiple of 16"), "{}", message(&b));
     }
 
-    /// Version 1 (plain f32 poses with stored velocities) still loads; written again it is
-    /// version 2 and decodes to the same database within the quantization bound, with
-    /// velocities derived by the same formula the builder used.
+    /// Version 1 (plain f32 poses with stored velocities and features) still loads; written
+    /// again it is the current version and decodes to the same database within the
+    /// quantization bound, velocities and features derived by the same recipes the builder used.
     #[test]
     fn version_1_still_loads_and_converts() {
         let v1 = std::fs::read(concat!(env!("CARGO_MANIFEST_DIR"), "/tests/corpus/mmdb/humanoid.mmdb")).unwrap();
         assert_eq!(le_u32(&v1[8..12]), 1);
         let old = from_bytes(&v1).unwrap();
         let v2 = to_bytes(&old);
-        assert_eq!(le_u32(&v2[8..12]), 2);
+        assert_eq!(le_u32(&v2[8..12]), VERSION);
         assert!(v2.len() * 2 < v1.len(), "{} vs {} bytes", v2.len(), v1.len());
         let new = from_bytes(&v2).unwrap();
         assert_eq!(new.local_positions, old.local_positions);
-        assert_eq!(new.features, old.features);
+        // Features derived from the quantized poses: within 5e-3 of the stored ones
+        // (normalized units; the poses moved by at most 6.1e-5 rad).
+        let worst = old.features.iter().zip(&new.features).map(|(a, b)| (a - b).abs()).fold(0.0, f32::max);
+        println!("version 1 → {VERSION}: worst feature change {worst:e}");
+        assert!(worst < 5e-3, "{worst}");
         assert_eq!(
             (&new.contacts, &new.valid, &new.clips, &new.skeleton),
             (&old.contacts, &old.valid, &old.clips, &old.skeleton)

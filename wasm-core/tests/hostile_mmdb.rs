@@ -53,8 +53,20 @@ fn exercise(db: &Database) -> Option<String> {
             crowd.inputs[0].direction = glam::Vec2::new((step as f32).sin(), 1.0);
             crowd.update(db, &index, 1.0 / 60.0);
         }
-        let again = format::from_bytes(&format::to_bytes(db)).map_err(|e| format!("round trip: {e}"))?;
-        format::check_round_trip(db, &again).map_err(|e| format!("round trip changed the database: {e}"))?;
+        match format::from_bytes(&format::to_bytes(db)) {
+            Ok(again) => {
+                format::check_round_trip(db, &again).map_err(|e| format!("round trip changed the database: {e}"))?
+            }
+            // A version-1/2 file stores features its poses need not give; written as version 3
+            // (features derived) the derived ones may be out of bounds: a clear error is right.
+            Err(e)
+                if e.to_string().contains("features derived from PANM and QROT") && {
+                    let mut derived = db.clone();
+                    derived.compute_features();
+                    derived.features != db.features
+                } => {}
+            Err(e) => return Err(format!("round trip: {e}")),
+        }
         Ok(summary["num_frames"].as_u64())
     }));
     match run {

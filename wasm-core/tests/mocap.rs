@@ -127,7 +127,9 @@ fn resampling_is_exact_at_integer_ratios() {
     for f in (0..half.num_frames).step_by(7) {
         let (a, b) = (world_positions(&half, f), world_positions(&full, 2 * f));
         for j in 1..a.len() {
-            assert!((a[j] - b[j]).length() < 2e-6, "frame {f} joint {j}");
+            // The same source pose, each stored to 16 bits a rotation component (its virtual
+            // root, smoothed over a window of frames, differs between the rates): 0.12 mm.
+            assert!((a[j] - b[j]).length() < 2e-4, "frame {f} joint {j}: {}", (a[j] - b[j]).length());
         }
     }
     let fifty = build(&config(r#"{"mirror": false, "fps": 50}"#), &s).unwrap().database;

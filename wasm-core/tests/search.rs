@@ -156,7 +156,7 @@ fn index_build_time() {
 }
 
 /// What loading costs (docs/mmdb-format.md, "What is not stored"): decoding the file and, in
-/// it, deriving the velocities that version 2 does not store. Printed, not asserted.
+/// it, deriving the velocities and features that version 3 does not store. Printed, not asserted.
 #[test]
 fn load_time() {
     let (db, what) = database();
@@ -164,13 +164,16 @@ fn load_time() {
     let load = min_and_median_ms(&mut || drop(std::hint::black_box(format::from_bytes(&bytes).unwrap())));
     let mut copy = db.clone();
     let velocities = min_and_median_ms(&mut || copy.compute_velocities());
+    let features = min_and_median_ms(&mut || copy.compute_features());
     println!(
-        "format::from_bytes on {what} ({:.2} MB): min {:.1} / median {:.1} ms, of which deriving velocities {:.1} / {:.1} ms",
+        "format::from_bytes on {what} ({:.2} MB): min {:.1} / median {:.1} ms, of which deriving velocities {:.1} / {:.1} ms, features {:.1} / {:.1} ms",
         bytes.len() as f64 / 1e6,
         load.0,
         load.1,
         velocities.0,
-        velocities.1
+        velocities.1,
+        features.0,
+        features.1
     );
 }
 

@@ -150,7 +150,8 @@ pub struct Database {
     /// `D` per-dimension mean and scale: stored = (raw − mean) / scale.
     pub feature_mean: Vec<f32>,
     pub feature_scale: Vec<f32>,
-    /// `F×D` normalized features.
+    /// `F×D` normalized features, derived from the poses ([`Database::compute_features`]; stored
+    /// in `.mmdb` versions 1 and 2).
     pub features: Vec<f32>,
     /// `F` 1 where a search may land.
     pub valid: Vec<u8>,
@@ -243,6 +244,22 @@ impl Database {
     pub fn compute_velocities(&mut self) {
         (self.local_velocities, self.local_angular_velocities) =
             pose_velocities(self.num_joints(), self.fps, &self.clips, &self.local_positions, &self.local_rotations);
+    }
+
+    /// Derives the normalized feature matrix from the poses with the stored normalization
+    /// (`.mmdb` version 3 does not store it): [`crate::pose_features`], the builder's recipe.
+    pub fn compute_features(&mut self) {
+        let mut features = crate::pose_features::pose_features(
+            &self.skeleton.parents,
+            self.fps,
+            &self.clips,
+            &self.groups,
+            self.num_features(),
+            &self.local_positions,
+            &self.local_rotations,
+        );
+        crate::pose_features::apply_normalization(&mut features, &self.feature_mean, &self.feature_scale);
+        self.features = features;
     }
 
     /// World positions and rotations of every joint at `frame` (the one FK,

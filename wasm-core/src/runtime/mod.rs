@@ -12,6 +12,7 @@ pub mod inertialize;
 pub mod kinematics;
 pub mod lanes;
 pub mod persist;
+pub mod pose_features;
 pub mod recording;
 pub mod retarget;
 pub mod roles;

@@ -508,7 +508,16 @@ pub fn mmdb_named_cases() -> Vec<Case> {
         case("nan_feature_scale", edit(&|db| db.feature_scale[0] = f32::NAN), err("FNRM: scale of dim 0 is NaN")),
         case("zero_clip_scale", edit(&|db| db.clips[0].scale = 0.0), err("CLIP 'a': scale 0 is outside")),
         case("nan_position", edit(&|db| db.local_positions[1].x = f32::NAN), err("PANM: value 3 is NaN")),
-        case("infinite_feature", edit(&|db| db.features[7] = f32::INFINITY), err("FSHF: value 7 is inf")),
+        case(
+            "huge_derived_feature",
+            edit(&|db| {
+                // Every stored value in bounds; the feature derived from them (a root 1e11 m
+                // away over a scale of 1e-3) is not.
+                db.local_positions[2].x = 1e11;
+                db.feature_scale[0] = 1e-3;
+            }),
+            err("features derived from PANM and QROT: value 0 is"),
+        ),
         case(
             "section_count_huge",
             patched(&|b| b[12..16].copy_from_slice(&u32::MAX.to_le_bytes())),
@@ -517,10 +526,10 @@ pub fn mmdb_named_cases() -> Vec<Case> {
         case(
             "section_length_huge",
             patched(&|b| {
-                let e = at(b"FSHF").1;
+                let e = at(b"VALD").1;
                 b[e + 16..e + 24].copy_from_slice(&u64::MAX.to_le_bytes())
             }),
-            err("section FSHF (offset"),
+            err("section VALD (offset"),
         ),
         case(
             "sections_overlap",

@@ -1,13 +1,13 @@
 //! One take's resampled local transforms → database rows: world transforms by the one FK, the
-//! virtual root, local pose rows, foot contacts and raw features.
+//! virtual root, local pose rows and foot contacts. (Features come from the finished rows:
+//! `crate::pose_features`, as on load.)
 
 use super::contacts::contacts;
-use super::features::{raw_features, ClipGeometry};
 use super::poses::Poses;
 use super::root::virtual_root;
 use super::rows::Rows;
 use crate::config::BuildConfig;
-use crate::database::{FeatureGroup, Site};
+use crate::database::Site;
 use crate::kinematics::local_to_model;
 use glam::{DQuat, DVec3};
 
@@ -37,8 +37,6 @@ pub struct ClipBuilder<'a> {
     pub hips: usize,
     pub forward_rest: DVec3,
     pub toe_sites: &'a [Option<Site>; 2],
-    pub groups: &'a [FeatureGroup],
-    pub num_dims: usize,
 }
 
 /// World geometry of one clip: database joint `j` is BVH joint `j − 1`; joint 0 is the root.
@@ -50,18 +48,7 @@ struct Geometry<'a> {
 }
 
 impl Geometry<'_> {
-    fn span(&self, f: usize) -> (usize, usize) {
-        (f.saturating_sub(1), (f + 1).min(self.root.len() - 1))
-    }
-}
-
-impl ClipGeometry for Geometry<'_> {
-    fn num_frames(&self) -> usize {
-        self.root.len()
-    }
-    fn root(&self, f: usize) -> (DVec3, DQuat) {
-        self.root[f]
-    }
+    /// World position of `offset` in `joint`'s space.
     fn point(&self, f: usize, joint: usize, offset: DVec3) -> DVec3 {
         if joint == 0 {
             self.root[f].0
@@ -70,15 +57,9 @@ impl ClipGeometry for Geometry<'_> {
             p + q * offset
         }
     }
-    fn rotation(&self, f: usize, joint: usize) -> DQuat {
-        if joint == 0 {
-            self.root[f].1
-        } else {
-            self.world.at(f, joint - 1).1
-        }
-    }
+    /// Velocity of [`Geometry::point`] by central differences.
     fn velocity(&self, f: usize, joint: usize, offset: DVec3) -> DVec3 {
-        let (a, b) = self.span(f);
+        let (a, b) = (f.saturating_sub(1), (f + 1).min(self.root.len() - 1));
         (self.point(b, joint, offset) - self.point(a, joint, offset)) / ((b - a) as f64 * self.dt)
     }
 }
@@ -168,6 +149,5 @@ impl ClipBuilder<'_> {
         };
         let radius = (c.contact_filter * self.fps).round() as usize;
         contacts(n, toe_speed, c.contact_speed, radius, &mut scratch.contacts, out.contacts);
-        raw_features(&geometry, self.groups, self.num_dims, out.features);
     }
 }

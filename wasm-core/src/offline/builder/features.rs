@@ -1,12 +1,13 @@
 //! The feature database (docs/method.md §2): which quantities are matched (groups from the
-//! config or the default 27-float locomotion set), their raw values per frame in the character
-//! space of that frame, their normalization, and which frames a search may return.
+//! config or the default 27-float locomotion set), their normalization, and which frames a
+//! search may return. Their values come from the poses (`crate::pose_features`, as on load).
 
 use crate::config::{BuildConfig, FeatureSpec};
 use crate::database::{Axes, Clip, FeatureGroup, FeatureKind, Skeleton};
 use crate::error::{Error, Result};
+use crate::pose_features::apply_normalization;
 use crate::roles::Role;
-use glam::{DQuat, DVec3, Vec3};
+use glam::Vec3;
 
 /// Feature groups from the config, or the default 27-float locomotion set (weights from
 /// Holden's reference: feet positions 0.75, velocities 1, trajectory positions 1, directions
@@ -90,45 +91,6 @@ pub fn feature_groups(config: &BuildConfig, skeleton: &Skeleton) -> Result<Vec<F
     Ok(groups)
 }
 
-/// What raw features are computed from: world points, rotations and velocities of database
-/// joints (0 = the virtual root) per frame of one clip.
-pub trait ClipGeometry {
-    fn num_frames(&self) -> usize;
-    fn root(&self, f: usize) -> (DVec3, DQuat);
-    /// World position of `offset` in `joint`'s space.
-    fn point(&self, f: usize, joint: usize, offset: DVec3) -> DVec3;
-    fn rotation(&self, f: usize, joint: usize) -> DQuat;
-    /// Velocity of [`ClipGeometry::point`] by central differences.
-    fn velocity(&self, f: usize, joint: usize, offset: DVec3) -> DVec3;
-}
-
-/// Raw (unnormalized) features of every frame of a clip, in the character space of each
-/// frame, into `out` (`num_frames × num_dims`). Offsets past the clip's ends are clamped.
-pub fn raw_features(clip: &impl ClipGeometry, groups: &[FeatureGroup], num_dims: usize, out: &mut [f32]) {
-    let n = clip.num_frames();
-    for (f, row) in out.chunks_exact_mut(num_dims).enumerate() {
-        let (rp, rq) = clip.root(f);
-        let inv = rq.conjugate();
-        for g in groups {
-            let offset = g.axis.as_dvec3();
-            for (k, &o) in g.offsets.iter().enumerate() {
-                let f2 = (f as i64 + o as i64).clamp(0, n as i64 - 1) as usize;
-                let site_offset = if g.kind == FeatureKind::Direction { DVec3::ZERO } else { offset };
-                let v = match g.kind {
-                    FeatureKind::Position => inv * (clip.point(f2, g.joint, site_offset) - rp),
-                    FeatureKind::Velocity => inv * clip.velocity(f2, g.joint, site_offset),
-                    FeatureKind::Direction => inv * (clip.rotation(f2, g.joint) * offset),
-                };
-                let d = g.first_dim + k * g.axes.num_dims();
-                match g.axes {
-                    Axes::Xyz => row[d..d + 3].copy_from_slice(&[v.x as f32, v.y as f32, v.z as f32]),
-                    Axes::Xz => row[d..d + 2].copy_from_slice(&[v.x as f32, v.z as f32]),
-                }
-            }
-        }
-    }
-}
-
 /// Normalizes features in place per group: subtract the per-dimension mean, divide by the
 /// group's mean standard deviation over the weight (docs/method.md §2). Returns (mean, scale).
 pub fn normalize(features: &mut [f32], groups: &[FeatureGroup], num_dims: usize) -> (Vec<f32>, Vec<f32>) {
@@ -155,11 +117,9 @@ pub fn normalize(features: &mut [f32], groups: &[FeatureGroup], num_dims: usize)
         scale[dims].fill(s as f32);
     }
     let mean: Vec<f32> = mean.iter().map(|&m| m as f32).collect();
-    for row in features.chunks_exact_mut(num_dims) {
-        for d in 0..num_dims {
-            row[d] = (row[d] - mean[d]) / scale[d];
-        }
-    }
+    // The loader's own step (`pose_features::apply_normalization`): the same f32 operations, so a
+    // file's derived features are these bits.
+    apply_normalization(features, &mean, &scale);
     (mean, scale)
 }
 

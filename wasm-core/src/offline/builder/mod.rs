@@ -6,10 +6,10 @@
 //!    skeleton, or, for another skeleton topology, [`retarget`]ed onto it;
 //! 3. [`repair`]: 1–3-frame rotation glitches of the capture bridged;
 //! 4. [`mirror`] and [`reverse`]: optional mirrored and time-reversed copies of each take;
-//! 5. [`clip`]: world transforms, the virtual root ([`root`]), local rows (velocities derived
-//!    once the database is whole: `Database::compute_velocities`),
-//!    [`contacts`], raw features;
-//! 6. [`features`]: normalization and validity; clips and tags assembled here.
+//! 5. [`clip`]: world transforms, the virtual root ([`root`]), local rows, [`contacts`];
+//! 6. clips and tags assembled here; rotations quantized as `.mmdb` stores them, then what a
+//!    loader derives from the rows — velocities (`Database::compute_velocities`) and features
+//!    (`crate::pose_features`) — and [`features`]: normalization and validity.
 //!
 //! All arithmetic is f64 until the arrays are stored as f32, so the database's forward
 //! kinematics reproduces the source within ~1e-6 m.
@@ -33,6 +33,7 @@ use crate::bvh::Bvh;
 use crate::config::BuildConfig;
 use crate::database::{Clip, Database, Tag};
 use crate::error::{Error, Result};
+use crate::format::codec;
 use crate::roles::Role;
 use clip::{ClipBuilder, Scratch};
 use glam::{Quat, Vec3};
@@ -238,7 +239,7 @@ pub fn build(config: &BuildConfig, sources: &[Source]) -> Result<BuildOutput> {
             + skeleton.names.iter().map(|n| n.len() as u64 + 16).sum::<u64>(),
     };
     footprint.check().map_err(Error::config)?;
-    let mut out = Accumulator::new(num_frames, nd, num_dims).map_err(Error::config)?;
+    let mut out = Accumulator::new(num_frames, nd).map_err(Error::config)?;
     let clip_builder = ClipBuilder {
         config,
         fps,
@@ -246,8 +247,6 @@ pub fn build(config: &BuildConfig, sources: &[Source]) -> Result<BuildOutput> {
         hips: reference.roles[Role::Hips],
         forward_rest: reference.forward_rest(&ref_offsets),
         toe_sites: &toe_sites,
-        groups: &groups,
-        num_dims,
     };
     let target_rig = Rig {
         parents: &reference.parents,
@@ -267,7 +266,7 @@ pub fn build(config: &BuildConfig, sources: &[Source]) -> Result<BuildOutput> {
     let mut jobs: Vec<(usize, Vec<(Plan, Rows)>)> = Vec::new();
     let mut rest_rows = out.rows();
     for &plan in &plans {
-        let (rows, tail) = rest_rows.split_at(plan.frames, nd, num_dims);
+        let (rows, tail) = rest_rows.split_at(plan.frames, nd);
         rest_rows = tail;
         match jobs.last_mut() {
             Some((last, list)) if *last == plan.take => list.push((plan, rows)),
@@ -404,7 +403,22 @@ pub fn build(config: &BuildConfig, sources: &[Source]) -> Result<BuildOutput> {
         }
     }
 
-    let (feature_mean, feature_scale) = features::normalize(&mut out.features, &groups, num_dims);
+    // Rotations as the file stores them (16 bits a component), and the features a loader derives
+    // from them: a database built here and one read from its file are the same bits.
+    let mut local_rotations = out.rotations;
+    for q in &mut local_rotations {
+        *q = codec::dequantize_rotation(codec::quantize_rotation(*q));
+    }
+    let mut features = crate::pose_features::pose_features(
+        &skeleton.parents,
+        fps as f32,
+        &clips,
+        &groups,
+        num_dims,
+        &out.positions,
+        &local_rotations,
+    );
+    let (feature_mean, feature_scale) = features::normalize(&mut features, &groups, num_dims);
     let valid = features::validity(&clips, &groups, out.num_frames);
     let tags = tag_ranges.into_iter().map(|(name, ranges)| Tag { name, ranges: coalesce(ranges) }).collect();
     let contact_share = |side: usize| {
@@ -424,14 +438,14 @@ pub fn build(config: &BuildConfig, sources: &[Source]) -> Result<BuildOutput> {
         clips,
         tags,
         local_positions: out.positions,
-        local_rotations: out.rotations,
+        local_rotations,
         local_velocities: Vec::new(),
         local_angular_velocities: Vec::new(),
         contacts: out.contacts,
         groups,
         feature_mean,
         feature_scale,
-        features: out.features,
+        features,
         valid,
         part: None,
     };

@@ -11,7 +11,6 @@ pub struct Accumulator {
     pub positions: Vec<Vec3>,
     pub rotations: Vec<Quat>,
     pub contacts: Vec<u8>,
-    pub features: Vec<f32>,
 }
 
 impl Accumulator {
@@ -21,7 +20,7 @@ impl Accumulator {
     ///
     /// # Errors
     /// The bytes that could not be had.
-    pub fn new(num_frames: usize, num_joints: usize, num_dims: usize) -> Result<Accumulator, String> {
+    pub fn new(num_frames: usize, num_joints: usize) -> Result<Accumulator, String> {
         fn filled<T: Clone>(n: usize, value: T) -> Result<Vec<T>, String> {
             let mut v = Vec::new();
             v.try_reserve_exact(n).map_err(|_| {
@@ -38,17 +37,11 @@ impl Accumulator {
             positions: filled(num_frames * num_joints, Vec3::ZERO)?,
             rotations: filled(num_frames * num_joints, Quat::IDENTITY)?,
             contacts: filled(num_frames * 2, 0)?,
-            features: filled(num_frames * num_dims, 0.0)?,
         })
     }
 
     pub fn rows(&mut self) -> Rows<'_> {
-        Rows {
-            positions: &mut self.positions,
-            rotations: &mut self.rotations,
-            contacts: &mut self.contacts,
-            features: &mut self.features,
-        }
+        Rows { positions: &mut self.positions, rotations: &mut self.rotations, contacts: &mut self.contacts }
     }
 }
 
@@ -57,19 +50,14 @@ pub struct Rows<'a> {
     pub positions: &'a mut [Vec3],
     pub rotations: &'a mut [Quat],
     pub contacts: &'a mut [u8],
-    pub features: &'a mut [f32],
 }
 
 impl<'a> Rows<'a> {
     /// The first `frames` frames, and the rest.
-    pub fn split_at(self, frames: usize, joints: usize, dims: usize) -> (Rows<'a>, Rows<'a>) {
+    pub fn split_at(self, frames: usize, joints: usize) -> (Rows<'a>, Rows<'a>) {
         let (p, p2) = self.positions.split_at_mut(frames * joints);
         let (r, r2) = self.rotations.split_at_mut(frames * joints);
         let (c, c2) = self.contacts.split_at_mut(frames * 2);
-        let (f, f2) = self.features.split_at_mut(frames * dims);
-        (
-            Rows { positions: p, rotations: r, contacts: c, features: f },
-            Rows { positions: p2, rotations: r2, contacts: c2, features: f2 },
-        )
+        (Rows { positions: p, rotations: r, contacts: c }, Rows { positions: p2, rotations: r2, contacts: c2 })
     }
 }
