@@ -380,13 +380,22 @@ def load(path_or_bytes) -> Database:
         local_angular_velocities = _array(sections, "LAVL", "<f4", (F, J, 3))
         features = _array(sections, "FEAT", "<f4", (F, D))
     else:
-        local_positions = _decode_panm(sections["PANM"], F, rest_offsets)
-        local_rotations = _decode_qrot(sections["QROT"], F, J)
+        pairs, derived = _read_mirr(sections.get("MIRR"), J, clips) if version >= 3 else (None, [])
+        stored = [c for i, c in enumerate(clips) if i not in derived]
+        Fs = sum(c.end - c.start for c in stored)
+        local_positions, animated = _decode_panm(sections["PANM"], Fs, rest_offsets)
+        local_rotations = _decode_qrot(sections["QROT"], Fs, J)
+        contacts = _check_flags("CONT", _array(sections, "CONT", "u1", (Fs, 2)))
+        if derived:
+            local_positions, local_rotations, contacts = _expand_mirrors(
+                clips, derived, pairs, animated, rest_offsets, local_positions, local_rotations, contacts
+            )
         local_velocities, local_angular_velocities = pose_velocities(
             fps, [(c.start, c.end) for c in clips], local_positions, local_rotations
         )
         # Version 3 derives them once the database is assembled (below).
-        features = _decode_fshf(sections["FSHF"], F, D) if version == 2 else np.zeros((F, D), np.float32)
+        stored_features = version == 2 or "FSHF" in sections
+        features = _decode_fshf(sections["FSHF"], F, D) if stored_features else np.zeros((F, D), np.float32)
     db = Database(
         version=version,
         fps=fps,
@@ -402,7 +411,7 @@ def load(path_or_bytes) -> Database:
         local_rotations=local_rotations,
         local_velocities=local_velocities,
         local_angular_velocities=local_angular_velocities,
-        contacts=_check_flags("CONT", _array(sections, "CONT", "u1", (F, 2))),
+        contacts=contacts if version >= 2 else _check_flags("CONT", _array(sections, "CONT", "u1", (F, 2))),
         feature_groups=groups,
         feature_mean=fnrm[0].copy(),
         feature_scale=fnrm[1].copy(),
@@ -410,7 +419,7 @@ def load(path_or_bytes) -> Database:
         valid=_check_flags("VALD", _array(sections, "VALD", "u1", (F,))),
         extra_sections={t: d for t, d in sections.items() if t not in REQUIRED_SECTIONS[version]},
     )
-    if version >= 3:
+    if version >= 3 and not stored_features:
         raw = pose_features(db)
         db.features = ((raw - db.feature_mean) / db.feature_scale).astype(np.float32)
     return db
@@ -419,7 +428,7 @@ def load(path_or_bytes) -> Database:
 # --- version 2 encodings -----------------------------------------------------------------------
 
 
-def _decode_panm(data: bytes, F: int, rest_offsets: np.ndarray) -> np.ndarray:
+def _decode_panm(data: bytes, F: int, rest_offsets: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """PANM: u32 A, A increasing joint indices, f32 F×A×3; other joints at their rest offsets."""
     J = len(rest_offsets)
     if len(data) < 4:
@@ -435,7 +444,56 @@ def _decode_panm(data: bytes, F: int, rest_offsets: np.ndarray) -> np.ndarray:
         raise MmdbError(f"section PANM: joint indices {joints.tolist()[:8]} must increase and be below {J}")
     out = np.broadcast_to(rest_offsets, (F, J, 3)).copy()
     out[:, joints] = np.frombuffer(data, dtype="<f4", offset=4 + 4 * A).reshape(F, A, 3)
-    return out
+    animated = np.zeros(J, dtype=bool)
+    animated[joints] = True
+    return out, animated
+
+
+def _read_mirr(data: bytes | None, J: int, clips: list) -> tuple[np.ndarray | None, list[int]]:
+    """MIRR (version 3): J u32 mirror map (each joint's opposite, paired back), u32 count, then
+    the ascending indices of the clips derived by mirroring the clip before them."""
+    if data is None:
+        return None, []
+    cur = _Cursor(data, "MIRR")
+    pairs = np.array([cur.u32("mirror map") for _ in range(J)], dtype=np.int64)
+    if np.any(pairs >= J) or np.any(pairs[pairs] != np.arange(J)):
+        raise MmdbError("section MIRR: the mirror map does not pair every joint back")
+    derived = [cur.u32("derived clip") for _ in range(cur.u32("derived clip count"))]
+    cur.finish()
+    for k, i in enumerate(derived):
+        ok = 1 <= i < len(clips) and (k == 0 or i > derived[k - 1] + 1)
+        ok = ok and clips[i].mirrored and not clips[i - 1].mirrored
+        if not ok or clips[i].end - clips[i].start != clips[i - 1].end - clips[i - 1].start:
+            raise MmdbError(f"section MIRR: clip {i} cannot be derived from the clip before it")
+    return pairs, derived
+
+
+def _expand_mirrors(clips, derived, pairs, animated, rest, positions, rotations, contacts):
+    """The stored frames with each derived clip put in its place: the clip before it mirrored
+    across the YZ plane (rotation (x, 0-y, 0-z, w) and, for PANM's joints, position (0-x, y, z)
+    of the opposite joint; the others at rest), contacts swapped."""
+    F = clips[-1].end
+    J = len(pairs)
+    p = np.zeros((F, J, 3), np.float32)
+    q = np.zeros((F, J, 4), np.float32)
+    c = np.zeros((F, 2), np.uint8)
+    nxt = 0
+    for i, clip in enumerate(clips):
+        s, e = clip.start, clip.end
+        if i in derived:
+            a = clips[i - 1].start
+            src_p, src_q = p[a : a + e - s][:, pairs], q[a : a + e - s][:, pairs]
+            q[s:e] = src_q * np.array([1, -1, -1, 1], np.float32)
+            q[s:e, :, 1:3] += np.float32(0.0)  # -0 → +0, as the format states
+            mp = src_p * np.array([-1, 1, 1], np.float32)
+            mp[..., 0] += np.float32(0.0)
+            p[s:e] = np.where(animated[None, :, None], mp, rest[None])
+            c[s:e] = c[a : a + e - s][:, ::-1]
+        else:
+            n = e - s
+            p[s:e], q[s:e], c[s:e] = positions[nxt : nxt + n], rotations[nxt : nxt + n], contacts[nxt : nxt + n]
+            nxt += n
+    return p, q, c
 
 
 def _decode_qrot(data: bytes, F: int, J: int) -> np.ndarray:
@@ -509,9 +567,10 @@ def pose_features(db: Database) -> np.ndarray:
         for g in db.feature_groups:
             axis = np.asarray(g.direction, dtype=np.float64)
 
-            def point(t):
-                site = np.zeros(3) if g.kind == KIND_DIRECTION else axis
-                return pos[t, g.joint] + quat_rotate(rot[t, g.joint], np.broadcast_to(site, (len(t), 3)))
+            site = np.zeros(3) if g.kind == KIND_DIRECTION else axis
+
+            def point(t, joint=g.joint, site=site):
+                return pos[t, joint] + quat_rotate(rot[t, joint], np.broadcast_to(site, (len(t), 3)))
 
             for k, o in enumerate(g.offsets):
                 t = np.clip(f + o, c.start, c.end - 1)

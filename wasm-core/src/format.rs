@@ -37,21 +37,66 @@ const TAGS: [&[u8; 4]; 10] = [b"INFO", b"SKEL", b"CLIP", b"TAGS", b"PANM", b"QRO
 /// by [`from_bytes`] — which is why the builder keeps databases within
 /// [`check_database_size`](crate::limits::check_database_size).
 pub fn to_bytes(db: &Database) -> Vec<u8> {
+    // Mirrored clips that are exactly their originals mirrored are derived on load (`MIRR`):
+    // the per-frame arrays hold the other clips' frames only.
+    let animated = codec::animated_joints(&db.local_positions, &db.skeleton.offsets);
+    let derived = derived_mirrors(db, &animated);
+    let j = db.num_joints();
+    let stored: Vec<(usize, usize)> = db
+        .clips
+        .iter()
+        .enumerate()
+        .filter(|(i, _)| !derived.contains(i))
+        .map(|(_, c)| (c.start as usize, c.end as usize))
+        .collect();
+    let gather =
+        |per_frame: usize| -> Vec<usize> { stored.iter().flat_map(|&(s, e)| s * per_frame..e * per_frame).collect() };
+    let (positions, rotations, contacts): (Vec<Vec3>, Vec<Quat>, Vec<u8>) = if derived.is_empty() {
+        (Vec::new(), Vec::new(), Vec::new())
+    } else {
+        let rows = gather(j);
+        (
+            rows.iter().map(|&i| db.local_positions[i]).collect(),
+            rows.iter().map(|&i| db.local_rotations[i]).collect(),
+            gather(2).iter().map(|&i| db.contacts[i]).collect(),
+        )
+    };
+    let (positions, rotations, contacts) = if derived.is_empty() {
+        (&db.local_positions[..], &db.local_rotations[..], &db.contacts[..])
+    } else {
+        (&positions[..], &rotations[..], &contacts[..])
+    };
     // The big arrays are borrowed as bytes (the format is little-endian like every target we
     // build for, checked above) and copied once, into the output.
-    let mut sections: Vec<(&[u8; 4], std::borrow::Cow<[u8]>)> = Vec::with_capacity(TAGS.len());
+    let mut sections: Vec<(&[u8; 4], std::borrow::Cow<[u8]>)> = Vec::with_capacity(TAGS.len() + 2);
     for tag in TAGS {
         let data: std::borrow::Cow<[u8]> = match tag {
-            b"PANM" => codec::encode_positions(&db.local_positions, &db.skeleton.offsets).into(),
-            b"QROT" => codec::encode_rotations(&db.local_rotations, db.num_joints()).into(),
-            b"CONT" => db.contacts.as_slice().into(),
+            b"PANM" => codec::encode_positions(positions, &db.skeleton.offsets, &animated).into(),
+            b"QROT" => codec::encode_rotations(rotations, j).into(),
+            b"CONT" => contacts.into(),
             b"VALD" => db.valid.as_slice().into(),
             _ => small_section(db, tag).into(),
         };
         sections.push((tag, data));
     }
+    if crate::mirror::is_mirror_map(&db.skeleton.mirror, j) {
+        let mut w = Vec::with_capacity(4 * (j + derived.len() + 1));
+        db.skeleton.mirror.iter().for_each(|&k| put_u32(&mut w, k as u32));
+        put_u32(&mut w, derived.len() as u32);
+        derived.iter().for_each(|&i| put_u32(&mut w, i as u32));
+        sections.push((b"MIRR", w.into()));
+    }
     if db.part.is_some() {
         sections.push((b"PART", small_section(db, b"PART").into()));
+    }
+    // The features are derived on load unless that would cost the reader more than its
+    // allocation bound allows for a file this size (a skeleton of a few joints with many feature
+    // dimensions): then they are stored, as `FSHF`.
+    let size = align(HEADER_LEN + ENTRY_LEN * (sections.len() + 1))
+        + sections.iter().map(|(_, d)| align(d.len())).sum::<usize>();
+    let frames = (db.num_frames, stored.iter().map(|(s, e)| e - s).sum(), longest_clip(&db.clips));
+    if check_decoded_size(size, frames, j, db.num_features()).is_err() {
+        sections.push((b"FSHF", codec::shuffle_features(&db.features, db.num_features()).into()));
     }
 
     let mut offset = align(HEADER_LEN + ENTRY_LEN * sections.len());
@@ -80,6 +125,55 @@ pub fn to_bytes(db: &Database) -> Vec<u8> {
     let crc = crc32fast::hash(&out[HEADER_LEN..]);
     out[24..28].copy_from_slice(&crc.to_le_bytes());
     out
+}
+
+/// The clips `MIRR` derives: each mirrored clip right after an original of its length whose
+/// rows, mirrored with the skeleton's mirror map ([`crate::mirror::mirror_pose`]; `animated`:
+/// `PANM`'s joints), are its rows bit for bit, contacts swapped. Any other mirrored clip (a
+/// database without a mirror map, or from a builder that mirrored otherwise) is stored.
+fn derived_mirrors(db: &Database, animated: &[u32]) -> Vec<usize> {
+    let j = db.num_joints();
+    let pairs = &db.skeleton.mirror;
+    // The writer never panics: a database whose arrays disagree with its counts is written as
+    // it is (and refused by the reader), nothing derived.
+    let f = db.num_frames;
+    let consistent = db.local_positions.len() == f * j
+        && db.local_rotations.len() == f * j
+        && db.contacts.len() == 2 * f
+        && db.clips.iter().all(|c| c.start <= c.end && c.end as usize <= f);
+    if !consistent || !crate::mirror::is_mirror_map(pairs, j) {
+        return Vec::new();
+    }
+    let mut moves = vec![false; j];
+    animated.iter().for_each(|&k| moves[k as usize] = true);
+    let (mut p, mut q) = (vec![Vec3::ZERO; j], vec![Quat::IDENTITY; j]);
+    let bits = |v: &[f32]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+    let mut derived = Vec::new();
+    for i in 1..db.clips.len() {
+        let (a, b) = (&db.clips[i - 1], &db.clips[i]);
+        let n = b.end.saturating_sub(b.start) as usize;
+        if !b.mirrored || a.mirrored || a.end.saturating_sub(a.start) as usize != n {
+            continue;
+        }
+        let exact = (0..n).all(|k| {
+            let (fa, fb) = (a.start as usize + k, b.start as usize + k);
+            crate::mirror::mirror_pose(
+                pairs,
+                &moves,
+                &db.skeleton.offsets,
+                (&db.local_positions[fa * j..(fa + 1) * j], &db.local_rotations[fa * j..(fa + 1) * j]),
+                (&mut p, &mut q),
+            );
+            bits(bytemuck::cast_slice(&p)) == bits(bytemuck::cast_slice(&db.local_positions[fb * j..(fb + 1) * j]))
+                && bits(bytemuck::cast_slice(&q))
+                    == bits(bytemuck::cast_slice(&db.local_rotations[fb * j..(fb + 1) * j]))
+                && crate::mirror::mirror_contacts(&db.contacts[2 * fa..2 * fa + 2]) == db.contacts[2 * fb..2 * fb + 2]
+        });
+        if exact {
+            derived.push(i);
+        }
+    }
+    derived
 }
 
 /// The sections made of counts, names and small records.
@@ -301,6 +395,7 @@ pub fn from_bytes(bytes: &[u8]) -> Result<Database> {
         parents: Vec::with_capacity(num_joints),
         offsets: Vec::with_capacity(num_joints),
         sites: Vec::new(),
+        mirror: Vec::new(),
     };
     for j in 0..num_joints {
         skeleton.names.push(r.string("joint name")?);
@@ -398,9 +493,25 @@ pub fn from_bytes(bytes: &[u8]) -> Result<Database> {
     r.finish()?;
 
     let fj = num_frames.checked_mul(num_joints).ok_or_else(|| Error::format("INFO counts overflow"))?;
-    // Version 1 stores the pose arrays as plain f32 with velocities; version 2 encodes them
-    // (codec.rs) and velocities are derived below.
-    let (local_positions, local_rotations, velocities) = if version == 1 {
+    // Version 3: the clips `MIRR` derives are not in the per-frame arrays.
+    let mirror = match sections.iter().find(|(t, _, _)| t == b"MIRR") {
+        Some(&(tag, _, data)) if version >= 3 => {
+            Some(read_mirror(&mut Reader { data, pos: 0, tag }, num_joints, &clips)?)
+        }
+        _ => None,
+    };
+    let derived: &[usize] = mirror.as_ref().map_or(&[], |(_, d)| d);
+    let stored_frames = num_frames - derived.iter().map(|&i| (clips[i].end - clips[i].start) as usize).sum::<usize>();
+    // Version 3 stores the features (`FSHF`) only where deriving them would cost more than
+    // the allocation bound allows for the file's size.
+    let stored_features = version == 2 || sections.iter().any(|(t, _, _)| t == b"FSHF");
+    if version >= 3 {
+        let dims = if stored_features { 0 } else { num_dims };
+        check_decoded_size(bytes.len(), (num_frames, stored_frames, longest_clip(&clips)), num_joints, dims)?;
+    }
+    // Version 1 stores the pose arrays as plain f32 with velocities; versions 2 and 3 encode
+    // them (codec.rs) and velocities are derived below.
+    let (local_positions, local_rotations, (contacts, animated), velocities) = if version == 1 {
         let local_positions = section(b"LPOS")?.vec3s(fj)?;
         let mut local_rotations: Vec<Quat> = section(b"LROT")?.pods(fj)?;
         if let Some(i) = local_rotations.iter().position(|q| !(q.length_squared() - 1.0).abs().le(&QUAT_NORM_TOLERANCE))
@@ -416,17 +527,38 @@ pub fn from_bytes(bytes: &[u8]) -> Result<Database> {
         // again (quantized to 1/32767) it must still load (found by the `mmdb` fuzz target).
         local_rotations.iter_mut().for_each(|q| *q = q.normalize());
         let velocities = (section(b"LVEL")?.vec3s(fj)?, section(b"LAVL")?.vec3s(fj)?);
-        (local_positions, local_rotations, Some(velocities))
+        (local_positions, local_rotations, (None, Vec::new()), Some(velocities))
     } else {
-        let local_positions =
-            codec::decode_positions(section(b"PANM")?.data, num_frames, &skeleton.offsets).map_err(Error::format)?;
+        let (local_positions, animated) =
+            codec::decode_positions(section(b"PANM")?.data, stored_frames, &skeleton.offsets).map_err(Error::format)?;
         let local_rotations =
-            codec::decode_rotations(section(b"QROT")?.data, num_frames, num_joints, QUAT_NORM_TOLERANCE)
+            codec::decode_rotations(section(b"QROT")?.data, stored_frames, num_joints, QUAT_NORM_TOLERANCE)
                 .map_err(Error::format)?;
-        (local_positions, local_rotations, None)
+        let contacts = section(b"CONT")?
+            .flags(stored_frames.checked_mul(2).ok_or_else(|| Error::format("INFO counts overflow"))?)?;
+        (local_positions, local_rotations, (Some(contacts), animated), None)
     };
-    let contacts =
-        section(b"CONT")?.flags(num_frames.checked_mul(2).ok_or_else(|| Error::format("INFO counts overflow"))?)?;
+
+    let contacts = match contacts {
+        Some(c) => c,
+        None => {
+            section(b"CONT")?.flags(num_frames.checked_mul(2).ok_or_else(|| Error::format("INFO counts overflow"))?)?
+        }
+    };
+    let (local_positions, local_rotations, contacts) = match &mirror {
+        Some((pairs, derived)) if !derived.is_empty() => expand_mirrors(
+            &clips,
+            derived,
+            pairs,
+            &animated,
+            &skeleton.offsets,
+            (local_positions, local_rotations, contacts),
+        ),
+        _ => (local_positions, local_rotations, contacts),
+    };
+    if let Some((pairs, _)) = mirror {
+        skeleton.mirror = pairs;
+    }
 
     let mut r = section(b"FDSC")?;
     let n = r.count(40, "feature group count")?;
@@ -498,7 +630,9 @@ pub fn from_bytes(bytes: &[u8]) -> Result<Database> {
     // Version 3 derives them below, from the decoded poses.
     let features = match version {
         1 => section(b"FEAT")?.f32s(num_values)?,
-        2 => codec::unshuffle_features(section(b"FSHF")?.data, num_frames, num_dims).map_err(Error::format)?,
+        _ if stored_features => {
+            codec::unshuffle_features(section(b"FSHF")?.data, num_frames, num_dims).map_err(Error::format)?
+        }
         _ => Vec::new(),
     };
     let valid = section(b"VALD")?.flags(num_frames)?;
@@ -508,7 +642,7 @@ pub fn from_bytes(bytes: &[u8]) -> Result<Database> {
     check_floats("FDSC feature axis", &groups.iter().flat_map(|g| g.axis.to_array()).collect::<Vec<_>>())?;
     let (positions_tag, features_tag) = match version {
         1 => ("LPOS", "FEAT"),
-        2 => ("PANM", "FSHF"),
+        _ if stored_features => ("PANM", "FSHF"),
         _ => ("PANM", DERIVED_FEATURES),
     };
     check_floats(positions_tag, bytemuck::cast_slice(&local_positions))?;
@@ -547,11 +681,123 @@ pub fn from_bytes(bytes: &[u8]) -> Result<Database> {
     if derive {
         db.compute_velocities();
     }
-    if version >= 3 {
+    if !stored_features && version >= 3 {
         db.compute_features();
         check_floats(features_tag, &db.features)?;
     }
     Ok(db)
+}
+
+/// The optional `MIRR` section (version 3): the skeleton's mirror map (`J` × u32, each joint's
+/// opposite, paired back) and the clips derived by mirroring the clip before them (u32 count,
+/// ascending u32 clip indices; each mirrored, after a stored clip of its length).
+fn read_mirror(r: &mut Reader, joints: usize, clips: &[Clip]) -> Result<(Vec<usize>, Vec<usize>)> {
+    r.fits(joints, 4, "mirror map")?;
+    let pairs = (0..joints).map(|_| r.u32("mirror map").map(|k| k as usize)).collect::<Result<Vec<_>>>()?;
+    if !crate::mirror::is_mirror_map(&pairs, joints) {
+        let j = (0..joints).find(|&j| pairs[j] >= joints || pairs[pairs[j]] != j).unwrap_or(0);
+        return Err(Error::format(format!(
+            "MIRR: joint {j}'s opposite is {}; each must be a joint whose opposite is it",
+            pairs[j]
+        )));
+    }
+    let n = r.count(4, "derived clip count")?;
+    let mut derived: Vec<usize> = Vec::with_capacity(n);
+    for _ in 0..n {
+        let i = r.u32("derived clip")? as usize;
+        let fits = i >= 1
+            && i < clips.len()
+            && derived.last().is_none_or(|&last| i > last + 1)
+            && clips[i].mirrored
+            && !clips[i - 1].mirrored
+            && clips[i].end - clips[i].start == clips[i - 1].end - clips[i - 1].start;
+        if !fits {
+            return Err(Error::format(format!(
+                "MIRR: clip {i} cannot be derived: derived clips are mirrored ones, ascending, each after a stored clip of its length"
+            )));
+        }
+        derived.push(i);
+    }
+    r.finish()?;
+    Ok((pairs, derived))
+}
+
+/// The stored frames' poses and contacts with the derived clips' frames put in their places,
+/// each the mirror of the clip before it ([`crate::mirror::mirror_pose`]).
+fn expand_mirrors(
+    clips: &[Clip],
+    derived: &[usize],
+    pairs: &[usize],
+    animated: &[bool],
+    rest: &[Vec3],
+    (positions, rotations, contacts): (Vec<Vec3>, Vec<Quat>, Vec<u8>),
+) -> (Vec<Vec3>, Vec<Quat>, Vec<u8>) {
+    let j = pairs.len();
+    let frames = clips.last().map_or(0, |c| c.end as usize);
+    let (mut p, mut q, mut c) = (vec![Vec3::ZERO; frames * j], vec![Quat::IDENTITY; frames * j], vec![0u8; frames * 2]);
+    let mut next = 0usize;
+    for (i, clip) in clips.iter().enumerate() {
+        let (s, e) = (clip.start as usize, clip.end as usize);
+        if derived.contains(&i) {
+            let from = clips[i - 1].start as usize;
+            for k in 0..e - s {
+                let (a, b) = (from + k, s + k);
+                let (original, mirrored) = (a * j..(a + 1) * j, b * j..(b + 1) * j);
+                let (op, mp) = p.split_at_mut(mirrored.start);
+                let (oq, mq) = q.split_at_mut(mirrored.start);
+                crate::mirror::mirror_pose(
+                    pairs,
+                    animated,
+                    rest,
+                    (&op[original.clone()], &oq[original]),
+                    (&mut mp[..j], &mut mq[..j]),
+                );
+                let swapped = crate::mirror::mirror_contacts(&c[2 * a..2 * a + 2]);
+                c[2 * b..2 * b + 2].copy_from_slice(&swapped);
+            }
+        } else {
+            let n = e - s;
+            p[s * j..e * j].copy_from_slice(&positions[next * j..(next + n) * j]);
+            q[s * j..e * j].copy_from_slice(&rotations[next * j..(next + n) * j]);
+            c[2 * s..2 * e].copy_from_slice(&contacts[2 * next..2 * (next + n)]);
+            next += n;
+        }
+    }
+    (p, q, c)
+}
+
+/// Frames in the longest clip.
+fn longest_clip(clips: &[Clip]) -> usize {
+    clips.iter().map(|c| c.end.saturating_sub(c.start) as usize).max().unwrap_or(0)
+}
+
+/// Refuses a version-3 file whose counts would decode to more than
+/// [`MMDB_ALLOCATION_FACTOR`](crate::limits::MMDB_ALLOCATION_FACTOR) times its size: the
+/// features and mirrored clips it derives are not in its bytes, so its counts are checked
+/// against what they will cost: the poses (the stored frames' and, while mirrored clips are
+/// expanded, every frame's), velocities, and, with `dims` > 0, features and the f64 world
+/// transforms of the longest clip that they are measured on.
+fn check_decoded_size(
+    file: usize,
+    (frames, stored, longest): (usize, usize, usize),
+    joints: usize,
+    dims: usize,
+) -> Result<()> {
+    let (frames, stored, longest, joints, dims) =
+        (frames as u128, stored as u128, longest as u128, joints as u128, dims as u128);
+    let need = frames * joints * (12 + 16 + 24)
+        + stored * joints * (12 + 16)
+        + frames * (dims * 4 + 3)
+        + longest * joints * 56;
+    let bound = (crate::limits::MMDB_ALLOCATION_FACTOR * file) as u128;
+    if need > bound {
+        return Err(Error::format(format!(
+            "INFO: {frames} frames of {joints} joints and {dims} feature dims decode to {:.1} MB, more than {}× the file's {file} bytes",
+            need as f64 / 1e6,
+            crate::limits::MMDB_ALLOCATION_FACTOR
+        )));
+    }
+    Ok(())
 }
 
 /// The optional `PART` section: this database is the first part of the whole it names. Its
@@ -951,6 +1197,7 @@ mod tests {
                 parents: vec![-1, 0],
                 offsets: vec![Vec3::ZERO, Vec3::Y],
                 sites: vec![Site { name: "hips".into(), joint: 1, offset: Vec3::ZERO }],
+                mirror: vec![0, 1],
             },
             fps: 60.0,
             num_frames: 3,
@@ -992,6 +1239,94 @@ mod tests {
         db.compute_velocities();
         db.compute_features();
         db
+    }
+
+    /// A clip of `n` frames and its mirrored copy, made as the builder makes it, with one
+    /// feature group of `2 · offsets` dims on the hips.
+    fn mirrored_pair(n: usize, offsets: usize) -> Database {
+        let mut db = tiny();
+        let j = 2;
+        db.num_frames = 2 * n;
+        db.clips[0].end = n as u32;
+        let mut mirror = db.clips[0].clone();
+        (mirror.name, mirror.start, mirror.end, mirror.mirrored) = ("a (mirror)".into(), n as u32, 2 * n as u32, true);
+        db.clips.push(mirror);
+        db.tags[0].ranges = vec![(0, 2)];
+        db.local_positions = vec![Vec3::ZERO; 2 * n * j];
+        db.local_rotations = vec![Quat::IDENTITY; 2 * n * j];
+        db.contacts = vec![0; 4 * n];
+        for f in 0..n {
+            let t = f as f32 / 60.0;
+            db.local_positions[f * j] = Vec3::new(t.sin(), 0.0, t);
+            db.local_positions[f * j + 1] = Vec3::new(0.1 * t.cos(), 1.0, 0.0);
+            db.local_rotations[f * j] = Quat::from_rotation_y(t);
+            db.local_rotations[f * j + 1] = Quat::from_rotation_z(0.3 * t.sin());
+            db.contacts[2 * f] = (f % 3 == 0) as u8;
+            let (original, copy) = db.local_positions.split_at_mut((n + f) * j);
+            let (q0, q1) = db.local_rotations.split_at_mut((n + f) * j);
+            crate::mirror::mirror_pose(
+                &[0, 1],
+                &[true, true],
+                &db.skeleton.offsets,
+                (&original[f * j..(f + 1) * j], &q0[f * j..(f + 1) * j]),
+                (&mut copy[..j], &mut q1[..j]),
+            );
+            let c = crate::mirror::mirror_contacts(&db.contacts[2 * f..2 * f + 2]);
+            db.contacts[2 * (n + f)..2 * (n + f) + 2].copy_from_slice(&c);
+        }
+        for q in &mut db.local_rotations {
+            *q = codec::dequantize_rotation(codec::quantize_rotation(*q));
+        }
+        db.groups[0].joint = 1;
+        db.groups[0].offsets = (0..offsets as i32).collect();
+        db.groups[0].num_dims = 2 * offsets;
+        db.feature_mean = vec![0.0; 2 * offsets];
+        db.feature_scale = vec![1.0; 2 * offsets];
+        db.valid = vec![1; 2 * n];
+        db.compute_velocities();
+        db.compute_features();
+        db
+    }
+
+    fn sections_of(bytes: &[u8]) -> Vec<[u8; 4]> {
+        (0..le_u32(&bytes[12..16]) as usize)
+            .map(|i| bytes[HEADER_LEN + i * ENTRY_LEN..HEADER_LEN + i * ENTRY_LEN + 4].try_into().unwrap())
+            .collect()
+    }
+
+    /// A mirrored clip that is its original mirrored is derived (`MIRR`): the file holds half
+    /// the frames and loads to the same database; the features are stored (`FSHF`) only where
+    /// deriving them would pass the reader's allocation bound (2 joints, 128 dims).
+    #[test]
+    fn mirrored_clips_are_derived_and_features_stored_only_when_needed() {
+        let db = mirrored_pair(300, 4);
+        let bytes = to_bytes(&db);
+        let tags = sections_of(&bytes);
+        assert!(tags.contains(b"MIRR") && !tags.contains(b"FSHF"), "{tags:?}");
+        let unmirrored = Database { skeleton: Skeleton { mirror: Vec::new(), ..db.skeleton.clone() }, ..db.clone() };
+        assert!(bytes.len() * 3 < to_bytes(&unmirrored).len() * 2, "{} bytes", bytes.len());
+        assert_eq!(from_bytes(&bytes).unwrap(), db);
+        let wide = mirrored_pair(300, 64);
+        let bytes = to_bytes(&wide);
+        assert!(sections_of(&bytes).contains(b"FSHF"));
+        assert_eq!(from_bytes(&bytes).unwrap(), wide);
+        // A mirror map that does not pair back, or a derived clip that is not a mirrored one
+        // right after its original, is refused naming MIRR.
+        let at = |b: &[u8]| {
+            let i = sections_of(b).iter().position(|t| t == b"MIRR").unwrap();
+            u64::from_le_bytes(b[HEADER_LEN + i * ENTRY_LEN + 8..HEADER_LEN + i * ENTRY_LEN + 16].try_into().unwrap())
+                as usize
+        };
+        let good = to_bytes(&db);
+        let mut b = good.clone();
+        let m = at(&b);
+        b[m..m + 4].copy_from_slice(&1u32.to_le_bytes());
+        refix(&mut b);
+        assert!(message(&b).contains("MIRR: joint 0's opposite is 1"), "{}", message(&b));
+        let mut b = good.clone();
+        b[m + 12..m + 16].copy_from_slice(&0u32.to_le_bytes());
+        refix(&mut b);
+        assert!(message(&b).contains("MIRR: clip 0 cannot be derived"), "{}", message(&b));
     }
 
     fn message(bytes: &[u8]) -> String {
@@ -1184,7 +1519,7 @@ mod tests {
     #[test]
     fn rejects_more_frames_than_the_limit() {
         let mut bytes = to_bytes(&tiny());
-        let info = align(HEADER_LEN + ENTRY_LEN * TAGS.len());
+        let info = u64::from_le_bytes(bytes[HEADER_LEN + 8..HEADER_LEN + 16].try_into().unwrap()) as usize;
         bytes[info..info + 4].copy_from_slice(&((MAX_FRAMES + 1) as u32).to_le_bytes());
         refix(&mut bytes);
         assert_eq!(message(&bytes), "invalid .mmdb: INFO.num_frames is 16777217, more than 16777216");

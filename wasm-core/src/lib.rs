@@ -20,7 +20,7 @@ pub mod rng;
 pub use harness::{naturalness, quality, vr_replay};
 pub use offline::{builder, bvh, config, first_part, frame_cuts, gltf, inspect, parallel, smoothing};
 pub use runtime::{
-    aabb, character, controller, crowd, database, ik, inertialize, kinematics, lanes, persist, pose_features,
+    aabb, character, controller, crowd, database, ik, inertialize, kinematics, lanes, mirror, persist, pose_features,
     recording, retarget, roles, search, skating, skinning, spring, tag_query,
 };
 

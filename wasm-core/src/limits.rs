@@ -23,7 +23,7 @@
 //! | `.mmdb` quaternions | unit length ± [`QUAT_NORM_TOLERANCE`] | the writer stores unit quaternions; others scale the skeleton |
 //! | `.mmdb` feature scale | [`MIN_FEATURE_SCALE`] … [`MAX_FEATURE_SCALE`] | a query is divided by it at run time |
 //! | `.mmdb` feature offsets | abs ≤ [`MAX_FEATURE_OFFSET`] frames | 10 s at 1,000 fps; the runtime predicts that far |
-//! | `.mmdb` allocation | ≤ [`MMDB_ALLOCATION_FACTOR`] × file size | every count is checked against the bytes that must hold it |
+//! | `.mmdb` allocation | ≤ [`MMDB_ALLOCATION_FACTOR`] × file size | every count is checked against the bytes that must hold it, and (version 3) what the derived features and mirrored clips will cost against the file's size |
 //! | BVH allocation | ≤ [`BVH_ALLOCATION_FACTOR`] × file size + 1 MiB | values are at least 2 bytes of text each; non-UTF-8 text may triple when made readable |
 //! | a built database | ≤ [`MAX_DATABASE_BYTES`] (1 GiB), ≤ [`MAX_FRAMES`] frames ([`check_database_size`]) | resampling a 1 fps take to 1,000 fps grows it 1,000-fold; wasm32 has 4 GiB |
 //! | feature dimensions (config, build, `INFO`, search) | 1 … [`MAX_FEATURE_DIMS`] (128) ([`check_feature_dims`]) | the search keeps a query's lanes on the stack, so a search never allocates |
@@ -76,7 +76,7 @@ pub const MAX_WEIGHT: f32 = 1e3;
 /// Frame offset of a feature group, in frames (past or future).
 pub const MAX_FEATURE_OFFSET: i32 = 10_000;
 /// Peak heap use of [`crate::format::from_bytes`], as a multiple of the file size (plus 64 KiB).
-pub const MMDB_ALLOCATION_FACTOR: usize = 8;
+pub const MMDB_ALLOCATION_FACTOR: usize = 24;
 /// Peak heap use of [`crate::bvh::Bvh::parse`], as a multiple of the input size (plus 1 MiB).
 pub const BVH_ALLOCATION_FACTOR: usize = 8;
 /// Characters of user input quoted in a message.

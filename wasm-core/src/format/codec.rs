@@ -40,18 +40,18 @@ pub fn animated_joints(positions: &[Vec3], offsets: &[Vec3]) -> Vec<u32> {
         .collect()
 }
 
-/// `PANM`: `u32` count `A`, `A` strictly increasing `u32` joint indices, then `F×A×3` f32.
-pub fn encode_positions(positions: &[Vec3], offsets: &[Vec3]) -> Vec<u8> {
-    let animated = animated_joints(positions, offsets);
+/// `PANM`: `u32` count `A`, `A` strictly increasing `u32` joint indices (`animated`, from
+/// [`animated_joints`] over every frame, derived ones included), then `F×A×3` f32.
+pub fn encode_positions(positions: &[Vec3], offsets: &[Vec3], animated: &[u32]) -> Vec<u8> {
     let j = offsets.len().max(1);
     let frames = positions.len() / j;
     let mut out = Vec::with_capacity(4 + 4 * animated.len() + 12 * frames * animated.len());
     out.extend_from_slice(&(animated.len() as u32).to_le_bytes());
-    for &k in &animated {
+    for &k in animated {
         out.extend_from_slice(&k.to_le_bytes());
     }
     for f in 0..frames {
-        for &k in &animated {
+        for &k in animated {
             for c in positions[f * j + k as usize].to_array() {
                 out.extend_from_slice(&c.to_le_bytes());
             }
@@ -60,12 +60,13 @@ pub fn encode_positions(positions: &[Vec3], offsets: &[Vec3]) -> Vec<u8> {
     out
 }
 
-/// Decodes `PANM` into `F×J` positions, the other joints at their rest offsets.
+/// Decodes `PANM` into `F×J` positions, the other joints at their rest offsets, and which
+/// joints it animates.
 ///
 /// # Errors
 /// A message naming the field: a count or index out of range, indices out of order, or a
 /// length that is not what the count implies.
-pub fn decode_positions(data: &[u8], frames: usize, offsets: &[Vec3]) -> Result<Vec<Vec3>, String> {
+pub fn decode_positions(data: &[u8], frames: usize, offsets: &[Vec3]) -> Result<(Vec<Vec3>, Vec<bool>), String> {
     let j = offsets.len();
     let word = |i: usize| data.get(4 * i..4 * i + 4).map(|b| u32::from_le_bytes(b.try_into().unwrap_or_default()));
     let count = word(0).ok_or("PANM: shorter than its joint count")? as usize;
@@ -98,7 +99,9 @@ pub fn decode_positions(data: &[u8], frames: usize, offsets: &[Vec3]) -> Result<
         let c = |o: usize| f32::from_le_bytes(chunk[o..o + 4].try_into().unwrap_or_default());
         positions[f * j + animated[a]] = Vec3::new(c(0), c(4), c(8));
     }
-    Ok(positions)
+    let mut mask = vec![false; j];
+    animated.iter().for_each(|&k| mask[k] = true);
+    Ok((positions, mask))
 }
 
 /// `QROT`: `F×J×4` i16, component-planar and delta-coded (see the module comment).
@@ -297,9 +300,9 @@ mod tests {
     fn positions_keep_only_what_moves_exactly() {
         let offsets = [Vec3::ZERO, Vec3::Y, Vec3::X];
         let positions: Vec<Vec3> = (0..4).flat_map(|f| [Vec3::new(f as f32, 0.0, 0.5), Vec3::Y, Vec3::X]).collect();
-        let bytes = encode_positions(&positions, &offsets);
+        let bytes = encode_positions(&positions, &offsets, &animated_joints(&positions, &offsets));
         assert_eq!(bytes.len(), 4 + 4 + 4 * 12);
-        assert_eq!(decode_positions(&bytes, 4, &offsets).unwrap(), positions);
+        assert_eq!(decode_positions(&bytes, 4, &offsets).unwrap(), (positions, vec![true, false, false]));
     }
 
     #[test]

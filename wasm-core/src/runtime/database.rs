@@ -16,6 +16,10 @@ pub struct Skeleton {
     /// Named points on the body, one per [`crate::roles::Role`] in [`crate::roles::Role::ALL`]
     /// order (`hips`, `left_toe`, …; joint −1 where the skeleton has no such part).
     pub sites: Vec<Site>,
+    /// The opposite-side joint of each joint (itself for centre joints): how a mirrored clip is
+    /// made from its original ([`crate::mirror::mirror_pose`]). Empty where unknown (a
+    /// database read from a version-1 or -2 file): its mirrored clips are stored whole.
+    pub mirror: Vec<usize>,
 }
 
 /// A point rigidly attached to a joint.

@@ -757,6 +757,7 @@ mod tests {
                 site("left_toe", 5, Vec3::new(0.0, 0.0, 0.05)),
                 site("right_toe", -1, Vec3::ZERO),
             ],
+            mirror: vec![],
         };
         let leg = LegJoints::from_skeleton(&skeleton, "left").unwrap();
         assert_eq!(

@@ -11,6 +11,7 @@ pub mod ik;
 pub mod inertialize;
 pub mod kinematics;
 pub mod lanes;
+pub mod mirror;
 pub mod persist;
 pub mod pose_features;
 pub mod recording;

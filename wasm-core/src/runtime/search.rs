@@ -676,6 +676,7 @@ mod tests {
                 parents: vec![-1],
                 offsets: vec![Vec3::ZERO],
                 sites: vec![],
+                mirror: vec![],
             },
             fps: 60.0,
             num_frames,

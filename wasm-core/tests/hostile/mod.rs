@@ -359,6 +359,7 @@ pub fn tiny_database() -> Database {
             parents: vec![-1, 0],
             offsets: vec![glam::Vec3::ZERO, glam::Vec3::Y],
             sites: vec![Site { name: "hips".into(), joint: 1, offset: glam::Vec3::ZERO }],
+            mirror: vec![0, 1],
         },
         fps: 60.0,
         num_frames: 4,

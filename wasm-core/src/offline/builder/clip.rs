@@ -17,7 +17,6 @@ use glam::{DQuat, DVec3};
 #[derive(Default)]
 pub struct Scratch {
     pub locals: Poses,
-    pub mirrored: Poses,
     pub reversed: Poses,
     world: Poses,
     root_xz: Vec<f64>,

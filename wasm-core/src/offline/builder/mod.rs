@@ -5,8 +5,9 @@
 //!    resampling to the database rate — with bone lengths normalized onto the reference
 //!    skeleton, or, for another skeleton topology, [`retarget`]ed onto it;
 //! 3. [`repair`]: 1–3-frame rotation glitches of the capture bridged;
-//! 4. [`mirror`] and [`reverse`]: optional mirrored and time-reversed copies of each take;
-//! 5. [`clip`]: world transforms, the virtual root ([`root`]), local rows, [`contacts`];
+//! 4. [`reverse`]: optional time-reversed copies of each take;
+//! 5. [`clip`]: world transforms, the virtual root ([`root`]), local rows, [`contacts`]; a
+//!    mirrored copy is its original's rows mirrored (`crate::mirror`);
 //! 6. clips and tags assembled here; rotations quantized as `.mmdb` stores them, then what a
 //!    loader derives from the rows — velocities (`Database::compute_velocities`) and features
 //!    (`crate::pose_features`) — and [`features`]: normalization and validity.
@@ -17,7 +18,6 @@
 mod clip;
 mod contacts;
 mod features;
-mod mirror;
 mod poses;
 mod repair;
 pub mod retarget;
@@ -273,6 +273,9 @@ pub fn build(config: &BuildConfig, sources: &[Source]) -> Result<BuildOutput> {
             _ => jobs.push((plan.take, vec![(plan, rows)])),
         }
     }
+    // Database joints: 0 is the virtual root (animated, its own mirror), then the BVH joints.
+    let db_mirror = &skeleton.mirror;
+    let db_animated: Vec<bool> = std::iter::once(true).chain(reference.animated_translation.iter().copied()).collect();
     let pool = std::sync::Mutex::new(Vec::<Scratch>::new());
     let job_notes = std::sync::Mutex::new((Vec::<String>::new(), Vec::<(usize, RetargetReport)>::new()));
     crate::parallel::for_each(jobs, |(t, variants)| {
@@ -316,23 +319,29 @@ pub fn build(config: &BuildConfig, sources: &[Source]) -> Result<BuildOutput> {
                 list.join(", ")
             ));
         }
-        let (mut mirrored, mut reversed) =
-            (std::mem::take(&mut scratch.mirrored), std::mem::take(&mut scratch.reversed));
-        for (plan, rows) in variants {
+        let mut reversed = std::mem::take(&mut scratch.reversed);
+        // The originals' rows, by `reversed`: a mirrored copy is made from them, exactly
+        // (`crate::mirror`), so a `.mmdb` file can carry the pair once.
+        let mut originals: Vec<(bool, Rows)> = Vec::new();
+        for (plan, mut rows) in variants {
+            if plan.mirrored {
+                if let Some((_, original)) = originals.iter().find(|(r, _)| *r == plan.reversed) {
+                    mirror_rows(original, &mut rows, &db_mirror, &db_animated, &skeleton.offsets);
+                    continue;
+                }
+            }
             let base = if plan.reversed {
                 reverse::reverse(&locals, &mut reversed);
                 &reversed
             } else {
                 &locals
             };
-            if plan.mirrored {
-                mirror::mirror(base, &reference.pairs, &reference.animated_translation, &mut mirrored);
-                clip_builder.append(&mirrored, rows, &mut scratch, take.root_position_window);
-            } else {
-                clip_builder.append(base, rows, &mut scratch, take.root_position_window);
+            clip_builder.append(base, rows.reborrow(), &mut scratch, take.root_position_window);
+            if !plan.mirrored {
+                originals.push((plan.reversed, rows));
             }
         }
-        (scratch.locals, scratch.mirrored, scratch.reversed) = (locals, mirrored, reversed);
+        (scratch.locals, scratch.reversed) = (locals, reversed);
         pool.lock().unwrap().push(scratch);
     });
     // The working copies go before the velocities are added (the memory estimate's peaks).
@@ -467,6 +476,25 @@ pub fn build(config: &BuildConfig, sources: &[Source]) -> Result<BuildOutput> {
     crate::format::check_database(&database)
         .map_err(|e| Error::config(format!("the built database would not load: {e}")))?;
     Ok(BuildOutput { database, warnings, retargeted, footprint })
+}
+
+/// `out` = `original`'s rows mirrored frame by frame ([`crate::mirror::mirror_pose`]), with the
+/// feet's contacts swapped.
+fn mirror_rows(original: &Rows, out: &mut Rows, pairs: &[usize], animated: &[bool], rest: &[Vec3]) {
+    let j = pairs.len();
+    let frames = original.positions.len() / j;
+    for f in 0..frames {
+        let r = f * j..(f + 1) * j;
+        crate::mirror::mirror_pose(
+            pairs,
+            animated,
+            rest,
+            (&original.positions[r.clone()], &original.rotations[r.clone()]),
+            (&mut out.positions[r.clone()], &mut out.rotations[r]),
+        );
+        out.contacts[2 * f..2 * f + 2]
+            .copy_from_slice(&crate::mirror::mirror_contacts(&original.contacts[2 * f..2 * f + 2]));
+    }
 }
 
 /// Sorted, merged `[start, end)` ranges.

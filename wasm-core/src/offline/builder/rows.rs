@@ -53,6 +53,11 @@ pub struct Rows<'a> {
 }
 
 impl<'a> Rows<'a> {
+    /// The same rows, borrowed for a shorter while.
+    pub fn reborrow(&mut self) -> Rows<'_> {
+        Rows { positions: self.positions, rotations: self.rotations, contacts: self.contacts }
+    }
+
     /// The first `frames` frames, and the rest.
     pub fn split_at(self, frames: usize, joints: usize) -> (Rows<'a>, Rows<'a>) {
         let (p, p2) = self.positions.split_at_mut(frames * joints);

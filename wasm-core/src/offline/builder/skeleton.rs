@@ -137,6 +137,7 @@ impl Reference {
             parents: std::iter::once(-1).chain(self.parents.iter().map(|&p| if p < 0 { 0 } else { p + 1 })).collect(),
             offsets: std::iter::once(Vec3::ZERO).chain(offsets.iter().map(|o| o.as_vec3())).collect(),
             sites: Vec::new(),
+            mirror: std::iter::once(0).chain(self.pairs.iter().map(|&k| k + 1)).collect(),
         };
         for role in Role::ALL {
             let (joint, offset) = match (self.roles.get(role), role) {
