@@ -384,7 +384,7 @@ def load(path_or_bytes) -> Database:
         stored = [c for i, c in enumerate(clips) if i not in derived]
         Fs = sum(c.end - c.start for c in stored)
         local_positions, animated = _decode_panm(sections["PANM"], Fs, rest_offsets)
-        local_rotations = _decode_qrot(sections["QROT"], Fs, J)
+        local_rotations = _decode_qrot(sections["QROT"], Fs, J, version)
         contacts = _check_flags("CONT", _array(sections, "CONT", "u1", (Fs, 2)))
         if derived:
             local_positions, local_rotations, contacts = _expand_mirrors(
@@ -496,13 +496,21 @@ def _expand_mirrors(clips, derived, pairs, animated, rest, positions, rotations,
     return p, q, c
 
 
-def _decode_qrot(data: bytes, F: int, J: int) -> np.ndarray:
-    """QROT: i16, joint-major then component then frame, delta-coded along frames (wrapping)."""
+def _decode_qrot(data: bytes, F: int, J: int, version: int = 2) -> np.ndarray:
+    """QROT: i16, joint-major then component then frame. Version 2: deltas along frames
+    (wrapping). Version 3: zigzag codes in a low-byte and a high-byte plane of the miss of
+    `2·c[f-1] - c[f-2]` (wrapping)."""
     if len(data) != F * J * 8:
         raise MmdbError(f"section QROT: length {len(data)} bytes, {F} frames x {J} joints need {F * J * 8}")
-    deltas = np.frombuffer(data, dtype="<i2").reshape(J, 4, F)
-    # Wrapping i16 prefix sums: accumulate in int64, then reduce mod 2^16 into [-32768, 32767].
-    c = np.cumsum(deltas.astype(np.int64), axis=2)
+    if version >= 3:
+        planes = np.frombuffer(data, dtype=np.uint8).reshape(2, -1).astype(np.int64)
+        code = planes[0] | (planes[1] << 8)
+        residual = np.where(code & 1, -(code >> 1) - 1, code >> 1).reshape(J, 4, F)
+        # c[f] = r[f] + 2c[f-1] - c[f-2]: the residuals summed twice (mod 2^16).
+        c = np.cumsum(np.cumsum(residual, axis=2), axis=2)
+    else:
+        # Wrapping i16 prefix sums: accumulate in int64, then reduce mod 2^16.
+        c = np.cumsum(np.frombuffer(data, dtype="<i2").reshape(J, 4, F).astype(np.int64), axis=2)
     c = ((c + 32768) % 65536 - 32768).astype(np.float32)
     q = np.ascontiguousarray(c.transpose(2, 0, 1))  # (F, J, 4)
     norm2 = np.einsum("fjc,fjc->fj", q.astype(np.float64), q.astype(np.float64)) / ROTATION_SCALE**2

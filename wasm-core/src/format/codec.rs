@@ -1,15 +1,19 @@
-//! The version-2 encodings of the big per-frame arrays (docs/mmdb-format.md, "Version 2"):
-//! what the runtime reads, in fewer bytes, and laid out so that HTTP compression finds the
-//! redundancy that is there (poses change slowly from frame to frame).
+//! The encodings of the big per-frame arrays (docs/mmdb-format.md, "Pose arrays"): what the
+//! runtime reads, in fewer bytes, and laid out so that HTTP compression finds the redundancy
+//! that is there (poses change slowly from frame to frame).
 //!
 //! - `PANM`: local positions only for the joints whose position ever differs from the skeleton's
 //!   rest offset (the virtual root and the hips in a mocap database), exact f32.
 //! - `QROT`: local rotations quantized to 16 bits per component (error bound below), stored
-//!   component-planar (joint, component, frame) and delta-coded along frames with wrapping
-//!   arithmetic, so decoding is exact and the deltas are small numbers brotli packs well.
-//! - `FSHF`: the feature matrix, exact f32, byte-planar (plane b = byte b of every value, values
-//!   dimension-major): the sign/exponent plane of a slowly varying feature is nearly constant.
-//! - Velocities are not stored: [`crate::database::Database::compute_velocities`] derives them.
+//!   component-planar (joint, component, frame) as the miss of a constant-velocity prediction
+//!   from the two frames before (wrapping arithmetic, so decoding is exact), zigzag-coded and
+//!   split into a low-byte and a high-byte plane: small numbers brotli packs well (version 2:
+//!   plain first-order deltas).
+//! - `FSHF` (version 2, and version 3 where deriving would cost too much): the feature matrix,
+//!   exact f32, byte-planar (plane b = byte b of every value, values dimension-major): the
+//!   sign/exponent plane of a slowly varying feature is nearly constant.
+//! - Velocities and (version 3) features are not stored: [`crate::database::Database::compute_velocities`]
+//!   and [`crate::database::Database::compute_features`] derive them.
 
 use glam::{Quat, Vec3};
 
@@ -107,14 +111,20 @@ pub fn decode_positions(data: &[u8], frames: usize, offsets: &[Vec3]) -> Result<
 /// `QROT`: `F×J×4` i16, component-planar and delta-coded (see the module comment).
 pub fn encode_rotations(rotations: &[Quat], joints: usize) -> Vec<u8> {
     let frames = rotations.len() / joints.max(1);
-    let mut out = Vec::with_capacity(rotations.len() * 8);
+    let n = rotations.len() * 4;
+    let mut out = vec![0u8; n * 2];
+    let mut i = 0;
     for k in 0..joints {
         for c in 0..4 {
-            let mut previous = 0i16;
+            let (mut previous, mut before) = (0i16, 0i16);
             for f in 0..frames {
                 let q = quantize_rotation(rotations[f * joints + k])[c];
-                out.extend_from_slice(&q.wrapping_sub(previous).to_le_bytes());
-                previous = q;
+                // What the two frames before predict (constant velocity), and the zigzag code of
+                // the miss: small misses of either sign become small unsigned numbers.
+                let residual = q.wrapping_sub(previous.wrapping_mul(2)).wrapping_add(before);
+                let code = ((residual << 1) ^ (residual >> 15)) as u16;
+                (out[i], out[n + i]) = (code as u8, (code >> 8) as u8);
+                (before, previous, i) = (previous, q, i + 1);
             }
         }
     }
@@ -150,12 +160,19 @@ pub fn dequantize_rotation(c: [i16; 4]) -> Quat {
     Quat::from_array(c.map(f32::from)).normalize()
 }
 
-/// Decodes `QROT` into normalized `F×J` quaternions.
+/// Decodes `QROT` into normalized `F×J` quaternions: version 3's second-order zigzag code in
+/// two byte planes (`second_order`), or version 2's first-order deltas.
 ///
 /// # Errors
 /// A length that is not `F·J·8` bytes, or a decoded quaternion whose length is not 1 within
 /// the tolerance (`|‖c‖²/32767² − 1| > tolerance`): corruption, not quantization.
-pub fn decode_rotations(data: &[u8], frames: usize, joints: usize, tolerance: f32) -> Result<Vec<Quat>, String> {
+pub fn decode_rotations(
+    data: &[u8],
+    frames: usize,
+    joints: usize,
+    tolerance: f32,
+    second_order: bool,
+) -> Result<Vec<Quat>, String> {
     let n = frames.checked_mul(joints).ok_or("QROT: counts overflow")?;
     if n.checked_mul(8) != Some(data.len()) {
         return Err(format!(
@@ -172,14 +189,29 @@ pub fn decode_rotations(data: &[u8], frames: usize, joints: usize, tolerance: f3
     // Little-endian i16s (the crate refuses to build big-endian); copied only when the section
     // is not 2-byte aligned in memory.
     let owned;
-    let values: &[i16] = match bytemuck::try_cast_slice(data) {
-        Ok(v) => v,
-        Err(_) => {
-            owned = bytemuck::pod_collect_to_vec::<u8, i16>(data);
-            &owned
+    let values: &[i16] = if second_order {
+        // Back to residuals: byte planes joined, zigzag undone.
+        let (low, high) = data.split_at(n * 4);
+        owned = low
+            .iter()
+            .zip(high)
+            .map(|(&l, &h)| {
+                let code = u16::from(l) | (u16::from(h) << 8);
+                ((code >> 1) as i16) ^ -((code & 1) as i16)
+            })
+            .collect::<Vec<i16>>();
+        &owned
+    } else {
+        match bytemuck::try_cast_slice(data) {
+            Ok(v) => v,
+            Err(_) => {
+                owned = bytemuck::pod_collect_to_vec::<u8, i16>(data);
+                &owned
+            }
         }
     };
     let mut sums = vec![0i16; planes];
+    let mut before = vec![0i16; if second_order { planes } else { 0 }];
     let scale2 = ROTATION_SCALE * ROTATION_SCALE;
     let mut rotations = Vec::with_capacity(n);
     for f in 0..frames {
@@ -187,7 +219,13 @@ pub fn decode_rotations(data: &[u8], frames: usize, joints: usize, tolerance: f3
             let mut c = [0f32; 4];
             for (j, value) in c.iter_mut().enumerate() {
                 let p = 4 * k + j;
-                sums[p] = sums[p].wrapping_add(values[p * frames + f]);
+                let d = values[p * frames + f];
+                if second_order {
+                    let c = d.wrapping_add(sums[p].wrapping_mul(2)).wrapping_sub(before[p]);
+                    (before[p], sums[p]) = (sums[p], c);
+                } else {
+                    sums[p] = sums[p].wrapping_add(d);
+                }
                 *value = sums[p] as f32;
             }
             let q = Quat::from_array(c);
@@ -263,7 +301,7 @@ mod tests {
                 .normalize()
             })
             .collect();
-        let decoded = decode_rotations(&encode_rotations(&rotations, joints), frames, joints, 1e-3).unwrap();
+        let decoded = decode_rotations(&encode_rotations(&rotations, joints), frames, joints, 1e-3, true).unwrap();
         for (a, b) in rotations.iter().zip(&decoded) {
             assert!(angle(*a, *b) <= MAX_ROTATION_ERROR, "{a} vs {b}: {} rad", angle(*a, *b));
         }
