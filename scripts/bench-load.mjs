@@ -13,7 +13,9 @@
 // - bytes the server sent for the whole visit (its --log-json lines: the service worker's
 //   requests too) within 4 s after the first frame;
 // - where the time goes: the library's marks (`mm:fetched:<stage>`, `mm:database-ready`,
-//   `mm:avatar-ready`) and the page's own resource timing.
+//   `mm:avatar-ready`), the page's own resource timing (the whole database's request: sent,
+//   first and last byte), and the main thread's long tasks between the first frame and the whole
+//   in use (software WebGL's first frames: while they run, the whole's bytes wait to be read).
 // Also prints what the default database costs on the wire today (raw, gzip, brotli as built), and
 // what each of the package's entries costs an app that bundles it (gzip; scripts/entry-sizes.mjs).
 import { spawn } from 'node:child_process';
@@ -61,6 +63,12 @@ function startServer() {
 /** One visit: navigates `page` and measures until 4 s after the first animated frame. */
 async function visit(context, server, pageDef, network, log) {
   const page = await context.newPage();
+  // Long tasks: what keeps the main thread from reading the whole's bytes after the first frame.
+  await page.addInitScript(() => {
+    const w = /** @type {{ __longTasks: number[][] }} */ (/** @type {unknown} */ (globalThis));
+    w.__longTasks = [];
+    new PerformanceObserver((list) => list.getEntries().forEach((e) => w.__longTasks.push([e.startTime, e.duration]))).observe({ type: 'longtask', buffered: true });
+  });
   const cdp = await context.newCDPSession(page);
   await cdp.send('Network.enable');
   await cdp.send('Network.setCacheDisabled', { cacheDisabled: false });
@@ -98,6 +106,18 @@ async function visit(context, server, pageDef, network, log) {
   // The whole's own stage (its download), for where its time goes.
   const wholeFetched = await page.evaluate(() => performance.getEntriesByName('mm:fetched:whole database')[0]?.startTime ?? null);
   if (wholeFetched !== null) marks.entries['mm:fetched:whole database'] = wholeFetched;
+  // The whole's request on the network (resource timing): sent, first byte, last byte.
+  const wholeNet = await page.evaluate(() => {
+    const r = performance.getEntriesByType('resource').find((e) => /\.mmdb(\?|$)/.test(e.name) && !/\.first\.mmdb/.test(e.name));
+    return r ? [r.startTime, r.responseStart, r.responseEnd] : null;
+  });
+  if (wholeNet) [marks.entries['mm:whole sent'], marks.entries['mm:whole first byte'], marks.entries['mm:whole last byte']] = wholeNet;
+  // Main-thread time in long tasks from the first frame until the whole is in use.
+  const busy = await page.evaluate(
+    ([from, to]) => globalThis.__longTasks.reduce((sum, [s, d]) => sum + Math.max(0, Math.min(s + d, to) - Math.max(s, from)), 0),
+    [marks.entries['mm:first-frame'], wholeMark ?? marks.entries['mm:first-frame'] + 4000],
+  );
+  marks.entries['mm:busy after first frame (long tasks)'] = busy;
   if (wholeMark !== null) marks.entries['mm:whole-database'] = wholeMark;
   const firstFrame = marks.entries['mm:first-frame'];
   // CDP timestamps are monotonic seconds; the page's marks are ms after its time origin (epoch ms).

@@ -326,7 +326,7 @@ pub fn build(config: &BuildConfig, sources: &[Source]) -> Result<BuildOutput> {
         for (plan, mut rows) in variants {
             if plan.mirrored {
                 if let Some((_, original)) = originals.iter().find(|(r, _)| *r == plan.reversed) {
-                    mirror_rows(original, &mut rows, &db_mirror, &db_animated, &skeleton.offsets);
+                    mirror_rows(original, &mut rows, db_mirror, &db_animated, &skeleton.offsets);
                     continue;
                 }
             }
