@@ -4,7 +4,7 @@
 // 1. Writes `file.br` and `file.gz` beside every compressible file of the built site (text,
 //    JSON, JS, WASM, .mmdb, .glb, .onnx) when that saves ≥ 5 %, for the production server
 //    (server/static.ts) to send as they are. Brotli quality 11 (window 2^24) and gzip 9 up to
-//    12 MB; above, brotli 5 and gzip 6 (on the 35 MB database brotli 5 takes 6 s for 9.58 MB where
+//    8 MB; above, brotli 5 and gzip 6 (on the 35 MB database brotli 5 takes 6 s for 9.58 MB where
 //    9 takes 45–150 s for 9.66 MB and 11 about 160 s for 8.92 MB; gzip 6 = gzip 9 within 0.1 %).
 //    Outputs are cached by content hash in node_modules/.cache/mm-precompress/, so a rebuild
 //    with unchanged assets only copies them back.
@@ -25,7 +25,7 @@ const CACHE = path.join(ROOT, 'node_modules', '.cache', 'mm-precompress');
 const COMPRESSIBLE = /\.(html|js|mjs|css|json|map|svg|txt|md|wasm|mmdb|glb|vrm|onnx)$/i;
 /** Folders of dist/ that are the npm package's, not the site's (never served compressed). */
 const SKIP = new Set(['lib', 'types']);
-const BIG = 12e6;
+const BIG = 8e6;
 
 const sha = (bytes) => createHash('sha256').update(bytes).digest('hex');
 
