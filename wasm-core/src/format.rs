@@ -13,6 +13,7 @@ use crate::limits::{
     QUAT_NORM_TOLERANCE,
 };
 use glam::{Quat, Vec3};
+use std::borrow::Cow;
 
 #[cfg(target_endian = "big")]
 compile_error!("the .mmdb writer and reader assume a little-endian target");
@@ -49,31 +50,25 @@ pub fn to_bytes(db: &Database) -> Vec<u8> {
         .filter(|(i, _)| !derived.contains(i))
         .map(|(_, c)| (c.start as usize, c.end as usize))
         .collect();
-    let gather =
-        |per_frame: usize| -> Vec<usize> { stored.iter().flat_map(|&(s, e)| s * per_frame..e * per_frame).collect() };
-    let (positions, rotations, contacts): (Vec<Vec3>, Vec<Quat>, Vec<u8>) = if derived.is_empty() {
-        (Vec::new(), Vec::new(), Vec::new())
-    } else {
-        let rows = gather(j);
-        (
-            rows.iter().map(|&i| db.local_positions[i]).collect(),
-            rows.iter().map(|&i| db.local_rotations[i]).collect(),
-            gather(2).iter().map(|&i| db.contacts[i]).collect(),
-        )
-    };
-    let (positions, rotations, contacts) = if derived.is_empty() {
-        (&db.local_positions[..], &db.local_rotations[..], &db.contacts[..])
-    } else {
-        (&positions[..], &rotations[..], &contacts[..])
-    };
+    // The stored frames' values of a per-frame array (`per_frame` values a frame).
+    fn stored_of<'a, T: Clone>(all: &'a [T], per_frame: usize, stored: &[(usize, usize)], whole: bool) -> Cow<'a, [T]> {
+        if whole {
+            return Cow::Borrowed(all);
+        }
+        Cow::Owned(stored.iter().flat_map(|&(s, e)| all[s * per_frame..e * per_frame].iter().cloned()).collect())
+    }
+    let whole = derived.is_empty();
+    let positions = stored_of(&db.local_positions, j, &stored, whole);
+    let rotations = stored_of(&db.local_rotations, j, &stored, whole);
+    let contacts = stored_of(&db.contacts, 2, &stored, whole);
     // The big arrays are borrowed as bytes (the format is little-endian like every target we
     // build for, checked above) and copied once, into the output.
-    let mut sections: Vec<(&[u8; 4], std::borrow::Cow<[u8]>)> = Vec::with_capacity(TAGS.len() + 2);
+    let mut sections: Vec<(&[u8; 4], Cow<[u8]>)> = Vec::with_capacity(TAGS.len() + 3);
     for tag in TAGS {
-        let data: std::borrow::Cow<[u8]> = match tag {
-            b"PANM" => codec::encode_positions(positions, &db.skeleton.offsets, &animated).into(),
-            b"QROT" => codec::encode_rotations(rotations, j).into(),
-            b"CONT" => contacts.into(),
+        let data: Cow<[u8]> = match tag {
+            b"PANM" => codec::encode_positions(&positions, &db.skeleton.offsets, &animated).into(),
+            b"QROT" => codec::encode_rotations(&rotations, j).into(),
+            b"CONT" => contacts.clone(),
             b"VALD" => db.valid.as_slice().into(),
             _ => small_section(db, tag).into(),
         };

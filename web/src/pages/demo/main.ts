@@ -78,17 +78,13 @@ el.addEventListener('load', async () => {
   stage.camera.position.set(2.2, 1.7, 3.8);
   const [skeleton, shadows] = [params.get('skeleton') === '1', params.get('shadows') !== '0'];
   const view = { mesh: true, skeleton, shadows, simulation: true, trajectory: true, matched: true, locks: true };
-  // Shadows once the whole database is in use: their first frame compiles the lit materials
-  // again (~1 s of main thread under software WebGL), which held back reading the whole's bytes
-  // by as much; the character needs the whole's motion more than the floor needs its shadow.
-  let shadowsNow = false;
   const apply = () => {
     if (character.avatar) character.avatar.object.visible = view.mesh;
     character.showSkeleton = view.skeleton || !character.avatar || !view.mesh;
     const d = character.debugViews!;
     [d.simulation.visible, d.requested.object.visible] = [view.simulation, view.trajectory];
     [d.matched.object.visible, d.locks.visible] = [view.matched, view.locks];
-    stage.enableShadows(view.shadows && shadowsNow);
+    stage.enableShadows(view.shadows && !character.database.wholeUrl); // their compile held the whole ~1 s
   };
   const useAvatar = (avatar: Avatar | null) => {
     character.setAvatar(avatar);
@@ -109,10 +105,7 @@ el.addEventListener('load', async () => {
   };
   [hook.database, hook.databaseFrames, hook.databaseLoads] = [loadedName, loaded.numFrames, 1];
   const whole = (db: Database) => hook.database === loadedName && [hook.databaseFrames = db.numFrames, refreshStyles()];
-  void character
-    .whole()
-    .then(whole, () => undefined) // a failure is the character's warning
-    .then(() => ((shadowsNow = true), apply()));
+  void character.whole().then(whole, () => undefined).then(apply); // a failure is the character's warning
   useAvatar(character.avatar);
   if (roles && avatarParam !== 'none') {
     const url = avatarParam ?? 'avatars/ubc_male.glb';

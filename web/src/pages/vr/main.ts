@@ -3,8 +3,7 @@
  * both controllers drive a full-body motion-matched avatar (`TrackedDrive`), on the public entries
  * and the pages' kit (three's Reflector; iwer only with `emulate=1`).
  * Loading: the character first (stages named in the toolbar; a failed avatar → the skeleton, a note);
- * after the first frame the whole database, then the network and onnxruntime, the heuristic driving
- * until then (shown).
+ * then the whole database, the network and onnxruntime, the heuristic driving until then (shown).
  *
  * URL parameters: `emulate=1` (iwer, a Quest 3; `devui=0` without its panel), `replay=URL` or
  * `replay=scripted` (play a recording on the desktop page; `bench=1` also scores it), `dt=fixed`
@@ -240,14 +239,8 @@ async function main(): Promise<void> {
     }
     if (!hook.ready) {
       performance.mark('mm:first-frame');
-      // After the first frame: the whole database (the body's motion), then the network and
-      // onnxruntime (the heuristic drives until then), then the offline cache — one after the
-      // other, as at 16 Mbit/s they would share the line (the whole came 0.5–1 s later).
-      void character
-        .whole()
-        .catch(() => undefined) // the character's warning; the network loads all the same
-        .then(() => yaw.load())
-        .then(() => registerOfflineCache());
+      // Then the whole, the network (the heuristic drives till then), the cache: one at a time.
+      void character.whole().catch(() => undefined).then(() => yaw.load()).then(() => registerOfflineCache());
     }
     hook.ready = true;
   });
