@@ -142,7 +142,6 @@ fn derived_mirrors(db: &Database, animated: &[u32]) -> Vec<usize> {
     let mut moves = vec![false; j];
     animated.iter().for_each(|&k| moves[k as usize] = true);
     let (mut p, mut q) = (vec![Vec3::ZERO; j], vec![Quat::IDENTITY; j]);
-    let bits = |v: &[f32]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
     let mut derived = Vec::new();
     for i in 1..db.clips.len() {
         let (a, b) = (&db.clips[i - 1], &db.clips[i]);
@@ -159,9 +158,8 @@ fn derived_mirrors(db: &Database, animated: &[u32]) -> Vec<usize> {
                 (&db.local_positions[fa * j..(fa + 1) * j], &db.local_rotations[fa * j..(fa + 1) * j]),
                 (&mut p, &mut q),
             );
-            bits(bytemuck::cast_slice(&p)) == bits(bytemuck::cast_slice(&db.local_positions[fb * j..(fb + 1) * j]))
-                && bits(bytemuck::cast_slice(&q))
-                    == bits(bytemuck::cast_slice(&db.local_rotations[fb * j..(fb + 1) * j]))
+            same_bits(&p, &db.local_positions[fb * j..(fb + 1) * j])
+                && same_bits(&q, &db.local_rotations[fb * j..(fb + 1) * j])
                 && crate::mirror::mirror_contacts(&db.contacts[2 * fa..2 * fa + 2]) == db.contacts[2 * fb..2 * fb + 2]
         });
         if exact {
@@ -169,6 +167,11 @@ fn derived_mirrors(db: &Database, animated: &[u32]) -> Vec<usize> {
         }
     }
     derived
+}
+
+/// Whether two arrays of floats hold the same bits (`==` takes −0 for +0 and no NaN for itself).
+fn same_bits<T: bytemuck::Pod>(a: &[T], b: &[T]) -> bool {
+    bytemuck::cast_slice::<T, u32>(a) == bytemuck::cast_slice::<T, u32>(b)
 }
 
 /// The sections made of counts, names and small records.
@@ -871,22 +874,10 @@ pub fn check_round_trip(original: &Database, loaded: &Database) -> std::result::
     if !exact {
         return Err("the skeleton, clips, tags, positions, contacts, feature groups or validity changed".into());
     }
-    let bits = |f: &[f32]| f.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
-    let mut derived = crate::pose_features::pose_features(
-        &original.skeleton.parents,
-        original.fps,
-        &original.clips,
-        &original.groups,
-        original.num_features(),
-        &original.local_positions,
-        &original.local_rotations,
-    );
-    crate::pose_features::apply_normalization(&mut derived, &original.feature_mean, &original.feature_scale);
-    let same_poses = bytemuck::cast_slice::<Quat, f32>(&original.local_rotations)
-        .iter()
-        .map(|x| x.to_bits())
-        .eq(bytemuck::cast_slice::<Quat, f32>(&loaded.local_rotations).iter().map(|x| x.to_bits()));
-    if same_poses && bits(&derived) == bits(&original.features) && bits(&loaded.features) != bits(&original.features) {
+    if same_bits(&original.local_rotations, &loaded.local_rotations)
+        && !same_bits(&loaded.features, &original.features)
+        && same_bits(&original.derived_features(), &original.features)
+    {
         return Err("the features changed".into());
     }
     match from_bytes(&to_bytes(loaded)) {

@@ -251,8 +251,14 @@ impl Database {
     }
 
     /// Derives the normalized feature matrix from the poses with the stored normalization
-    /// (`.mmdb` version 3 does not store it): [`crate::pose_features`], the builder's recipe.
+    /// (`.mmdb` version 3 does not store it).
     pub fn compute_features(&mut self) {
+        self.features = self.derived_features();
+    }
+
+    /// The normalized features the poses give ([`crate::pose_features`], the builder's recipe,
+    /// with this database's normalization): what [`Database::compute_features`] stores.
+    pub fn derived_features(&self) -> Vec<f32> {
         let mut features = crate::pose_features::pose_features(
             &self.skeleton.parents,
             self.fps,
@@ -263,7 +269,7 @@ impl Database {
             &self.local_rotations,
         );
         crate::pose_features::apply_normalization(&mut features, &self.feature_mean, &self.feature_scale);
-        self.features = features;
+        features
     }
 
     /// World positions and rotations of every joint at `frame` (the one FK,

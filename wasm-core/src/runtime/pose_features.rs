@@ -11,22 +11,9 @@ use crate::database::{Axes, Clip, FeatureGroup, FeatureKind};
 use crate::kinematics::local_to_model;
 use glam::{DQuat, DVec3, Quat, Vec3};
 
-/// What raw features are computed from: world points, rotations and velocities of database
-/// joints (0 = the virtual root) per frame of one clip.
-pub trait ClipGeometry {
-    fn num_frames(&self) -> usize;
-    fn root(&self, f: usize) -> (DVec3, DQuat);
-    /// World position of `offset` in `joint`'s space.
-    fn point(&self, f: usize, joint: usize, offset: DVec3) -> DVec3;
-    fn rotation(&self, f: usize, joint: usize) -> DQuat;
-    /// Velocity of [`ClipGeometry::point`] by central differences (one-sided at the clip's
-    /// ends, zero for a one-frame clip).
-    fn velocity(&self, f: usize, joint: usize, offset: DVec3) -> DVec3;
-}
-
 /// Raw (unnormalized) features of every frame of a clip, in the character space of each
 /// frame, into `out` (`num_frames × num_dims`). Offsets past the clip's ends are clamped.
-pub fn raw_features(clip: &impl ClipGeometry, groups: &[FeatureGroup], num_dims: usize, out: &mut [f32]) {
+fn raw_features(clip: &ClipWorld, groups: &[FeatureGroup], num_dims: usize, out: &mut [f32]) {
     let n = clip.num_frames();
     for (f, row) in out.chunks_exact_mut(num_dims).enumerate() {
         let (rp, rq) = clip.root(f);
@@ -59,19 +46,22 @@ struct ClipWorld<'a> {
     dt: f64,
 }
 
-impl ClipGeometry for ClipWorld<'_> {
+impl ClipWorld<'_> {
     fn num_frames(&self) -> usize {
         self.positions.len() / self.m
     }
     fn root(&self, f: usize) -> (DVec3, DQuat) {
         (self.positions[f * self.m], self.rotations[f * self.m])
     }
+    /// World position of `offset` in `joint`'s space.
     fn point(&self, f: usize, joint: usize, offset: DVec3) -> DVec3 {
         self.positions[f * self.m + joint] + self.rotations[f * self.m + joint] * offset
     }
     fn rotation(&self, f: usize, joint: usize) -> DQuat {
         self.rotations[f * self.m + joint]
     }
+    /// Velocity of [`ClipWorld::point`] by central differences (one-sided at the clip's ends,
+    /// zero for a one-frame clip).
     fn velocity(&self, f: usize, joint: usize, offset: DVec3) -> DVec3 {
         let (a, b) = (f.saturating_sub(1), (f + 1).min(self.num_frames() - 1));
         if a >= b {
