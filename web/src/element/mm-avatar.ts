@@ -298,7 +298,9 @@ export class MMAvatarElement extends ElementBase {
       return;
     }
     const precompile = (a: Avatar) => {
-      if (generation === this.generation) stage.renderer.compileAsync(a.object, stage.camera, stage.scene).catch(() => undefined);
+      // `compile`, not `compileAsync`: the same work, without three.js' console warning where
+      // the browser lacks KHR_parallel_shader_compile (nothing here awaits the programs).
+      if (generation === this.generation) stage.renderer.compile(a.object, stage.camera, stage.scene);
       return a;
     };
     try {

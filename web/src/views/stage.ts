@@ -51,7 +51,8 @@ export class Stage {
     // key, and three.js does not recompile a material already drawn when it changes — so a type
     // set later (by enableShadows) gave every avatar loaded after it a second set of programs, each
     // a compile (seconds on a software GPU) that a room's late joiner waited for.
-    this.renderer.shadowMap.type = THREE.PCFSoftShadowMap;
+    // (PCF: three.js r18x dropped PCFSoft, warning and using PCF in its place.)
+    this.renderer.shadowMap.type = THREE.PCFShadowMap;
     container.appendChild(this.renderer.domElement);
 
     this.scene.background = new THREE.Color(0x1d2126);
