@@ -202,6 +202,54 @@ fn replay_validates_recordings_as_the_page_does() {
     assert!(metrics.contains("\"root_distance\":null") && metrics.matches("null").count() == 1, "{metrics}");
 }
 
+/// A recording with body joints replays as the page drives it (issue 23, body tracking): while
+/// the hips are tracked the shown hips stand on them (the body-tracking e2e's line: within 3 cm),
+/// here 25 cm beside the head the drive would otherwise follow; when the hips are lost the
+/// replay falls back to the head, every metric still a number. Without `body`, nothing drives
+/// from it.
+#[test]
+fn replay_drives_from_the_tracked_body_as_the_page_does() {
+    let bvh = temp("body-walk.bvh");
+    std::fs::write(&bvh, hostile::humanoid_bvh(240)).unwrap();
+    let db = temp("body-walk.mmdb");
+    let out = mmdb(&["build", bvh.to_str().unwrap(), "-o", db.to_str().unwrap()]);
+    assert!(out.status.success(), "{}", stderr(&out));
+    let frames = 240;
+    let z = |f: usize| 0.5 * f as f64 / 60.0; // walking +Z at 0.5 m/s
+    let mut v = serde_json::json!({
+        "format": "mm-vr-recording", "version": 1, "frames": frames, "meta": {"eyeHeight": 1.6},
+        "time": (0..frames).map(|f| f as f64 / 60.0).collect::<Vec<_>>(),
+        "position": (0..frames).flat_map(|f| [0.0, 1.6, z(f), -0.2, 1.0, z(f), 0.2, 1.0, z(f)]).collect::<Vec<_>>(),
+        "rotation": (0..frames * 3).flat_map(|_| [0.0, 1.0, 0.0, 0.0]).collect::<Vec<_>>(), // facing +Z
+        "tracked": vec![1; 3 * frames],
+        // Hips 25 cm to the side of the head, the hip joints ±10 cm across them (facing +Z); the
+        // hips lost for the second half.
+        "body": {
+            "joints": ["hips", "left-upper-leg", "right-upper-leg"],
+            "position": (0..frames).flat_map(|f| [0.25, 0.9, z(f), 0.35, 0.9, z(f), 0.15, 0.9, z(f)]).collect::<Vec<_>>(),
+            "rotation": (0..frames * 3).flat_map(|_| [0.0, 0.0, 0.0, 1.0]).collect::<Vec<_>>(),
+            "tracked": (0..frames).flat_map(|f| [u8::from(f < 120), 1, 1]).collect::<Vec<_>>(),
+        },
+    });
+    let replay = |v: &serde_json::Value| {
+        let path = temp("body-rec.json");
+        std::fs::write(&path, v.to_string()).unwrap();
+        let out = mmdb(&["replay", db.to_str().unwrap(), path.to_str().unwrap(), "--yaw", "hmd", "--json"]);
+        assert!(out.status.success(), "{}", stderr(&out));
+        serde_json::from_slice::<serde_json::Value>(&out.stdout).unwrap()
+    };
+    let r = replay(&v);
+    assert_eq!(r["body_frames"], 120, "{r}");
+    let hips = r["hips_distance"]["mean"].as_f64().unwrap();
+    assert!(hips < 0.03, "shown hips {:.1} cm from the tracked ones", 100.0 * hips);
+    // No truth: root_distance is the only null; the rest are numbers after the loss too.
+    assert_eq!(r.to_string().matches("null").count(), 1, "{r}");
+    v.as_object_mut().unwrap().remove("body");
+    let r = replay(&v);
+    assert_eq!(r["body_frames"], 0, "{r}");
+    assert!(r["hips_distance"].is_null(), "{r}");
+}
+
 /// Issue 28, cases 2 and 3 through the CLI: a configuration of 300 feature groups (2,700
 /// dimensions) built with exit 0 and `mmdb quality` panicked on the result (exit 101); a BVH
 /// with every number ≤ 10⁷ built with `--scale 1000 --fps 1000` exited 0 and its own loader

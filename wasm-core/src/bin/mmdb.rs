@@ -700,8 +700,16 @@ fn replay(args: &[String]) -> CliResult {
         println!("{}", serde_json::to_string(&r).unwrap());
     } else {
         let d = r.root_distance.map_or("-".into(), |d| format!("{:.1} / {:.1}", 100.0 * d.mean, 100.0 * d.p95));
+        let body = match r.hips_distance {
+            Some(h) => format!(
+                " ({} driven by the tracked body: hips {:.1} cm mean from the tracked hips)",
+                r.body_frames,
+                100.0 * h.mean
+            ),
+            None => String::new(),
+        };
         println!(
-            "{rec_path}: {} frames, {:.1} s, α {} m: root distance cm mean/p95 {d}, head gap mean {:.1} cm ({:.0}% clamped), skating {:.1} cm/s (legacy toe-height measure {:.1}), update ms median/p95 {:.4} / {:.4}",
+            "{rec_path}: {} frames{body}, {:.1} s, α {} m: root distance cm mean/p95 {d}, gap mean {:.1} cm ({:.0}% clamped), skating {:.1} cm/s (legacy toe-height measure {:.1}), update ms median/p95 {:.4} / {:.4}",
             r.frames,
             r.seconds,
             r.alpha,

@@ -7,6 +7,11 @@
 //! settings — and measures what the replay bench measures: user↔avatar root distance (against
 //! the recording's truth), the head gap α clamps, foot skating and the update time.
 //!
+//! A recording with body joints (a body-tracking headset, docs/vr-recording.md `body`) drives as
+//! the page does then: while the hips are tracked the root's target is their floor point, the
+//! body yaw the hip joints' (else the shoulders') facing, α at most [`BODY_ALPHA`]; frames
+//! without tracked hips fall back to the head and the given yaw source.
+//!
 //! It is for the runtime's numbers without a browser; the page's own bench adds rendering,
 //! retargeting, arm IK and the network's run. `MMDB_REPLAY_TRACE=1` prints, every 0.5 s, the
 //! root's and the head's offset from the true root (along and across the true facing) and the
@@ -15,7 +20,7 @@
 use crate::character::drive::{DriveInput, DriveMode};
 use crate::character::{Character, CharacterSettings, Tracked};
 use crate::database::Database;
-use crate::recording::Recording;
+use crate::recording::{Body, Recording};
 use crate::search::SearchIndex;
 use crate::skating::ON_FLOOR;
 use glam::{Quat, Vec2, Vec3};
@@ -26,6 +31,49 @@ pub const HMD_TO_HEAD_CENTRE: f32 = 0.1;
 const VELOCITY_HALFLIFE: f32 = 0.03;
 const MAX_DT: f32 = 0.1;
 const RESET_AFTER: f32 = 0.5;
+/// α while the body is tracked, m (`BODY_ALPHA` of the page).
+pub const BODY_ALPHA: f32 = 0.1;
+/// Smoothing of the tracked hips' ground velocity, half-life s (`HIPS_VELOCITY_HALFLIFE`).
+const HIPS_VELOCITY_HALFLIFE: f32 = 0.05;
+/// Joint pairs a facing is read from, left then right: the hip joints, else the shoulders
+/// (`FACING_PAIRS` over the page's `BODY_JOINTS` names).
+const FACING_PAIRS: [(&str, &str); 2] = [("left-upper-leg", "right-upper-leg"), ("left-arm-upper", "right-arm-upper")];
+
+/// The tracked hips as the page follows them (`TrackedDrive.bodyYaw`): their floor point and
+/// smoothed ground velocity (room m, m/s) and whether the last frame had them.
+#[derive(Default)]
+struct TrackedHips {
+    floor: Vec2,
+    velocity: Vec2,
+    had: bool,
+}
+
+impl TrackedHips {
+    /// Frame `f`'s body facing (rad, 0 = +Z): forward = (left − right) × up over the first pair
+    /// both tracked; None without tracked hips or a pair. Moves the floor point and velocity on
+    /// (from `head_velocity` when the hips were not tracked the frame before).
+    fn update(&mut self, body: &Body, f: usize, dt: f32, head_velocity: Vec3) -> Option<f32> {
+        let Some(hips) = body.joint("hips").and_then(|h| body.tracked_position(f, h)) else {
+            self.had = false;
+            return None;
+        };
+        let at = Vec2::new(hips.x, hips.z);
+        if self.had && dt > 0.0 {
+            let k = 1.0 - (-dt / HIPS_VELOCITY_HALFLIFE).exp2();
+            self.velocity += ((at - self.floor) / dt - self.velocity) * k;
+        } else {
+            self.velocity = Vec2::new(head_velocity.x, head_velocity.z);
+        }
+        self.floor = at;
+        self.had = true;
+        FACING_PAIRS.iter().find_map(|&(l, r)| {
+            let l = body.joint(l).and_then(|j| body.tracked_position(f, j))?;
+            let r = body.joint(r).and_then(|j| body.tracked_position(f, j))?;
+            let d = l - r;
+            (d.x * d.x + d.z * d.z >= 1e-6).then(|| (-d.z).atan2(d.x))
+        })
+    }
+}
 
 /// The VR page's runtime settings: the one file the page reads too (`VR_SETTINGS` in
 /// `web/src/vr/tracked-drive.ts`, whose comment says why each value).
@@ -75,9 +123,16 @@ pub struct ReplayReport {
     pub alpha: f32,
     /// Avatar root ↔ the recording's true root on the floor (m), when the recording has truth.
     pub root_distance: Option<Stats>,
-    /// Avatar root ↔ head centre on the floor (what α clamps), m.
+    /// Avatar root ↔ what α clamps it to on the floor (m): the head centre, or the tracked hips
+    /// on the frames the body drove.
     pub head_gap: Stats,
-    /// Share of frames with the root clamped at α (head gap ≥ 0.98 α).
+    /// Frames driven from the tracked body (a recording with body joints).
+    pub body_frames: usize,
+    /// On those frames: the shown hips ↔ the tracked hips on the floor (m) — what the runtime's
+    /// hips follow (`Legs::follow_hips`) beyond the root's α. Left out without a tracked body.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub hips_distance: Option<Stats>,
+    /// Share of frames with the root clamped at α (gap ≥ 0.98 of the α in effect).
     pub clamped_share: f32,
     /// Planted-toe sliding on the floor (`skating::SkatingMeter`), cm/s.
     pub skating: f32,
@@ -131,6 +186,9 @@ pub fn replay(
     c.teleport(db, Vec3::new(start.x / scale, 0.0, start.y / scale), Quat::from_rotation_y(start_yaw));
 
     let (mut velocity, mut body_yaw) = (Vec3::ZERO, start_yaw);
+    let (mut hips, mut body_frames) = (TrackedHips::default(), 0usize);
+    let mut hips_distances = Vec::new();
+    let hips_joint = db.skeleton.site("hips").map(|s| s.joint as usize);
     let (mut distances, mut gaps, mut times) = (Vec::with_capacity(n), Vec::with_capacity(n), Vec::with_capacity(n));
     let (mut clamped, mut legacy) = (0usize, 0.0f32);
     let mut previous_toes: Option<[Vec3; 2]> = None;
@@ -147,7 +205,14 @@ pub fn replay(
         if yaw[f].is_finite() {
             body_yaw = yaw[f];
         }
-        let floor = head_floor(f);
+        let tracked_yaw = recording.body.as_ref().and_then(|b| hips.update(b, f, dt, velocity));
+        let head = head_floor(f);
+        // The root's target: the tracked hips while the body drives, else the head centre.
+        let (floor, target_velocity, yaw_now, alpha_now) = match tracked_yaw {
+            Some(y) => (hips.floor, hips.velocity, y, alpha.min(BODY_ALPHA)),
+            None => (head, Vec2::new(velocity.x, velocity.z), body_yaw, alpha),
+        };
+        body_frames += tracked_yaw.is_some() as usize;
         // Crouch: the head centre's drop — the HMD plus R·(0, 0, d), whose height is the HMD's
         // plus d·2(yz − wx), so pitching the head does not move it — split by the headset's
         // pitch (asin of its view axis's y, −2(yz − wx)) into hips drop and torso bend
@@ -164,12 +229,13 @@ pub fn replay(
             mode: DriveMode::Tracked,
             tracked: Tracked {
                 position: Vec3::new(floor.x / scale, 0.0, floor.y / scale),
-                velocity: Vec3::new(velocity.x, 0.0, velocity.z) / scale,
-                yaw: body_yaw,
-                body: false,
+                velocity: Vec3::new(target_velocity.x, 0.0, target_velocity.y) / scale,
+                yaw: yaw_now,
+                body: tracked_yaw.is_some(),
             },
             hips_drop: crouch.hips_drop,
             bend: crouch.bend,
+            clamp_distance: alpha_now / scale,
             ..Default::default()
         };
         c.set_drive(&drive);
@@ -179,9 +245,13 @@ pub fn replay(
         steps += (0..2).filter(|&k| now[k] && !stepping[k]).count();
         stepping = now;
         let root = c.root_position() * scale;
+        if let (Some(_), Some(j)) = (tracked_yaw, hips_joint) {
+            let shown = c.world_positions()[j] * scale;
+            hips_distances.push(Vec2::new(shown.x - floor.x, shown.z - floor.y).length());
+        }
         let gap = Vec2::new(root.x - floor.x, root.z - floor.y).length();
         gaps.push(gap);
-        clamped += (gap >= 0.98 * alpha) as usize;
+        clamped += (gap >= 0.98 * alpha_now) as usize;
         if let Some(truth) = &recording.truth_root {
             distances.push(Vec2::new(root.x - truth[f].x, root.z - truth[f].y).length());
             if std::env::var_os("MMDB_REPLAY_TRACE").is_some() && f % 36 == 0 {
@@ -225,6 +295,8 @@ pub fn replay(
         alpha,
         root_distance: recording.truth_root.as_ref().map(|_| Stats::of(&distances)),
         head_gap: Stats::of(&gaps),
+        body_frames,
+        hips_distance: (body_frames > 0).then(|| Stats::of(&hips_distances)),
         clamped_share: clamped as f32 / n as f32,
         skating: 100.0 * c.skating().distance * scale / seconds,
         steps_per_second: steps as f32 / seconds,

@@ -16,6 +16,30 @@ pub struct Recording {
     /// `truth.bodyYaw` and `truth.root` (x, z) when the recording was made from mocap.
     pub truth_yaw: Option<Vec<f32>>,
     pub truth_root: Option<Vec<Vec2>>,
+    /// `body`: the joints a body-tracking headset reported, when it did.
+    pub body: Option<Body>,
+}
+
+/// A recording's body joints (`body`, docs/vr-recording.md): their names, and per frame and
+/// joint (`f * joints.len() + j`) the position (room m) and whether the joint was tracked.
+#[derive(Clone, Debug, Default)]
+pub struct Body {
+    pub joints: Vec<String>,
+    pub position: Vec<Vec3>,
+    pub tracked: Vec<bool>,
+}
+
+impl Body {
+    /// Index of the joint named `name` (the page's names: `hips`, `left-upper-leg`, …).
+    pub fn joint(&self, name: &str) -> Option<usize> {
+        self.joints.iter().position(|j| j == name)
+    }
+
+    /// Joint `j`'s position in frame `f`, when it was tracked then.
+    pub fn tracked_position(&self, f: usize, j: usize) -> Option<Vec3> {
+        let k = f * self.joints.len() + j;
+        self.tracked[k].then(|| self.position[k])
+    }
 }
 
 impl Recording {
@@ -64,6 +88,7 @@ impl Recording {
         let tracked: Vec<u8> =
             numbers("tracked")?.into_iter().map(|t| if t == 0.0 || t == 1.0 { t as u8 } else { 255 }).collect();
         validate(frames, &time, &p, &r, &tracked, truth.as_ref().map(|(y, r)| (y.as_slice(), r.as_slice())))?;
+        let mut body = None;
         if let Some(b) = o.get("body") {
             let b = b.as_object().ok_or("\"body\" must be an object")?;
             let joints =
@@ -74,7 +99,13 @@ impl Recording {
             let arr = |name: &str| numbers_in(b, "body.", name);
             let flags: Vec<u8> =
                 arr("tracked")?.into_iter().map(|t| if t == 0.0 || t == 1.0 { t as u8 } else { 255 }).collect();
-            validate_body(frames, joints.len(), &arr("position")?, &arr("rotation")?, &flags)?;
+            let position = arr("position")?;
+            validate_body(frames, joints.len(), &position, &arr("rotation")?, &flags)?;
+            body = Some(Body {
+                joints: joints.iter().filter_map(Value::as_str).map(str::to_string).collect(),
+                position: position.chunks(3).map(|c| Vec3::new(c[0] as f32, c[1] as f32, c[2] as f32)).collect(),
+                tracked: flags.iter().map(|&t| t == 1).collect(),
+            });
         }
         let n = time.len();
         if n > crate::limits::MAX_FRAMES {
@@ -94,6 +125,7 @@ impl Recording {
             eye_height: o.get("meta").and_then(|m| m["eyeHeight"].as_f64()).map(|e| e as f32),
             truth_yaw: truth.as_ref().map(|(y, _)| y.iter().map(|&x| x as f32).collect()),
             truth_root: truth.as_ref().map(|(_, r)| r.chunks(2).map(|c| Vec2::new(c[0] as f32, c[1] as f32)).collect()),
+            body,
         })
     }
 
