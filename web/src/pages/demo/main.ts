@@ -36,7 +36,7 @@ const hook = {
   hips: [NaN, NaN],
   lockRings: [NaN, NaN, NaN, NaN],
   toes: [NaN, NaN, NaN, NaN],
-  ...{ database: '', style: '', databaseFrames: 0, avatar: '', databaseLoads: 0 },
+  ...{ database: '', style: '', databaseFrames: 0, avatar: '', databaseLoads: 0, wholeTried: false },
   path: { points: [] as number[], following: false },
   screenOf: (x: number, z: number) => ({ x: x * 0, y: z * 0 }),
 };
@@ -84,7 +84,7 @@ el.addEventListener('load', async () => {
     const d = character.debugViews!;
     [d.simulation.visible, d.requested.object.visible] = [view.simulation, view.trajectory];
     [d.matched.object.visible, d.locks.visible] = [view.matched, view.locks];
-    stage.enableShadows(view.shadows && !character.database.wholeUrl); // their compile held the whole ~1 s
+    stage.enableShadows(view.shadows && hook.wholeTried); // once the whole is in or failed: their compile held it ~1 s
   };
   const useAvatar = (avatar: Avatar | null) => {
     character.setAvatar(avatar);
@@ -105,7 +105,7 @@ el.addEventListener('load', async () => {
   };
   [hook.database, hook.databaseFrames, hook.databaseLoads] = [loadedName, loaded.numFrames, 1];
   const whole = (db: Database) => hook.database === loadedName && [hook.databaseFrames = db.numFrames, refreshStyles()];
-  void character.whole().then(whole, () => undefined).then(apply); // a failure is the character's warning
+  void character.whole().then(whole, () => undefined).then(() => ((hook.wholeTried = true), apply())); // failed: warned
   useAvatar(character.avatar);
   if (roles && avatarParam !== 'none') {
     const url = avatarParam ?? 'avatars/ubc_male.glb';
