@@ -147,17 +147,23 @@ fn a_slow_take_resampled_past_the_size_limit_is_refused_before_allocating() {
     assert!(!db.exists());
 }
 
+/// `name`.mmdb built from 240 frames of `hostile::humanoid_bvh`: a database to replay on.
+fn walk_database(name: &str) -> PathBuf {
+    let bvh = temp(&format!("{name}.bvh"));
+    std::fs::write(&bvh, hostile::humanoid_bvh(240)).unwrap();
+    let db = temp(&format!("{name}.mmdb"));
+    let out = mmdb(&["build", bvh.to_str().unwrap(), "-o", db.to_str().unwrap()]);
+    assert!(out.status.success(), "{}", stderr(&out));
+    db
+}
+
 /// Issue 28: `mmdb replay` accepted recordings the page refuses (zero or 10³⁰⁰ quaternions,
 /// non-increasing time) and printed NaN metrics; a string in `time` said "time has 345 finite
 /// numbers, expected 345". It now reads them with the page's validator (the shared cases are in
 /// `tests/corpus/recordings/cases.json`), and a recording it replays gives finite metrics.
 #[test]
 fn replay_validates_recordings_as_the_page_does() {
-    let bvh = temp("replay-walk.bvh");
-    std::fs::write(&bvh, hostile::humanoid_bvh(240)).unwrap();
-    let db = temp("replay-walk.mmdb");
-    let out = mmdb(&["build", bvh.to_str().unwrap(), "-o", db.to_str().unwrap()]);
-    assert!(out.status.success(), "{}", stderr(&out));
+    let db = walk_database("replay-walk");
     let recording = |frames: usize, edit: &dyn Fn(&mut serde_json::Value)| {
         let mut v = serde_json::json!({
             "format": "mm-vr-recording", "version": 1, "frames": frames, "meta": {"eyeHeight": 1.6},
@@ -209,11 +215,7 @@ fn replay_validates_recordings_as_the_page_does() {
 /// from it.
 #[test]
 fn replay_drives_from_the_tracked_body_as_the_page_does() {
-    let bvh = temp("body-walk.bvh");
-    std::fs::write(&bvh, hostile::humanoid_bvh(240)).unwrap();
-    let db = temp("body-walk.mmdb");
-    let out = mmdb(&["build", bvh.to_str().unwrap(), "-o", db.to_str().unwrap()]);
-    assert!(out.status.success(), "{}", stderr(&out));
+    let db = walk_database("body-walk");
     let frames = 240;
     let z = |f: usize| 0.5 * f as f64 / 60.0; // walking +Z at 0.5 m/s
     let mut v = serde_json::json!({
