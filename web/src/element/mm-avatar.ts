@@ -387,7 +387,7 @@ export class MMAvatarElement extends ElementBase {
       this.orbit.controls.target.set(r.x, this.orbit.targetHeight, r.z);
       this.orbit.controls.update();
     }
-    stage.grid.follow(r.x, r.z);
+    stage.follow(r.x, r.z);
     stage.render();
     if (!this.loadedOnce) {
       this.loadedOnce = true;

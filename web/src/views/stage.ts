@@ -114,8 +114,12 @@ export class Stage {
     if (this.shadowCatcher) this.shadowCatcher.visible = on;
   }
 
-  /** Keeps the sun's shadow box over floor point (x, z). */
-  followLight(x: number, z: number): void {
+  /**
+   * Keeps the floor grid and the sun's shadow box (±3 m) around floor point (x, z): the character
+   * walking off the box lost its shadow.
+   */
+  follow(x: number, z: number): void {
+    this.grid.follow(x, z);
     this.sun.position.set(x + 3, 6, z + 4);
     this.sun.target.position.set(x, 0, z);
   }

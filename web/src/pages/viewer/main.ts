@@ -98,7 +98,7 @@ async function main(): Promise<void> {
       drawn = frame;
     }
     camera.follow(rootX, rootZ, dt);
-    stage.grid.follow(rootX, rootZ);
+    stage.follow(rootX, rootZ);
     const clipName = db.clips[db.clipAt(frame)]?.name ?? '';
     const text = `clip ${clipName} · frame ${frame} / ${db.numFrames} · ${db.fps} fps`;
     if (text !== shown) {

@@ -204,7 +204,7 @@ async function main(): Promise<void> {
     markers.update(tr);
     const root = character.root;
     if (!hook.inXR) spectator.follow(root.x, root.z, fixedDt || realDt);
-    stage.grid.follow(root.x, root.z);
+    stage.follow(root.x, root.z);
     stage.render();
     if (pip) {
       pip.visible = hook.inXR;
