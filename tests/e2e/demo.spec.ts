@@ -72,6 +72,12 @@ test('the character walks, turns and strafes under the keyboard', async ({ page 
   const forward = [Math.sin(b.yaw), Math.cos(b.yaw)];
   const along = (b.root[0] - a.root[0]) * forward[0] + (b.root[2] - a.root[2]) * forward[1];
   expect(along).toBeGreaterThan(1.5);
+  // The sun's ±3 m shadow box went along (Stage.follow): it stayed at the start, shadows lost 3 m out.
+  const sun = await page.evaluate(() => {
+    const stage = (document.querySelector('mm-avatar') as unknown as { stage: { sun: { target: { position: { x: number; z: number } } } } }).stage;
+    return Math.hypot(stage.sun.target.position.x - window.__mm.root[0], stage.sun.target.position.z - window.__mm.root[2]);
+  });
+  expect(sun).toBeLessThan(0.5);
   expect(b.steps[0] - a.steps[0]).toBeGreaterThan(0);
   expect(b.steps[1] - a.steps[1]).toBeGreaterThan(0);
   // The avatar's feet are on the floor while in contact (and not stepping back under the body,
