@@ -141,7 +141,7 @@ fn derived_mirrors(db: &Database, animated: &[u32]) -> Vec<usize> {
     }
     let mut moves = vec![false; j];
     animated.iter().for_each(|&k| moves[k as usize] = true);
-    let (mut p, mut q) = (vec![Vec3::ZERO; j], vec![Quat::IDENTITY; j]);
+    let (mut p, mut q, mut c) = (Vec::new(), Vec::new(), Vec::new());
     let mut derived = Vec::new();
     for i in 1..db.clips.len() {
         let (a, b) = (&db.clips[i - 1], &db.clips[i]);
@@ -149,20 +149,26 @@ fn derived_mirrors(db: &Database, animated: &[u32]) -> Vec<usize> {
         if !b.mirrored || a.mirrored || a.end.saturating_sub(a.start) as usize != n {
             continue;
         }
-        let exact = (0..n).all(|k| {
-            let (fa, fb) = (a.start as usize + k, b.start as usize + k);
-            crate::mirror::mirror_pose(
-                pairs,
-                &moves,
-                &db.skeleton.offsets,
-                (&db.local_positions[fa * j..(fa + 1) * j], &db.local_rotations[fa * j..(fa + 1) * j]),
-                (&mut p, &mut q),
-            );
-            same_bits(&p, &db.local_positions[fb * j..(fb + 1) * j])
-                && same_bits(&q, &db.local_rotations[fb * j..(fb + 1) * j])
-                && crate::mirror::mirror_contacts(&db.contacts[2 * fa..2 * fa + 2]) == db.contacts[2 * fb..2 * fb + 2]
-        });
-        if exact {
+        let (sa, sb) = (a.start as usize, b.start as usize);
+        let (pa, pb) = (sa * j, sb * j);
+        p.resize(n * j, Vec3::ZERO);
+        q.resize(n * j, Quat::IDENTITY);
+        c.resize(2 * n, 0);
+        crate::mirror::mirror_frames(
+            pairs,
+            &moves,
+            &db.skeleton.offsets,
+            (
+                &db.local_positions[pa..pa + n * j],
+                &db.local_rotations[pa..pa + n * j],
+                &db.contacts[2 * sa..2 * (sa + n)],
+            ),
+            (&mut p, &mut q, &mut c),
+        );
+        if same_bits(&p, &db.local_positions[pb..pb + n * j])
+            && same_bits(&q, &db.local_rotations[pb..pb + n * j])
+            && c == db.contacts[2 * sb..2 * (sb + n)]
+        {
             derived.push(i);
         }
     }
@@ -509,7 +515,7 @@ pub fn from_bytes(bytes: &[u8]) -> Result<Database> {
     }
     // Version 1 stores the pose arrays as plain f32 with velocities; versions 2 and 3 encode
     // them (codec.rs) and velocities are derived below.
-    let (local_positions, local_rotations, (contacts, animated), velocities) = if version == 1 {
+    let (local_positions, local_rotations, animated, velocities) = if version == 1 {
         let local_positions = section(b"LPOS")?.vec3s(fj)?;
         let mut local_rotations: Vec<Quat> = section(b"LROT")?.pods(fj)?;
         if let Some(i) = local_rotations.iter().position(|q| !(q.length_squared() - 1.0).abs().le(&QUAT_NORM_TOLERANCE))
@@ -525,7 +531,7 @@ pub fn from_bytes(bytes: &[u8]) -> Result<Database> {
         // again (quantized to 1/32767) it must still load (found by the `mmdb` fuzz target).
         local_rotations.iter_mut().for_each(|q| *q = q.normalize());
         let velocities = (section(b"LVEL")?.vec3s(fj)?, section(b"LAVL")?.vec3s(fj)?);
-        (local_positions, local_rotations, (None, Vec::new()), Some(velocities))
+        (local_positions, local_rotations, Vec::new(), Some(velocities))
     } else {
         let (local_positions, animated) =
             codec::decode_positions(section(b"PANM")?.data, stored_frames, &skeleton.offsets).map_err(Error::format)?;
@@ -537,17 +543,11 @@ pub fn from_bytes(bytes: &[u8]) -> Result<Database> {
             version >= 3,
         )
         .map_err(Error::format)?;
-        let contacts = section(b"CONT")?
-            .flags(stored_frames.checked_mul(2).ok_or_else(|| Error::format("INFO counts overflow"))?)?;
-        (local_positions, local_rotations, (Some(contacts), animated), None)
+        (local_positions, local_rotations, animated, None)
     };
-
-    let contacts = match contacts {
-        Some(c) => c,
-        None => {
-            section(b"CONT")?.flags(num_frames.checked_mul(2).ok_or_else(|| Error::format("INFO counts overflow"))?)?
-        }
-    };
+    // Every version stores the stored frames' contacts (before version 3, every frame is stored).
+    let contacts =
+        section(b"CONT")?.flags(stored_frames.checked_mul(2).ok_or_else(|| Error::format("INFO counts overflow"))?)?;
     let (local_positions, local_rotations, contacts) = match &mirror {
         Some((pairs, derived)) if !derived.is_empty() => expand_mirrors(
             &clips,
@@ -742,22 +742,18 @@ fn expand_mirrors(
     for (i, clip) in clips.iter().enumerate() {
         let (s, e) = (clip.start as usize, clip.end as usize);
         if derived.contains(&i) {
-            let from = clips[i - 1].start as usize;
-            for k in 0..e - s {
-                let (a, b) = (from + k, s + k);
-                let (original, mirrored) = (a * j..(a + 1) * j, b * j..(b + 1) * j);
-                let (op, mp) = p.split_at_mut(mirrored.start);
-                let (oq, mq) = q.split_at_mut(mirrored.start);
-                crate::mirror::mirror_pose(
-                    pairs,
-                    animated,
-                    rest,
-                    (&op[original.clone()], &oq[original]),
-                    (&mut mp[..j], &mut mq[..j]),
-                );
-                let swapped = crate::mirror::mirror_contacts(&c[2 * a..2 * a + 2]);
-                c[2 * b..2 * b + 2].copy_from_slice(&swapped);
-            }
+            // The original (the clip before, already in place) mirrored into this clip's frames.
+            let (from, n) = (clips[i - 1].start as usize, e - s);
+            let (op, mp) = p.split_at_mut(s * j);
+            let (oq, mq) = q.split_at_mut(s * j);
+            let (oc, mc) = c.split_at_mut(2 * s);
+            crate::mirror::mirror_frames(
+                pairs,
+                animated,
+                rest,
+                (&op[from * j..(from + n) * j], &oq[from * j..(from + n) * j], &oc[2 * from..2 * (from + n)]),
+                (mp, mq, mc),
+            );
         } else {
             let n = e - s;
             p[s * j..e * j].copy_from_slice(&positions[next * j..(next + n) * j]);

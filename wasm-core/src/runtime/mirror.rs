@@ -41,6 +41,33 @@ pub fn mirror_contacts(contacts: &[u8]) -> [u8; 2] {
     [contacts[1], contacts[0]]
 }
 
+/// Consecutive frames mirrored, each by [`mirror_pose`] and [`mirror_contacts`]: `out` gets the
+/// mirror of every frame of `from` (`pairs.len()` joints and 2 contacts a frame) — how the
+/// builder makes a mirrored clip and the `.mmdb` reader derives one.
+///
+/// # Panics
+/// If `out` holds fewer frames than `from`.
+pub fn mirror_frames(
+    pairs: &[usize],
+    animated: &[bool],
+    rest: &[Vec3],
+    (positions, rotations, contacts): (&[Vec3], &[Quat], &[u8]),
+    (out_positions, out_rotations, out_contacts): (&mut [Vec3], &mut [Quat], &mut [u8]),
+) {
+    let j = pairs.len();
+    for f in 0..contacts.len() / 2 {
+        let r = f * j..(f + 1) * j;
+        mirror_pose(
+            pairs,
+            animated,
+            rest,
+            (&positions[r.clone()], &rotations[r.clone()]),
+            (&mut out_positions[r.clone()], &mut out_rotations[r]),
+        );
+        out_contacts[2 * f..2 * f + 2].copy_from_slice(&mirror_contacts(&contacts[2 * f..2 * f + 2]));
+    }
+}
+
 /// Whether `pairs` is a mirror map for `joints` joints: one entry per joint, each in range and
 /// paired back (`pairs[pairs[j]] = j`).
 pub fn is_mirror_map(pairs: &[usize], joints: usize) -> bool {

@@ -326,7 +326,13 @@ pub fn build(config: &BuildConfig, sources: &[Source]) -> Result<BuildOutput> {
         for (plan, mut rows) in variants {
             if plan.mirrored {
                 if let Some((_, original)) = originals.iter().find(|(r, _)| *r == plan.reversed) {
-                    mirror_rows(original, &mut rows, db_mirror, &db_animated, &skeleton.offsets);
+                    crate::mirror::mirror_frames(
+                        db_mirror,
+                        &db_animated,
+                        &skeleton.offsets,
+                        (original.positions, original.rotations, original.contacts),
+                        (rows.positions, rows.rotations, rows.contacts),
+                    );
                     continue;
                 }
             }
@@ -476,25 +482,6 @@ pub fn build(config: &BuildConfig, sources: &[Source]) -> Result<BuildOutput> {
     crate::format::check_database(&database)
         .map_err(|e| Error::config(format!("the built database would not load: {e}")))?;
     Ok(BuildOutput { database, warnings, retargeted, footprint })
-}
-
-/// `out` = `original`'s rows mirrored frame by frame ([`crate::mirror::mirror_pose`]), with the
-/// feet's contacts swapped.
-fn mirror_rows(original: &Rows, out: &mut Rows, pairs: &[usize], animated: &[bool], rest: &[Vec3]) {
-    let j = pairs.len();
-    let frames = original.positions.len() / j;
-    for f in 0..frames {
-        let r = f * j..(f + 1) * j;
-        crate::mirror::mirror_pose(
-            pairs,
-            animated,
-            rest,
-            (&original.positions[r.clone()], &original.rotations[r.clone()]),
-            (&mut out.positions[r.clone()], &mut out.rotations[r]),
-        );
-        out.contacts[2 * f..2 * f + 2]
-            .copy_from_slice(&crate::mirror::mirror_contacts(&original.contacts[2 * f..2 * f + 2]));
-    }
 }
 
 /// Sorted, merged `[start, end)` ranges.
