@@ -40,20 +40,28 @@ const HIPS_VELOCITY_HALFLIFE: f32 = 0.05;
 const FACING_PAIRS: [(&str, &str); 2] = [("left-upper-leg", "right-upper-leg"), ("left-arm-upper", "right-arm-upper")];
 
 /// The tracked hips as the page follows them (`TrackedDrive.bodyYaw`): their floor point and
-/// smoothed ground velocity (room m, m/s) and whether the last frame had them.
-#[derive(Default)]
+/// smoothed ground velocity (room m, m/s) and whether the last frame had them; the recording's
+/// indices of the hips and of the facing pairs it has.
 struct TrackedHips {
     floor: Vec2,
     velocity: Vec2,
     had: bool,
+    hips: Option<usize>,
+    pairs: Vec<(usize, usize)>,
 }
 
 impl TrackedHips {
-    /// Frame `f`'s body facing (rad, 0 = +Z): forward = (left − right) × up over the first pair
-    /// both tracked; None without tracked hips or a pair. Moves the floor point and velocity on
-    /// (from `head_velocity` when the hips were not tracked the frame before).
-    fn update(&mut self, body: &Body, f: usize, dt: f32, head_velocity: Vec3) -> Option<f32> {
-        let Some(hips) = body.joint("hips").and_then(|h| body.tracked_position(f, h)) else {
+    fn new(body: &Body) -> TrackedHips {
+        let pairs = FACING_PAIRS.iter().filter_map(|&(l, r)| Some((body.joint(l)?, body.joint(r)?))).collect();
+        TrackedHips { floor: Vec2::ZERO, velocity: Vec2::ZERO, had: false, hips: body.joint("hips"), pairs }
+    }
+
+    /// Frame `f`'s hips floor point, their velocity and the body facing (rad, 0 = +Z: forward =
+    /// (left − right) × up over the first pair both tracked); None without tracked hips or a
+    /// pair. Moves the floor point and velocity on (from `head_velocity` when the hips were not
+    /// tracked the frame before).
+    fn update(&mut self, body: &Body, f: usize, dt: f32, head_velocity: Vec3) -> Option<(Vec2, Vec2, f32)> {
+        let Some(hips) = self.hips.and_then(|h| body.tracked_position(f, h)) else {
             self.had = false;
             return None;
         };
@@ -66,11 +74,9 @@ impl TrackedHips {
         }
         self.floor = at;
         self.had = true;
-        FACING_PAIRS.iter().find_map(|&(l, r)| {
-            let l = body.joint(l).and_then(|j| body.tracked_position(f, j))?;
-            let r = body.joint(r).and_then(|j| body.tracked_position(f, j))?;
-            let d = l - r;
-            (d.x * d.x + d.z * d.z >= 1e-6).then(|| (-d.z).atan2(d.x))
+        self.pairs.iter().find_map(|&(l, r)| {
+            let d = body.tracked_position(f, l)? - body.tracked_position(f, r)?;
+            (d.x * d.x + d.z * d.z >= 1e-6).then(|| (self.floor, self.velocity, (-d.z).atan2(d.x)))
         })
     }
 }
@@ -186,7 +192,8 @@ pub fn replay(
     c.teleport(db, Vec3::new(start.x / scale, 0.0, start.y / scale), Quat::from_rotation_y(start_yaw));
 
     let (mut velocity, mut body_yaw) = (Vec3::ZERO, start_yaw);
-    let (mut hips, mut body_frames) = (TrackedHips::default(), 0usize);
+    let mut hips = recording.body.as_ref().map(TrackedHips::new);
+    let mut body_frames = 0usize;
     let mut hips_distances = Vec::new();
     let hips_joint = db.skeleton.site("hips").map(|s| s.joint as usize);
     let (mut distances, mut gaps, mut times) = (Vec::with_capacity(n), Vec::with_capacity(n), Vec::with_capacity(n));
@@ -205,14 +212,17 @@ pub fn replay(
         if yaw[f].is_finite() {
             body_yaw = yaw[f];
         }
-        let tracked_yaw = recording.body.as_ref().and_then(|b| hips.update(b, f, dt, velocity));
+        let tracked = match (&recording.body, &mut hips) {
+            (Some(b), Some(h)) => h.update(b, f, dt, velocity),
+            _ => None,
+        };
         let head = head_floor(f);
         // The root's target: the tracked hips while the body drives, else the head centre.
-        let (floor, target_velocity, yaw_now, alpha_now) = match tracked_yaw {
-            Some(y) => (hips.floor, hips.velocity, y, alpha.min(BODY_ALPHA)),
+        let (floor, target_velocity, yaw_now, alpha_now) = match tracked {
+            Some((at, v, y)) => (at, v, y, alpha.min(BODY_ALPHA)),
             None => (head, Vec2::new(velocity.x, velocity.z), body_yaw, alpha),
         };
-        body_frames += tracked_yaw.is_some() as usize;
+        body_frames += tracked.is_some() as usize;
         // Crouch: the head centre's drop — the HMD plus R·(0, 0, d), whose height is the HMD's
         // plus d·2(yz − wx), so pitching the head does not move it — split by the headset's
         // pitch (asin of its view axis's y, −2(yz − wx)) into hips drop and torso bend
@@ -231,7 +241,7 @@ pub fn replay(
                 position: Vec3::new(floor.x / scale, 0.0, floor.y / scale),
                 velocity: Vec3::new(target_velocity.x, 0.0, target_velocity.y) / scale,
                 yaw: yaw_now,
-                body: tracked_yaw.is_some(),
+                body: tracked.is_some(),
             },
             hips_drop: crouch.hips_drop,
             bend: crouch.bend,
@@ -245,7 +255,7 @@ pub fn replay(
         steps += (0..2).filter(|&k| now[k] && !stepping[k]).count();
         stepping = now;
         let root = c.root_position() * scale;
-        if let (Some(_), Some(j)) = (tracked_yaw, hips_joint) {
+        if let (Some(_), Some(j)) = (tracked, hips_joint) {
             let shown = c.world_positions()[j] * scale;
             hips_distances.push(Vec2::new(shown.x - floor.x, shown.z - floor.y).length());
         }
