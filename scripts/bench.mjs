@@ -254,7 +254,8 @@ function printRuntimeBenchmark(runtime) {
   if (chromium) {
     const ok = (v, t, less) => (less ? v <= t : v >= t) ? 'met' : 'MISSED';
     console.log(`target: update ≤ 0.05 ms median in Chromium → ${chromium.update_ms_median.toFixed(4)} ms, ${ok(chromium.update_ms_median, 0.05, true)}`);
-    console.log(`target: ≥ 500 characters in 4 ms in Chromium → ${chromium.characters_in_4ms}, ${ok(chromium.characters_in_4ms, 500, false)}`);
+    // Issue 27's line (it was issue 13's 500).
+    console.log(`target: ≥ 1,000 characters in 4 ms in Chromium → ${chromium.characters_in_4ms}, ${ok(chromium.characters_in_4ms, 1000, false)}`);
   }
 }
 
