@@ -49,7 +49,10 @@ export async function storeBytes(url: string, bytes: Uint8Array, contentType = '
   try {
     const cache = await cs.open(ASSET_CACHE);
     const target = new URL(url);
-    for (const request of await cache.keys()) {
+    const keys = await cache.keys();
+    // Already there (fetched through a preload the service worker answered from here): no rewrite.
+    if (keys.some((request) => request.url === target.href)) return;
+    for (const request of keys) {
       const u = new URL(request.url);
       if (u.origin === target.origin && u.pathname === target.pathname && u.search !== target.search) await cache.delete(request);
     }

@@ -60,12 +60,22 @@ export async function fetchBytes(url: string | URL, options: FetchOptions = {}):
     early = fetch(href, { signal: drop.signal });
     early.catch(() => undefined); // awaited below, or dropped
   }
-  if (useCache) {
+  const fromCache = async () => {
     const hit = await cachedBytes(href);
     if (hit) {
-      drop?.abort();
       report({ loaded: hit.length, total: hit.length, done: true, cached: true });
       mark(`mm:fetched:${stage}`);
+    }
+    return hit;
+  };
+  // A URL the page preloads is fetched, not read from the cache: the fetch takes the preloaded
+  // response (begun with the HTML; on a repeat visit the site's service worker answers it from
+  // the same cache), where a direct read would leave it unused — a second read of each asset
+  // and a console warning about it on every repeat visit.
+  if (useCache && !preloaded(href)) {
+    const hit = await fromCache();
+    if (hit) {
+      drop?.abort();
       return hit;
     }
   }
@@ -89,6 +99,8 @@ export async function fetchBytes(url: string | URL, options: FetchOptions = {}):
       response = await (early ?? fetch(href, { signal: options.signal }));
     } catch (e) {
       if (options.signal?.aborted) throw e;
+      const hit = useCache ? await fromCache() : null; // offline, preloaded: the cache still has it
+      if (hit) return hit;
       throw new Error(`could not fetch the ${stage} ${href}: ${e instanceof Error ? e.message : String(e)} (offline, or the server is down?)`);
     }
     const type = response.headers.get('content-type') ?? '';
@@ -136,6 +148,14 @@ export async function fetchBytes(url: string | URL, options: FetchOptions = {}):
   } finally {
     clearInterval(watch);
   }
+}
+
+/** Whether the page has a `<link rel="preload">` for `href`. */
+function preloaded(href: string): boolean {
+  if (typeof document === 'undefined') return false;
+  const absolute = new URL(href, location.href).href;
+  for (const link of document.querySelectorAll<HTMLLinkElement>('link[rel="preload"]')) if (link.href === absolute) return true;
+  return false;
 }
 
 function whenIdle(fn: () => void): void {
