@@ -37,6 +37,15 @@ test('embed.html from dist/ under a strict CSP: two avatars, keyboard only where
   await page.evaluate(() => {
     for (const el of document.querySelectorAll('mm-avatar')) (el as unknown as { timeStep: number }).timeStep = 1 / 60;
   });
+  // One avatar file, one parse: the second element shows a clone of the first one's avatar
+  // (avatar/shared.ts; each parse marks mm:avatar-ready — two before).
+  const parses = () => page.evaluate(() => performance.getEntriesByName('mm:avatar-ready').length);
+  const avatars = await page.evaluate(() => {
+    const a = (id: string) => (document.getElementById(id) as unknown as { character: { avatar: { object: { uuid: string } } | null } }).character.avatar;
+    return [a('keys')?.object.uuid, a('walker')?.object.uuid];
+  });
+  expect(avatars.every(Boolean) && avatars[0] !== avatars[1], `two avatars: ${avatars}`).toBe(true);
+  expect(await parses()).toBe(1);
   const root = (id: string) => page.evaluate((id) => (document.getElementById(id) as unknown as { root: Root }).root, id);
   const following = () => page.evaluate(() => (document.getElementById('walker') as unknown as { character: { followingPath: boolean } }).character.followingPath);
   expect(await following()).toBe(true);
@@ -92,6 +101,10 @@ test('embed.html from dist/ under a strict CSP: two avatars, keyboard only where
   expect(before.databases).toBe(1);
   await page.evaluate(() => document.getElementById('walker')!.remove());
   expect((await live()).characters).toBe(1);
+  // The one left keeps its avatar and goes on (the shared geometry and textures stay).
+  const updates = () => page.evaluate(() => (document.getElementById('keys') as unknown as { character: { runtime: { frame: number } } }).character.runtime.frame);
+  const f0 = await updates();
+  await page.waitForFunction((f0) => (document.getElementById('keys') as unknown as { character: { runtime: { frame: number } } }).character.runtime.frame !== f0, f0, { timeout: 60_000 });
   await page.evaluate(() => document.getElementById('keys')!.remove());
   const after = await live();
   expect(after.characters).toBe(0);
@@ -101,6 +114,9 @@ test('embed.html from dist/ under a strict CSP: two avatars, keyboard only where
   await page.evaluate(() => document.querySelector('.pair figure')!.append(Object.assign(document.createElement('mm-avatar'), { id: 'again' })));
   await page.waitForFunction(() => (document.getElementById('again') as unknown as { character: unknown }).character, null, { timeout: 120_000 });
   expect((await live()).characters).toBe(1);
+  // Nobody showed the model any more: it was let go and is loaded again, whole.
+  expect(await page.evaluate(() => !!(document.getElementById('again') as unknown as { character: { avatar: unknown } }).character.avatar)).toBe(true);
+  expect(await parses()).toBe(2);
 
   expect(await page.evaluate(() => (window as unknown as { __csp: string[] }).__csp)).toEqual([]);
   expect(errors).toEqual([]);

@@ -318,6 +318,11 @@ export class Avatar {
     this.grounding.update(this.toeHeights[0], this.toeHeights[1], runtime.contacts, dt);
   }
 
+  /** Whether this avatar or one sharing its resources (`clone`) is not disposed yet. @internal */
+  get inUse(): boolean {
+    return this.assets.users > 0;
+  }
+
   /**
    * A second avatar of the same model, at rest, sharing this one's geometries, materials and
    * textures: nothing is downloaded, parsed, uploaded or compiled again (a shared room shows

@@ -13,6 +13,7 @@
  */
 import * as THREE from 'three';
 import { Avatar, type AvatarOptions } from '../avatar/avatar.ts';
+import { loadSharedAvatar } from '../avatar/shared.ts';
 import { CharacterRuntime, type RuntimeSettings } from '../core/character.ts';
 import { createDrive, type Drive, type MoveInput } from '../core/drive.ts';
 import { type Database, loadDatabase, loadDefaultDatabase } from '../core/database.ts';
@@ -61,7 +62,9 @@ export interface CreateOptions extends CharacterOptions, FetchOptions {
   database?: Database | string | URL | Uint8Array;
   /**
    * An avatar, a GLB/VRM URL or bytes, a three.js object with skinned meshes, or null: skeleton
-   * only; default the shipped avatar (`DEFAULT_AVATAR`, fetched only then).
+   * only; default the shipped avatar (`DEFAULT_AVATAR`, fetched only then). A URL is loaded
+   * once for every character on the page that shows it (and every `<mm-avatar>`): the others
+   * get clones sharing its geometry, materials and textures (`Avatar.clone`; a VRM loads for each).
    */
   avatar?: Avatar | string | URL | Uint8Array | THREE.Object3D | null;
   /** Avatar loading options (manual joint map). */
@@ -164,7 +167,13 @@ export class Character {
   static async create(options: CreateOptions = {}): Promise<Character> {
     const { database, avatar = assetUrl(DEFAULT_AVATAR), avatarOptions, ...rest } = options;
     // The avatar downloads while the database does; a failed database drops it.
-    const avatarLoad: Promise<Avatar | null> = avatar instanceof Avatar || avatar === null ? Promise.resolve(avatar) : Avatar.load(avatar, { ...avatarOptions, ...rest });
+    // A URL is loaded once for every character on the page that shows it (avatar/shared.ts).
+    const avatarLoad: Promise<Avatar | null> =
+      avatar instanceof Avatar || avatar === null
+        ? Promise.resolve(avatar)
+        : typeof avatar === 'string' || avatar instanceof URL
+          ? loadSharedAvatar(avatar, { ...avatarOptions, ...rest })
+          : Avatar.load(avatar, { ...avatarOptions, ...rest });
     avatarLoad.catch(() => undefined);
     let db: Database;
     try {

@@ -27,6 +27,7 @@
 import * as THREE from 'three';
 import { DEFAULT_AVATAR, DEFAULT_FIRST_PART, assetUrl } from '../assets.ts';
 import { Avatar } from '../avatar/avatar.ts';
+import { loadSharedAvatar } from '../avatar/shared.ts';
 import { Character, type MoveOptions, type PathOptions, type Root } from '../character/character.ts';
 import { type Database, loadDatabase, loadDefaultDatabase } from '../core/database.ts';
 import { checkStepsPerFrame, checkTimeStep, parseChoice, parseControls, parseUrl, quote } from './attributes.ts';
@@ -304,7 +305,7 @@ export class MMAvatarElement extends ElementBase {
       return a;
     };
     try {
-      const avatarLoad = avatarUrl ? Avatar.load(avatarUrl, { onProgress: progress, signal }).then(precompile, (e: unknown) => e as Error) : Promise.resolve(null);
+      const avatarLoad = avatarUrl ? loadSharedAvatar(avatarUrl, { onProgress: progress, signal }).then(precompile, (e: unknown) => e as Error) : Promise.resolve(null);
       const ownDatabase = databaseUrl !== assetUrl(DEFAULT_FIRST_PART).href;
       database = await (ownDatabase ? loadDatabase(databaseUrl, { onProgress: progress, signal }) : loadDefaultDatabase({ onProgress: progress, signal }));
       const a = await avatarLoad;
@@ -354,7 +355,7 @@ export class MMAvatarElement extends ElementBase {
     let url = '';
     try {
       url = this.url('avatar', DEFAULT_AVATAR);
-      const avatar = await Avatar.load(url, { onProgress: (p) => this.dispatchEvent(new CustomEvent('progress', { detail: { ...p } })) });
+      const avatar = await loadSharedAvatar(url, { onProgress: (p) => this.dispatchEvent(new CustomEvent('progress', { detail: { ...p } })) });
       if (this.character === character) character.setAvatar(avatar);
       else avatar.dispose();
     } catch (e) {

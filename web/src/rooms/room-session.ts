@@ -13,7 +13,8 @@
  */
 import * as THREE from 'three';
 import { DEFAULT_AVATAR, assetUrl } from '../assets.ts';
-import { Avatar } from '../avatar/avatar.ts';
+import type { Avatar } from '../avatar/avatar.ts';
+import { loadSharedAvatar } from '../avatar/shared.ts';
 import { Character, type CharacterStepper } from '../character/character.ts';
 import { Database } from '../core/database.ts';
 import { createTrackedInput, type DrivePath } from '../core/drive.ts';
@@ -158,8 +159,6 @@ export class RoomSession {
   /** The path object last sent (a new one from the character is a new path). */
   private sentPath: DrivePath | null = null;
   private readonly sentTracked = createTrackedInput();
-  /** One loaded avatar per URL, cloned for each member who uses it (no second download, parse or texture decode). */
-  private readonly templates = new Map<string, Promise<Avatar>>();
   private warmLabel: NameLabel | null = null;
   /**
    * Other members' databases (a VR member plays `vr`, a desktop one `locomotion`), by id, each
@@ -312,8 +311,6 @@ export class RoomSession {
     this.client.close();
     this.warmLabel?.dispose();
     for (const id of [...this.members.keys()]) this.remove(id);
-    for (const t of this.templates.values()) void t.then((a) => a.dispose(), () => undefined);
-    this.templates.clear();
     for (const d of this.databases.values()) void d.then((db) => db.release(), () => undefined);
     this.databases.clear();
     if (this.o.character.stepper === this.stepper) this.o.character.stepper = null;
@@ -478,15 +475,9 @@ export class RoomSession {
     // one): a clone shares its geometry, textures and shader programs.
     const own = this.o.character.avatar;
     if (own && !own.vrm && own.name === url) return own.clone();
-    let template = this.templates.get(url);
-    if (!template) {
-      template = Avatar.load(url);
-      this.templates.set(url, template);
-      template.catch(() => this.templates.delete(url));
-    }
-    const t = await template;
-    // A VRM's extras (its humanoid, the VRM 0 turn) come with a load of its own.
-    return t.vrm ? Avatar.load(url) : t.clone();
+    // Else one load per model on the page, cloned for each member who shows it (no second
+    // download, parse or texture decode; avatar/shared.ts).
+    return loadSharedAvatar(url);
   }
 
   private feed(from: number, f: (m: Member) => void): void {
