@@ -20,6 +20,8 @@ export function createMirror(textureWidth: number): Reflector {
   mirror.addEventListener('added', () => {
     const scene = mirror.parent;
     if (!scene || mirror.visible) return;
+    // Only a scene hears of its renders (a group is never drawn itself): elsewhere, shown at once.
+    if (!(scene as THREE.Scene).isScene) return void (mirror.visible = true);
     const after = scene.onAfterRender;
     scene.onAfterRender = function (...args) {
       scene.onAfterRender = after;
