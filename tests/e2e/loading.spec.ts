@@ -62,6 +62,30 @@ test('missing avatar: the skeleton walks and a note names the URL (demo and VR p
   await shot(page, 'missing-avatar-vr');
 });
 
+test('first frames compile only what they draw: shader programs linked before the first frame, demo and VR page', async ({ page }) => {
+  // Each program is ~10 ms (unlit) to ~40 ms (the avatar's) of a software GPU's first frame.
+  // Before: the demo's overlays took 8 unlit programs (now 4, overlay-materials.ts), the VR
+  // page's mirror 4 more (now from the second frame on, mirror.ts).
+  await page.addInitScript(() => {
+    const w = window as unknown as { __links: number };
+    w.__links = 0;
+    for (const C of [WebGL2RenderingContext, WebGLRenderingContext]) {
+      const link = C.prototype.linkProgram;
+      C.prototype.linkProgram = function (this: WebGLRenderingContext, program: WebGLProgram) {
+        if (performance.getEntriesByName('mm:first-frame').length === 0) w.__links++;
+        return link.call(this, program);
+      };
+    }
+  });
+  for (const [url, most] of [['/', 7], ['/vr.html', 4]] as const) {
+    await page.goto(url);
+    await page.waitForFunction(() => performance.getEntriesByName('mm:first-frame').length > 0, null, { timeout: 120_000 });
+    const links = await page.evaluate(() => (window as unknown as { __links: number }).__links);
+    console.log(`${url}: ${links} shader programs linked before the first frame (at most ${most})`);
+    expect(links).toBeLessThanOrEqual(most);
+  }
+});
+
 test('VR page: the heuristic drives from the first frame until the network has loaded; iwer only with ?emulate=1', async ({ page }) => {
   test.setTimeout(120_000);
   const requested: string[] = [];

@@ -6,6 +6,7 @@
  * positions.
  */
 import * as THREE from 'three';
+import { overlayArrow, overlayLineMaterial, overlayMaterial } from './overlay-materials.ts';
 import type { CharacterRuntime } from '../core/character.ts';
 
 const REQUESTED = 0xff9a3c;
@@ -22,7 +23,7 @@ export class TrajectoryView {
   private readonly linePositions: Float32Array;
 
   constructor(count: number, color: number, y: number) {
-    const material = new THREE.MeshBasicMaterial({ color, depthTest: false, transparent: true });
+    const material = overlayMaterial({ color, depthTest: false });
     const geometry = new THREE.SphereGeometry(0.035, 12, 8);
     for (let k = 0; k < count; k++) {
       const dot = new THREE.Mesh(geometry, material);
@@ -30,7 +31,7 @@ export class TrajectoryView {
       this.dots.push(dot);
       this.object.add(dot);
     }
-    const lineMaterial = new THREE.LineBasicMaterial({ color, depthTest: false, transparent: true });
+    const lineMaterial = overlayLineMaterial({ color, depthTest: false });
     this.strokePositions = new Float32Array(count * 6);
     const strokes = new THREE.BufferGeometry();
     strokes.setAttribute('position', new THREE.BufferAttribute(this.strokePositions, 3));
@@ -84,13 +85,13 @@ export class DebugViews {
     this.requested = new TrajectoryView(runtime.predictedPositions.length / 3, REQUESTED, 0.01);
     this.matched = new TrajectoryView(runtime.matchedTrajectory().length / 4, MATCHED, 0.012);
 
-    const ring = new THREE.Mesh(new THREE.RingGeometry(0.16, 0.2, 32), new THREE.MeshBasicMaterial({ color: REQUESTED, side: THREE.DoubleSide }));
+    const ring = new THREE.Mesh(new THREE.RingGeometry(0.16, 0.2, 32), overlayMaterial({ color: REQUESTED }));
     ring.rotation.x = -Math.PI / 2;
-    const arrow = new THREE.ArrowHelper(new THREE.Vector3(0, 0, 1), new THREE.Vector3(), 0.4, REQUESTED, 0.1, 0.07);
+    const arrow = overlayArrow(new THREE.Vector3(0, 0, 1), 0.4, REQUESTED, 0.1, 0.07);
     this.simulation.add(ring, arrow);
     this.simulation.position.y = 0.008;
 
-    const lockMaterial = new THREE.MeshBasicMaterial({ color: LOCKED, side: THREE.DoubleSide, depthTest: false, transparent: true });
+    const lockMaterial = overlayMaterial({ color: LOCKED, depthTest: false });
     this.lockRings = [0, 1].map(() => {
       const m = new THREE.Mesh(new THREE.RingGeometry(0.05, 0.07, 24), lockMaterial);
       m.rotation.x = -Math.PI / 2;

@@ -1,5 +1,6 @@
 /** The virtual root (joint 0) drawn on the floor: a disc and an arrow along its facing (+Z). */
 import * as THREE from 'three';
+import { overlayArrow, overlayMaterial } from './overlay-materials.ts';
 
 export class RootMarker {
   readonly object = new THREE.Group();
@@ -7,16 +8,16 @@ export class RootMarker {
   constructor() {
     const disc = new THREE.Mesh(
       new THREE.CircleGeometry(0.22, 40),
-      new THREE.MeshBasicMaterial({ color: 0x3fd68a, transparent: true, opacity: 0.35, depthWrite: false }),
+      overlayMaterial({ color: 0x3fd68a, opacity: 0.35, depthWrite: false }),
     );
     disc.rotation.x = -Math.PI / 2;
     const ring = new THREE.Mesh(
       new THREE.RingGeometry(0.21, 0.235, 40),
-      new THREE.MeshBasicMaterial({ color: 0x3fd68a, side: THREE.DoubleSide }),
+      overlayMaterial({ color: 0x3fd68a }),
     );
     ring.rotation.x = -Math.PI / 2;
     // Facing arrow along local +Z (character forward).
-    const arrow = new THREE.ArrowHelper(new THREE.Vector3(0, 0, 1), new THREE.Vector3(0, 0, 0), 0.55, 0x3fd68a, 0.14, 0.09);
+    const arrow = overlayArrow(new THREE.Vector3(0, 0, 1), 0.55, 0x3fd68a, 0.14, 0.09);
     this.object.add(disc, ring, arrow);
     this.object.position.y = 0.004; // just above the grid, no z-fighting
   }

@@ -4,6 +4,7 @@
  * `RootMarker` instead, so it has no sphere and no line to the hips.
  */
 import * as THREE from 'three';
+import { overlayLineMaterial } from './overlay-materials.ts';
 
 const JOINT_RADIUS = 0.028;
 const COLOR_JOINT = new THREE.Color(0xd8dde3);
@@ -50,7 +51,7 @@ export class SkeletonView {
     const attr = new THREE.BufferAttribute(this.linePositions, 3);
     attr.setUsage(THREE.DynamicDrawUsage);
     lineGeometry.setAttribute('position', attr);
-    this.bones = new THREE.LineSegments(lineGeometry, new THREE.LineBasicMaterial({ color: 0x9fb4c8 }));
+    this.bones = new THREE.LineSegments(lineGeometry, overlayLineMaterial({ color: 0x9fb4c8 }));
     this.bones.frustumCulled = false;
 
     this.object.add(this.bones, this.joints);
