@@ -23,6 +23,8 @@ export function compileNow(renderer: THREE.WebGLRenderer, object: THREE.Object3D
   }
 }
 
+const _size = new THREE.Vector2();
+
 export class Stage {
   readonly renderer: THREE.WebGLRenderer;
   readonly scene = new THREE.Scene();
@@ -127,6 +129,10 @@ export class Stage {
   resize(): void {
     const w = Math.max(1, this.container.clientWidth);
     const h = Math.max(1, this.container.clientHeight);
+    // The observer's first call repeats the constructor's size: setting a canvas' size, even to
+    // the same one, clears and reallocates its drawing buffer.
+    const size = this.renderer.getSize(_size);
+    if (size.x === w && size.y === h) return;
     this.renderer.setSize(w, h);
     this.camera.aspect = w / h;
     this.camera.updateProjectionMatrix();
