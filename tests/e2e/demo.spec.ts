@@ -195,6 +195,7 @@ test.describe('at 1280×720', () => {
     }
     const h = await hook(page);
     expect(h.path.points.length).toBe(8);
+    await page.screenshot({ path: path.join(ROOT, 'test-results/demo-path.png') }); // its dots and segments
     const square = h.path.points;
     // Each corner within a few cm of where it was meant to be (the start is wherever the idle
     // character stands, near the origin).

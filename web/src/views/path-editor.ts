@@ -48,6 +48,7 @@ export class PathEditor {
     this.line.frustumCulled = false;
     this.dots = new THREE.InstancedMesh(new THREE.CylinderGeometry(0.06, 0.06, 0.02, 16), new THREE.MeshBasicMaterial({ color: 0xffd24a }), MAX_POINTS);
     this.dots.count = 0;
+    this.dots.visible = false; // until there is a point: an instanced mesh is a shader program of its own
     this.dots.frustumCulled = false;
     this.object.add(this.line, this.dots);
     this.object.position.y = 0.015;
@@ -123,6 +124,7 @@ export class PathEditor {
     const m = new THREE.Matrix4();
     for (let k = 0; k < n; k++) this.dots.setMatrixAt(k, m.makeTranslation(p[2 * k], 0, p[2 * k + 1]));
     this.dots.count = n;
+    this.dots.visible = n > 0;
     this.dots.instanceMatrix.needsUpdate = true;
   }
 }
