@@ -5,6 +5,7 @@
  * replaced by the skeleton with a note. Pages that build their own scene (the VR page) use it.
  */
 import { Avatar } from '../avatar/avatar.ts';
+import { loadSharedAvatar } from '../avatar/shared.ts';
 import { Character } from '../character/character.ts';
 import { type Database, loadDatabase } from '../core/database.ts';
 import { errorMessage } from '../fetch.ts';
@@ -29,7 +30,8 @@ export interface PageCharacter {
 export async function loadPageCharacter(options: PageCharacterOptions): Promise<PageCharacter | null> {
   const { status } = options;
   const databaseUrl = String(options.database);
-  const avatarLoad = options.avatar ? Avatar.load(options.avatar, { onProgress: status.update }).catch((e: unknown) => e as Error) : Promise.resolve(null);
+  // One load per model on the page, as the element's (a room's members who show it get clones).
+  const avatarLoad = options.avatar ? loadSharedAvatar(options.avatar, { onProgress: status.update }).catch((e: unknown) => e as Error) : Promise.resolve(null);
   let database: Database;
   try {
     database = await loadDatabase(databaseUrl, { onProgress: status.update });
