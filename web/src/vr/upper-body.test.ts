@@ -8,6 +8,7 @@ import type { RoleName } from '../core/roles.ts';
 import { initWasmSync } from '../core/wasm.ts';
 import { headingYaw } from '../yaw.ts';
 import type { TrackerPose } from './body-yaw.ts';
+import { ELBOW_LIMIT } from './replay-bench.ts';
 import { UpperBody } from './upper-body.ts';
 
 beforeAll(() => {
@@ -223,5 +224,31 @@ describe('UpperBody stretch', () => {
     body.apply(hmd, pose([2, 1.5, 0], [0, 0, 0, 1]), right, 0);
     expect(rig.bone('left_hand').position.length()).toBeCloseTo(0.25 * 1.25, 9);
     expect(body.handError[0]).toBeGreaterThan(0.5);
+  });
+});
+
+describe('UpperBody elbows', () => {
+  it('solves an elbow well behind the torso again when its hand is only a little behind', () => {
+    const rig = makeRig();
+    const body = new UpperBody(rig);
+    const rand = seededRandom(7);
+    let near = 0;
+    for (let i = 0; i < 20000; i++) {
+      // Hands anywhere from the chest's front to 10 cm behind the shoulders, the head turned.
+      const hmdYaw = (rand() - 0.5) * 2.4;
+      const target = (side: number) => pose([side * (0.15 + 0.45 * rand()), 0.9 + 0.7 * rand(), -0.1 + 0.5 * rand()], [0, 0, 0, 1]);
+      body.apply(pose([0, 1.62, 0], hmdRotation(hmdYaw)), target(1), target(-1), 0);
+      for (let j = 0; j < 2; j++) {
+        const [elbow, hand] = [body.elbowBehind[j], body.targetBehind[j]];
+        // Hands just behind the plane, between the IK's own limit (4 cm) and the check's (5 cm):
+        // an elbow 23 cm behind such a hand was left as it was (a backward-walk replay).
+        if (!(hand > body.options.elbowBehindLimit && hand <= ELBOW_LIMIT)) continue;
+        near++;
+        // Solved again with the pole forward: at most 5.3 cm further back than the hand here (24.8
+        // before, when only hands within 4 cm counted).
+        expect(elbow - hand, `sample ${i}, arm ${j}: hand ${hand.toFixed(3)} m behind, elbow ${elbow.toFixed(3)} m`).toBeLessThan(0.1);
+      }
+    }
+    expect(near).toBeGreaterThan(20);
   });
 });

@@ -48,8 +48,8 @@ export interface UpperBodyOptions {
   poleDown: number;
   poleBack: number;
   /**
-   * An elbow more than this (m) behind the torso's frontal plane while its target is not is bent
-   * the wrong way: the arm is solved again with its pole pointing forward.
+   * An elbow more than this (m) behind the torso's frontal plane, and further behind it than its
+   * target, is bent the wrong way: the arm is solved again with its pole pointing forward.
    */
   elbowBehindLimit: number;
   /**
@@ -284,7 +284,11 @@ export class UpperBody {
       const j = arm.side > 0 ? 0 : 1;
       this.targetBehind[j] = behind(_target, sy, cy);
       this.elbowBehind[j] = behind(_v.setFromMatrixPosition(arm.lower.matrixWorld), sy, cy);
-      if (this.elbowBehind[j] > o.elbowBehindLimit && !(this.targetBehind[j] > o.elbowBehindLimit)) {
+      const [elbow, target] = [this.elbowBehind[j], this.targetBehind[j]];
+      // A hand a few cm behind the plane is no reason for an elbow 20 cm behind it (a replay's
+      // backward walk: the wrist 4.6 cm behind, the elbow 23 cm, not solved again while only a
+      // target within the limit counted).
+      if (elbow > o.elbowBehindLimit && !(elbow <= target)) {
         // Swing the elbow forward about the shoulder–target axis: outward and down as before, plus forward.
         _pole.set(arm.side * cy * o.poleOut + sy, -o.poleDown, -arm.side * sy * o.poleOut + cy);
         this.reach(arm);
