@@ -345,16 +345,17 @@ test('device sets under iwer: two controllers, one, none, tracked hands and back
     // The set is named from the first frames of its phase on (the tracker state sees a controller leave at once).
     const frames = log.filter((f) => f.t >= 1.5 * k + 0.1 && f.t < 1.5 * (k + 1));
     const named = frames.filter((f) => f.set === name).length / frames.length;
-    // The body yaw comes from the models for the set (once the network has loaded): both (their
-    // mean) with both hands tracked, the recurrent one with a controller missing.
-    const want = name === 'headset + left controller' || name === 'headset only' ? 'fewer' : 'both';
-    const networked = frames.filter((f) => f.model === 'both' || f.model === 'fewer');
-    const right = networked.filter((f) => f.model === want).length / Math.max(1, networked.length);
+    // The body yaw is the mean of both models whatever the set (one controller or none changes
+    // the inputs, not the mix), once the network has loaded and the recurrent model warmed up
+    // (1.5 s: the first phase is the warm-up).
+    const want = 'both';
+    const networked = frames.filter((f) => f.model === 'both' || f.model === 'main');
+    const right = k === 0 ? 1 : networked.filter((f) => f.model === want).length / Math.max(1, networked.length);
     console.log(`${name}: named on ${(100 * named).toFixed(0)} % of its frames; body yaw from the ${want} model on ${(100 * right).toFixed(0)} % of ${networked.length} networked frames`);
     expect(named, name).toBeGreaterThan(0.95);
     expect(right, `${name}: ${want} model`).toBeGreaterThan(0.95);
   });
-  expect(log.filter((f) => f.model === 'fewer').length, 'the network loaded during the phases without two controllers').toBeGreaterThan(60);
+  expect(log.filter((f) => f.t >= 1.5 && f.t < 4.5 && f.model === 'both').length, 'the network ran during the phases without two controllers').toBeGreaterThan(60);
   expect(await page.evaluate(() => window.__vr.predictorFailures)).toBe(0);
   const worstGap = Math.max(...log.map((f) => Math.hypot(f.root[0] - f.head[0], f.root[2] - f.head[1])));
   // Hands from the calibration on (it rescales the avatar at 0.25 s).

@@ -38,7 +38,7 @@ function maxErr(a: ArrayLike<number>, b: ArrayLike<number>): number {
 }
 
 describe('OrientationFeatures', () => {
-  it('builds the same 42 inputs as the Python reference, frame by frame', () => {
+  it('builds the same 54 inputs as the Python reference, frame by frame', () => {
     const f = new OrientationFeatures();
     let worst = 0;
     for (let t = 0; t < seq.dt.length; t++) {
@@ -49,8 +49,10 @@ describe('OrientationFeatures', () => {
       worst = Math.max(worst, maxErr(f.input, seq.inputs[t]));
     }
     expect(worst).toBeLessThan(1e-5);
-    // The fixture covers a dropped frame and a pause longer than MAX_DT (velocities restart).
+    // The fixture covers a dropped frame and a pause longer than MAX_DT (velocities and the
+    // context's windows restart), and more than the longest window (1 s) before the pause.
     expect(seq.dt.some((dt) => dt > MAX_DT)).toBe(true);
+    expect(seq.dt.slice(1, seq.dt.findIndex((dt) => dt > MAX_DT)).reduce((a, b) => a + b, 0)).toBeGreaterThan(1);
   });
 
   it('yaw 0 is looking along +Z, and looking straight down keeps the heading', () => {
@@ -82,7 +84,8 @@ describe('OrientationFeatures', () => {
     expect(() => f.update([...p.slice(0, 8), Number.NaN], q, 0.011)).toThrow(/position 8/);
     expect(() => f.update(p, new Array(12).fill(0), 0.011)).toThrow(/zero length/);
     f.reset();
-    expect(Array.from(f.input.subarray(36))).toEqual([1, 0, -0, 0, 1, 0]);
+    expect(Array.from(f.input.subarray(36, 42))).toEqual([1, 0, -0, 0, 1, 0]);
+    expect(f.input.subarray(42).every((v) => v === 0)).toBe(true);
     expect(f.input.length).toBe(NUM_INPUTS);
   });
 });
@@ -172,6 +175,26 @@ describe('OrientationModel (onnxruntime-web in Node)', () => {
       expect(model.features.input[36]).toBe(1); // previous slot: HMD forward, cos 0
       for (let t = 6; t < 40; t++) expect(Number.isFinite(await model.update(seq.positions[t], seq.quaternions[t], seq.dt[t]))).toBe(true);
     } finally {
+      await model.release();
+    }
+  });
+
+  it('runs a model from before the context on the first 42 inputs', async () => {
+    // training/fixtures/orientation_42.onnx: the shipped model until the context was added.
+    const legacy = await OrientationModel.create(fs.readFileSync(path.join(ROOT, 'training/fixtures/orientation_42.onnx')));
+    const model = await OrientationModel.create(bytes);
+    try {
+      expect([legacy.inputCount, model.inputCount]).toEqual([42, NUM_INPUTS]);
+      let differ = 0;
+      for (let t = 0; t < 60; t++) {
+        const a = await legacy.update(seq.positions[t], seq.quaternions[t], seq.dt[t]);
+        const b = await model.update(seq.positions[t], seq.quaternions[t], seq.dt[t]);
+        expect(Number.isFinite(a)).toBe(true);
+        differ = Math.max(differ, Math.abs(wrapAngle(a - b)));
+      }
+      expect(differ).toBeGreaterThan(0); // two networks, each run on its own inputs
+    } finally {
+      await legacy.release();
       await model.release();
     }
   });

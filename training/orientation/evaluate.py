@@ -77,7 +77,7 @@ PREDICTORS = {
 BASELINES = ("HMD forward", "dead zone 25°")
 # What the VR page does (web/src/vr/network-yaw.ts): with both hands tracked the mean of the two
 # models' yaws, with one controller or none the recurrent model's.
-PAGE = "VR page (both hands: network ⊕ GRU; fewer: GRU)"
+PAGE = "VR page (network ⊕ GRU)"
 
 
 def held_out_sequences(
@@ -114,12 +114,10 @@ def stats(err: np.ndarray, times: np.ndarray, lengths: np.ndarray, where: np.nda
     return Result(e, float(v.mean()), float(np.median(v)), float(np.percentile(v, 95)))
 
 
-def evaluate(
-    seqs: list[TrackerSequence], models: dict[str, object], absent: tuple[int, ...] = ()
-) -> tuple[dict[str, Result], dict]:
+def evaluate(seqs: list[TrackerSequence], models: dict[str, object]) -> tuple[dict[str, Result], dict]:
     """Errors of every predictor (name -> Result) on the sequences; also the padded arrays. With
-    the committed network and the recurrent model among `models`, also the VR page's choice
-    (`PAGE`) for the device set that leaves the controllers `absent`."""
+    the committed network and the recurrent model among `models`, also the VR page's mean of
+    the two (`PAGE`)."""
     feats, hmd, lengths = sequence_features(seqs)
     B, T = hmd.shape
     truth = np.zeros((B, T))
@@ -138,7 +136,7 @@ def evaluate(
     }
     main, recurrent = PREDICTORS_MAIN, next((n for n, m in models.items() if getattr(m, "recurrent", False)), None)
     if main in preds and recurrent:
-        preds[PAGE] = page_yaw(preds[main], preds[recurrent], dt, bool(absent))
+        preds[PAGE] = page_yaw(preds[main], preds[recurrent], dt)
     preds["HMD forward"] = hmd_forward(hmd)
     preds["dead zone 25°"] = dead_zone(hmd, dt)
     out = {name: stats(yaw_error_deg(p, truth), times, lengths) for name, p in preds.items()}
@@ -295,10 +293,10 @@ def run(quick: bool = False, make_plots: bool = True, models: dict[str, Path] | 
     )
     written = plots(results, arrays, seqs) if make_plots else []
     nets = [PAGE] * (PAGE in arrays["with look-around"]["preds"]) + [n for n in loaded] + ["HMD forward"]
-    # The page's per-set choice: the feed-back network with two controllers, the GRU with fewer.
+    # Per device set: the feed-back network, the GRU and the page's mean of both.
     per_set = {n: m for n, m in loaded.items() if n == next(iter(loaded)) or getattr(m, "recurrent", False)}
     sets = {
-        name: evaluate([with_absent(q, absent) for q in seqs["with look-around"]], per_set, absent)[0]
+        name: evaluate([with_absent(q, absent) for q in seqs["with look-around"]], per_set)[0]
         for name, absent in DEVICE_SETS.items()
     }
     return results, written, per_subject(results, seqs), class_table(arrays["with look-around"], nets), sets

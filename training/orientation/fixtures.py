@@ -2,7 +2,7 @@
 
 `training/fixtures/orientation_parity.json` (rewritten by `npm run train`, or
 `python -m orientation.fixtures`) holds
-- `rows`: 48 raw 42-float inputs (held-out frames with true, perturbed and garbage previous
+- `rows`: 48 raw 54-float inputs (held-out frames with true, perturbed and garbage previous
   slots) and the PyTorch outputs for them;
 - `sequence`: 150 frames of simulated raw tracker poses (a held-out take at 90 Hz with
   look-around, one dropped frame and one 0.3 s pause), with the inputs the Python reference
@@ -20,7 +20,16 @@ from pathlib import Path
 import numpy as np
 
 from . import data
-from .features import TRACKER_INPUTS, FeatureBuilder, relative_yaw_of_output, tracker_features, yaw_slot
+from .features import (
+    NUM_INPUTS,
+    PREV,
+    TRACKER_INPUTS,
+    FeatureBuilder,
+    assemble,
+    frame_features,
+    relative_yaw_of_output,
+    yaw_slot,
+)
 from .model import net_from_state
 from .predictors import TorchModel
 from .simulate import EVAL_AUGMENT, simulate
@@ -70,12 +79,11 @@ def build_fixture(onnx_path: Path, weights: Path) -> dict:
 
     # Independent rows: held-out frames with various previous slots, some of them garbage.
     other = simulate(next(c for c in clips if c.name.startswith("cmu_03_")), rng, EVAL_AUGMENT, fps=72.0)
-    f, y = tracker_features(other.pos, other.rot, other.dt)
+    f, y = frame_features(other.pos, other.rot, other.dt)
     idx = rng.choice(np.arange(1, len(f)), 48, replace=False)
-    rows = np.zeros((48, 42), dtype=np.float32)
-    rows[:, :36] = f[idx]
-    rows[:, 36:] = yaw_slot(other.body_yaw[idx - 1] - y[idx] + rng.normal(0, 0.3, 48))
-    rows[-8:, 36:] = rng.normal(0, 50.0, (8, 6))  # garbage in the previous slot
+    rows = assemble(f[idx], yaw_slot(other.body_yaw[idx - 1] - y[idx] + rng.normal(0, 0.3, 48)), NUM_INPUTS)
+    rows = rows.astype(np.float32)
+    rows[-8:, PREV] = rng.normal(0, 50.0, (8, 6))  # garbage in the previous slot
     row_out = model(rows)
     return {
         "model": str(onnx_path.relative_to(data.REPO)),
@@ -84,7 +92,7 @@ def build_fixture(onnx_path: Path, weights: Path) -> dict:
         "sequence": {
             "name": seq.name,
             "fps": seq.fps,
-            "dt": _floats(dt),
+            "dt": np.asarray(dt, dtype=np.float64).tolist(),  # exact: the windows compare summed times
             "positions": _floats(pos.reshape(n, 9)),
             "quaternions": _floats(rot.reshape(n, 12)),
             "inputs": _floats(np.array(inputs)),
@@ -125,7 +133,7 @@ def build_gru_fixture(onnx_path: Path, step) -> dict:
         "sequence": {
             "name": seq.name,
             "fps": seq.fps,
-            "dt": _floats(dt),
+            "dt": np.asarray(dt, dtype=np.float64).tolist(),  # exact: the windows compare summed times
             "positions": _floats(pos.reshape(len(dt), 9)),
             "quaternions": _floats(rot.reshape(len(dt), 12)),
             "inputs": _floats(np.array(inputs)),

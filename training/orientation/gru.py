@@ -100,7 +100,8 @@ def train_gru(cfg: GruConfig, clips, log=print) -> GruNet:
     rng = np.random.default_rng(cfg.seed)
     sim_cfg = replace(TrainConfig(), r=cfg.window, augment=replace(TRAIN_AUGMENT, absent_prob=cfg.absent_prob))
     ep = simulate_epoch(clips, rng, sim_cfg)
-    net = GruNet(ep.feats.mean(0), ep.feats.std(0), cfg.hidden)
+    # The recurrent model takes the tracker inputs only (the first 36 of a frame's features).
+    net = GruNet(ep.feats[:, :TRACKER_INPUTS].mean(0), ep.feats[:, :TRACKER_INPUTS].std(0), cfg.hidden)
     opt = torch.optim.AdamW(net.parameters(), lr=cfg.lr, weight_decay=cfg.weight_decay)
     sched = torch.optim.lr_scheduler.ExponentialLR(opt, gamma=cfg.lr_decay)
     t0 = time.perf_counter()
@@ -113,7 +114,7 @@ def train_gru(cfg: GruConfig, clips, log=print) -> GruNet:
         for b in range(nb):
             starts = order[b * cfg.batch : (b + 1) * cfg.batch]
             idx = starts[:, None] + np.arange(cfg.window)
-            x = torch.from_numpy(ep.feats[idx])
+            x = torch.from_numpy(ep.feats[idx, :TRACKER_INPUTS])
             target = torch.from_numpy(yaw_slot(ep.body_yaw[idx] - ep.hmd_yaw[idx]).astype(np.float32))
             out, _ = net(x)
             out, target = out[:, cfg.burn_in :], target[:, cfg.burn_in :]
@@ -141,7 +142,7 @@ def run_gru(net: GruNet, feats: np.ndarray, hmd_yaw: np.ndarray, chunk: int = 51
     h = None
     with torch.no_grad():
         for t0 in range(0, T, chunk):
-            out, h = net(torch.from_numpy(feats[:, t0 : t0 + chunk]), h)
+            out, h = net(torch.from_numpy(np.ascontiguousarray(feats[:, t0 : t0 + chunk, :TRACKER_INPUTS])), h)
             phi, ok = relative_yaw_of_output(out.numpy())
             body[:, t0 : t0 + chunk] = hmd_yaw[:, t0 : t0 + chunk] + np.where(ok, phi, 0.0)
     return body

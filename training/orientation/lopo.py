@@ -32,7 +32,7 @@ import numpy as np
 import torch
 
 from . import data
-from .features import tracker_features
+from .features import FRAME_COLUMNS, PREV, frame_features
 from .geometry import wrap_angle
 from .model import OrientationNet
 from .motion_classes import CLASSES, with_crouching
@@ -126,7 +126,7 @@ def _simulate_one(job: tuple[int, int, int, object]):
     i, seed, epoch, aug = job
     rng = np.random.default_rng([seed, epoch, i])
     seq = simulate(_CLIPS[i], rng, aug)
-    f, y = tracker_features(seq.pos, seq.rot, seq.dt)
+    f, y = frame_features(seq.pos, seq.rot, seq.dt)
     return f.astype(np.float32), y, seq.body_yaw
 
 
@@ -195,18 +195,19 @@ class StackedNets(torch.nn.Module):
         return net.eval()
 
     def rollout(self, feats: torch.Tensor, dyaw: torch.Tensor, prev0: torch.Tensor, previous: bool = False):
-        """`train.fast_rollout` for every member at once: feats (K, B, r, 36), dyaw (K, B, r),
+        """`train.fast_rollout` for every member at once: feats (K, B, r, 48), dyaw (K, B, r),
         prev0 (K, B, 2) → last outputs (K, B, 6). The first r − 1 steps run without autograd
         (the fed-back estimates are inputs, as in `fast_rollout`). With `previous`, also the
         step before's estimate as (cos φ, sin φ) (K, B, 1) each, φ in the last frame's HMD frame."""
         w1, b1 = self.weights[0], self.biases[0]
-        m, iv = self.mean[:, 36:], self.inv_std[:, 36:]
+        m, iv = self.mean[:, PREV], self.inv_std[:, PREV]
+        cols = torch.as_tensor(FRAME_COLUMNS, device=m.device)
         fixed = torch.tensor([0.0, 0.0, 0.0, 0.0, 1.0, 0.0], device=m.device)
-        const = torch.einsum("ki,khi->kh", (fixed - m) * iv, w1[:, :, 36:]) + b1
-        wc = (w1[:, :, 36] * iv[:, 0:1])[:, None]  # (K, 1, H)
-        ws = (-w1[:, :, 38] * iv[:, 2:3])[:, None]
-        x = (feats - self.mean[:, None, None, :36]) * self.inv_std[:, None, None, :36]
-        pre = torch.einsum("kbri,khi->kbrh", x, w1[:, :, :36]) + const[:, None, None]
+        const = torch.einsum("ki,khi->kh", (fixed - m) * iv, w1[:, :, PREV]) + b1
+        wc = (w1[:, :, PREV.start] * iv[:, 0:1])[:, None]  # (K, 1, H)
+        ws = (-w1[:, :, PREV.start + 2] * iv[:, 2:3])[:, None]
+        x = (feats - self.mean[:, None, None, cols]) * self.inv_std[:, None, None, cols]
+        pre = torch.einsum("kbri,khi->kbrh", x, w1[:, :, cols]) + const[:, None, None]
         cd, sd = torch.cos(dyaw), torch.sin(dyaw)
         middle = list(zip(self.weights[1:-1], self.biases[1:-1]))
         w3, b3 = self.weights[-1], self.biases[-1]

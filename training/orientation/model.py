@@ -1,6 +1,6 @@
 """The orientation MLP, the r-step feedback rollout, and ONNX export.
 
-Network (docs/method.md §9): 42 inputs → hidden layers with a ReLU after **each** → 6. The
+Network (docs/method.md §9): 54 inputs (the thesis's 42 and a context: features.py) → hidden layers with a ReLU after **each** → 6. The
 thesis's size is 2 × 32 (the released MMVR model has a ReLU after the first hidden layer only);
 the hidden sizes are a training parameter here (`TrainConfig.hidden`), chosen by held-out error
 within the browser's time budget (docs/orientation-model.md, "Model size").
@@ -16,23 +16,29 @@ import numpy as np
 import torch
 from torch import nn
 
-from .features import FEATURE_NAMES, NUM_INPUTS, TRACKER_INPUTS
+from .features import FEATURE_NAMES, FRAME_COLUMNS, NUM_INPUTS, PREV, TRACKER_INPUTS
 
 HIDDEN = 32
+_FRAME_COLUMNS = torch.as_tensor(FRAME_COLUMNS)
 INPUT_NAME, OUTPUT_NAME = "features", "orientation6d"
 
 
 class OrientationNet(nn.Module):
     def __init__(
-        self, mean: np.ndarray | None = None, std: np.ndarray | None = None, hidden: tuple[int, ...] = (HIDDEN, HIDDEN)
+        self,
+        mean: np.ndarray | None = None,
+        std: np.ndarray | None = None,
+        hidden: tuple[int, ...] = (HIDDEN, HIDDEN),
+        inputs: int = NUM_INPUTS,
     ):
         super().__init__()
-        self.register_buffer("mean", torch.zeros(NUM_INPUTS))
-        self.register_buffer("inv_std", torch.ones(NUM_INPUTS))
+        self.inputs = inputs  # 54, or 42 for a model from before the context
+        self.register_buffer("mean", torch.zeros(inputs))
+        self.register_buffer("inv_std", torch.ones(inputs))
         if mean is not None:
             self.set_normalization(mean, std)
         self.hidden = tuple(hidden)
-        layers, width = [], NUM_INPUTS
+        layers, width = [], inputs
         for h in self.hidden:
             layers += [nn.Linear(width, h), nn.ReLU()]
             width = h
@@ -62,7 +68,7 @@ def rollout(
     feeds back). Gradients flow through the whole chain, so the network learns to use its own
     earlier estimates and to recover from poor ones.
 
-    feats (B, r, 36) tracker features; dyaw (B, r) HMD yaw change into each frame (dyaw[:, 0]
+    feats (B, r, 48) frame features (`features.frame_features`); dyaw (B, r) HMD yaw change into each frame (dyaw[:, 0]
     unused); prev0 (B, 2) = (cos φ, sin φ) of the previous body yaw relative to frame 0's HMD
     yaw. Returns (last output (B, 6), all outputs (B, r, 6)).
     """
@@ -76,7 +82,9 @@ def rollout(
             c, s = torch.cos(dyaw[:, t : t + 1]), torch.sin(dyaw[:, t : t + 1])
             cs = torch.cat([cs[:, :1] * c + cs[:, 1:] * s, cs[:, 1:] * c - cs[:, :1] * s], dim=1)
         prev6 = torch.cat([cs[:, :1], zeros, -cs[:, 1:], zeros, ones, zeros], dim=1)
-        out = net(torch.cat([feats[:, t], prev6], dim=1))
+        x = torch.empty(feats.shape[0], NUM_INPUTS, dtype=feats.dtype)
+        x[:, _FRAME_COLUMNS], x[:, PREV] = feats[:, t], prev6
+        out = net(x)
         outs.append(out)
         cs = _unit(torch.stack([out[:, 0], -out[:, 2]], dim=1))
     return outs[-1], torch.stack(outs, dim=1)
@@ -92,14 +100,14 @@ def net_from_state(state: dict) -> OrientationNet:
         (k for k in state if k.startswith("mlp.") and k.endswith(".weight")), key=lambda k: int(k.split(".")[1])
     )
     hidden = tuple(int(np.asarray(state[k]).shape[0]) for k in weights[:-1])
-    net = OrientationNet(hidden=hidden)
+    net = OrientationNet(hidden=hidden, inputs=int(np.asarray(state["mean"]).shape[0]))
     net.load_state_dict({k: torch.as_tensor(np.asarray(v)) for k, v in state.items()})
     return net.eval()
 
 
 def export_onnx(net: nn.Module, path: Path, metadata: dict[str, str] | None = None, state_size: int = 0) -> Path:
     """Write the model as one self-contained ONNX file (weights embedded, no `.onnx.data`),
-    input `features` float32 [batch, 42] raw, output `orientation6d` float32 [batch, 6]. A
+    input `features` float32 [batch, 54] raw, output `orientation6d` float32 [batch, 6]. A
     recurrent model (`state_size` > 0: `gru.GruStep`) takes `features` [batch, 36] and `state`
     [batch, state_size] and also outputs `state_out` [batch, state_size]."""
     import onnx
@@ -112,7 +120,7 @@ def export_onnx(net: nn.Module, path: Path, metadata: dict[str, str] | None = No
         example = (torch.zeros(1, TRACKER_INPUTS), torch.zeros(1, state_size))
         names, outputs, dims = [INPUT_NAME, "state"], [OUTPUT_NAME, "state_out"], ({0: batch}, {0: batch})
     else:
-        example, names, outputs, dims = (torch.zeros(1, NUM_INPUTS),), [INPUT_NAME], [OUTPUT_NAME], ({0: batch},)
+        example, names, outputs, dims = (torch.zeros(1, net.inputs),), [INPUT_NAME], [OUTPUT_NAME], ({0: batch},)
     program = torch.onnx.export(
         net,
         example,
@@ -135,7 +143,7 @@ def export_onnx(net: nn.Module, path: Path, metadata: dict[str, str] | None = No
     for value in list(model.graph.input) + list(model.graph.output) + list(model.graph.initializer):
         del value.metadata_props[:]
     model.doc_string = (
-        "Body-orientation network (docs/method.md §9). Input: 42 raw features "
+        f"Body-orientation network (docs/method.md §9). Input: {net.inputs} raw features "
         "(docs/orientation-model.md); output: 6D body rotation in the HMD-yaw frame."
         if not state_size
         else "Recurrent body-orientation network (docs/orientation-model.md). Inputs: the 36 "
@@ -143,7 +151,7 @@ def export_onnx(net: nn.Module, path: Path, metadata: dict[str, str] | None = No
         "rotation in the HMD-yaw frame and the next state."
     )
     props = {
-        "feature_order": ",".join(FEATURE_NAMES[:TRACKER_INPUTS] if state_size else FEATURE_NAMES),
+        "feature_order": ",".join(FEATURE_NAMES[: TRACKER_INPUTS if state_size else net.inputs]),
         "units": "m, s, rad; Y up; yaw 0 = +Z",
         **(metadata or {}),
     }

@@ -18,7 +18,7 @@ from typing import Callable
 
 import numpy as np
 
-from .features import relative_yaw_of_output, tracker_features, yaw_slot
+from .features import FRAME_INPUTS, NUM_INPUTS, PREV, TRACKER_INPUTS, frame_features, relative_yaw_of_output, yaw_slot
 from .geometry import wrap_angle
 from .simulate import TrackerSequence
 
@@ -26,7 +26,8 @@ DEAD_ZONE = np.radians(25.0)
 
 
 class OnnxModel:
-    """The exported model through onnxruntime (CPU, one thread): f(x (B, 42)) -> (B, 6)."""
+    """The exported model through onnxruntime (CPU, one thread): f(x (B, inputs)) -> (B, 6);
+    `inputs` 54, or 42 for a model from before the context."""
 
     def __init__(self, path):
         import onnxruntime as ort
@@ -36,6 +37,7 @@ class OnnxModel:
         opts.inter_op_num_threads = 1
         self.session = ort.InferenceSession(str(path), sess_options=opts, providers=["CPUExecutionProvider"])
         self.input = self.session.get_inputs()[0].name
+        self.inputs = int(self.session.get_inputs()[0].shape[1])
 
     def __call__(self, x: np.ndarray) -> np.ndarray:
         return self.session.run(None, {self.input: np.ascontiguousarray(x, dtype=np.float32)})[0]
@@ -80,6 +82,7 @@ class TorchModel:
         import torch
 
         self.net, self.torch = net.eval(), torch
+        self.inputs = net.inputs
 
     def __call__(self, x: np.ndarray) -> np.ndarray:
         with self.torch.no_grad():
@@ -87,13 +90,14 @@ class TorchModel:
 
 
 def sequence_features(seqs: list[TrackerSequence]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Padded tracker features (B, T, 36) float32, HMD yaw (B, T), lengths (B,)."""
+    """Padded frame features (B, T, 48) float32 (`features.frame_features`; a recurrent model
+    takes the first 36), HMD yaw (B, T), lengths (B,)."""
     lengths = np.array([s.num_frames for s in seqs])
     T = int(lengths.max())
-    feats = np.zeros((len(seqs), T, 36), dtype=np.float32)
+    feats = np.zeros((len(seqs), T, FRAME_INPUTS), dtype=np.float32)
     yaw = np.zeros((len(seqs), T))
     for b, s in enumerate(seqs):
-        f, y = tracker_features(s.pos, s.rot, s.dt)
+        f, y = frame_features(s.pos, s.rot, s.dt)
         feats[b, : len(f)], yaw[b, : len(f)] = f, y
     return feats, yaw, lengths
 
@@ -114,7 +118,8 @@ def run_network(
     (NaN, ±inf: a corrupted state). If `finite` is a (B, T) bool array, it receives whether each
     raw network output was finite."""
     B, T, _ = feats.shape
-    x = np.zeros((B, 42), dtype=np.float32)
+    inputs = getattr(model, "inputs", NUM_INPUTS)
+    x = np.zeros((B, inputs), dtype=np.float32)
     body = np.zeros((B, T))
     prev_world = None
     for t in range(T):
@@ -122,13 +127,14 @@ def run_network(
             rows, values = inject_yaw[t]
             prev_world = prev_world.copy()
             prev_world[rows] = values
-        x[:, :36] = feats[:, t]
+        x[:, :TRACKER_INPUTS] = feats[:, t, :TRACKER_INPUTS]
+        x[:, PREV.stop :] = feats[:, t, TRACKER_INPUTS : TRACKER_INPUTS + inputs - PREV.stop]
         known = np.zeros(B, dtype=bool) if prev_world is None else np.isfinite(prev_world)
         previous = np.where(known, prev_world if prev_world is not None else 0.0, hmd_yaw[:, t])
-        x[:, 36:] = yaw_slot(previous - hmd_yaw[:, t])
+        x[:, PREV] = yaw_slot(previous - hmd_yaw[:, t])
         if inject is not None and t in inject:
             rows, values = inject[t]
-            x[rows, 36:] = values
+            x[rows, PREV] = values
         out = model(x)
         if finite is not None:
             finite[:, t] = np.isfinite(out).all(axis=1)
@@ -148,7 +154,7 @@ def run_recurrent(model, feats: np.ndarray, hmd_yaw: np.ndarray) -> np.ndarray:
     body = np.zeros((B, T))
     previous = hmd_yaw[:, 0].copy()
     for t in range(T):
-        out, h = model(feats[:, t], h)
+        out, h = model(feats[:, t, :TRACKER_INPUTS], h)
         h = np.where(np.isfinite(h).all(axis=1, keepdims=True), h, 0.0).astype(np.float32)
         phi, ok = relative_yaw_of_output(out)
         previous = np.where(ok, hmd_yaw[:, t] + phi, previous)
@@ -160,24 +166,23 @@ RECURRENT_WARMUP = 1.5  # s of input after a reset before the recurrent model's 
 BLEND_RATE = 2.0  # per second: how fast the recurrent model's weight moves to its target
 
 
-def page_yaw(main: np.ndarray, recurrent: np.ndarray, dt: np.ndarray, fewer) -> np.ndarray:
+def page_yaw(main: np.ndarray, recurrent: np.ndarray, dt: np.ndarray) -> np.ndarray:
     """The VR page's body yaw (B, T) (`network-yaw.ts`): the recurrent model's weight targets ½
-    (the mean on the circle of both models) with both hands tracked and 1 with fewer devices
-    (`fewer`: a bool or a (B, T) mask), 0 until the recurrent model has had `RECURRENT_WARMUP`
-    s of input (summed dt, the first frame's included), and moves there at `BLEND_RATE` a
-    second; where the weighted vectors cancel, the main model's yaw."""
-    fewer = np.broadcast_to(np.asarray(fewer, dtype=bool), main.shape)
+    (the mean on the circle of both models) whatever devices are tracked, 0 until the recurrent
+    model has had `RECURRENT_WARMUP` s of input (summed dt, the first frame's included), and
+    moves there at `BLEND_RATE` a second; where the weighted vectors cancel, the main model's
+    yaw."""
     age = np.cumsum(dt, axis=1)
     w = np.zeros(main.shape[0])
     out = np.empty_like(main)
     for t in range(main.shape[1]):
-        target = np.where(age[:, t] < RECURRENT_WARMUP, 0.0, np.where(fewer[:, t], 1.0, 0.5))
+        target = np.where(age[:, t] < RECURRENT_WARMUP, 0.0, 0.5)
         step = BLEND_RATE * np.maximum(dt[:, t], 0.0)
         w = w + np.clip(target - w, -step, step)
         s = (1 - w) * np.sin(main[:, t]) + w * np.sin(recurrent[:, t])
         c = (1 - w) * np.cos(main[:, t]) + w * np.cos(recurrent[:, t])
         mixed = np.where(np.hypot(s, c) > 1e-6, np.arctan2(s, c), main[:, t])
-        out[:, t] = np.where(w == 0, main[:, t], np.where(w == 1, recurrent[:, t], mixed))
+        out[:, t] = np.where(w == 0, main[:, t], mixed)
     return out
 
 

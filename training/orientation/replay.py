@@ -22,7 +22,7 @@ from pathlib import Path
 import numpy as np
 
 from . import data
-from .features import tracker_features
+from .features import frame_features
 from .geometry import hmd_yaw, wrap_angle
 from .motion_classes import CLASSES
 from .predictors import OnnxModel, load_model, page_yaw, run_network, run_recurrent
@@ -46,13 +46,11 @@ def load(path: Path) -> dict:
 def network_yaw(model, rec: dict, recurrent=None) -> np.ndarray:
     """The page's body yaw for a recording whose controllers stay tracked: the network's, or
     with the recurrent model the mean of both once it has warmed up (`network-yaw.ts`)."""
-    feats, yaw = tracker_features(rec["_pos"], rec["_rot"], rec["_dt"])
+    feats, yaw = frame_features(rec["_pos"], rec["_rot"], rec["_dt"])
     x = feats[None].astype(np.float32)
     body = run_network(model, x, yaw[None])[0]
     return (
-        body
-        if recurrent is None
-        else page_yaw(body[None], run_recurrent(recurrent, x, yaw[None]), rec["_dt"][None], False)[0]
+        body if recurrent is None else page_yaw(body[None], run_recurrent(recurrent, x, yaw[None]), rec["_dt"][None])[0]
     )
 
 

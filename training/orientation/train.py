@@ -4,11 +4,12 @@
     python -m orientation.train --only main     # just public/models/orientation.onnx
     python -m orientation.train --quick --out-dir /tmp/x   # tiny smoke run (CI)
 
-Three models, all seeded (same machine ⇒ same bytes):
+Four models, all seeded (same machine ⇒ same bytes):
 - `main`   r = 50, look-around augmentation → public/models/orientation.onnx (+ .npz weights)
 - `r1`     r = 1 (teacher forcing: the previous slot is always the ground truth, the thesis's
            failing variant) → training/models/orientation_r1.onnx
 - `nolook` r = 50 without the look-around augmentation → training/models/orientation_nolook.onnx
+- `split`  the shipped recipe on the fixed split's people only → training/models/orientation_split.onnx
 
 Training (thesis §"Network training", docs/method.md §9): every epoch simulates fresh tracker
 sequences from every training clip (new random augmentation each epoch: with ~4 min of mocap,
@@ -41,7 +42,7 @@ import numpy as np
 import torch
 
 from . import data
-from .features import tracker_features, yaw_slot
+from .features import FRAME_COLUMNS, PREV, frame_features, yaw_slot
 from .geometry import wrap_angle
 from .model import OrientationNet, export_onnx, state_to_numpy
 from .simulate import TRAIN_AUGMENT, Augment, simulate, without_look_around
@@ -88,6 +89,10 @@ MODELS = {
     # Ablations only: fewer steps keep `npm run train` within its time budget.
     "r1": TrainConfig(r=1, init_mix=(1.0, 0.0, 0.0), epochs=6, max_batches_per_epoch=500),
     "nolook": TrainConfig(augment=without_look_around(TRAIN_AUGMENT), epochs=8, max_batches_per_epoch=500),
+    # The shipped recipe on the fixed split only: the network the page's mix with the recurrent
+    # model (trained on the same split) is judged with, both of them held out from the people
+    # scored (`test_orientation_accuracy.py`, README "Per device set").
+    "split": TrainConfig(epochs=12, max_batches_per_epoch=500),
 }
 
 
@@ -95,7 +100,7 @@ MODELS = {
 class Epoch:
     """Flat arrays of one epoch's simulated sequences and the valid window starts."""
 
-    feats: np.ndarray  # (N, 36) float32
+    feats: np.ndarray  # (N, 48) float32: `features.frame_features`
     hmd_yaw: np.ndarray  # (N,)
     body_yaw: np.ndarray  # (N,)
     starts: np.ndarray  # window starts s: s − 1 and s + r − 1 lie in the same sequence
@@ -108,7 +113,7 @@ def simulate_epoch(clips, rng: np.random.Generator, cfg: TrainConfig) -> Epoch:
         aug = styled if cfg.style_arms and clip.subject.startswith("100style") else cfg.augment
         for _ in range(cfg.variants_per_clip):
             seq = simulate(clip, rng, aug)
-            f, y = tracker_features(seq.pos, seq.rot, seq.dt)
+            f, y = frame_features(seq.pos, seq.rot, seq.dt)
             n = len(f)
             # Window [s, s + r) needs frame s − 1 (the previous truth); frame 0 (a reset, zero
             # velocities) is still allowed inside windows starting at 1.
@@ -124,10 +129,11 @@ def simulate_epoch(clips, rng: np.random.Generator, cfg: TrainConfig) -> Epoch:
 
 
 def normalization(ep: Epoch) -> tuple[np.ndarray, np.ndarray]:
-    """Mean and std of the 42 inputs, the previous slot taken as the true previous yaw."""
+    """Mean and std of the 54 inputs, the previous slot taken as the true previous yaw."""
     prev = yaw_slot(ep.body_yaw[ep.starts - 1] - ep.hmd_yaw[ep.starts])
-    mean = np.concatenate([ep.feats.mean(0), prev.mean(0)])
-    std = np.concatenate([ep.feats.std(0), prev.std(0)])
+    mean, std = np.zeros(len(FRAME_COLUMNS) + 6), np.zeros(len(FRAME_COLUMNS) + 6)
+    mean[FRAME_COLUMNS], std[FRAME_COLUMNS] = ep.feats.mean(0), ep.feats.std(0)
+    mean[PREV], std[PREV] = prev.mean(0), prev.std(0)
     return mean, std
 
 
@@ -143,11 +149,12 @@ def fast_rollout(
     """
     linear = [m for m in net.mlp if isinstance(m, torch.nn.Linear)]
     l1, middle, l3 = linear[0], linear[1:-1], linear[-1]
-    m, iv = net.mean[36:], net.inv_std[36:]
+    m, iv = net.mean[PREV], net.inv_std[PREV]
     fixed = torch.tensor([0.0, 0.0, 0.0, 0.0, 1.0, 0.0])
-    const = ((fixed - m) * iv) @ l1.weight[:, 36:].T + l1.bias
-    wc, ws = l1.weight[:, 36] * iv[0], -l1.weight[:, 38] * iv[2]
-    pre = ((feats - net.mean[:36]) * net.inv_std[:36]) @ l1.weight[:, :36].T + const
+    const = ((fixed - m) * iv) @ l1.weight[:, PREV].T + l1.bias
+    wc, ws = l1.weight[:, PREV.start] * iv[0], -l1.weight[:, PREV.start + 2] * iv[2]
+    cols = torch.as_tensor(FRAME_COLUMNS)
+    pre = ((feats - net.mean[cols]) * net.inv_std[cols]) @ l1.weight[:, cols].T + const
     cd, sd = torch.cos(dyaw), torch.sin(dyaw)
     w3, b3 = l3.weight[[0, 2]], l3.bias[[0, 2]]
 

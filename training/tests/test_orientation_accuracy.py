@@ -12,7 +12,7 @@ from orientation.features import yaw_slot
 from orientation.geometry import quat_from_yaw, quat_mul, rotate_y, wrap_angle
 from orientation.predictors import OnnxModel, load_model, run_network, run_recurrent, sequence_features
 from orientation.simulate import EVAL_AUGMENT, TrackerSequence, simulate
-from orientation.train import PUBLIC_MODEL
+from orientation.train import MODELS_DIR, PUBLIC_MODEL
 
 
 @pytest.fixture(scope="module")
@@ -139,37 +139,23 @@ def test_a_nan_previous_body_yaw_is_a_reset(held_out):
         assert diff[t + 90 :].max() < 5.0, (row, diff[t + 90 :].max())
 
 
-def test_the_vr_pages_choice_per_device_set_is_the_better_one(held_out):
-    """The VR page's per-set choice (network-yaw.ts): the mean of both models with both hands
-    (README: 19.4° against 20.9° and 22.1°), the recurrent model with one controller or none,
-    because there it beats the feed-back network (23.0° vs 24.9°, 26.8° vs 28.0°). With the
-    headset alone a calibrated headset's forward is nearly as good (27.8°): there the model has
-    only to beat it; with a controller, by a tenth."""
+def test_the_vr_pages_mix_beats_either_model_for_every_device_set(held_out):
+    """The VR page's body yaw (network-yaw.ts) is the mean on the circle of the feed-back network
+    and the recurrent model, whatever devices are tracked. Judged where both are held out: the
+    shipped recipe trained on the fixed split (`orientation_split.onnx`, as the GRU is) on the
+    split's held-out people, with look-around — the mean beats either model alone with two
+    controllers, one, or none (README, "Per device set": 18.7° / 20.7° / 26.3° against the
+    network's 20.6° / 21.8° / 29.1° and the GRU's 22.1° / 23.0° / 26.8°), and HMD forward."""
+    split = MODELS_DIR / "orientation_split.onnx"
+    if not split.is_file():
+        pytest.fail(f"{split} missing: run `npm run train -- --only split`")
     seqs = evaluate.held_out_sequences(True, clips=held_out, log=lambda *_: None)
-    models = {"network r=50": OnnxModel(PUBLIC_MODEL), "recurrent": load_model(evaluate.GRU_MODEL)}
+    models = {evaluate.PREDICTORS_MAIN: OnnxModel(split), "recurrent": load_model(evaluate.GRU_MODEL)}
     for name, absent in evaluate.DEVICE_SETS.items():
-        r = evaluate.evaluate([evaluate.with_absent(q, absent) for q in seqs], models, absent)[0]
-        r["feed-back"] = r["network r=50"]
-        if not absent:
-            # Both hands: the mean of the two models beat either on these people while both were
-            # held out from them (19.3° against 20.9° and 22.1°). The shipped network has since
-            # trained on them (the GRU has not), so here the mean must stay within 0.5° of the
-            # better model and beat the other: a held-out verdict on the mix needs a GRU trained
-            # leave-one-person-out too.
-            print(
-                f"{name}: page {r[evaluate.PAGE].mean:.1f}°, feed-back {r['feed-back'].mean:.1f}°, recurrent {r['recurrent'].mean:.1f}°"
-            )
-            best, worst = sorted((r["feed-back"].mean, r["recurrent"].mean))
-            assert r[evaluate.PAGE].mean < best + 0.5 and r[evaluate.PAGE].mean < worst
-            continue
-        # The page's yaw is the recurrent model's once it has warmed up (1.5 s after a reset).
-        page = r[evaluate.PAGE].mean
-        print(
-            f"{name}: page {page:.1f}°, recurrent {r['recurrent'].mean:.1f}°, feed-back {r['feed-back'].mean:.1f}°, HMD forward {r['HMD forward'].mean:.1f}°"
-        )
-        assert abs(page - r["recurrent"].mean) < 0.5, name
-        assert page < r["feed-back"].mean, name
-        assert page < (0.9 if len(absent) == 1 else 1.0) * r["HMD forward"].mean, name
+        r = evaluate.evaluate([evaluate.with_absent(q, absent) for q in seqs], models)[0]
+        page, net, gru, hmd = (r[k].mean for k in (evaluate.PAGE, evaluate.PREDICTORS_MAIN, "recurrent", "HMD forward"))
+        print(f"{name}: page {page:.1f}°, feed-back {net:.1f}°, recurrent {gru:.1f}°, HMD forward {hmd:.1f}°")
+        assert page < min(net, gru) and page < hmd, name
 
 
 def test_the_recurrent_loop_forgets_a_nan(held_out):

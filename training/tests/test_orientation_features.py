@@ -1,10 +1,19 @@
-"""The 42 network inputs: frames, units, invariances, and the per-frame (runtime) builder
+"""The 54 network inputs: frames, units, invariances, and the per-frame (runtime) builder
 against the vectorized (training) one. No mocap needed: synthetic tracker motion."""
 
 import numpy as np
 import pytest
 
-from orientation.features import MAX_DT, FeatureBuilder, relative_yaw_of_output, tracker_features, yaw_slot
+from orientation.features import (
+    CONTEXT_OFFSET,
+    CONTEXT_WINDOWS,
+    MAX_DT,
+    FeatureBuilder,
+    frame_features,
+    relative_yaw_of_output,
+    tracker_features,
+    yaw_slot,
+)
 from orientation.geometry import (
     hmd_yaw,
     quat_from_axis_angle,
@@ -81,12 +90,12 @@ def test_known_motion_in_the_hmd_frame():
 
 def test_invariant_to_room_yaw_translation_and_quaternion_sign():
     pos, rot, dt = random_motion()
-    f0, y0 = tracker_features(pos, rot, dt)
+    f0, y0 = frame_features(pos, rot, dt)
     psi = 1.234
     pos2 = rotate_y(pos, psi) + np.array([3.0, 0.0, -2.0])
     rot2 = quat_mul(quat_from_yaw(np.full(rot.shape[:2], psi)), rot)
     rot2[::3] *= -1.0
-    f1, y1 = tracker_features(pos2, rot2, dt)
+    f1, y1 = frame_features(pos2, rot2, dt)
     assert np.allclose(f0, f1, atol=1e-9)
     assert np.allclose(wrap_angle(y1 - y0), psi)
 
@@ -95,19 +104,49 @@ def test_per_frame_builder_equals_vectorized():
     pos, rot, dt = random_motion(n=120, seed=3)
     dt[30] = 2 / 90  # dropped frame
     dt[60] = MAX_DT + 0.05  # pause: velocities restart from zero
-    f, yaw = tracker_features(pos, rot, dt)
+    f, yaw = frame_features(pos, rot, dt)
     assert np.allclose(f[60, 6:12], 0.0) and np.allclose(f[60, 18:24], 0.0)
+    assert np.allclose(f[60, 42:], 0.0), "the windows start again after a gap"
     fb = FeatureBuilder()
     for t in range(len(dt)):
         x = fb.update(pos[t], rot[t], dt[t])
-        assert np.allclose(x[:36], f[t], atol=2e-6, rtol=1e-6), t
+        assert np.allclose(x[:36], f[t, :36], atol=2e-6, rtol=1e-6), t
+        assert np.allclose(x[CONTEXT_OFFSET:], f[t, 36:], atol=2e-6, rtol=1e-6), t
         assert abs(fb.hmd_yaw - yaw[t]) < 1e-12
-        assert np.allclose(x[36:], yaw_slot(0.0)), "prev slot untouched by update (HMD forward after reset)"
+        assert np.allclose(x[36:42], yaw_slot(0.0)), "prev slot untouched by update (HMD forward after reset)"
     fb.set_previous(0.5)
-    assert np.allclose(fb.x[36:], yaw_slot(0.5))
+    assert np.allclose(fb.x[36:42], yaw_slot(0.5))
     fb.reset()
     x = fb.update(pos[5], rot[5], 0.01)
     assert np.allclose(x[6:12], 0.0), "after reset the first frame has no velocity"
+
+
+def test_context_hands_and_head_windows():
+    # The headset walks at v (world) while facing yaw ψ; the hands are held at fixed offsets.
+    psi, fps, n = -0.6, 90.0, 200
+    v = np.array([0.4, 0.0, -1.1])
+    t = np.arange(n) / fps
+    pos = np.zeros((n, 3, 3))
+    pos[:, 0] = np.outer(t, v) + [0.0, 1.6, 0.0]
+    pos[:, 1] = pos[:, 0] + rotate_y(np.array([-0.25, -0.4, 0.3]), psi)
+    pos[:, 2] = pos[:, 0] + rotate_y(np.array([0.2, -0.5, 0.35]), psi)
+    rot = np.tile(quat_from_yaw(psi + np.pi), (n, 3, 1))
+    f, _ = frame_features(pos, rot, np.full(n, 1 / fps))
+    ctx = f[:, 36:]
+    assert np.allclose(ctx[:, 0:3], [-0.25, -0.4, 0.3]) and np.allclose(ctx[:, 3:6], [0.2, -0.5, 0.35])
+    local = rotate_y(v, -psi)[[0, 2]]
+    assert np.allclose(ctx[0, 6:], 0.0), "frame 0 has no window"
+    for i, w in enumerate(CONTEXT_WINDOWS):
+        assert np.allclose(ctx[1:, 6 + 2 * i : 8 + 2 * i], local, atol=1e-9), w
+    # A window over a stop and a start averages them: standing, then walking from frame 89. At
+    # 95.3 Hz the 1-s window spans 95 frames (no frame sits exactly 1 s back).
+    fps = 95.3
+    pos2 = pos.copy()
+    pos2[:, 0] = np.outer(np.maximum(np.arange(n) - 89, 0) / fps, v) + [0.0, 1.6, 0.0]
+    f2, _ = frame_features(pos2, rot, np.full(n, 1 / fps))
+    i = 89 + 45  # 45 frames into the walk: 45 of the 1-s window's 95 moved
+    assert np.allclose(f2[i, 36 + 10 : 36 + 12], local * 45 / 95, atol=1e-9)
+    assert np.allclose(f2[i, 36 + 6 : 36 + 8], local, atol=1e-9), "the 0.25-s window is all walk"
 
 
 def test_angular_velocity_is_the_short_way_round():

@@ -6,6 +6,7 @@ import pytest
 import torch
 
 from orientation import data, lopo
+from orientation.features import FRAME_INPUTS, NUM_INPUTS
 from orientation.motion_classes import CLASSES
 from orientation.train import Epoch, fast_rollout
 from test_orientation_model import random_net
@@ -16,7 +17,7 @@ def test_the_stacked_rollout_is_each_members_own(r):
     nets = [random_net(10 * r + k) for k in range(3)]
     stacked = lopo.StackedNets(nets)
     g = torch.Generator().manual_seed(r)
-    feats = torch.randn(3, 11, r, 36, generator=g)
+    feats = torch.randn(3, 11, r, FRAME_INPUTS, generator=g)
     dyaw = 0.2 * torch.randn(3, 11, r, generator=g)
     prev0 = torch.nn.functional.normalize(torch.randn(3, 11, 2, generator=g), dim=-1)
     got = stacked.rollout(feats, dyaw, prev0)
@@ -24,7 +25,7 @@ def test_the_stacked_rollout_is_each_members_own(r):
         want = fast_rollout(net, feats[k], dyaw[k], prev0[k])
         assert torch.allclose(got[k], want, atol=1e-5), (k, (got[k] - want).abs().max())
         member = stacked.member(k)
-        x = torch.randn(5, 42, generator=g)
+        x = torch.randn(5, NUM_INPUTS, generator=g)
         assert torch.allclose(member(x), net(x), atol=1e-6)
     # One member's loss moves only that member's weights.
     got[1].sum().backward()
@@ -33,7 +34,7 @@ def test_the_stacked_rollout_is_each_members_own(r):
 
 
 def test_a_fold_never_draws_a_window_of_its_person():
-    ep = Epoch(np.zeros((10, 36), np.float32), np.zeros(10), np.zeros(10), np.arange(1, 9))
+    ep = Epoch(np.zeros((10, FRAME_INPUTS), np.float32), np.zeros(10), np.zeros(10), np.arange(1, 9))
     shared = lopo.SharedEpoch(ep, np.array([0, 0, 0, 1, 1, 1, 2, 2, 2, 2]))
     assert set(shared.owner[lopo.fold_view(shared, 1).starts]) == {0, 2}
     assert len(lopo.fold_view(shared, None).starts) == 8

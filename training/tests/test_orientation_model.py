@@ -8,7 +8,7 @@ import onnx
 import pytest
 import torch
 
-from orientation.features import FEATURE_NAMES
+from orientation.features import FEATURE_NAMES, FRAME_INPUTS, NUM_INPUTS
 from orientation.fixtures import FIXTURE
 from orientation.model import INPUT_NAME, OUTPUT_NAME, OrientationNet, net_from_state, rollout
 from orientation.predictors import OnnxModel, TorchModel
@@ -18,25 +18,25 @@ from orientation.train import MODELS_DIR, PUBLIC_MODEL, fast_rollout
 def random_net(seed=0):
     torch.manual_seed(seed)
     rng = np.random.default_rng(seed)
-    net = OrientationNet(rng.normal(0, 1, 42), np.abs(rng.normal(1, 0.3, 42)))
+    net = OrientationNet(rng.normal(0, 1, NUM_INPUTS), np.abs(rng.normal(1, 0.3, NUM_INPUTS)))
     for p in net.parameters():
         p.data.normal_(0, 0.4)
     return net
 
 
 def test_relu_after_each_hidden_layer():
-    # docs/method.md §9: 42 → 32 → ReLU → 32 → ReLU → 6 (the released MMVR model misses one ReLU).
+    # docs/method.md §9: 54 → 32 → ReLU → 32 → ReLU → 6 (the released MMVR model misses one ReLU).
     kinds = [type(m).__name__ for m in OrientationNet().mlp]
     assert kinds == ["Linear", "ReLU", "Linear", "ReLU", "Linear"]
     shapes = [tuple(m.weight.shape) for m in OrientationNet().mlp if hasattr(m, "weight")]
-    assert shapes == [(32, 42), (32, 32), (6, 32)]
+    assert shapes == [(32, NUM_INPUTS), (32, 32), (6, 32)] and NUM_INPUTS == 54
 
 
 @pytest.mark.parametrize("r", [1, 2, 9])
 def test_fast_rollout_equals_the_plain_rollout(r):
     net = random_net(r)
     g = torch.Generator().manual_seed(r)
-    feats = torch.randn(11, r, 36, generator=g)
+    feats = torch.randn(11, r, FRAME_INPUTS, generator=g)
     dyaw = 0.2 * torch.randn(11, r, generator=g)
     prev0 = torch.nn.functional.normalize(torch.randn(11, 2, generator=g), dim=1)
     want, _ = rollout(net, feats, dyaw, prev0)
@@ -51,10 +51,10 @@ def test_fast_rollout_equals_the_plain_rollout(r):
 
 def test_normalization_is_inside_the_model():
     net = random_net(3)
-    x = torch.randn(5, 42)
+    x = torch.randn(5, NUM_INPUTS)
     manual = net.mlp((x - net.mean) * net.inv_std)
     assert torch.allclose(net(x), manual)
-    const = OrientationNet(np.zeros(42), np.zeros(42))
+    const = OrientationNet(np.zeros(NUM_INPUTS), np.zeros(NUM_INPUTS))
     assert torch.all(const.inv_std == 1.0), "constant inputs are not divided by ~0"
 
 
@@ -77,7 +77,7 @@ def test_committed_onnx_is_small_self_contained_and_documented():
     (inp,), (out,) = model.graph.input, model.graph.output
     assert inp.name == INPUT_NAME and out.name == OUTPUT_NAME
     dims = lambda v: [d.dim_value or d.dim_param for d in v.type.tensor_type.shape.dim]  # noqa: E731
-    assert dims(inp)[1:] == [42] and dims(out)[1:] == [6]
+    assert dims(inp)[1:] == [NUM_INPUTS] and dims(out)[1:] == [6]
     assert isinstance(dims(inp)[0], str), "batch dimension is dynamic"
     assert inp.type.tensor_type.elem_type == onnx.TensorProto.FLOAT
     meta = {p.key: p.value for p in model.metadata_props}

@@ -7,6 +7,7 @@ import time
 import numpy as np
 
 from orientation import train
+from orientation.features import NUM_INPUTS
 from orientation.model import net_from_state
 from orientation.predictors import OnnxModel, TorchModel
 
@@ -36,7 +37,7 @@ def test_short_training_reduces_the_loss(tmp_path, mocap, mmdb_cli, capsys):
         "orientation_main.npz",
     ]
     net = net_from_state(dict(np.load(tmp_path / "orientation_main.npz")))
-    x = np.random.default_rng(0).normal(0, 1, (17, 42)).astype(np.float32)
+    x = np.random.default_rng(0).normal(0, 1, (17, NUM_INPUTS)).astype(np.float32)
     assert np.abs(OnnxModel(onnx_path)(x) - TorchModel(net)(x)).max() < 1e-5
     assert np.abs(OnnxModel(onnx_path)(x[:1]) - TorchModel(net)(x[:1])).max() < 1e-5
 

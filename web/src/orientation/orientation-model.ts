@@ -5,9 +5,9 @@
  * Runs `public/models/orientation.onnx` with onnxruntime-web's WASM backend. Mirrors
  * `training/orientation/predictors.py::run_network` step for step (the contract is
  * `docs/orientation-model.md`):
- *   1. inputs 0..35 from the poses and the real dt ({@link OrientationFeatures});
+ *   1. inputs 0..35 and 42..53 from the poses and the real dt ({@link OrientationFeatures});
  *   2. previous slot = 6D of (previous body yaw − this frame's HMD yaw); after `reset()`, 0;
- *   3. run; φ = atan2(−out[2], out[0]); a non-finite or degenerate output keeps the previous
+ *   3. run (a model from before the context takes the first 42); φ = atan2(−out[2], out[0]); a non-finite or degenerate output keeps the previous
  *      body yaw (the HMD yaw right after a reset);
  *   4. body yaw = HMD yaw + φ (radians, 0 = facing +Z, as the character's yaw).
  * A previous body yaw that is not finite counts as a reset (previous slot 0, fallback the HMD
@@ -20,7 +20,7 @@
  */
 import * as ort from 'onnxruntime-web/wasm';
 import { wrapAngle } from '../yaw.ts';
-import { NUM_INPUTS, OrientationFeatures, PREV_OFFSET } from './features.ts';
+import { LEGACY_INPUTS, NUM_INPUTS, OrientationFeatures, PREV_OFFSET } from './features.ts';
 
 /** Inputs before the previous slot: the three trackers' features (a recurrent model takes only these). */
 const TRACKER_INPUTS = PREV_OFFSET;
@@ -54,6 +54,7 @@ export class OrientationModel {
   private constructor(
     private readonly session: ort.InferenceSession,
     stateSize: number,
+    inputs = NUM_INPUTS,
   ) {
     // The input tensors wrap our arrays: filled in place every frame, never copied by us.
     // (onnxruntime-web 1.30 leaves a pre-allocated CPU output tensor unwritten, so the result
@@ -67,9 +68,16 @@ export class OrientationModel {
       this.feeds = { [input]: new ort.Tensor('float32', this.trackerInput, [1, TRACKER_INPUTS]), [stateInput]: new ort.Tensor('float32', this.state, [1, stateSize]) };
     } else {
       this.trackerInput = this.trackerSource = this.state = this.stateOutputName = null;
-      this.feeds = { [input]: new ort.Tensor('float32', this.features.input, [1, NUM_INPUTS]) };
+      // A 42-input model reads a view of the first 42 (made once: no per-frame copy).
+      const x = inputs === NUM_INPUTS ? this.features.input : this.features.input.subarray(0, inputs);
+      this.feeds = { [input]: new ort.Tensor('float32', x, [1, inputs]) };
     }
     this.outputName = session.outputNames[0];
+  }
+
+  /** How many features the model takes: 54, 42 (a model from before the context), or 36 (recurrent). */
+  get inputCount(): number {
+    return this.feeds[this.session.inputNames[0]].dims[1];
   }
 
   /** Whether the model is recurrent (carries a state instead of the fed-back yaw). */
@@ -96,7 +104,15 @@ export class OrientationModel {
     }
     const inputs = session.inputNames.length;
     const outputs = session.outputNames.length;
-    if (inputs === 1 && outputs === 1) return new OrientationModel(session, 0);
+    if (inputs === 1 && outputs === 1) {
+      // The feature count: 54, or 42 for a model from before the context (a dynamic size: 54).
+      const meta = session.inputMetadata[0];
+      const dim = meta?.isTensor ? meta.shape[1] : NUM_INPUTS;
+      const count = typeof dim === 'number' ? dim : NUM_INPUTS;
+      if (count === NUM_INPUTS || count === LEGACY_INPUTS) return new OrientationModel(session, 0, count);
+      await session.release();
+      throw new Error(`OrientationModel: the model takes ${count} features; expected ${NUM_INPUTS} (or ${LEGACY_INPUTS}, a model from before the context)`);
+    }
     // Recurrent: the state's size is the second input's second dimension.
     const meta = session.inputMetadata[1];
     const size = inputs === 2 && outputs === 2 && meta?.isTensor ? meta.shape[1] : NaN;

@@ -4,9 +4,9 @@ import { type NetworkYawPredictor, loadNetworkPredictor } from '../vr/network-ya
 import type { TrackedDrive } from '../vr/tracked-drive.ts';
 
 export interface YawPredictorChoiceOptions {
-  /** The orientation model's URL, and the fewer-devices model's (null: none). */
+  /** The orientation model's URL, and the recurrent model's (null: none). */
   model: string;
-  fewerDevices: string | URL | null;
+  recurrentModel: string | URL | null;
   /** What drives once the network has loaded: 'network', or 'heuristic' to keep the heuristic. */
   prefer: string;
   /** The choice (options `heuristic` and `network`) and the line that says which drives and why. */
@@ -41,8 +41,8 @@ export class YawPredictorChoice {
 
   /** Loads the network, once (the same promise after); resolves either way. */
   load(): Promise<void> {
-    const { model, fewerDevices, prefer, select } = this.options;
-    this.loading ??= loadNetworkPredictor(model, { fewerDevices }).then(
+    const { model, recurrentModel, prefer, select } = this.options;
+    this.loading ??= loadNetworkPredictor(model, { recurrentModel }).then(
       (network) => {
         this.network = network;
         this.choose(prefer === 'heuristic' ? 'heuristic' : 'network');

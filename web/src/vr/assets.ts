@@ -7,18 +7,18 @@ import { PACKAGE, assetUrl, shippedAssetUrl } from '../assets.ts';
 
 /** The VR page's database (docs/database.md, `vr.json`): slow walks, steps, gestures, idle. */
 export const DEFAULT_VR_DATABASE = 'databases/vr.mmdb';
-/** The orientation model for the headset and both controllers (docs/orientation-model.md). */
+/** The feed-back orientation network (docs/orientation-model.md). */
 export const DEFAULT_ORIENTATION_MODEL = 'models/orientation.onnx';
-/** The orientation model for one controller or none (recurrent; docs/orientation-model.md). */
-export const DEFAULT_ORIENTATION_MODEL_FEWER_DEVICES = 'models/orientation_gru.onnx';
+/** The recurrent orientation model, averaged with the network's yaw (docs/orientation-model.md). */
+export const DEFAULT_ORIENTATION_MODEL_RECURRENT = 'models/orientation_gru.onnx';
 
 /**
- * URL of a shipped orientation model: `fewerDevices` false, the main model; true, the recurrent
- * one for one controller or none. In the package, where the app's bundler put it.
+ * URL of a shipped orientation model: `recurrentModel` false, the feed-back network; true, the
+ * recurrent model. In the package, where the app's bundler put it.
  */
-export function orientationModelUrl(fewerDevices = false): URL {
-  return fewerDevices
-    ? shippedAssetUrl(DEFAULT_ORIENTATION_MODEL_FEWER_DEVICES, PACKAGE ? () => new URL(/* @vite-ignore */ '../models/orientation_gru.onnx', import.meta.url) : null)
+export function orientationModelUrl(recurrentModel = false): URL {
+  return recurrentModel
+    ? shippedAssetUrl(DEFAULT_ORIENTATION_MODEL_RECURRENT, PACKAGE ? () => new URL(/* @vite-ignore */ '../models/orientation_gru.onnx', import.meta.url) : null)
     : shippedAssetUrl(DEFAULT_ORIENTATION_MODEL, PACKAGE ? () => new URL(/* @vite-ignore */ '../models/orientation.onnx', import.meta.url) : null);
 }
 

@@ -14,26 +14,25 @@
  * hand trackers.ts shows; the network was trained with controllers that stop moving, which a
  * hand hanging at the side resembles more than a pose left floating in the room).
  *
- * A model per device set: with `fewer` (the recurrent model, docs/orientation-model.md), both
- * run every frame — so each is warm whenever the set changes. While both hands are tracked
- * (controllers or hands) the yaw is the mean of the two models' (on the circle: held-out people
- * 19.3° against the main model's 20.9° and the recurrent one's 22.1° — they err differently);
- * with one controller or none it is the recurrent model's (23.0° against 24.9° with one
- * controller, 26.8° against 28.0° headset-only). The drive springs the yaw it is given, so a
- * switch does not pop.
+ * With `recurrent` (the recurrent model, docs/orientation-model.md), both run every frame and the yaw
+ * is the mean of the two models' on the circle, whatever devices are tracked: they err
+ * differently, and on held-out people (both models trained without them) the mean beats either
+ * alone — two controllers 18.7° against the feed-back network's 20.6° and the recurrent one's
+ * 22.1°, one controller 20.7° against 21.8° and 23.0°, headset only 26.3° against 29.1° and
+ * 26.8° (README, "Per device set"). (Before the network had its context inputs, the recurrent
+ * model alone was the better one with fewer devices, and the page used it there.)
  * For its first `RECURRENT_WARMUP` s after a reset the recurrent model is not used (its loss
  * skipped its first 30 frames in training): blending it in at 0.5–1 s changed a search early in
  * the short held-in replays and moved the walk's root up to 20 cm (p95 5 → 20 cm); from 1.25 s
  * on no held-in replay changed (`npm run replay`), so 1.5 s.
- * The recurrent model's weight (0, ½ or 1) moves to its target at `BLEND_RATE` a second, so the
- * end of the warm-up and a set change blend over a quarter to half a second: a sudden 20° step
- * of the yaw made the drive search afresh and moved the root up to 18 cm (held-in walk replay).
+ * The recurrent model's weight (0, then ½) moves to its target at `BLEND_RATE` a second, so the
+ * end of the warm-up blends over a quarter of a second: a sudden 20° step of the yaw made the
+ * drive search afresh and moved the root up to 18 cm (held-in walk replay).
  */
 import type { OrientationModel } from '../orientation/orientation-model.ts'; // type only: onnxruntime loads on demand
 import type { BodyYawPredictor, TrackerPose } from './body-yaw.ts';
 import { type FetchOptions, fetchBytes } from '../fetch.ts';
 import { headingYaw } from '../yaw.ts';
-import { TRACKED } from './trackers.ts';
 
 /** Seconds of input the recurrent model needs after a reset before its yaw is used. */
 export const RECURRENT_WARMUP = 1.5;
@@ -75,35 +74,34 @@ export class NetworkYawPredictor implements BodyYawPredictor {
   };
 
   /**
-   * Where the last update's yaw came from: this model alone ('main': no `fewer`, or it is warming
-   * up), the mean of both ('both'), or `fewer` alone ('fewer': a controller was missing).
+   * Where the last update's yaw came from: this model alone ('main': no `recurrent`, or it is warming
+   * up), or the mean of both ('both').
    */
-  source: 'main' | 'both' | 'fewer' = 'main';
+  source: 'main' | 'both' = 'main';
   /** Seconds of input since the last reset. */
   age = 0;
-  /** The weight of `fewer`'s yaw in the one returned (0–1). */
+  /** The weight of `recurrent`'s yaw in the one returned (0, then ½). */
   weight = 0;
 
-  /** `fewer`: the model for one controller or none (optional). */
+  /** `recurrent`: the recurrent model, whose yaw is averaged with this one's (optional). */
   constructor(
     readonly model: OrientationModel,
-    readonly fewer: NetworkYawPredictor | null = null,
+    readonly recurrent: NetworkYawPredictor | null = null,
   ) {}
 
   update(hmd: TrackerPose, left: TrackerPose, right: TrackerPose, dt: number): number {
     const elapsed = dt > 0 ? dt : 0;
     this.age += elapsed;
     const own = this.updateOwn(hmd, left, right, dt);
-    if (!this.fewer) return own;
-    const other = this.fewer.update(hmd, left, right, dt);
+    if (!this.recurrent) return own;
+    const other = this.recurrent.update(hmd, left, right, dt);
     // Both were reset together and stepped alike: this age is the recurrent model's too.
-    this.source = this.age < RECURRENT_WARMUP ? 'main' : left.status !== TRACKED || right.status !== TRACKED ? 'fewer' : 'both';
-    const target = this.source === 'main' ? 0 : this.source === 'fewer' ? 1 : 0.5;
+    this.source = this.age < RECURRENT_WARMUP ? 'main' : 'both';
+    const target = this.source === 'main' ? 0 : 0.5;
     const step = BLEND_RATE * elapsed;
     this.weight += Math.max(-step, Math.min(step, target - this.weight));
     const w = this.weight;
     if (w === 0) return own;
-    if (w === 1) return other;
     // The weighted mean on the circle (`predictors.py::page_yaw`; `own` if they cancel).
     const s = (1 - w) * Math.sin(own) + w * Math.sin(other);
     const c = (1 - w) * Math.cos(own) + w * Math.cos(other);
@@ -151,13 +149,13 @@ export class NetworkYawPredictor implements BodyYawPredictor {
   /** Resolves when the pending run (if any) has finished: replays call it between frames. */
   settle(): Promise<void> {
     const own = this.pending ?? Promise.resolve();
-    return this.fewer ? Promise.all([own, this.fewer.settle()]).then(() => undefined) : own;
+    return this.recurrent ? Promise.all([own, this.recurrent.settle()]).then(() => undefined) : own;
   }
 
   reset(): void {
     this.age = 0;
     this.weight = 0;
-    this.fewer?.reset();
+    this.recurrent?.reset();
     this.generation++;
     this.started = false;
     this.pendingDt = 0;
@@ -172,19 +170,19 @@ export class NetworkYawPredictor implements BodyYawPredictor {
  * through the library's fetch (progress, a URL in every message, the cache for a versioned URL).
  * Rejects with a message the page shows when it cannot.
  */
-export async function loadNetworkPredictor(url: string | URL, options: FetchOptions & { fewerDevices?: string | URL | null } = {}): Promise<NetworkYawPredictor> {
-  const { fewerDevices, ...fetchOptions } = options;
+export async function loadNetworkPredictor(url: string | URL, options: FetchOptions & { recurrentModel?: string | URL | null } = {}): Promise<NetworkYawPredictor> {
+  const { recurrentModel, ...fetchOptions } = options;
   const fetchModel = (u: string | URL) => fetchBytes(u, { stage: 'model', ...fetchOptions });
-  // The per-set model is optional: without it (not served, broken) the main model serves every set.
-  const fewer = fewerDevices ? fetchModel(fewerDevices).catch((e: unknown) => (console.warn(`one-controller/headset-only model unavailable (${String(fewerDevices)}): ${String(e)}`), null)) : null;
-  const [{ OrientationModel }, bytes, fewerBytes] = await Promise.all([import('../orientation/orientation-model.ts'), fetchModel(url), fewer]);
-  let fewerModel: NetworkYawPredictor | null = null;
-  if (fewerBytes) {
+  // The recurrent model is optional: without it (not served, broken) the network's yaw is used alone.
+  const recurrentFetch = recurrentModel ? fetchModel(recurrentModel).catch((e: unknown) => (console.warn(`recurrent orientation model unavailable (${String(recurrentModel)}): ${String(e)}`), null)) : null;
+  const [{ OrientationModel }, bytes, recurrentBytes] = await Promise.all([import('../orientation/orientation-model.ts'), fetchModel(url), recurrentFetch]);
+  let recurrentPredictor: NetworkYawPredictor | null = null;
+  if (recurrentBytes) {
     try {
-      fewerModel = new NetworkYawPredictor(await OrientationModel.create(fewerBytes));
+      recurrentPredictor = new NetworkYawPredictor(await OrientationModel.create(recurrentBytes));
     } catch (e) {
-      console.warn(`one-controller/headset-only model unusable (${String(fewerDevices)}): ${String(e)}`);
+      console.warn(`recurrent orientation model unusable (${String(recurrentModel)}): ${String(e)}`);
     }
   }
-  return new NetworkYawPredictor(await OrientationModel.create(bytes), fewerModel);
+  return new NetworkYawPredictor(await OrientationModel.create(bytes), recurrentPredictor);
 }

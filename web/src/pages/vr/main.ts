@@ -105,7 +105,7 @@ async function main(): Promise<void> {
   // then, the heuristic for good if it cannot load — and the page says which and why.
   const yaw = new YawPredictorChoice(drive, heuristic, {
     model: params.get('model') ?? String(orientationModelUrl()),
-    fewerDevices: params.get('model') ? null : orientationModelUrl(true),
+    recurrentModel: params.get('model') ? null : orientationModelUrl(true),
     prefer: params.get('predictor') ?? 'network',
     select: $<HTMLSelectElement>('predictor'),
     status: $('predictor-status'),
@@ -217,7 +217,7 @@ async function main(): Promise<void> {
     [hook.rootYaw, hook.bodyYaw, hook.predictor] = [root.yaw, drive.yaw, drive.predictor.name];
     const net = yaw.network;
     if (net) [hook.predictorRuns, hook.predictorSkipped, hook.yawModel] = [net.runs, net.skipped, net.source];
-    if (net) hook.predictorFailures = net.failures + (net.fewer?.failures ?? 0);
+    if (net) hook.predictorFailures = net.failures + (net.recurrent?.failures ?? 0);
     hook.hipsHeight = hips ? hips.matrixWorld.elements[13] : NaN;
     const [scale, toes] = [character.object3d.scale.x, character.avatar?.toeHeights ?? [NaN, NaN]];
     [hook.toeHeights[0], hook.toeHeights[1], hook.hipsDrop] = [toes[0] * scale, toes[1] * scale, drive.hipsDrop];
