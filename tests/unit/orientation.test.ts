@@ -214,7 +214,7 @@ describe('OrientationModel (onnxruntime-web in Node)', () => {
   });
 });
 
-// The recurrent model the VR page uses with one controller or none (training/orientation/gru.py),
+// The recurrent model the VR page averages with the network (training/orientation/gru.py),
 // against the fixture the export wrote: the same loop, its state carried by the runner.
 describe('OrientationModel, recurrent (onnxruntime-web in Node)', () => {
   const gruFixture = JSON.parse(fs.readFileSync(path.join(ROOT, 'training/fixtures/orientation_gru_parity.json'), 'utf8')) as Fixture;

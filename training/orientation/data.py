@@ -29,7 +29,7 @@ REPO = TRAINING.parent
 DATA_DIR = Path(os.environ.get("ORIENTATION_DATA_DIR", TRAINING / "data"))
 MOCAP_DIR = Path(os.environ.get("MMDB_MOCAP_DIR", REPO.parent / "shared" / "mocap"))
 MMDB_BIN = Path(os.environ.get("MMDB_BIN", REPO / "wasm-core" / "target" / "opt" / "mmdb"))
-# The models the site serves: the feed-back network and the recurrent one (fewer devices).
+# The models the site serves: the feed-back network and the recurrent one (the page averages them).
 PUBLIC_MODEL = REPO / "public" / "models" / "orientation.onnx"
 GRU_MODEL = REPO / "public" / "models" / "orientation_gru.onnx"
 # Side models and the weights the fixtures are made from (not served).

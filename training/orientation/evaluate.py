@@ -75,8 +75,8 @@ PREDICTORS = {
     "network r=50, trained without look-around": MODELS_DIR / "orientation_nolook.onnx",
 }
 BASELINES = ("HMD forward", "dead zone 25°")
-# What the VR page does (web/src/vr/network-yaw.ts): with both hands tracked the mean of the two
-# models' yaws, with one controller or none the recurrent model's.
+# What the VR page does (web/src/vr/network-yaw.ts): the mean of the two models' yaws, whatever
+# devices are tracked.
 PAGE = "VR page (network ⊕ GRU)"
 
 

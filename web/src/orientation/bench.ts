@@ -67,7 +67,7 @@ async function benchModel(modelPath: string, fixturePath: string): Promise<{ upd
 
 async function main(): Promise<void> {
   Object.assign(result, await benchModel('models/orientation.onnx', '/training/fixtures/orientation_parity.json'));
-  // The recurrent model for one controller or none (the VR page runs both every frame).
+  // The recurrent model (the VR page runs both every frame and averages them).
   result.recurrent = await benchModel('models/orientation_gru.onnx', '/training/fixtures/orientation_gru_parity.json');
   out.textContent = JSON.stringify(result, null, 1);
 }
