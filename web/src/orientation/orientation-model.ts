@@ -7,8 +7,9 @@
  * `docs/orientation-model.md`):
  *   1. inputs 0..35 and 42..53 from the poses and the real dt ({@link OrientationFeatures});
  *   2. previous slot = 6D of (previous body yaw − this frame's HMD yaw); after `reset()`, 0;
- *   3. run (a model from before the context takes the first 42); φ = atan2(−out[2], out[0]); a non-finite or degenerate output keeps the previous
- *      body yaw (the HMD yaw right after a reset);
+ *   3. run (a model from before the context takes the first 42); φ = atan2(−out[2], out[0]);
+ *      a non-finite or degenerate output keeps the previous body yaw (the HMD yaw right after a
+ *      reset);
  *   4. body yaw = HMD yaw + φ (radians, 0 = facing +Z, as the character's yaw).
  * A previous body yaw that is not finite counts as a reset (previous slot 0, fallback the HMD
  * yaw), so the loop can never keep a NaN.
