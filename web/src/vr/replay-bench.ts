@@ -63,8 +63,8 @@ export interface ReplayBenchResult {
  * the reference with the headset looking down more than `BENT_PITCH`: the user bends at the
  * waist (in the mocap, with the headset looking down past 45°, the hips take 9–18 % of the
  * head's drop), so the crouch should give the hips at most half of it — not kneel. An elbow more than
- * `ELBOW_LIMIT` behind the torso's frontal plane while its controller is not is an arm bent the
- * wrong way.
+ * `ELBOW_LIMIT` behind the torso's frontal plane (through its shoulder) while its controller is
+ * not is an arm bent the wrong way.
  */
 export interface PoseCheck {
   uprightFrames: number;

@@ -113,7 +113,7 @@ const _world = new THREE.Quaternion();
 const _parent = new THREE.Quaternion();
 const _mid = new THREE.Vector3();
 
-/** Metres `v` is behind the frontal plane through `_mid` facing (sin ψ, 0, cos ψ) = (sy, 0, cy). */
+/** Metres `v` is behind the frontal plane through `_mid` (a shoulder) facing (sin ψ, 0, cos ψ) = (sy, 0, cy). */
 function behind(v: THREE.Vector3, sy: number, cy: number): number {
   return -((v.x - _mid.x) * sy + (v.z - _mid.z) * cy);
 }
@@ -144,7 +144,7 @@ export class UpperBody {
   readonly handPositions = new Float64Array(6);
   /**
    * How far (m) each elbow, and each controller's wrist target, is behind the torso's frontal
-   * plane (through the shoulders' midpoint, normal the torso's forward) after the last `apply`
+   * plane through that arm's shoulder (normal the torso's forward) after the last `apply`
    * (left, right; negative: in front). An elbow well behind while its target is not is an arm
    * bent the wrong way (the pose check of docs/vr.md).
    */
@@ -261,9 +261,6 @@ export class UpperBody {
     const objectScale = this.object.matrixWorld.getMaxScaleOnAxis();
     const torsoYaw = rootYaw + torsoTwist;
     const sy = Math.sin(torsoYaw), cy = Math.cos(torsoYaw);
-    // The frontal plane: through the shoulders' midpoint, facing (sin ψ, 0, cos ψ).
-    _mid.set(0, 0, 0);
-    for (const arm of this.arms) _mid.addScaledVector(_a.setFromMatrixPosition(arm.upper.matrixWorld), 1 / this.arms.length);
     for (let k = 0; k < this.arms.length; k++) {
       const arm = this.arms[k];
       const tracker = arm.side > 0 ? left : right;
@@ -277,6 +274,11 @@ export class UpperBody {
       arm.hand.position.copy(arm.handRest);
       arm.lower.updateWorldMatrix(false, true);
       if (arm.clavicle) this.reachWithClavicle(arm);
+      // The frontal plane, facing (sin ψ, 0, cos ψ), through this arm's shoulder (where the clavicle
+      // put it): an elbow straight below a shoulder that the twist or the clavicle moved back is not
+      // bent backward, though it may sit behind the shoulders' midpoint (it did, up to 8 cm, in
+      // random poses and in a VR replay).
+      _mid.setFromMatrixPosition(arm.upper.matrixWorld);
       this.stretchToward(arm);
       // Torso frame: outward = side·R_y(ψ)·(1, 0, 0) = side·(cos ψ, 0, −sin ψ); backward = −(sin ψ, 0, cos ψ).
       _pole.set(arm.side * cy * o.poleOut - sy * o.poleBack, -o.poleDown, -arm.side * sy * o.poleOut - cy * o.poleBack);
@@ -289,8 +291,13 @@ export class UpperBody {
       // backward walk: the wrist 4.6 cm behind, the elbow 23 cm, not solved again while only a
       // target within the limit counted).
       if (elbow > o.elbowBehindLimit && !(elbow <= target)) {
-        // Swing the elbow forward about the shoulder–target axis: outward and down as before, plus forward.
-        _pole.set(arm.side * cy * o.poleOut + sy, -o.poleDown, -arm.side * sy * o.poleOut + cy);
+        // Bend toward the torso's forward as seen across the shoulder–target axis u, plus a little
+        // down (which decides when the target is straight ahead). An outward-and-down pole with
+        // forward added can lie along u (a hand out, low and in front), and the solver then keeps
+        // the bend it had: random poses left elbows up to 5.6 cm behind hands 18 cm in front.
+        _pole.subVectors(_target, _mid).normalize();
+        const fu = sy * _pole.x + cy * _pole.z;
+        _pole.set(sy - fu * _pole.x, -fu * _pole.y - 0.5, cy - fu * _pole.z);
         this.reach(arm);
         this.elbowBehind[j] = behind(_v.setFromMatrixPosition(arm.lower.matrixWorld), sy, cy);
       }
