@@ -82,8 +82,8 @@ def rollout(
             c, s = torch.cos(dyaw[:, t : t + 1]), torch.sin(dyaw[:, t : t + 1])
             cs = torch.cat([cs[:, :1] * c + cs[:, 1:] * s, cs[:, 1:] * c - cs[:, :1] * s], dim=1)
         prev6 = torch.cat([cs[:, :1], zeros, -cs[:, 1:], zeros, ones, zeros], dim=1)
-        x = torch.empty(feats.shape[0], NUM_INPUTS, dtype=feats.dtype)
-        x[:, _FRAME_COLUMNS], x[:, PREV] = feats[:, t], prev6
+        x = torch.empty(feats.shape[0], NUM_INPUTS, dtype=feats.dtype, device=feats.device)
+        x[:, _FRAME_COLUMNS.to(feats.device)], x[:, PREV] = feats[:, t], prev6
         out = net(x)
         outs.append(out)
         cs = _unit(torch.stack([out[:, 0], -out[:, 2]], dim=1))
