@@ -177,15 +177,6 @@ def frame_features(pos: np.ndarray, rot: np.ndarray, dt: np.ndarray) -> tuple[np
     return np.concatenate([f, context_features(pos, yaw, dt)], axis=1), yaw
 
 
-def assemble(frame: np.ndarray, prev6: np.ndarray, inputs: int = NUM_INPUTS) -> np.ndarray:
-    """The model's input rows from frame features (..., 48) and previous slots (..., 6): the first
-    `inputs` (54, or 42 for a model from before the context)."""
-    parts = [frame[..., :TRACKER_INPUTS], prev6]
-    if inputs > LEGACY_INPUTS:
-        parts.append(frame[..., TRACKER_INPUTS:])
-    return np.concatenate(parts, axis=-1)
-
-
 class FeatureBuilder:
     """Frame-by-frame inputs, exactly as the runtime computes them (the reference for
     `features.ts`): `update` with the current poses and dt fills `x[0:36]` and `x[42:54]`; the

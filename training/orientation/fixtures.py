@@ -25,7 +25,7 @@ from .features import (
     PREV,
     TRACKER_INPUTS,
     FeatureBuilder,
-    assemble,
+    FRAME_COLUMNS,
     frame_features,
     relative_yaw_of_output,
     yaw_slot,
@@ -81,8 +81,9 @@ def build_fixture(onnx_path: Path, weights: Path) -> dict:
     other = simulate(next(c for c in clips if c.name.startswith("cmu_03_")), rng, EVAL_AUGMENT, fps=72.0)
     f, y = frame_features(other.pos, other.rot, other.dt)
     idx = rng.choice(np.arange(1, len(f)), 48, replace=False)
-    rows = assemble(f[idx], yaw_slot(other.body_yaw[idx - 1] - y[idx] + rng.normal(0, 0.3, 48)), NUM_INPUTS)
-    rows = rows.astype(np.float32)
+    rows = np.zeros((48, NUM_INPUTS), dtype=np.float32)
+    rows[:, FRAME_COLUMNS] = f[idx]
+    rows[:, PREV] = yaw_slot(other.body_yaw[idx - 1] - y[idx] + rng.normal(0, 0.3, 48))
     rows[-8:, PREV] = rng.normal(0, 50.0, (8, 6))  # garbage in the previous slot
     row_out = model(rows)
     return {

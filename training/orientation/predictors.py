@@ -18,7 +18,16 @@ from typing import Callable
 
 import numpy as np
 
-from .features import FRAME_INPUTS, NUM_INPUTS, PREV, TRACKER_INPUTS, frame_features, relative_yaw_of_output, yaw_slot
+from .features import (
+    FRAME_COLUMNS,
+    FRAME_INPUTS,
+    NUM_INPUTS,
+    PREV,
+    TRACKER_INPUTS,
+    frame_features,
+    relative_yaw_of_output,
+    yaw_slot,
+)
 from .geometry import wrap_angle
 from .simulate import TrackerSequence
 
@@ -120,6 +129,7 @@ def run_network(
     B, T, _ = feats.shape
     inputs = getattr(model, "inputs", NUM_INPUTS)
     x = np.zeros((B, inputs), dtype=np.float32)
+    cols = FRAME_COLUMNS[: inputs - 6]  # where the frame features go (the first 36 for a 42-input model)
     body = np.zeros((B, T))
     prev_world = None
     for t in range(T):
@@ -127,8 +137,7 @@ def run_network(
             rows, values = inject_yaw[t]
             prev_world = prev_world.copy()
             prev_world[rows] = values
-        x[:, :TRACKER_INPUTS] = feats[:, t, :TRACKER_INPUTS]
-        x[:, PREV.stop :] = feats[:, t, TRACKER_INPUTS : TRACKER_INPUTS + inputs - PREV.stop]
+        x[:, cols] = feats[:, t, : len(cols)]
         known = np.zeros(B, dtype=bool) if prev_world is None else np.isfinite(prev_world)
         previous = np.where(known, prev_world if prev_world is not None else 0.0, hmd_yaw[:, t])
         x[:, PREV] = yaw_slot(previous - hmd_yaw[:, t])

@@ -59,9 +59,9 @@ export class OrientationFeatures {
   private hasPrev = false;
   /** Seconds since the reset (the dts summed in order, as `features.py` sums them). */
   private time = 0;
-  /** The headset's positions since the restart, at most the longest window back: a ring. */
+  /** The headset's floor positions (x, z) since the restart, at most the longest window back: a ring. */
   private readonly ringTime = new Float64Array(HISTORY);
-  private readonly ringPos = new Float64Array(HISTORY * 3);
+  private readonly ringPos = new Float64Array(HISTORY * 2);
   private ringStart = 0;
   private ringCount = 0;
 
@@ -188,9 +188,8 @@ export class OrientationFeatures {
     }
     const at = (this.ringStart + this.ringCount) % HISTORY;
     this.ringTime[at] = now;
-    this.ringPos[3 * at] = hx;
-    this.ringPos[3 * at + 1] = hy;
-    this.ringPos[3 * at + 2] = hz;
+    this.ringPos[2 * at] = hx;
+    this.ringPos[2 * at + 1] = hz;
     this.ringCount++;
     const oldest = now - CONTEXT_WINDOWS[CONTEXT_WINDOWS.length - 1];
     while (this.ringTime[this.ringStart] < oldest) {
@@ -205,7 +204,7 @@ export class OrientationFeatures {
       const span = now - this.ringTime[j];
       const o = CONTEXT_OFFSET + 6 + 2 * w;
       if (span > 0) {
-        const vx = (hx - this.ringPos[3 * j]) / span, vz = (hz - this.ringPos[3 * j + 2]) / span;
+        const vx = (hx - this.ringPos[2 * j]) / span, vz = (hz - this.ringPos[2 * j + 1]) / span;
         input[o] = c * vx - s * vz;
         input[o + 1] = s * vx + c * vz;
       } else {

@@ -111,11 +111,11 @@ const _p = new THREE.Vector3();
 const _scale = new THREE.Vector3();
 const _world = new THREE.Quaternion();
 const _parent = new THREE.Quaternion();
-const _mid = new THREE.Vector3();
+const _shoulder = new THREE.Vector3();
 
-/** Metres `v` is behind the frontal plane through `_mid` (a shoulder) facing (sin ψ, 0, cos ψ) = (sy, 0, cy). */
+/** Metres `v` is behind the frontal plane through `_shoulder` (a shoulder) facing (sin ψ, 0, cos ψ) = (sy, 0, cy). */
 function behind(v: THREE.Vector3, sy: number, cy: number): number {
-  return -((v.x - _mid.x) * sy + (v.z - _mid.z) * cy);
+  return -((v.x - _shoulder.x) * sy + (v.z - _shoulder.z) * cy);
 }
 
 /** Pre-multiplies `bone`'s world rotation by `delta` (world frame), writing its local rotation. */
@@ -278,7 +278,7 @@ export class UpperBody {
       // put it): an elbow straight below a shoulder that the twist or the clavicle moved back is not
       // bent backward, though it may sit behind the shoulders' midpoint (it did, up to 8 cm, in
       // random poses and in a VR replay).
-      _mid.setFromMatrixPosition(arm.upper.matrixWorld);
+      _shoulder.setFromMatrixPosition(arm.upper.matrixWorld);
       this.stretchToward(arm);
       // Torso frame: outward = side·R_y(ψ)·(1, 0, 0) = side·(cos ψ, 0, −sin ψ); backward = −(sin ψ, 0, cos ψ).
       _pole.set(arm.side * cy * o.poleOut - sy * o.poleBack, -o.poleDown, -arm.side * sy * o.poleOut - cy * o.poleBack);
@@ -286,7 +286,8 @@ export class UpperBody {
       const j = arm.side > 0 ? 0 : 1;
       this.targetBehind[j] = behind(_target, sy, cy);
       this.elbowBehind[j] = behind(_v.setFromMatrixPosition(arm.lower.matrixWorld), sy, cy);
-      const [elbow, target] = [this.elbowBehind[j], this.targetBehind[j]];
+      const elbow = this.elbowBehind[j];
+      const target = this.targetBehind[j];
       // A hand a few cm behind the plane is no reason for an elbow 20 cm behind it (a replay's
       // backward walk: the wrist 4.6 cm behind, the elbow 23 cm, not solved again while only a
       // target within the limit counted).
@@ -295,7 +296,7 @@ export class UpperBody {
         // down (which decides when the target is straight ahead). An outward-and-down pole with
         // forward added can lie along u (a hand out, low and in front), and the solver then keeps
         // the bend it had: random poses left elbows up to 5.6 cm behind hands 18 cm in front.
-        _pole.subVectors(_target, _mid).normalize();
+        _pole.subVectors(_target, _shoulder).normalize();
         const fu = sy * _pole.x + cy * _pole.z;
         _pole.set(sy - fu * _pole.x, -fu * _pole.y - 0.5, cy - fu * _pole.z);
         this.reach(arm);
