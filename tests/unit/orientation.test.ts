@@ -102,16 +102,20 @@ describe('OrientationModel (onnxruntime-web in Node)', () => {
     expect(bytes.byteLength).toBeLessThan(64 * 1024);
   });
 
-  it('gives the PyTorch outputs on recorded inputs (within 1e-4)', async () => {
+  it('gives the PyTorch outputs, the 6D and the hips, on recorded inputs (within 1e-4)', async () => {
     const session = await ort.InferenceSession.create(bytes);
     try {
       const n = fixture.rows.inputs.length;
       const x = new Float32Array(n * NUM_INPUTS);
       fixture.rows.inputs.forEach((row, i) => x.set(row, i * NUM_INPUTS));
       const out = await session.run({ [session.inputNames[0]]: new ort.Tensor('float32', x, [n, NUM_INPUTS]) });
-      const y = out[session.outputNames[0]].data as Float32Array;
+      expect(session.outputNames).toEqual(['orientation6d', 'hips']);
+      const y = out.orientation6d.data as Float32Array, hips = out.hips.data as Float32Array;
       let worst = 0;
-      fixture.rows.outputs.forEach((row, i) => row.forEach((v, j) => (worst = Math.max(worst, Math.abs(y[i * 6 + j] - v)))));
+      for (const [i, row] of fixture.rows.outputs.entries()) {
+        expect(row.length).toBe(8); // the 6D, then the hips
+        row.forEach((v, j) => (worst = Math.max(worst, Math.abs((j < 6 ? y[i * 6 + j] : hips[i * 2 + j - 6]) - v))));
+      }
       console.log(`orientation model: max |onnxruntime-web − PyTorch| = ${worst.toExponential(2)} on ${n} recorded inputs`);
       expect(worst).toBeLessThan(1e-4);
     } finally {
@@ -119,7 +123,7 @@ describe('OrientationModel (onnxruntime-web in Node)', () => {
     }
   });
 
-  it('runs the feedback loop like Python: same inputs, outputs and body yaw', async () => {
+  it('runs the feedback loop like Python: same inputs, outputs (the 6D and the hips) and body yaw', async () => {
     const model = await OrientationModel.create(bytes);
     try {
       for (let pass = 0; pass < 2; pass++) {
@@ -129,7 +133,7 @@ describe('OrientationModel (onnxruntime-web in Node)', () => {
         for (let t = 0; t < seq.dt.length; t++) {
           const yaw = await model.update(seq.positions[t], seq.quaternions[t], seq.dt[t]);
           worstIn = Math.max(worstIn, maxErr(model.features.input, seq.inputs[t]));
-          worstOut = Math.max(worstOut, maxErr(model.output, seq.outputs[t]));
+          worstOut = Math.max(worstOut, maxErr(model.output, seq.outputs[t].slice(0, 6)), maxErr(model.hips, seq.outputs[t].slice(6)));
           worstYaw = Math.max(worstYaw, Math.abs(wrapAngle(yaw - seq.body_yaw[t])));
           expect(Math.abs(wrapAngle(model.bodyYaw - model.hmdYaw - model.relativeYaw))).toBeLessThan(1e-9);
         }
@@ -137,6 +141,7 @@ describe('OrientationModel (onnxruntime-web in Node)', () => {
         expect(worstOut).toBeLessThan(1e-4);
         expect(worstYaw).toBeLessThan(1e-4);
         model.reset(); // the second pass must repeat the first exactly
+        expect(Array.from(model.hips).every(Number.isNaN)).toBe(true);
       }
     } finally {
       await model.release();
@@ -179,7 +184,7 @@ describe('OrientationModel (onnxruntime-web in Node)', () => {
     }
   });
 
-  it('runs a model from before the context on the first 42 inputs', async () => {
+  it('runs a model from before the context on the first 42 inputs (and without the hips)', async () => {
     // training/fixtures/orientation_42.onnx: the shipped model until the context was added.
     const legacy = await OrientationModel.create(fs.readFileSync(path.join(ROOT, 'training/fixtures/orientation_42.onnx')));
     const model = await OrientationModel.create(bytes);
@@ -193,6 +198,9 @@ describe('OrientationModel (onnxruntime-web in Node)', () => {
         differ = Math.max(differ, Math.abs(wrapAngle(a - b)));
       }
       expect(differ).toBeGreaterThan(0); // two networks, each run on its own inputs
+      // It has no hips output: "not known", where the new one says where the hips are.
+      expect(Array.from(legacy.hips).every(Number.isNaN)).toBe(true);
+      expect(Array.from(model.hips).every(Number.isFinite)).toBe(true);
     } finally {
       await legacy.release();
       await model.release();

@@ -55,6 +55,14 @@ FRAME_INPUTS = TRACKER_INPUTS + CONTEXT_INPUTS  # 48: every input but the previo
 # Where a frame's features (`frame_features`, 48 wide) go in the input vector.
 FRAME_COLUMNS = np.r_[0:TRACKER_INPUTS, CONTEXT_OFFSET:NUM_INPUTS]
 MAX_DT = 0.25  # s; a longer gap (paused session, lost frames) is a discontinuity, not motion
+# The head centre, the point a head turns about: this far behind the headset along its heading
+# on the floor (web/src/vr/tracked-drive.ts HMD_TO_HEAD_CENTRE, MMVR's HMD = head + 0.10 m).
+HMD_TO_HEAD_CENTRE = 0.1
+HIPS_OUTPUTS = 2  # the second output: where the hips are, (x, z) from the head centre in the HMD-yaw frame
+# The share of that offset the VR page's root target takes (tracked-drive.ts HIPS_GAIN): on people
+# the network never saw its guess is half signal — the held-out replays' root distance is least at
+# half of it (docs/vr.md, "Where the root goes").
+HIPS_GAIN = 0.5
 
 FEATURE_NAMES = [
     f"{t}.{k}"
@@ -104,6 +112,16 @@ def relative_yaw_of_output(out: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     c, s = out[..., 0], -out[..., 2]
     ok = np.isfinite(c) & np.isfinite(s) & (np.hypot(c, s) > 1e-6)
     return np.where(ok, np.arctan2(np.where(ok, s, 0.0), np.where(ok, c, 1.0)), 0.0), ok
+
+
+def hips_target(hmd_pos: np.ndarray, yaw: np.ndarray, hips: np.ndarray) -> np.ndarray:
+    """The second output's truth: the hips on the floor (n, 2) (x, z) relative to the head centre
+    on the floor (`HMD_TO_HEAD_CENTRE` behind the headset `hmd_pos` (n, 3) along its yaw), in the
+    HMD-yaw frame (+Z ahead, +X to the left) → (n, 2) metres."""
+    d = np.zeros((len(yaw), 3))
+    d[:, 0], d[:, 2] = hips[:, 0] - hmd_pos[:, 0], hips[:, 1] - hmd_pos[:, 2]
+    local = rotate_y(d, -np.asarray(yaw))
+    return np.stack([local[:, 0], local[:, 2] + HMD_TO_HEAD_CENTRE], axis=1)
 
 
 def _rot6(q_rel: np.ndarray) -> np.ndarray:

@@ -32,7 +32,7 @@ import numpy as np
 import torch
 
 from . import data
-from .features import FRAME_COLUMNS, PREV, frame_features
+from .features import FRAME_COLUMNS, HIPS_GAIN, PREV, frame_features, hips_target
 from .geometry import wrap_angle
 from .model import OrientationNet
 from .motion_classes import CLASSES, with_crouching
@@ -41,7 +41,16 @@ from .simulate import EVAL_AUGMENT, simulate, without_look_around
 
 # The fixed split's scoring constants: the same frames count, at the same rates, from the same seed.
 from .evaluate import EVAL_FPS, EVAL_SEED, WARMUP
-from .train import MODELS, Epoch, TrainConfig, batch_tensors, normalization, add_override_arguments, with_overrides
+from .train import (
+    MODELS,
+    Epoch,
+    TrainConfig,
+    add_override_arguments,
+    batch_tensors,
+    loss_of,
+    normalization,
+    with_overrides,
+)
 
 CONDITIONS = ("with look-around", "without look-around")
 MIN_CLASS_SECONDS = 2.0  # a person's class counts in the class means from this much scored time
@@ -127,7 +136,7 @@ def _simulate_one(job: tuple[int, int, int, object]):
     rng = np.random.default_rng([seed, epoch, i])
     seq = simulate(_CLIPS[i], rng, aug)
     f, y = frame_features(seq.pos, seq.rot, seq.dt)
-    return f.astype(np.float32), y, seq.body_yaw
+    return f.astype(np.float32), y, seq.body_yaw, hips_target(seq.pos[:, 0], y, seq.hips).astype(np.float32)
 
 
 @dataclass
@@ -139,19 +148,22 @@ class SharedEpoch:
 def simulate_shared(clips, owners: np.ndarray, cfg: TrainConfig, epoch: int, pool) -> SharedEpoch:
     jobs = [(i, cfg.seed, epoch, cfg.augment) for i in range(len(clips))]
     results = pool.map(_simulate_one, jobs, chunksize=4) if pool else list(map(_simulate_one, jobs))
-    feats, hmd, body, starts, owner, offset = [], [], [], [], [], 0
-    for (f, y, b), who in zip(results, owners):
+    feats, hmd, body, hips, starts, owner, offset = [], [], [], [], [], [], 0
+    for (f, y, b, h), who in zip(results, owners):
         n = len(f)
         if n >= cfg.r + 1:
             starts.append(offset + np.arange(1, n - cfg.r + 1))
         feats.append(f)
         hmd.append(y)
         body.append(b)
+        hips.append(h)
         owner.append(np.full(n, who, dtype=np.int32))
         offset += n
     if not starts:
         raise data.DataError(f"no sequence is longer than r + 1 = {cfg.r + 1} frames")
-    ep = Epoch(np.concatenate(feats), np.concatenate(hmd), np.concatenate(body), np.concatenate(starts))
+    ep = Epoch(
+        np.concatenate(feats), np.concatenate(hmd), np.concatenate(body), np.concatenate(starts), np.concatenate(hips)
+    )
     return SharedEpoch(ep, np.concatenate(owner))
 
 
@@ -181,10 +193,10 @@ class StackedNets(torch.nn.Module):
         )
         self.register_buffer("mean", torch.stack([n.mean for n in nets]))
         self.register_buffer("inv_std", torch.stack([n.inv_std for n in nets]))
-        self.hidden = nets[0].hidden
+        self.hidden, self.outputs = nets[0].hidden, nets[0].outputs
 
     def member(self, k: int) -> OrientationNet:
-        net = OrientationNet(hidden=self.hidden)
+        net = OrientationNet(hidden=self.hidden, outputs=self.outputs)
         linear = [m for m in net.mlp if isinstance(m, torch.nn.Linear)]
         with torch.no_grad():
             for layer, w, b in zip(linear, self.weights, self.biases):
@@ -196,7 +208,7 @@ class StackedNets(torch.nn.Module):
 
     def rollout(self, feats: torch.Tensor, dyaw: torch.Tensor, prev0: torch.Tensor, previous: bool = False):
         """`train.fast_rollout` for every member at once: feats (K, B, r, 48), dyaw (K, B, r),
-        prev0 (K, B, 2) → last outputs (K, B, 6). The first r − 1 steps run without autograd
+        prev0 (K, B, 2) → last outputs (K, B, 8). The first r − 1 steps run without autograd
         (the fed-back estimates are inputs, as in `fast_rollout`). With `previous`, also the
         step before's estimate as (cos φ, sin φ) (K, B, 1) each, φ in the last frame's HMD frame."""
         w1, b1 = self.weights[0], self.biases[0]
@@ -287,7 +299,7 @@ def train_folds(
                 feats, dyaw, prev0, target = (torch.stack(x).to(device) for x in zip(*parts))
                 out, c, s = nets.rollout(feats, dyaw, prev0, previous=True)
                 # Sum over members of each member's mean: every member's gradient is its own.
-                loss = ((out - target) ** 2).mean(dim=(1, 2)).sum()
+                loss = loss_of(out, target, cfg.hips_weight, dims=(1, 2)).sum()
                 if cfg.smooth > 0 and cfg.r > 1:
                     # Temporal consistency: the step before's estimate turned by the body's true
                     # change of yaw; the fed-back estimate is an input (no gradient), as above.
@@ -298,7 +310,7 @@ def train_folds(
                     a = torch.atan2(s, c) + d
                     z = torch.zeros_like(a)
                     smooth = torch.cat([torch.cos(a), z, -torch.sin(a), z, torch.ones_like(a), z], dim=-1)
-                    loss = loss + cfg.smooth * ((out - smooth) ** 2).mean(dim=(1, 2)).sum()
+                    loss = loss + cfg.smooth * ((out[..., :6] - smooth) ** 2).mean(dim=(1, 2)).sum()
                 opt.zero_grad(set_to_none=True)
                 loss.backward()
                 opt.step()
@@ -333,6 +345,8 @@ class Scored:
     dt: np.ndarray  # (F,) seconds
     signed: np.ndarray  # (F,) the network's error with its sign (degrees, + = counter-clockwise)
     jerk: np.ndarray  # (F,) |second difference| of the network's yaw, degrees per frame²
+    hips: np.ndarray  # (F,) cm from the page's root target (`HIPS_GAIN` of the second output) to the true hips
+    under: np.ndarray  # (F,) cm from the head centre (MMVR's root target) to the true hips on the floor
 
 
 def originals(clips, person: str) -> list:
@@ -346,8 +360,9 @@ def score_person(net: OrientationNet, clips, aug, fps_list=EVAL_FPS, seed: int =
     rng = np.random.default_rng(seed)
     seqs = [simulate(c, rng, aug, fps=f) for c in clips for f in fps_list]
     feats, hmd, lengths = sequence_features(seqs)
-    pred = run_network(TorchModel(net), feats, hmd)
-    out = {"net": [], "hmd": [], "classes": [], "dt": [], "signed": [], "jerk": []}
+    hips = np.full(feats.shape[:2] + (2,), np.nan)
+    pred = run_network(TorchModel(net), feats, hmd, hips=hips)
+    out = {"net": [], "hmd": [], "classes": [], "dt": [], "signed": [], "jerk": [], "hips": [], "under": []}
     for b, s in enumerate(seqs):
         n = s.num_frames
         times = np.cumsum(s.dt) - s.dt[0]
@@ -359,7 +374,10 @@ def score_person(net: OrientationNet, clips, aug, fps_list=EVAL_FPS, seed: int =
         out["dt"].append(s.dt[keep])
         y = np.unwrap(pred[b, :n])
         out["jerk"].append(np.degrees(np.abs(np.diff(y, 2, prepend=y[:1], append=y[-1:])))[keep])
-    return Scored(*(np.concatenate(out[k]) for k in ("net", "hmd", "classes", "dt", "signed", "jerk")))
+        truth = hips_target(s.pos[:, 0], hmd[b, :n], s.hips)
+        out["hips"].append(100.0 * np.linalg.norm(HIPS_GAIN * hips[b, :n] - truth, axis=1)[keep])
+        out["under"].append(100.0 * np.linalg.norm(truth, axis=1)[keep])
+    return Scored(*(np.concatenate(out[k]) for k in ("net", "hmd", "classes", "dt", "signed", "jerk", "hips", "under")))
 
 
 # The device-variation table: one change at a time from the evaluation's devices (with looking
@@ -420,6 +438,8 @@ def summarize(scored: dict[str, Scored]) -> dict:
             "p95": float(np.percentile(s.net, 95)) if len(s.net) else float("nan"),
             "hmd": float(s.hmd.mean()) if len(s.net) else float("nan"),
             "jerk": float(s.jerk.mean()) if len(s.net) else float("nan"),
+            "hips": float(s.hips.mean()) if len(s.net) else float("nan"),
+            "under": float(s.under.mean()) if len(s.net) else float("nan"),
             "classes": {},
         }
         for i, c in enumerate(CLASSES):
@@ -447,6 +467,8 @@ def totals(per_person: dict, p95: float) -> dict:
     mean = float(np.mean([r["mean"] for r in rows]))
     hmd = float(np.mean([r["hmd"] for r in rows]))
     jerk = float(np.mean([r["jerk"] for r in rows]))
+    hips = float(np.mean([r.get("hips", np.nan) for r in rows]))
+    under = float(np.mean([r.get("under", np.nan) for r in rows]))
     classes = {}
     for c in CLASSES:
         have = [r["classes"][c] for r in rows if c in r["classes"] and r["classes"][c]["seconds"] >= MIN_CLASS_SECONDS]
@@ -457,7 +479,16 @@ def totals(per_person: dict, p95: float) -> dict:
                 "hmd": float(np.mean([h["hmd"] for h in have])),
             }
     ratio = mean / hmd if hmd > 0 else float("nan")
-    return {"mean": mean, "p95": p95, "hmd": hmd, "ratio": ratio, "jerk": jerk, "classes": classes}
+    return {
+        "mean": mean,
+        "p95": p95,
+        "hmd": hmd,
+        "ratio": ratio,
+        "jerk": jerk,
+        "hips": hips,
+        "under": under,
+        "classes": classes,
+    }
 
 
 def table(results: dict) -> str:
@@ -469,8 +500,8 @@ def table(results: dict) -> str:
         lines += [
             f"**{cond}** (network · HMD forward, degrees)",
             "",
-            "| held out | seconds | mean | p95 | " + " | ".join(CLASSES) + " |",
-            "|---|---|---|---|" + "---|" * len(CLASSES),
+            "| held out | seconds | mean | p95 | " + " | ".join(CLASSES) + " | root target cm · under the head |",
+            "|---|---|---|---|" + "---|" * len(CLASSES) + "---|",
         ]
         for person, r in per.items():
             secs = sum(c["seconds"] for c in r["classes"].values())
@@ -483,7 +514,7 @@ def table(results: dict) -> str:
             lines.append(
                 f"| {person} | {secs:.0f} | {r['mean']:.1f} · {r['hmd']:.1f} | {r['p95']:.1f} | "
                 + " | ".join(cells)
-                + " |"
+                + f" | {r.get('hips', np.nan):.1f} · {r.get('under', np.nan):.1f} |"
             )
         cells = [
             f"**{tot['classes'][c]['mean']:.1f}** · {tot['classes'][c]['hmd']:.1f}" if c in tot["classes"] else ""
@@ -491,7 +522,9 @@ def table(results: dict) -> str:
         ]
         lines.append(
             f"| **mean over {len(per)} people** | | **{tot['mean']:.1f}** · {tot['hmd']:.1f} "
-            f"(×{tot['ratio']:.2f}) | **{tot['p95']:.1f}** | " + " | ".join(cells) + " |"
+            f"(×{tot['ratio']:.2f}) | **{tot['p95']:.1f}** | "
+            + " | ".join(cells)
+            + f" | **{tot.get('hips', np.nan):.1f}** · {tot.get('under', np.nan):.1f} |"
         )
         lines.append("")
     return "\n".join(lines)

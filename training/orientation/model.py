@@ -1,6 +1,7 @@
 """The orientation MLP, the r-step feedback rollout, and ONNX export.
 
-Network (docs/method.md §9): 54 inputs (the thesis's 42 and a context: features.py) → hidden layers with a ReLU after **each** → 6. The
+Network (docs/method.md §9): 54 inputs (the thesis's 42 and a context: features.py) → hidden layers with a ReLU after **each** → 6 + 2:
+the 6D body rotation and where the hips are from the head (`features.hips_target`). The
 thesis's size is 2 × 32 (the released MMVR model has a ReLU after the first hidden layer only);
 the hidden sizes are a training parameter here (`TrainConfig.hidden`), chosen by held-out error
 within the browser's time budget (docs/orientation-model.md, "Model size").
@@ -16,11 +17,13 @@ import numpy as np
 import torch
 from torch import nn
 
-from .features import FEATURE_NAMES, FRAME_COLUMNS, NUM_INPUTS, PREV, TRACKER_INPUTS
+from .features import FEATURE_NAMES, FRAME_COLUMNS, HIPS_OUTPUTS, NUM_INPUTS, PREV, TRACKER_INPUTS
 
 HIDDEN = 32
 _FRAME_COLUMNS = torch.as_tensor(FRAME_COLUMNS)
-INPUT_NAME, OUTPUT_NAME = "features", "orientation6d"
+INPUT_NAME, OUTPUT_NAME, HIPS_NAME = "features", "orientation6d", "hips"
+# The outputs: the 6D, then the hips (a model from before the hips has the 6D only).
+NUM_OUTPUTS = 6 + HIPS_OUTPUTS
 
 
 class OrientationNet(nn.Module):
@@ -30,9 +33,11 @@ class OrientationNet(nn.Module):
         std: np.ndarray | None = None,
         hidden: tuple[int, ...] = (HIDDEN, HIDDEN),
         inputs: int = NUM_INPUTS,
+        outputs: int = NUM_OUTPUTS,
     ):
         super().__init__()
         self.inputs = inputs  # 54, or 42 for a model from before the context
+        self.outputs = outputs  # 8, or 6 for a model from before the hips
         self.register_buffer("mean", torch.zeros(inputs))
         self.register_buffer("inv_std", torch.ones(inputs))
         if mean is not None:
@@ -42,7 +47,7 @@ class OrientationNet(nn.Module):
         for h in self.hidden:
             layers += [nn.Linear(width, h), nn.ReLU()]
             width = h
-        self.mlp = nn.Sequential(*layers, nn.Linear(width, 6))
+        self.mlp = nn.Sequential(*layers, nn.Linear(width, outputs))
 
     def set_normalization(self, mean: np.ndarray, std: np.ndarray) -> None:
         """Dimensions that never vary (the constant parts of the previous-orientation 6D) get
@@ -70,7 +75,7 @@ def rollout(
 
     feats (B, r, 48) frame features (`features.frame_features`); dyaw (B, r) HMD yaw change into each frame (dyaw[:, 0]
     unused); prev0 (B, 2) = (cos φ, sin φ) of the previous body yaw relative to frame 0's HMD
-    yaw. Returns (last output (B, 6), all outputs (B, r, 6)).
+    yaw. Returns (last output (B, outputs), all outputs (B, r, outputs)).
     """
     r = feats.shape[1] if steps is None else steps
     cs = prev0
@@ -100,14 +105,28 @@ def net_from_state(state: dict) -> OrientationNet:
         (k for k in state if k.startswith("mlp.") and k.endswith(".weight")), key=lambda k: int(k.split(".")[1])
     )
     hidden = tuple(int(np.asarray(state[k]).shape[0]) for k in weights[:-1])
-    net = OrientationNet(hidden=hidden, inputs=int(np.asarray(state["mean"]).shape[0]))
+    outputs = int(np.asarray(state[weights[-1]]).shape[0])
+    net = OrientationNet(hidden=hidden, inputs=int(np.asarray(state["mean"]).shape[0]), outputs=outputs)
     net.load_state_dict({k: torch.as_tensor(np.asarray(v)) for k, v in state.items()})
     return net.eval()
 
 
+class _SplitOutputs(nn.Module):
+    """The network with its output cut in two for export: the 6D, then the hips."""
+
+    def __init__(self, net: OrientationNet):
+        super().__init__()
+        self.net, self.inputs = net, net.inputs
+
+    def forward(self, x: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        out = self.net(x)
+        return out[:, :6], out[:, 6:]
+
+
 def export_onnx(net: nn.Module, path: Path, metadata: dict[str, str] | None = None, state_size: int = 0) -> Path:
     """Write the model as one self-contained ONNX file (weights embedded, no `.onnx.data`),
-    input `features` float32 [batch, 54] raw, output `orientation6d` float32 [batch, 6]. A
+    input `features` float32 [batch, 54] raw, outputs `orientation6d` float32 [batch, 6] and
+    `hips` float32 [batch, 2] (`features.hips_target`; a network without it: the 6D only). A
     recurrent model (`state_size` > 0: `gru.GruStep`) takes `features` [batch, 36] and `state`
     [batch, state_size] and also outputs `state_out` [batch, state_size]."""
     import onnx
@@ -121,6 +140,8 @@ def export_onnx(net: nn.Module, path: Path, metadata: dict[str, str] | None = No
         names, outputs, dims = [INPUT_NAME, "state"], [OUTPUT_NAME, "state_out"], ({0: batch}, {0: batch})
     else:
         example, names, outputs, dims = (torch.zeros(1, net.inputs),), [INPUT_NAME], [OUTPUT_NAME], ({0: batch},)
+        if getattr(net, "outputs", 6) > 6:
+            net, outputs = _SplitOutputs(net).eval(), [OUTPUT_NAME, HIPS_NAME]
     program = torch.onnx.export(
         net,
         example,
@@ -144,7 +165,8 @@ def export_onnx(net: nn.Module, path: Path, metadata: dict[str, str] | None = No
         del value.metadata_props[:]
     model.doc_string = (
         f"Body-orientation network (docs/method.md §9). Input: {net.inputs} raw features "
-        "(docs/orientation-model.md); output: 6D body rotation in the HMD-yaw frame."
+        "(docs/orientation-model.md); outputs: 6D body rotation in the HMD-yaw frame"
+        + ("; the hips from the head centre on the floor (x, z) in that frame, m." if len(outputs) > 1 else ".")
         if not state_size
         else "Recurrent body-orientation network (docs/orientation-model.md). Inputs: the 36 "
         "raw tracker features and the state (zeros after a reset); outputs: 6D body "

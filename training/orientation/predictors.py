@@ -35,8 +35,9 @@ DEAD_ZONE = np.radians(25.0)
 
 
 class OnnxModel:
-    """The exported model through onnxruntime (CPU, one thread): f(x (B, inputs)) -> (B, 6);
-    `inputs` 54, or 42 for a model from before the context."""
+    """The exported model through onnxruntime (CPU, one thread): f(x (B, inputs)) -> (B, 8), the
+    6D then the hips (as `TorchModel`; (B, 6) for a model from before the hips); `inputs` 54, or 42
+    for a model from before the context."""
 
     def __init__(self, path):
         import onnxruntime as ort
@@ -49,7 +50,8 @@ class OnnxModel:
         self.inputs = int(self.session.get_inputs()[0].shape[1])
 
     def __call__(self, x: np.ndarray) -> np.ndarray:
-        return self.session.run(None, {self.input: np.ascontiguousarray(x, dtype=np.float32)})[0]
+        outs = self.session.run(None, {self.input: np.ascontiguousarray(x, dtype=np.float32)})
+        return np.concatenate(outs, axis=1)
 
 
 class OnnxRecurrentModel:
@@ -118,8 +120,10 @@ def run_network(
     inject: dict[int, tuple[np.ndarray, np.ndarray]] | None = None,
     finite: np.ndarray | None = None,
     inject_yaw: dict[int, tuple[np.ndarray, np.ndarray]] | None = None,
+    hips: np.ndarray | None = None,
 ) -> np.ndarray:
-    """Body yaw (B, T) predicted in the feedback loop from a reset at frame 0.
+    """Body yaw (B, T) predicted in the feedback loop from a reset at frame 0; a (B, T, 2) `hips`
+    receives the second output (`features.hips_target`; NaN from a model without it).
 
     `inject` maps a frame to (rows, values (len(rows), 6)) written into those rows' previous
     slot instead of the fed-back prediction (garbage for the robustness tests); `inject_yaw`
@@ -147,6 +151,8 @@ def run_network(
         out = model(x)
         if finite is not None:
             finite[:, t] = np.isfinite(out).all(axis=1)
+        if hips is not None:
+            hips[:, t] = out[:, 6:8] if out.shape[1] >= 8 else np.nan
         phi, ok = relative_yaw_of_output(out)
         body[:, t] = np.where(ok, hmd_yaw[:, t] + phi, previous)
         prev_world = body[:, t]

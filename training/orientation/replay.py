@@ -23,7 +23,7 @@ import numpy as np
 
 from . import data
 from .features import frame_features
-from .geometry import hmd_yaw, wrap_angle
+from .geometry import hmd_yaw, rotate_y, wrap_angle
 from .motion_classes import CLASSES
 from .predictors import OnnxModel, load_model, page_yaw, run_network, run_recurrent
 
@@ -43,15 +43,19 @@ def load(path: Path) -> dict:
     return rec
 
 
-def network_yaw(model, rec: dict, recurrent=None) -> np.ndarray:
-    """The page's body yaw for a recording whose controllers stay tracked: the network's, or
-    with the recurrent model the mean of both once it has warmed up (`network-yaw.ts`)."""
+def network_drive(model, rec: dict, recurrent=None) -> tuple[np.ndarray, np.ndarray]:
+    """The page's body yaw for a recording whose controllers stay tracked — the network's, or
+    with the recurrent model the mean of both once it has warmed up (`network-yaw.ts`) — and
+    where the network puts the hips: (T, 2) room metres from the head centre on the floor (its
+    second output turned out of the HMD-yaw frame; NaN from a model without it)."""
     feats, yaw = frame_features(rec["_pos"], rec["_rot"], rec["_dt"])
     x = feats[None].astype(np.float32)
-    body = run_network(model, x, yaw[None])[0]
-    return (
-        body if recurrent is None else page_yaw(body[None], run_recurrent(recurrent, x, yaw[None]), rec["_dt"][None])[0]
-    )
+    hips = np.full((1, len(yaw), 2), np.nan)
+    body = run_network(model, x, yaw[None], hips=hips)[0]
+    world = rotate_y(np.stack([hips[0, :, 0], np.zeros(len(yaw)), hips[0, :, 1]], axis=1), yaw)[:, [0, 2]]
+    if recurrent is not None:
+        body = page_yaw(body[None], run_recurrent(recurrent, x, yaw[None]), rec["_dt"][None])[0]
+    return body, world
 
 
 def replay(
@@ -61,7 +65,10 @@ def replay(
     alpha: float,
     cli: Path = data.MMDB_BIN,
     settings: str | None = None,
+    hips: np.ndarray | None = None,
 ) -> dict:
+    """One `mmdb replay` run: the body yaw per frame (or `truth` / `hmd`) and, when given, where
+    the network puts the hips (T, 2) (the root's target; NaN rows: the head centre)."""
     with tempfile.TemporaryDirectory() as tmp:
         if isinstance(yaw, str):
             source = yaw
@@ -69,6 +76,12 @@ def replay(
             source = str(Path(tmp) / "yaw.json")
             Path(source).write_text(json.dumps([float(v) for v in yaw]))
         cmd = [str(cli), "replay", str(db), str(rec_path), "--alpha", str(alpha), "--yaw", source, "--json"]
+        if hips is not None and np.isfinite(hips).any():
+            offsets = Path(tmp) / "hips.json"
+            offsets.write_text(
+                json.dumps([[float(x), float(z)] if np.isfinite([x, z]).all() else None for x, z in hips])
+            )
+            cmd += ["--hips", str(offsets)]
         if settings:
             cmd += ["--settings", settings]
         proc = subprocess.run(cmd, capture_output=True, text=True, timeout=300)
@@ -100,9 +113,9 @@ def run(
     rows = []
     for path in recordings:
         rec = load(path)
-        yaw = network_yaw(model, rec, recurrent)
+        yaw, hips = network_drive(model, rec, recurrent)
         row = {"recording": path.stem, "heldIn": rec["meta"].get("heldIn"), "seconds": rec["time"][-1] - rec["time"][0]}
-        row["network"] = replay(db, path, yaw, alpha, settings=settings)
+        row["network"] = replay(db, path, yaw, alpha, settings=settings, hips=hips)
         row["hmd"] = replay(db, path, "hmd", alpha, settings=settings)
         if "truth" in rec:
             row["yaw_network"] = yaw_errors(yaw, rec)

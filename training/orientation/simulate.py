@@ -156,6 +156,7 @@ class TrackerSequence:
     look_yaw: np.ndarray = field(default=None)  # (n,) the added head yaw (0 without look-around)
     classes: np.ndarray = field(default=None)  # (n,) motion class per frame (motion_classes)
     subject: str = ""
+    hips: np.ndarray = field(default=None)  # (n, 2) ground truth: the hips on the floor (x, z), the virtual root
 
     @property
     def num_frames(self) -> int:
@@ -208,7 +209,7 @@ def _sample(clip: MocapClip, src_t: np.ndarray):
     head_rot = nlerp(clip.head_rot[i0], clip.head_rot[i0 + 1], a)
     hand_pos = lerp(clip.hand_pos)
     hand_rot = np.stack([nlerp(clip.hand_rot[s, i0], clip.hand_rot[s, i0 + 1], a) for s in range(2)])
-    return yaw, head_pos, head_rot, hand_pos, hand_rot
+    return yaw, head_pos, head_rot, hand_pos, hand_rot, lerp(clip.root_pos)
 
 
 def _random_rotation(rng: np.random.Generator, sigma_deg: float) -> np.ndarray:
@@ -234,14 +235,14 @@ def simulate(
     if len(t) < 2:
         raise ValueError(f"clip {clip.name} is too short for {fps} fps at speed {speed:.2f}")
     dt = np.diff(t, prepend=t[0] - 1.0 / fps)
-    body_yaw, head_pos, head_rot, hand_pos, hand_rot = _sample(clip, t * speed)
+    body_yaw, head_pos, head_rot, hand_pos, hand_rot, hips = _sample(clip, t * speed)
     classes = clip.classes[np.clip(np.rint(t * speed * clip.fps).astype(int), 0, clip.num_frames - 1)]
     rig = clip.rig
     n = len(t)
     if aug.head_height is not None and clip.upright_head > 0:
         lo, hi = aug.head_height
         k = (lo if lo == hi else rng.uniform(lo, hi)) / clip.upright_head  # no draw when fixed
-        head_pos, hand_pos = head_pos * k, hand_pos * k
+        head_pos, hand_pos, hips = head_pos * k, hand_pos * k, hips * k
         # x, z too: a taller person's steps and reach are longer in proportion.
 
     # Devices on the body, with per-sequence offsets (how the headset sits, how the hand holds).
@@ -324,6 +325,7 @@ def simulate(
         psi = rng.uniform(-np.pi, np.pi)
         offset = np.array([rng.uniform(-2, 2), 0.0, rng.uniform(-2, 2)])
         pos = rotate_y(pos, psi) + offset
+        hips = rotate_y(hips, psi) + offset
         rot = quat_mul(quat_from_yaw(np.full((n, 3), psi)), rot)
         body_yaw = body_yaw + psi
 
@@ -343,6 +345,7 @@ def simulate(
         look_yaw=look_yaw,
         classes=classes,
         subject=clip.subject,
+        hips=hips[:, [0, 2]],
     )
 
 

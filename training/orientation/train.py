@@ -42,7 +42,7 @@ import numpy as np
 import torch
 
 from . import data
-from .features import FRAME_COLUMNS, PREV, frame_features, yaw_slot
+from .features import FRAME_COLUMNS, PREV, frame_features, hips_target, yaw_slot
 from .geometry import wrap_angle
 from .model import OrientationNet, export_onnx, state_to_numpy
 from .simulate import TRAIN_AUGMENT, Augment, simulate, without_look_around
@@ -72,6 +72,9 @@ class TrainConfig:
     # (folder, subject) pairs of the fixed split, or None: every person of the mocap manifest.
     subjects: tuple | None = data.TRAIN_SUBJECTS
     max_batches_per_epoch: int | None = None
+    # Weight of the hips' squared error (m², the mean of x and z) beside the 6D's (the mean of six):
+    # a metre squared of hips error costs as much as one of 6D.
+    hips_weight: float = 1.0
     # Weight of a temporal-consistency loss (`lopo.train_folds` only, an experiment): the last
     # step's output against the step before's estimate turned by the body's true change of yaw.
     smooth: float = 0.0
@@ -104,10 +107,11 @@ class Epoch:
     hmd_yaw: np.ndarray  # (N,)
     body_yaw: np.ndarray  # (N,)
     starts: np.ndarray  # window starts s: s − 1 and s + r − 1 lie in the same sequence
+    hips: np.ndarray | None = None  # (N, 2) float32: `features.hips_target`
 
 
 def simulate_epoch(clips, rng: np.random.Generator, cfg: TrainConfig) -> Epoch:
-    feats, hmd, body, starts, offset = [], [], [], [], 0
+    feats, hmd, body, hips, starts, offset = [], [], [], [], [], 0
     styled = replace(cfg.augment, arms_prob=1.0, arms_idle_prob=0.0)
     for clip in clips:
         aug = styled if cfg.style_arms and clip.subject.startswith("100style") else cfg.augment
@@ -122,10 +126,13 @@ def simulate_epoch(clips, rng: np.random.Generator, cfg: TrainConfig) -> Epoch:
             feats.append(f.astype(np.float32))
             hmd.append(y)
             body.append(seq.body_yaw)
+            hips.append(hips_target(seq.pos[:, 0], y, seq.hips).astype(np.float32))
             offset += n
     if not starts:
         raise data.DataError(f"no sequence is longer than r + 1 = {cfg.r + 1} frames")
-    return Epoch(np.concatenate(feats), np.concatenate(hmd), np.concatenate(body), np.concatenate(starts))
+    return Epoch(
+        np.concatenate(feats), np.concatenate(hmd), np.concatenate(body), np.concatenate(starts), np.concatenate(hips)
+    )
 
 
 def normalization(ep: Epoch) -> tuple[np.ndarray, np.ndarray]:
@@ -197,7 +204,18 @@ def batch_tensors(ep: Epoch, starts: np.ndarray, cfg: TrainConfig, rng: np.rando
     prev0 = torch.from_numpy(np.stack([np.cos(phi0), np.sin(phi0)], 1).astype(np.float32))
     last = idx[:, -1]
     target = torch.from_numpy(yaw_slot(ep.body_yaw[last] - ep.hmd_yaw[last]).astype(np.float32))
-    return feats, dyaw, prev0, target
+    if ep.hips is None:
+        return feats, dyaw, prev0, target
+    return feats, dyaw, prev0, torch.cat([target, torch.from_numpy(ep.hips[last])], dim=1)
+
+
+def loss_of(out: torch.Tensor, target: torch.Tensor, hips_weight: float, dims=None) -> torch.Tensor:
+    """The 6D's mean squared error plus `hips_weight` × the hips' (last axis: 6D then hips; the
+    mean over `dims`, every axis by default). A model without the hips scores the 6D only."""
+    yaw = ((out[..., :6] - target[..., :6]) ** 2).mean(dim=dims)
+    if out.shape[-1] < 8 or target.shape[-1] < 8:
+        return yaw
+    return yaw + hips_weight * ((out[..., 6:8] - target[..., 6:8]) ** 2).mean(dim=dims)
 
 
 def load_training_clips(cfg: TrainConfig, log=print):
@@ -233,7 +251,7 @@ def train(cfg: TrainConfig, clips=None, log=print, time_budget: float | None = N
         for b in range(nb):
             feats, dyaw, prev0, target = batch_tensors(ep, order[b * cfg.batch : (b + 1) * cfg.batch], cfg, rng)
             out = fast_rollout(net, feats, dyaw, prev0, cfg.grad_through)
-            loss = torch.mean((out - target) ** 2)
+            loss = loss_of(out, target, cfg.hips_weight)
             opt.zero_grad(set_to_none=True)
             loss.backward()
             opt.step()
@@ -300,11 +318,12 @@ def add_override_arguments(ap) -> None:
     ap.add_argument("--hidden", help="hidden layer sizes, e.g. 64,64 (an experiment)")
     ap.add_argument("--seed", type=int)
     ap.add_argument("--max-batches", type=int, help="batches per epoch at most (a cheaper experiment)")
+    ap.add_argument("--hips-weight", type=float, help="TrainConfig.hips_weight (an experiment)")
 
 
 def with_overrides(cfg: TrainConfig, args) -> TrainConfig:
-    """`cfg` with the command line's --epochs, --hidden, --seed and --max-batches (here and in
-    `lopo`)."""
+    """`cfg` with the command line's --epochs, --hidden, --seed, --max-batches and --hips-weight
+    (here and in `lopo`)."""
     if args.epochs:
         cfg = replace(cfg, epochs=args.epochs)
     if args.hidden:
@@ -313,6 +332,8 @@ def with_overrides(cfg: TrainConfig, args) -> TrainConfig:
         cfg = replace(cfg, seed=args.seed)
     if args.max_batches:
         cfg = replace(cfg, max_batches_per_epoch=args.max_batches)
+    if getattr(args, "hips_weight", None) is not None:
+        cfg = replace(cfg, hips_weight=args.hips_weight)
     return cfg
 
 

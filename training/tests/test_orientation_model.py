@@ -10,7 +10,7 @@ import torch
 
 from orientation.features import FEATURE_NAMES, FRAME_INPUTS, NUM_INPUTS
 from orientation.fixtures import FIXTURE
-from orientation.model import INPUT_NAME, OUTPUT_NAME, OrientationNet, net_from_state, rollout
+from orientation.model import HIPS_NAME, INPUT_NAME, OUTPUT_NAME, OrientationNet, net_from_state, rollout
 from orientation.predictors import OnnxModel, TorchModel
 from orientation.train import MODELS_DIR, PUBLIC_MODEL, fast_rollout
 
@@ -25,11 +25,12 @@ def random_net(seed=0):
 
 
 def test_relu_after_each_hidden_layer():
-    # docs/method.md §9: 54 → 32 → ReLU → 32 → ReLU → 6 (the released MMVR model misses one ReLU).
+    # docs/method.md §9: 54 → 32 → ReLU → 32 → ReLU → 6 + 2, the 6D and the hips (the released
+    # MMVR model misses one ReLU, and has no hips).
     kinds = [type(m).__name__ for m in OrientationNet().mlp]
     assert kinds == ["Linear", "ReLU", "Linear", "ReLU", "Linear"]
     shapes = [tuple(m.weight.shape) for m in OrientationNet().mlp if hasattr(m, "weight")]
-    assert shapes == [(32, NUM_INPUTS), (32, 32), (6, 32)] and NUM_INPUTS == 54
+    assert shapes == [(32, NUM_INPUTS), (32, 32), (8, 32)] and NUM_INPUTS == 54
 
 
 @pytest.mark.parametrize("r", [1, 2, 9])
@@ -74,16 +75,16 @@ def test_committed_onnx_is_small_self_contained_and_documented():
     for init in model.graph.initializer:
         assert init.data_location != onnx.TensorProto.EXTERNAL, init.name
     onnx.checker.check_model(model, full_check=True)
-    (inp,), (out,) = model.graph.input, model.graph.output
-    assert inp.name == INPUT_NAME and out.name == OUTPUT_NAME
+    (inp,), (out, hips) = model.graph.input, model.graph.output
+    assert inp.name == INPUT_NAME and out.name == OUTPUT_NAME and hips.name == HIPS_NAME
     dims = lambda v: [d.dim_value or d.dim_param for d in v.type.tensor_type.shape.dim]  # noqa: E731
-    assert dims(inp)[1:] == [NUM_INPUTS] and dims(out)[1:] == [6]
+    assert dims(inp)[1:] == [NUM_INPUTS] and dims(out)[1:] == [6] and dims(hips)[1:] == [2]
     assert isinstance(dims(inp)[0], str), "batch dimension is dynamic"
     assert inp.type.tensor_type.elem_type == onnx.TensorProto.FLOAT
     meta = {p.key: p.value for p in model.metadata_props}
     assert meta["feature_order"].split(",") == FEATURE_NAMES
     assert meta["r"] == "50" and meta["look_around"] == "True"
-    assert {n.op_type for n in model.graph.node} <= {"Sub", "Mul", "Gemm", "Relu", "MatMul", "Add"}
+    assert {n.op_type for n in model.graph.node} <= {"Sub", "Mul", "Gemm", "Relu", "MatMul", "Add", "Slice"}
 
 
 def test_committed_onnx_equals_pytorch():

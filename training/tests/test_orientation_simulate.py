@@ -8,7 +8,7 @@ import pytest
 
 import mmdb
 from orientation import data
-from orientation.features import tracker_features
+from orientation.features import hips_target, tracker_features
 from orientation.geometry import hmd_yaw, quat_mul, quat_rotate, rotate_y, wrap_angle
 from orientation.simulate import EVAL_AUGMENT, TRAIN_AUGMENT, Augment, simulate, spring_process
 
@@ -193,3 +193,24 @@ def test_how_the_devices_are_held_and_worn(clips):
     k = 1.9 / clip.upright_head
     assert np.allclose(tall.rot, base.rot)
     assert np.percentile(tall.pos[:, 0, 1], 90) == pytest.approx(np.percentile(base.pos[:, 0, 1], 90) * k, rel=0.02)
+
+
+def test_the_hips_target_is_the_hips_from_the_head_centre_in_the_headset_frame(clips):
+    """`features.hips_target`: the virtual root on the floor from the head centre (0.10 m behind
+    the headset along its yaw), in the HMD-yaw frame — the same wherever the room puts the user
+    (the simulation moves the hips with everything else), and a person's head sits a few cm in
+    front of the hips while walking."""
+    aug = replace(EVAL_AUGMENT, noise_pos=(0.0, 0.0), noise_rot=(0.0, 0.0), global_yaw=False)
+    a = simulate(clips[1], np.random.default_rng(5), aug, fps=72.0)
+    b = simulate(clips[1], np.random.default_rng(5), replace(aug, global_yaw=True), fps=72.0)
+    assert not np.allclose(a.hips, b.hips)
+    ta = hips_target(a.pos[:, 0], hmd_yaw(a.rot[:, 0]), a.hips)
+    tb = hips_target(b.pos[:, 0], hmd_yaw(b.rot[:, 0]), b.hips)
+    np.testing.assert_allclose(ta, tb, atol=1e-7)
+    # In the body's frame (+Z ahead): the hips behind the head centre, by a walker's few cm.
+    body = rotate_y(np.stack([ta[:, 0], np.zeros(len(ta)), ta[:, 1]], 1), hmd_yaw(a.rot[:, 0]) - a.body_yaw)
+    assert -0.12 < np.median(body[:, 2]) < 0.01 and np.abs(np.median(body[:, 0])) < 0.05
+    # Known geometry: a headset at the origin looking along +X (yaw π/2); hips 0.15 m behind it
+    # and 0.2 m to its right (+Z) → 0.05 m behind the head centre, 0.2 m right (x = −0.2).
+    t = hips_target(np.array([[0.0, 1.7, 0.0]]), np.array([np.pi / 2]), np.array([[-0.15, 0.2]]))
+    np.testing.assert_allclose(t, [[-0.2, -0.05]], atol=1e-12)

@@ -206,6 +206,29 @@ fn replay_validates_recordings_as_the_page_does() {
     let metrics = String::from_utf8_lossy(&out.stdout);
     // No truth: no root distance; every other metric a number (serde writes NaN as null).
     assert!(metrics.contains("\"root_distance\":null") && metrics.matches("null").count() == 1, "{metrics}");
+
+    // The network's hips (`--hips`): one [x, z] or null per frame; the root aims at them.
+    // (`recording` above left a valid 120-frame rec.json behind.)
+    let rec = temp("rec.json");
+    let hips_run = |hips: &serde_json::Value| {
+        let path = temp("hips.json");
+        std::fs::write(&path, hips.to_string()).unwrap();
+        let (db, rec, hips) = (db.to_str().unwrap(), rec.to_str().unwrap(), path.to_str().unwrap());
+        mmdb(&["replay", db, rec, "--yaw", "hmd", "--hips", hips, "--json"])
+    };
+    let out = hips_run(&serde_json::json!([[0.0, -0.1], [0.0, -0.1], [0.0, -0.1]]));
+    assert_eq!(out.status.code(), Some(2), "{}", stderr(&out));
+    assert!(stderr(&out).contains("hips.json: 3 hips offsets for 120 frames"), "{}", stderr(&out));
+    let out = hips_run(&serde_json::json!([1.0, 2.0]));
+    assert!(stderr(&out).contains("hips.json: "), "{}", stderr(&out));
+    let mixed: Vec<serde_json::Value> =
+        (0..120).map(|f| if f % 2 == 0 { serde_json::json!([0.0, -0.12]) } else { serde_json::Value::Null }).collect();
+    let out = hips_run(&serde_json::Value::from(mixed));
+    assert!(out.status.success(), "{}", stderr(&out));
+    // A null is "not known" (the target is the head centre again, the smoothing starts over):
+    // the replay runs through the flicker and every metric stays a number.
+    let r: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert!(r["head_gap"]["mean"].as_f64().is_some_and(f64::is_finite), "{r}");
 }
 
 /// A recording with body joints replays as the page drives it (issue 23, body tracking): while

@@ -20,7 +20,7 @@ const USAGE: &str = "usage:
   mmdb bench-runtime DB.mmdb [--json]   (per-character update time, characters per 4 ms)
   mmdb quality DB.mmdb [--json] [--seconds S] [--settings JSON]   (scripted inputs: distance, skating, pops)
   mmdb naturalness DB.mmdb [--json] [--seconds S] [--settings JSON]   (idle/walk/strafe/backward: style share, head pitch, hands)
-  mmdb replay DB.mmdb REC.json [--alpha A] [--yaw truth|hmd|YAW.json] [--settings JSON] [--json]
+  mmdb replay DB.mmdb REC.json [--alpha A] [--yaw truth|hmd|YAW.json] [--hips HIPS.json] [--settings JSON] [--json]
               (a VR recording through the tracked drive: root distance, skating, update time)
   mmdb coverage DB.mmdb OTHER.mmdb [--tag TAG] [--json]   (how well DB matches OTHER's frames: best search cost)";
 
@@ -656,7 +656,7 @@ fn coverage(args: &[String]) -> CliResult {
 fn replay(args: &[String]) -> CliResult {
     use mmcore::recording::Recording;
     use mmcore::vr_replay;
-    let a = Args::parse(args, &["--alpha", "--yaw", "--settings"], &["--json"])?;
+    let a = Args::parse(args, &["--alpha", "--yaw", "--hips", "--settings"], &["--json"])?;
     let [path, rec_path] = a.positional.as_slice() else {
         return Err(Usage("replay needs DB.mmdb and REC.json".into()).into());
     };
@@ -690,12 +690,25 @@ fn replay(args: &[String]) -> CliResult {
             v
         }
     };
+    // Where the network puts the hips, per frame: [x, z] room metres from the head centre, or
+    // null (the head centre itself).
+    let hips: Option<Vec<glam::Vec2>> = match a.get("--hips") {
+        None => None,
+        Some(file) => {
+            let v: Vec<Option<[f32; 2]>> =
+                serde_json::from_slice(&read(Path::new(file))?).map_err(|e| Error::config(format!("{file}: {e}")))?;
+            if v.len() != n {
+                return Err(Usage(format!("{file}: {} hips offsets for {n} frames", v.len())).into());
+            }
+            Some(v.into_iter().map(|h| h.map_or(glam::Vec2::NAN, glam::Vec2::from)).collect())
+        }
+    };
     let settings = match a.get("--settings") {
         Some(json) => vr_replay::vr_settings().patched(json).map_err(Usage)?,
         None => vr_replay::vr_settings(),
     };
     let index = mmcore::search::SearchIndex::new(&db)?;
-    let r = vr_replay::replay(&db, &index, &rec, &yaw, alpha, &settings);
+    let r = vr_replay::replay(&db, &index, &rec, &yaw, hips.as_deref(), alpha, &settings);
     if a.has("--json") {
         println!("{}", serde_json::to_string(&r).unwrap());
     } else {

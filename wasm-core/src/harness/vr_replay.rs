@@ -3,7 +3,8 @@
 //! the VR page's frame recipe does (`web/src/vr/tracked-drive.ts`) — head velocity differentiated
 //! over the real frame time and lightly smoothed, the head centre 0.10 m behind the eyes on the
 //! floor, the body yaw from a given source (the orientation network's output computed by
-//! `training/replay.py`, the recording's truth, or HMD forward), the crouch (`Character::set_crouch`), the VR
+//! `training/replay.py`, the recording's truth, or HMD forward), the root's target at the hips
+//! the network predicts when given (else the head centre), the crouch (`Character::set_crouch`), the VR
 //! settings — and measures what the replay bench measures: user↔avatar root distance (against
 //! the recording's truth), the head gap α clamps, foot skating and the update time.
 //!
@@ -27,6 +28,30 @@ use glam::{Quat, Vec2, Vec3};
 
 /// HMD (eyes) → head centre, m backward along the heading (`HMD_TO_HEAD_CENTRE` of the page).
 pub const HMD_TO_HEAD_CENTRE: f32 = 0.1;
+/// The farthest a predicted hips point may lie from the head centre, m (`MAX_HIPS_OFFSET`).
+pub const MAX_HIPS_OFFSET: f32 = 0.5;
+/// Smoothing of the predicted hips in the body's frame, half-life s (`HIPS_OFFSET_HALFLIFE`).
+const HIPS_OFFSET_HALFLIFE: f32 = 0.2;
+/// The share of the predicted hips offset the root's target takes (`HIPS_GAIN`).
+pub const HIPS_GAIN: f32 = 0.5;
+
+/// The page's `TrackedDrive.aimRoot`: the predicted hips offset (room m from the head centre,
+/// world axes; non-finite: none) smoothed in the frame of the body yaw `yaw` — `local` carries it
+/// (NaN: none yet) — and the offset to add to the head centre: [`HIPS_GAIN`] of it, at most
+/// [`MAX_HIPS_OFFSET`] long.
+fn aim_root(local: &mut Vec2, offset: Vec2, yaw: f32, dt: f32) -> Vec2 {
+    let (s, c) = yaw.sin_cos();
+    if offset.is_finite() {
+        // Into the body's frame (rotate_y by −yaw), then toward it at the half-life.
+        let l = Vec2::new(c * offset.x - s * offset.y, s * offset.x + c * offset.y);
+        let k = 1.0 - (-dt.max(0.0) / HIPS_OFFSET_HALFLIFE).exp2();
+        *local = if local.is_nan() { l } else { *local + (l - *local) * k };
+    } else {
+        *local = Vec2::NAN;
+    }
+    let l = if local.is_nan() { Vec2::ZERO } else { HIPS_GAIN * *local };
+    Vec2::new(c * l.x + s * l.y, c * l.y - s * l.x).clamp_length_max(MAX_HIPS_OFFSET)
+}
 /// The page's head-velocity smoothing half-life and dt limits (`web/src/vr/trackers.ts`).
 const VELOCITY_HALFLIFE: f32 = 0.03;
 const MAX_DT: f32 = 0.1;
@@ -129,8 +154,8 @@ pub struct ReplayReport {
     pub alpha: f32,
     /// Avatar root ↔ the recording's true root on the floor (m), when the recording has truth.
     pub root_distance: Option<Stats>,
-    /// Avatar root ↔ what α clamps it to on the floor (m): the head centre, or the tracked hips
-    /// on the frames the body drove.
+    /// Avatar root ↔ what α clamps it to on the floor (m): the predicted hips (else the head
+    /// centre), or the tracked hips on the frames the body drove.
     pub head_gap: Stats,
     /// Frames driven from the tracked body (a recording with body joints).
     pub body_frames: usize,
@@ -156,17 +181,21 @@ pub struct ReplayReport {
 }
 
 /// Replays `recording` on `db` at α = `alpha` (room m) with the body yaw `yaw[f]` per frame
-/// (radians, 0 = +Z; NaN keeps the previous one) and `settings` (α is set from `alpha`).
+/// (radians, 0 = +Z; NaN keeps the previous one), the hips `hips[f]` per frame when given (where
+/// the orientation network puts them: room metres from the head centre on the floor, (x, z); a
+/// non-finite one: the head centre itself, as the page does) and `settings` (α is set from `alpha`).
 pub fn replay(
     db: &Database,
     index: &SearchIndex,
     recording: &Recording,
     yaw: &[f32],
+    hips_offsets: Option<&[Vec2]>,
     alpha: f32,
     settings: &CharacterSettings,
 ) -> ReplayReport {
     let n = recording.num_frames();
     assert_eq!(yaw.len(), n, "one yaw per frame");
+    assert!(hips_offsets.is_none_or(|h| h.len() == n), "one hips offset per frame");
     // Calibration: the avatar's eyes at the user's (the database skeleton's head joint height at
     // rest stands for the avatar's eye height, as the page does without an avatar).
     let db_eye = db.rest_head_height().unwrap_or(1.6);
@@ -192,6 +221,7 @@ pub fn replay(
     c.teleport(db, Vec3::new(start.x / scale, 0.0, start.y / scale), Quat::from_rotation_y(start_yaw));
 
     let (mut velocity, mut body_yaw) = (Vec3::ZERO, start_yaw);
+    let mut hips_local = Vec2::NAN;
     let mut hips = recording.body.as_ref().map(TrackedHips::new);
     let mut body_frames = 0usize;
     let mut hips_distances = Vec::new();
@@ -217,10 +247,12 @@ pub fn replay(
             _ => None,
         };
         let head = head_floor(f);
-        // The root's target: the tracked hips while the body drives, else the head centre.
+        let offset = aim_root(&mut hips_local, hips_offsets.map_or(Vec2::NAN, |h| h[f]), body_yaw, dt);
+        // The root's target: the tracked hips while the body drives, else the predicted hips
+        // (the head centre without a prediction).
         let (floor, target_velocity, yaw_now, alpha_now) = match tracked {
             Some((at, v, y)) => (at, v, y, alpha.min(BODY_ALPHA)),
-            None => (head, Vec2::new(velocity.x, velocity.z), body_yaw, alpha),
+            None => (head + offset, Vec2::new(velocity.x, velocity.z), body_yaw, alpha),
         };
         body_frames += tracked.is_some() as usize;
         // Crouch: the head centre's drop — the HMD plus R·(0, 0, d), whose height is the HMD's

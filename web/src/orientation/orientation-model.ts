@@ -14,6 +14,10 @@
  * A previous body yaw that is not finite counts as a reset (previous slot 0, fallback the HMD
  * yaw), so the loop can never keep a NaN.
  *
+ * A model's second output `hips` [1, 2] (docs/orientation-model.md, "Output") says where the hips
+ * are on the floor: (x, z) from the head centre, in the HMD-yaw frame, metres — {@link OrientationModel.hips},
+ * NaN from a model without it or when it comes back not finite.
+ *
  * A **recurrent** model file (two inputs, `features` [1, 36] and `state` [1, H]; two outputs,
  * the 6D and `state_out`: `training/orientation/gru.py`) is run the same way, except that
  * step 2 is its state instead of the previous slot: zeros after `reset()`, the last `state_out`
@@ -39,8 +43,14 @@ export class OrientationModel {
   readonly features = new OrientationFeatures();
   /** The network's last raw 6D output. */
   readonly output = new Float32Array(6);
+  /**
+   * Where the hips were at the last update: (x, z) on the floor from the head centre, metres, in
+   * the HMD-yaw frame (+Z ahead, +X to the left); NaN without a `hips` output or when not finite.
+   */
+  readonly hips = new Float64Array([NaN, NaN]);
   private readonly feeds: Record<string, ort.Tensor>;
   private readonly outputName: string;
+  private readonly hipsOutputName: string | null;
   private _bodyYaw = 0;
   private _relativeYaw = 0;
   private hasYaw = false;
@@ -74,6 +84,7 @@ export class OrientationModel {
       this.feeds = { [input]: new ort.Tensor('float32', x, [1, inputs]) };
     }
     this.outputName = session.outputNames[0];
+    this.hipsOutputName = stateSize === 0 && session.outputNames.length === 2 ? session.outputNames[1] : null;
   }
 
   /** How many features the model takes: 54, 42 (a model from before the context), or 36 (recurrent). */
@@ -105,7 +116,7 @@ export class OrientationModel {
     }
     const inputs = session.inputNames.length;
     const outputs = session.outputNames.length;
-    if (inputs === 1 && outputs === 1) {
+    if (inputs === 1 && (outputs === 1 || outputs === 2)) {
       // The feature count: 54, or 42 for a model from before the context (a dynamic size: 54).
       const meta = session.inputMetadata[0];
       const dim = meta?.isTensor ? meta.shape[1] : NUM_INPUTS;
@@ -119,7 +130,7 @@ export class OrientationModel {
     const size = inputs === 2 && outputs === 2 && meta?.isTensor ? meta.shape[1] : NaN;
     if (typeof size === 'number' && Number.isInteger(size) && size >= 1 && size <= 4096) return new OrientationModel(session, size);
     await session.release();
-    throw new Error(`OrientationModel: expected 1 input and 1 output (or features and a fixed-size state in, 6D and the state out), the model has ${inputs} and ${outputs}`);
+    throw new Error(`OrientationModel: expected 1 input and 1 or 2 outputs (the 6D, the hips; or features and a fixed-size state in, 6D and the state out), the model has ${inputs} and ${outputs}`);
   }
 
   /** Predicted body yaw, world (local-floor) radians, 0 = facing +Z. */
@@ -155,6 +166,12 @@ export class OrientationModel {
       const result = await this.session.run(this.feeds);
       const o = this.output;
       o.set(result[this.outputName].data as Float32Array);
+      if (this.hipsOutputName) {
+        const h = result[this.hipsOutputName].data as Float32Array;
+        const ok = h.length >= 2 && Number.isFinite(h[0]) && Number.isFinite(h[1]);
+        this.hips[0] = ok ? h[0] : NaN;
+        this.hips[1] = ok ? h[1] : NaN;
+      }
       const state = this.state;
       if (state) {
         const next = result[this.stateOutputName!].data as Float32Array;
@@ -189,6 +206,7 @@ export class OrientationModel {
     this.hasYaw = false;
     this._bodyYaw = 0;
     this._relativeYaw = 0;
+    this.hips.fill(NaN);
   }
 
   /** Frees the ONNX session. */

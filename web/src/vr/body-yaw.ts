@@ -21,6 +21,12 @@ export interface TrackerPose {
 export interface BodyYawPredictor {
   /** 'network' or 'heuristic': shown in the page and read by tests. */
   readonly name: string;
+  /**
+   * Where the hips are on the floor, (x, z) from the head centre (`HMD_TO_HEAD_CENTRE` behind the
+   * headset), world metres, as of the last update; NaN (or absent) when the predictor does not
+   * say — the root's target is then the head centre itself.
+   */
+  readonly hips?: ArrayLike<number>;
   /** Advances by `dt` seconds and returns the body yaw, radians (0 = +Z, world). */
   update(hmd: TrackerPose, left: TrackerPose, right: TrackerPose, dt: number): number;
   /** Forgets history (session start, recentre); the next update starts from the HMD heading. */

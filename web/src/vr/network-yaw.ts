@@ -64,6 +64,10 @@ export class NetworkYawPredictor implements BodyYawPredictor {
     this.pending = null;
     if (this.runGeneration !== this.generation) return; // a reset happened meanwhile
     this.yaw = yaw;
+    // The model's hips are in its run's HMD-yaw frame: turned into the room's (rotate_y by that yaw).
+    const m = this.model, a = m.hmdYaw, x = m.hips[0], z = m.hips[1];
+    this.hips[0] = Math.cos(a) * x + Math.sin(a) * z;
+    this.hips[1] = Math.cos(a) * z - Math.sin(a) * x;
     this.runs++;
     this.lastRunMs = performance.now() - this.runStart;
   };
@@ -80,6 +84,11 @@ export class NetworkYawPredictor implements BodyYawPredictor {
   source: 'main' | 'both' = 'main';
   /** Seconds of input since the last reset. */
   age = 0;
+  /**
+   * Where the hips are (`BodyYawPredictor.hips`): this model's last finished run, NaN from a
+   * model without the hips output (the recurrent one) and after a reset until the first run.
+   */
+  readonly hips = new Float64Array([NaN, NaN]);
   /** The weight of `recurrent`'s yaw in the one returned (0, then ½). */
   weight = 0;
 
@@ -155,6 +164,7 @@ export class NetworkYawPredictor implements BodyYawPredictor {
   reset(): void {
     this.age = 0;
     this.weight = 0;
+    this.hips.fill(NaN);
     this.recurrent?.reset();
     this.generation++;
     this.started = false;

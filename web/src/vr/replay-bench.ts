@@ -39,8 +39,8 @@ export interface ReplayBenchResult {
   rootDistance: Stats | null;
   /** With ground truth: the avatar's shown hips on the floor ↔ the user's root (their hips' floor point), m. */
   hipsDistance: Stats | null;
-  /** Avatar root ↔ head centre floor projection (what α clamps), m. */
-  headGap: Stats;
+  /** Avatar root ↔ its target on the floor (the predicted hips, else the head centre: what α clamps), m. */
+  targetGap: Stats;
   /** Body-yaw error vs ground truth, degrees: the network, the heuristic, raw HMD forward. */
   yawError: { network: Stats | null; heuristic: Stats | null; hmdForward: Stats | null };
   /** Root distance with the heuristic driving the avatar, m. */
@@ -168,7 +168,7 @@ export async function benchReplay(drive: TrackedDrive, player: RecordingPlayer, 
       }
       if (timed) {
         timer.add(drive.lastUpdateMs);
-        gap[count] = Math.hypot(root.x - drive.headFloor[0], root.z - drive.headFloor[1]);
+        gap[count] = Math.hypot(root.x - drive.rootTarget[0], root.z - drive.rootTarget[1]);
         if (truth) {
           const h = drive.trackers.head.rotation;
           hmdErr[count] = (Math.abs(wrapAngle(headingYaw(h[0], h[1], h[2], h[3]) - truth.bodyYaw[f])) * 180) / Math.PI;
@@ -207,7 +207,7 @@ export async function benchReplay(drive: TrackedDrive, player: RecordingPlayer, 
     modelRuns: timed.runs,
     rootDistance: truth ? stats(dist, timed.count) : null,
     hipsDistance: truth ? stats(hipsDist, timed.count) : null,
-    headGap: stats(gap, timed.count) ?? { mean: NaN, median: NaN, p95: NaN, max: NaN },
+    targetGap: stats(gap, timed.count) ?? { mean: NaN, median: NaN, p95: NaN, max: NaN },
     yawError: { network: truth && network ? stats(yawErr, timed.count) : null, heuristic: null, hmdForward: truth ? stats(hmdErr, timed.count) : null },
     rootDistanceHeuristic: null,
     skatingCmPerS: duration > 0 ? (100 * character.runtime.skating * scale) / duration : NaN,

@@ -21,6 +21,11 @@
  * reference is the highest head-centre height seen since the last reset. Standing taller
  * (tip-toe) leaves the avatar standing.
  *
+ * The root's target (docs/vr.md, "Where the root goes"): MMVR puts it under the head centre, but
+ * people lean — the head sits 1–19 cm in front of the hips — so when the predictor says where the
+ * hips are (`BodyYawPredictor.hips`: the orientation network's second output) the target is
+ * there, at most `MAX_HIPS_OFFSET` from the head centre; otherwise the head centre itself.
+ *
  * Body tracking (docs/vr.md): when the headset tracks the body (`TrackerSample.bodyTracked`: the
  * hips and the hip joints' or the shoulders' line), the body yaw is the tracked hips' facing and
  * the root's target their floor point (`Character.setTracked(…, body = true)`: the runtime moves
@@ -71,6 +76,22 @@ export const DEFAULT_ALPHA = 0.2;
  */
 export const BODY_ALPHA = 0.1;
 
+/**
+ * The farthest (m) a predicted hips point may lie from the head centre on the floor: a person
+ * bent over to touch the floor has the head ~0.5 m ahead of the hips; beyond that the prediction
+ * is not believed and clipped to it.
+ */
+export const MAX_HIPS_OFFSET = 0.5;
+
+/**
+ * Smoothing of the predicted hips (half-life, s), in the body's frame: the network's guess moves
+ * ~5 mm a frame on its own, and a root target that jitters drags the avatar about.
+ */
+export const HIPS_OFFSET_HALFLIFE = 0.2;
+
+/** The share of the predicted hips offset the root's target takes. */
+export const HIPS_GAIN = 0.5;
+
 /** Smoothing of the tracked hips' ground velocity (half-life, s): body tracking jitters a little every frame. */
 const HIPS_VELOCITY_HALFLIFE = 0.05;
 
@@ -84,6 +105,8 @@ export class TrackedDrive {
   predictor: BodyYawPredictor;
   /** Head centre on the floor (x, z, room m) and body yaw of the last frame. */
   readonly headFloor = new Float64Array(2);
+  /** The root's target on the floor (x, z, room m) of the last frame: the predicted hips, else the head centre. */
+  readonly rootTarget = new Float64Array(2);
   yaw = 0;
   /** Milliseconds of the last `update`. */
   lastUpdateMs = 0;
@@ -107,6 +130,8 @@ export class TrackedDrive {
   /** The network's (or heuristic's) yaw of the last frame, also while the body drives. */
   predictedYaw = 0;
   private hadHips = false;
+  /** The predicted hips from the head centre in the body's frame (x left, z ahead), smoothed; NaN: none yet. */
+  private readonly hipsLocal = new Float64Array([NaN, NaN]);
   /** Whether α was last set for a tracked body (`BODY_ALPHA`): it changes with the body only. */
   private alphaForBody = false;
   /** α in room metres. */
@@ -180,6 +205,7 @@ export class TrackedDrive {
     this.predictor.reset();
     this.referenceEyeHeight = this.calibratedEyeHeight;
     this.hadHips = false;
+    this.hipsLocal.fill(NaN);
   }
 
   /**
@@ -215,6 +241,29 @@ export class TrackedDrive {
     return NaN;
   }
 
+  /**
+   * The root's target (`rootTarget`): the head centre plus the predicted hips, smoothed in the
+   * body's frame (turning carries it round at once) and at most `MAX_HIPS_OFFSET` long; the
+   * head centre itself while the predictor does not say.
+   */
+  private aimRoot(dt: number): void {
+    const hips = this.predictor.hips, local = this.hipsLocal;
+    const hx = hips ? hips[0] : NaN, hz = hips ? hips[1] : NaN;
+    const c = Math.cos(this.predictedYaw), s = Math.sin(this.predictedYaw);
+    if (Number.isFinite(hx) && Number.isFinite(hz)) {
+      // Into the body's frame (rotate_y by −yaw), then toward it at the half-life.
+      const lx = c * hx - s * hz, lz = s * hx + c * hz;
+      const fresh = Number.isNaN(local[0]);
+      const k = 1 - 2 ** (-Math.max(dt, 0) / HIPS_OFFSET_HALFLIFE);
+      local[0] = fresh ? lx : local[0] + (lx - local[0]) * k;
+      local[1] = fresh ? lz : local[1] + (lz - local[1]) * k;
+    } else local.fill(NaN);
+    const x = Number.isNaN(local[0]) ? 0 : HIPS_GAIN * local[0], z = Number.isNaN(local[1]) ? 0 : HIPS_GAIN * local[1];
+    const m = Math.min(1, MAX_HIPS_OFFSET / Math.max(Math.hypot(x, z), 1e-9));
+    this.rootTarget[0] = this.headFloor[0] + m * (c * x + s * z);
+    this.rootTarget[1] = this.headFloor[1] + m * (c * z - s * x);
+  }
+
   /** Runs one frame. `dt` overrides the animation step (fixed-step tests); default the trackers' dt. */
   update(sample: TrackerSample, dt?: number): void {
     const t0 = performance.now();
@@ -230,6 +279,7 @@ export class TrackedDrive {
     const heading = headingYaw(q[0], q[1], q[2], q[3]);
     this.headFloor[0] = head.position[0] - HMD_TO_HEAD_CENTRE * Math.sin(heading);
     this.headFloor[1] = head.position[2] - HMD_TO_HEAD_CENTRE * Math.cos(heading);
+    this.aimRoot(step);
 
     // Crouch: the head centre's drop (tip-toe: none) and the headset's pitch. The head centre is
     // HMD + R·(0, 0, d) (+Z is backward in the headset's frame); its height is the HMD's plus
@@ -245,7 +295,7 @@ export class TrackedDrive {
     if (this.bodyTracked) {
       character.setTracked(this.hipsFloor[0], this.hipsFloor[1], this.hipsVelocity[0], this.hipsVelocity[1], this.yaw, true);
     } else {
-      character.setTracked(this.headFloor[0], this.headFloor[1], head.velocity[0], head.velocity[2], this.yaw);
+      character.setTracked(this.rootTarget[0], this.rootTarget[1], head.velocity[0], head.velocity[2], this.yaw);
     }
     if (this.bodyTracked !== this.alphaForBody) this.setAlpha(this.alpha);
     character.setCrouch(d, this.headsetPitch);

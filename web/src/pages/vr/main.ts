@@ -28,7 +28,7 @@ import { RoomPanel } from '../../rooms/index.ts';
 const $ = <T extends HTMLElement>(id: string) => document.getElementById(id) as T;
 const hook = {
   ready: false, error: null as string | null, mode: 'idle' as 'idle' | 'xr' | 'replay', inXR: false, frames: 0,
-  head: [0, 0], hmd: [0, 0, 0], root: [0, 0, 0], rootYaw: 0, bodyYaw: 0,
+  target: [0, 0], hmd: [0, 0, 0], root: [0, 0, 0], rootYaw: 0, bodyYaw: 0,
   predictor: '', predictorFallback: null as string | null, networkLoaded: false, predictorRuns: 0, predictorSkipped: 0,
   predictorFailures: 0, yawModel: '', alpha: DEFAULT_ALPHA, hipsHeight: NaN, toeHeights: [NaN, NaN], hipsDrop: 0,
   avatarScale: 1, handErrors: [NaN, NaN], trackerStatus: [0, 0, 0], updateMs: { median: NaN, p95: NaN, last: NaN },
@@ -211,7 +211,7 @@ async function main(): Promise<void> {
       if (hook.inXR) pip.render(stage.scene, root.x, root.z, root.yaw);
     }
     hook.frames++;
-    [hook.head[0], hook.head[1]] = drive.headFloor;
+    [hook.target[0], hook.target[1]] = drive.rootTarget; // the root's target: what α clamps to
     [hook.hmd[0], hook.hmd[1], hook.hmd[2]] = tr.head.position;
     [hook.root[0], hook.root[1], hook.root[2]] = [root.x, root.y, root.z];
     [hook.rootYaw, hook.bodyYaw, hook.predictor] = [root.yaw, drive.yaw, drive.predictor.name];
