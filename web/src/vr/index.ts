@@ -12,7 +12,7 @@
  * @module mm-avatar/vr
  */
 export { DEFAULT_VR_DATABASE, DEFAULT_ORIENTATION_MODEL, DEFAULT_ORIENTATION_MODEL_RECURRENT, orientationModelUrl, vrDatabaseUrl } from './assets.ts';
-export { DEFAULT_ALPHA, HMD_TO_HEAD_CENTRE, TrackedDrive, VR_SETTINGS } from './tracked-drive.ts';
+export { DEFAULT_ALPHA, HIPS_GAIN, HIPS_OFFSET_HALFLIFE, HMD_TO_HEAD_CENTRE, MAX_HIPS_OFFSET, TrackedDrive, VR_SETTINGS } from './tracked-drive.ts';
 export { HEAD, LEFT, NUM_TRACKERS, RIGHT, TrackerSample, gripFromHand, sampleXRFrame } from './tracker-sample.ts';
 export { deviceKind, deviceSetName } from './device-set.ts';
 export { TrackerState, TrackerView } from './trackers.ts';
