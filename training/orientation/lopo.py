@@ -699,7 +699,8 @@ def main(argv=None) -> int:
         worst = max(t["classes"].items(), key=lambda kv: kv[1]["mean"]) if t["classes"] else ("-", {"mean": 0})
         print(
             f"{cond}: mean {t['mean']:.1f}° over people, p95 {t['p95']:.1f}°, ×{t['ratio']:.2f} HMD forward; "
-            f"worst class {worst[0]} {worst[1]['mean']:.1f}°; yaw jerk (mean |Δ²yaw|) {t['jerk']:.2f}°/frame²"
+            f"worst class {worst[0]} {worst[1]['mean']:.1f}°; yaw jerk (mean |Δ²yaw|) {t['jerk']:.2f}°/frame²; "
+            f"root target {t['hips']:.1f} cm from the hips (the head centre: {t['under']:.1f} cm)"
         )
     if "devices" in results:
         print()
