@@ -2,7 +2,7 @@
  * The VR frame recipe (docs/method.md §9), the same for a live session and a replay: tracker
  * sample → tracker state (velocities, missing/frozen controllers) → body yaw → the character's
  * tracked drive (`Character.setTracked`: the runtime spring-smooths the head's ground velocity
- * and the body yaw into the trajectory query; the root is clamped within α of the head) and the
+ * and the body yaw into the trajectory query; the root is clamped within α of its target) and the
  * crouch (`Character.setCrouch`) → the character's update (runtime, world pose, retarget) →
  * upper body (spine twist, head, arm IK). Allocates nothing per frame; `lastUpdateMs` times it.
  *
