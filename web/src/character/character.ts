@@ -442,10 +442,11 @@ export class Character {
   }
 
   /**
-   * Tracked drive (VR): the head's floor position and ground velocity (parent frame, m, m/s)
-   * and the body yaw (rad) this frame; with `body`, the tracked hips' floor position, velocity
-   * and facing instead, which the shown hips follow (WebXR body tracking). See `TrackedDrive`
-   * for the whole VR recipe.
+   * Tracked drive (VR): the root's target on the floor — the head centre, or where the hips are
+   * thought to be (`TrackedDrive.rootTarget`) — the head's ground velocity (parent frame, m, m/s)
+   * and the body yaw (rad) this frame; α clamps the root to the target. With `body`, the tracked
+   * hips' floor position, velocity and facing instead, which the shown hips follow (WebXR body
+   * tracking). See `TrackedDrive` for the whole VR recipe.
    */
   setTracked(headX: number, headZ: number, velocityX: number, velocityZ: number, yaw: number, body = false): void {
     this.live();
