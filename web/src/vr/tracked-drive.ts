@@ -59,11 +59,13 @@ export const HMD_TO_HEAD_CENTRE = 0.1;
  * - `beta_trajectory` 2: the trajectory comes from a real person, the pose part from the frame
  *   playing; trusting the trajectory twice as much keeps a dragged avatar from staying in
  *   standing frames while its user walks (replay bench, docs/vr.md: walk root distance 15 → 5 cm);
- * - `adjustment_position_halflife` 0.05 s, `adjustment_max_ratio` 2: the avatar follows its
- *   user twice as fast and may catch up at twice its own speed (Holden's 0.1 s and 0.5× suit a
- *   game character, whose player does not stand inside it). Feet the faster drag pulls out of
- *   their locks step back under the body (docs/method.md §7), so it costs little sliding:
- *   held-out replays, root distance 17.6 → 13.9 cm at 10.7 → 12.4 cm/s of skating (docs/vr.md).
+ * - `adjustment_position_halflife` 0.05 s, `adjustment_max_ratio` 4: the avatar follows its
+ *   user twice as fast and may catch up at four times its own speed (Holden's 0.1 s and 0.5×
+ *   suit a game character, whose player does not stand inside it). Feet the faster drag pulls
+ *   out of their locks step back under the body (docs/method.md §7), so it costs little
+ *   sliding: held-out replays, root distance 17.6 → 13.9 cm at 10.7 → 12.4 cm/s of skating
+ *   (ratio 2); with the root aimed at the predicted hips, ratio 2 → 4 took the page's held-out
+ *   root 12.3 → 11.0 cm and skating 8.3 → 7.0 cm/s (docs/vr.md, "Where the root goes").
  */
 export const VR_SETTINGS: Readonly<RuntimeSettings> = vrSettings;
 
