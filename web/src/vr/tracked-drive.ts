@@ -265,7 +265,9 @@ export class TrackedDrive {
       local[0] = fresh ? lx : local[0] + (lx - local[0]) * k;
       local[1] = fresh ? lz : local[1] + (lz - local[1]) * k;
     } else local.fill(NaN);
-    const x = Number.isNaN(local[0]) ? 0 : HIPS_GAIN * local[0], z = Number.isNaN(local[1]) ? 0 : HIPS_GAIN * local[1];
+    // Both parts are NaN together (none yet, or not known): the head centre itself.
+    const g = Number.isNaN(local[0]) ? 0 : HIPS_GAIN;
+    const x = g * (local[0] || 0), z = g * (local[1] || 0);
     const m = Math.min(1, MAX_HIPS_OFFSET / Math.max(Math.hypot(x, z), 1e-9));
     this.rootTarget[0] = this.headFloor[0] + m * (c * x + s * z);
     this.rootTarget[1] = this.headFloor[1] + m * (c * z - s * x);
