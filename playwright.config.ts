@@ -1,6 +1,8 @@
 import { defineConfig, devices } from '@playwright/test';
+import { CHROMIUM, chromiumArgs } from './scripts/chromium.mjs';
 
-// Playwright drives Debian's Chromium (/usr/bin/chromium, installed by scripts/setup.mjs);
+// Playwright drives Debian's Chromium (/usr/bin/chromium, installed by scripts/setup.mjs;
+// its switches in scripts/chromium.mjs);
 // it never downloads a browser of its own. WebGL2 runs on SwiftShader (software), so the tests
 // need no GPU.
 // PW_PORT: another port when several checkouts run their tests on one machine (an existing
@@ -26,19 +28,8 @@ export default defineConfig({
     screenshot: 'only-on-failure',
     trace: 'off',
     launchOptions: {
-      executablePath: '/usr/bin/chromium',
-      args: [
-        '--headless',
-        '--no-sandbox',
-        '--disable-gpu',
-        '--disable-quic',
-        '--no-first-run',
-        '--disable-background-networking',
-        '--disable-component-update',
-        '--disable-sync',
-        '--use-angle=swiftshader',
-        '--enable-unsafe-swiftshader',
-      ],
+      executablePath: CHROMIUM,
+      args: chromiumArgs(),
     },
   },
   projects: [{ name: 'chromium' }],

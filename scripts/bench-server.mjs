@@ -3,17 +3,17 @@
 // resolution instead of 100 µs.
 import path from 'node:path';
 import { fileURLToPath } from 'node:url';
+import { CHROMIUM, chromiumArgs } from './chromium.mjs';
 
 const ROOT = path.resolve(path.dirname(fileURLToPath(import.meta.url)), '..');
 
 /**
- * Headless Chromium as the browser benchmarks run it (the Debian package, playwright.config.ts's
- * flags); `webgl`: software WebGL (SwiftShader) for pages that draw.
+ * Headless Chromium as the browser benchmarks run it (scripts/chromium.mjs: the Debian package,
+ * the switches playwright.config.ts uses); `webgl`: software WebGL (SwiftShader) for pages that draw.
  */
 export async function launchBenchChromium({ webgl = false } = {}) {
   const { chromium } = await import('playwright-core');
-  const flags = ['--headless', '--no-sandbox', '--disable-gpu', '--disable-quic', '--no-first-run', '--disable-background-networking', '--disable-component-update', '--disable-sync'];
-  return chromium.launch({ executablePath: '/usr/bin/chromium', args: webgl ? [...flags, '--use-angle=swiftshader', '--enable-unsafe-swiftshader'] : flags });
+  return chromium.launch({ executablePath: CHROMIUM, args: chromiumArgs({ webgl }) });
 }
 
 /** Starts it; `close()` the result when done. */

@@ -19,6 +19,7 @@ import { execFileSync } from 'node:child_process';
 import { fileURLToPath } from 'node:url';
 import { PARSE_RECIPE, recipeDatabase, recipes, RUNTIME_RECIPE } from './bench-recipes.mjs';
 import { launchBenchChromium, startBenchServer } from './bench-server.mjs';
+import { CHROMIUM } from './chromium.mjs';
 
 const ROOT = path.resolve(path.dirname(fileURLToPath(import.meta.url)), '..');
 const args = process.argv.slice(2);
@@ -143,7 +144,6 @@ function printBuildBenchmark(result) {
 
 const DATABASES = path.join(ROOT, 'public', 'databases');
 const BENCH_PORT = 5197;
-const CHROMIUM = '/usr/bin/chromium';
 /** Targets for the AABB median in Chromium, ms, by recipe (issue targets; a recipe without one has none). */
 const AABB_TARGETS_MS = { [RUNTIME_RECIPE]: 0.0035, 'cmu-first-batch-104fps': 0.06 };
 

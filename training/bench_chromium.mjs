@@ -3,14 +3,11 @@
 // playwright-core): serves the repo with vite (cross-origin isolated, for the 5 µs timer), opens
 // web/src/orientation/bench.html and prints its result as JSON. Also checks the browser's
 // outputs against the recorded PyTorch ones. Usage: node training/bench_chromium.mjs
-import { startBenchServer } from '../scripts/bench-server.mjs';
-
-const CHROMIUM = '/usr/bin/chromium';
+import { launchBenchChromium, startBenchServer } from '../scripts/bench-server.mjs';
 
 const server = await startBenchServer(5287);
 let code = 0;
-const { chromium } = await import('playwright-core');
-const browser = await chromium.launch({ executablePath: CHROMIUM, args: ['--headless', '--no-sandbox', '--disable-gpu'] });
+const browser = await launchBenchChromium({ webgl: false });
 try {
   const page = await browser.newPage();
   const errors = [];
