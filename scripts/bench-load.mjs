@@ -1,4 +1,4 @@
-// `npm run bench -- --load [--json] [--pages demo,vr,embed] [--networks localhost,throttled]`:
+// `npm run bench -- --load [--json] [--pages demo,vr,embed] [--networks localhost,throttled] [--visits N]`:
 // what a new (and a returning) visitor downloads and waits for, measured in headless Chromium
 // against the production server (dist-server/serve.mjs on dist/, as `npm start` serves it).
 //
@@ -16,6 +16,9 @@
 //   `mm:avatar-ready`), the page's own resource timing (the whole database's request: sent,
 //   first and last byte), and the main thread's long tasks between the first frame and the whole
 //   in use (software WebGL's first frames: while they run, the whole's bytes wait to be read).
+// Each row is the median of N cold visits (each in a new context) and of the N warm visits after
+// them (default 5; a single visit here swings by ±30 %): the visit with the median first frame,
+// every visit's first frame listed beside it.
 // Also prints what the default database costs on the wire today (raw, gzip, brotli as built), and
 // what each of the package's entries costs an app that bundles it (gzip; scripts/entry-sizes.mjs).
 import { spawn } from 'node:child_process';
@@ -167,24 +170,34 @@ export async function loadBenchmark({ json, args, log }) {
   const pick = (flag, all) => (args.includes(flag) ? args[args.indexOf(flag) + 1].split(',') : Object.keys(all));
   const pages = pick('--pages', PAGES);
   const networks = pick('--networks', NETWORKS);
+  const visits = args.includes('--visits') ? Math.max(1, Number(args[args.indexOf('--visits') + 1]) || 1) : 5;
   const server = await startServer();
   const browser = await launchBenchChromium({ webgl: true });
   const rows = [];
+  // The visit with the median first frame (the lower middle one of an even count), and them all.
+  const median = (runs) => {
+    const sorted = [...runs].sort((a, b) => a.firstFrameMs - b.firstFrameMs);
+    return { ...sorted[(sorted.length - 1) >> 1], firstFrameAllMs: runs.map((r) => r.firstFrameMs) };
+  };
   try {
     for (const network of networks) {
       for (const pageId of pages) {
-        const context = await browser.newContext({ viewport: { width: 1280, height: 720 } });
-        log(`${pageId} · ${network} · cold`);
-        const cold = await visit(context, server, PAGES[pageId], NETWORKS[network], log);
-        // Let the first visit's service worker install and the library's cache writes finish.
-        const sw = await context.newPage();
-        await sw.goto(`${server.url}/404-probe`, { waitUntil: 'commit' }).catch(() => undefined);
-        await sw.evaluate(() => navigator.serviceWorker?.ready && Promise.race([navigator.serviceWorker.ready, new Promise((r) => setTimeout(r, 5000))])).catch(() => undefined);
-        await sw.close();
-        log(`${pageId} · ${network} · warm`);
-        const warm = await visit(context, server, PAGES[pageId], NETWORKS[network], log);
-        await context.close();
-        rows.push({ page: pageId, network, cache: 'cold', ...cold }, { page: pageId, network, cache: 'warm', ...warm });
+        const colds = [];
+        const warms = [];
+        for (let i = 0; i < visits; i++) {
+          const context = await browser.newContext({ viewport: { width: 1280, height: 720 } });
+          log(`${pageId} · ${network} · cold (${i + 1}/${visits})`);
+          colds.push(await visit(context, server, PAGES[pageId], NETWORKS[network], log));
+          // Let the first visit's service worker install and the library's cache writes finish.
+          const sw = await context.newPage();
+          await sw.goto(`${server.url}/404-probe`, { waitUntil: 'commit' }).catch(() => undefined);
+          await sw.evaluate(() => navigator.serviceWorker?.ready && Promise.race([navigator.serviceWorker.ready, new Promise((r) => setTimeout(r, 5000))])).catch(() => undefined);
+          await sw.close();
+          log(`${pageId} · ${network} · warm (${i + 1}/${visits})`);
+          warms.push(await visit(context, server, PAGES[pageId], NETWORKS[network], log));
+          await context.close();
+        }
+        rows.push({ page: pageId, network, cache: 'cold', ...median(colds) }, { page: pageId, network, cache: 'warm', ...median(warms) });
       }
     }
   } finally {
@@ -197,7 +210,7 @@ export async function loadBenchmark({ json, args, log }) {
   const database = { raw: size(db), gzip: size(`${db}.gz`), brotli: size(`${db}.br`), first: { raw: size(first), brotli: size(`${first}.br`) } };
   const { entrySizes, printEntrySizes } = await import('./entry-sizes.mjs');
   const entries = await entrySizes(DIST);
-  const result = { machine: { cores: os.availableParallelism(), load_average_1min: os.loadavg()[0] }, networks: NETWORKS, targets: TARGETS, database, entries, rows };
+  const result = { machine: { cores: os.availableParallelism(), load_average_1min: os.loadavg()[0] }, visits, networks: NETWORKS, targets: TARGETS, database, entries, rows };
   if (json) console.log(JSON.stringify(result, null, 2));
   else {
     printLoad(result);
@@ -206,18 +219,18 @@ export async function loadBenchmark({ json, args, log }) {
   return result;
 }
 
-function printLoad({ rows, database, machine }) {
+function printLoad({ rows, database, machine, visits }) {
   const mb = (n) => (n === null || n === undefined ? '—' : (n / 1e6).toFixed(2));
   const s = (ms) => (ms === null || ms === undefined ? '—' : (ms / 1000).toFixed(2));
-  console.log(`load benchmark: headless Chromium (SwiftShader), production server (dist/), ${machine.cores} cores, load ${machine.load_average_1min.toFixed(1)}`);
-  console.log('page   network    cache  MB before 1st frame (requests)  1st frame s  whole DB s  Enter VR s (MB)  server MB total  where the time goes (ms after navigation)');
+  console.log(`load benchmark: headless Chromium (SwiftShader), production server (dist/), ${machine.cores} cores, load ${machine.load_average_1min.toFixed(1)}; each row the median of ${visits} visits (its first frame's visit; every visit's first frame in the last column)`);
+  console.log('page   network    cache  MB before 1st frame (requests)  1st frame s  whole DB s  Enter VR s (MB)  server MB total  where the time goes (ms after navigation); first frames s');
   for (const r of rows) {
     const where = Object.entries(r.marks)
       .filter(([k]) => k !== 'first-frame')
       .map(([k, v]) => `${k} ${v}`)
       .join(', ');
     console.log(
-      `${r.page.padEnd(6)} ${r.network.padEnd(10)} ${r.cache.padEnd(6)} ${`${mb(r.bytesBeforeFirstFrame)} (${r.requestsBeforeFirstFrame})`.padStart(30)}  ${s(r.firstFrameMs).padStart(11)}  ${s(r.wholeMs).padStart(10)}  ${(r.enterVrMs === null ? '—' : `${s(r.enterVrMs)} (${mb(r.bytesBeforeEnterVr)})`).padStart(15)}  ${mb(r.serverBytes).padStart(15)}  html ${r.htmlMs}, ${where}`,
+      `${r.page.padEnd(6)} ${r.network.padEnd(10)} ${r.cache.padEnd(6)} ${`${mb(r.bytesBeforeFirstFrame)} (${r.requestsBeforeFirstFrame})`.padStart(30)}  ${s(r.firstFrameMs).padStart(11)}  ${s(r.wholeMs).padStart(10)}  ${(r.enterVrMs === null ? '—' : `${s(r.enterVrMs)} (${mb(r.bytesBeforeEnterVr)})`).padStart(15)}  ${mb(r.serverBytes).padStart(15)}  html ${r.htmlMs}, ${where}; ${r.firstFrameAllMs.map(s).join(' ')}`,
     );
   }
   console.log(`database on the wire: raw ${mb(database.raw)} MB, gzip ${mb(database.gzip)} MB, brotli ${mb(database.brotli)} MB (dist/databases/locomotion.mmdb and its precompressed siblings); its first part: raw ${mb(database.first.raw)} MB, brotli ${mb(database.first.brotli)} MB`);

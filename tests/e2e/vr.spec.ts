@@ -195,11 +195,11 @@ test('VR views: the headset draws the headless copy, the mirror and the spectato
   const errors = await openVr(page, '&mirror=128');
 
   // Outside a session the spectator canvas is not shown and does not cover the page (three.js's
-  // inline display: block used to beat its `hidden`).
+  // inline display: block used to beat its `hidden`); it is made at the first session.
   expect(await page.evaluate(() => {
-    const c = document.getElementById('spectator')!;
+    const c = document.getElementById('spectator');
     const top = document.elementFromPoint(innerWidth - 20, innerHeight - 20);
-    return [getComputedStyle(c).display, top === c];
+    return [c ? getComputedStyle(c).display : 'none', c !== null && top === c];
   })).toEqual(['none', false]);
 
   await enterVr(page);

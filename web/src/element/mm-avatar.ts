@@ -288,26 +288,32 @@ export class MMAvatarElement extends ElementBase {
     let database: Database;
     let avatar: Avatar | null = null;
     let avatarNote = '';
-    // The stage first: its WebGL context, and the avatar's shaders as soon as the avatar is here,
-    // get ready while the database still downloads (the first frame then only draws).
-    let stage: Stage;
+    // The downloads first: the cache reads and the core's compile go on while the stage is built
+    // (~10-30 ms of main thread for a WebGL context in software). Then the stage: its context,
+    // and the avatar's shaders as soon as the avatar is here, get ready while the database still
+    // downloads (the first frame then only draws).
+    let stage: Stage | null = null;
+    const precompile = (a: Avatar) => {
+      // `compile`, not `compileAsync`: the same work, without three.js' console warning where
+      // the browser lacks KHR_parallel_shader_compile (nothing here awaits the programs).
+      if (stage && generation === this.generation) stage.renderer.compile(a.object, stage.camera, stage.scene);
+      return a;
+    };
+    const avatarLoad = avatarUrl ? loadSharedAvatar(avatarUrl, { onProgress: progress, signal }).then(precompile, (e: unknown) => e as Error) : Promise.resolve(null);
+    const ownDatabase = databaseUrl !== assetUrl(DEFAULT_FIRST_PART).href;
+    const databaseLoad = ownDatabase ? loadDatabase(databaseUrl, { onProgress: progress, signal }) : loadDefaultDatabase({ onProgress: progress, signal });
     try {
       stage = this.stage = new Stage(this.view);
       stage.scene.fog = null;
     } catch (e) {
+      this.abort.abort();
+      databaseLoad.then((d) => d.release(), () => undefined);
+      void avatarLoad.then((a) => a instanceof Avatar && a.dispose());
       this.fail(errorMessage(e), databaseUrl);
       return;
     }
-    const precompile = (a: Avatar) => {
-      // `compile`, not `compileAsync`: the same work, without three.js' console warning where
-      // the browser lacks KHR_parallel_shader_compile (nothing here awaits the programs).
-      if (generation === this.generation) stage.renderer.compile(a.object, stage.camera, stage.scene);
-      return a;
-    };
     try {
-      const avatarLoad = avatarUrl ? loadSharedAvatar(avatarUrl, { onProgress: progress, signal }).then(precompile, (e: unknown) => e as Error) : Promise.resolve(null);
-      const ownDatabase = databaseUrl !== assetUrl(DEFAULT_FIRST_PART).href;
-      database = await (ownDatabase ? loadDatabase(databaseUrl, { onProgress: progress, signal }) : loadDefaultDatabase({ onProgress: progress, signal }));
+      database = await databaseLoad;
       const a = await avatarLoad;
       if (a instanceof Avatar) avatar = a;
       else if (a) {

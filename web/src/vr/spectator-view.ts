@@ -8,7 +8,7 @@ import * as THREE from 'three';
 import { softwareWebGL } from '../views/software-gl.ts';
 
 export class SpectatorView {
-  readonly renderer: THREE.WebGLRenderer;
+  private renderer_: THREE.WebGLRenderer | null = null;
   readonly camera = new THREE.PerspectiveCamera(45, 16 / 9, 0.05, 100);
   private readonly target = new THREE.Vector3();
   /** Metres behind the body, to its right, and the camera height. */
@@ -16,21 +16,30 @@ export class SpectatorView {
   side = 1.2;
   height = 1.6;
 
-  constructor(container: HTMLElement) {
-    this.renderer = new THREE.WebGLRenderer({ antialias: !softwareWebGL(), preserveDrawingBuffer: true });
-    this.renderer.outputColorSpace = THREE.SRGBColorSpace;
-    const canvas = this.renderer.domElement;
-    canvas.id = 'spectator';
-    container.appendChild(canvas);
+  constructor(private readonly container: HTMLElement) {}
+
+  /**
+   * Its renderer and canvas, made when first asked for (shown, drawn): a WebGL context is
+   * 10–30 ms of main thread in software, and the page's first frame should not wait for one
+   * that only a headset session shows.
+   */
+  get renderer(): THREE.WebGLRenderer {
+    if (this.renderer_) return this.renderer_;
+    const renderer = (this.renderer_ = new THREE.WebGLRenderer({ antialias: !softwareWebGL(), preserveDrawingBuffer: true }));
+    renderer.outputColorSpace = THREE.SRGBColorSpace;
+    renderer.domElement.id = 'spectator';
+    this.container.appendChild(renderer.domElement);
     this.visible = false;
+    return renderer;
   }
 
   get visible(): boolean {
-    return !this.renderer.domElement.hidden;
+    return !!this.renderer_ && !this.renderer_.domElement.hidden;
   }
 
   /** `hidden` alone does not hide it: three.js gives its canvas an inline `display: block`. */
   set visible(on: boolean) {
+    if (!on && !this.renderer_) return;
     const canvas = this.renderer.domElement;
     if (on === this.visible && canvas.style.display) return;
     canvas.hidden = !on;

@@ -52,6 +52,11 @@ async function main(): Promise<void> {
   const fixedDt = params.get('dt') === 'fixed' ? 1 / 60 : Number(params.get('dt')) || 0; // s per frame; 0: real time
   const emulated = params.get('emulate') === '1';
   if (emulated) hook.emulator = await emulateQuest3(params.get('devui') !== '0');
+  const avatarParam = params.get('avatar'); // the downloads start before the stage: they go on while it is built
+  const loading = LoadingStatus.attach($('hud'));
+  const avatar = avatarParam === 'none' ? null : (avatarParam ?? assetUrl(DEFAULT_AVATAR));
+  const database = params.get('db') ?? vrDatabaseUrl(true); // its first part: the whole follows the first frame
+  const pending = loadPageCharacter({ database, avatar, status: loading });
   const stage = new Stage($('viewport'));
   const renderer = stage.renderer;
   renderer.xr.enabled = true;
@@ -59,12 +64,7 @@ async function main(): Promise<void> {
   stage.camera.position.set(2.2, 1.6, 3.2);
   const spectator = new FollowCamera(stage.camera, renderer.domElement);
   const pip = params.get('spectator') === '0' ? null : new SpectatorView($('viewport'));
-
-  const avatarParam = params.get('avatar');
-  const loading = LoadingStatus.attach($('hud'));
-  const avatar = avatarParam === 'none' ? null : (avatarParam ?? assetUrl(DEFAULT_AVATAR));
-  const database = params.get('db') ?? vrDatabaseUrl(true); // its first part: the whole follows the first frame
-  const loaded = await loadPageCharacter({ database, avatar, status: loading });
+  const loaded = await pending;
   if (!loaded) return void (hook.error = $('hud').textContent);
   const { character, avatarNote } = loaded;
   loading.finish(avatarNote ? (showError(avatarNote), 'skeleton: the avatar did not load') : null);
