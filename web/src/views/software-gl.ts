@@ -6,22 +6,57 @@
  * so renderers drop MSAA and draw at one pixel per CSS pixel there, and keep both on a real GPU.
  *
  * `failIfMajorPerformanceCaveat` would be the standard test, but Chromium started with
- * `--enable-unsafe-swiftshader` does not report it; the unmasked renderer string does. Probed
- * once per page on a throwaway canvas (about 13 ms on SwiftShader), whose context is released.
+ * `--enable-unsafe-swiftshader` does not report it; the unmasked renderer string does. The
+ * answer must be known before the page's first context exists (MSAA is fixed at creation), so
+ * the first visit probes a throwaway canvas (about 13 ms on SwiftShader, its context released)
+ * and remembers the answer in `localStorage`; later visits take it from there, and every
+ * renderer made checks it against its own context (`rememberRenderer`), so a machine that
+ * changed (a GPU blocklisted since) is right again from its next page.
  */
 let software: boolean | undefined;
 
 const SOFTWARE = /swiftshader|llvmpipe|softpipe|lavapipe|software|basic render|warp/i;
+const KEY = 'mm-avatar:software-webgl';
+
+function stored(): boolean | undefined {
+  try {
+    const v = globalThis.localStorage?.getItem(KEY);
+    return v === '1' ? true : v === '0' ? false : undefined;
+  } catch {
+    return undefined; // storage refused (sandboxed frame, privacy settings): probe
+  }
+}
+
+function rendererIsSoftware(gl: WebGLRenderingContext | WebGL2RenderingContext): boolean {
+  const info = gl.getExtension('WEBGL_debug_renderer_info');
+  return SOFTWARE.test(String(gl.getParameter(info ? info.UNMASKED_RENDERER_WEBGL : gl.RENDERER) ?? ''));
+}
 
 export function softwareWebGL(): boolean {
+  if (software !== undefined) return software;
+  software = stored();
   if (software !== undefined) return software;
   software = false;
   if (typeof document === 'undefined') return software;
   const gl = document.createElement('canvas').getContext('webgl2') ?? document.createElement('canvas').getContext('webgl');
   if (!gl) return software;
-  const info = gl.getExtension('WEBGL_debug_renderer_info');
-  const name = String(gl.getParameter(info ? info.UNMASKED_RENDERER_WEBGL : gl.RENDERER) ?? '');
-  software = SOFTWARE.test(name);
+  software = rendererIsSoftware(gl);
   gl.getExtension('WEBGL_lose_context')?.loseContext();
+  rememberRenderer(null);
   return software;
+}
+
+/**
+ * Records what `gl` (a renderer's own context; null: the probe's answer) says, for this page's
+ * later renderers and the next page.
+ */
+export function rememberRenderer(gl: WebGLRenderingContext | WebGL2RenderingContext | null): void {
+  const truth = gl ? rendererIsSoftware(gl) : software;
+  if (truth === undefined) return;
+  software = truth;
+  try {
+    if (stored() !== truth) globalThis.localStorage?.setItem(KEY, truth ? '1' : '0');
+  } catch {
+    /* storage refused: the next page probes again */
+  }
 }

@@ -4,7 +4,7 @@
  */
 import * as THREE from 'three';
 import { FloorGrid } from './floor-grid.ts';
-import { softwareWebGL } from './software-gl.ts';
+import { rememberRenderer, softwareWebGL } from './software-gl.ts';
 
 /**
  * Compiles and links the shaders of everything visible under `object` now, as it will be drawn in
@@ -47,6 +47,7 @@ export class Stage {
     // MSAA and high-DPI pixels on a GPU; neither where WebGL draws in software (software-gl.ts).
     const software = softwareWebGL();
     this.renderer = new THREE.WebGLRenderer({ antialias: options.antialias ?? !software, preserveDrawingBuffer: true });
+    rememberRenderer(this.renderer.getContext());
     this.renderer.setPixelRatio(software ? 1 : Math.min(window.devicePixelRatio, 2));
     this.renderer.outputColorSpace = THREE.SRGBColorSpace;
     // Set once, before anything is drawn: the shadow type is part of every lit material's program
