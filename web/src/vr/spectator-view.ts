@@ -5,7 +5,7 @@
  * as a picture-in-picture over the page (an emulator may draw the eyes' view on the main canvas).
  */
 import * as THREE from 'three';
-import { softwareWebGL } from '../views/software-gl.ts';
+import { rememberRenderer, softwareWebGL } from '../views/software-gl.ts';
 
 export class SpectatorView {
   private renderer_: THREE.WebGLRenderer | null = null;
@@ -26,6 +26,7 @@ export class SpectatorView {
   get renderer(): THREE.WebGLRenderer {
     if (this.renderer_) return this.renderer_;
     const renderer = (this.renderer_ = new THREE.WebGLRenderer({ antialias: !softwareWebGL(), preserveDrawingBuffer: true }));
+    rememberRenderer(renderer.getContext());
     renderer.outputColorSpace = THREE.SRGBColorSpace;
     renderer.domElement.id = 'spectator';
     this.container.appendChild(renderer.domElement);
