@@ -159,13 +159,12 @@ export class Avatar {
    * an Error naming the source: not a model, no skinned mesh, no hips.
    */
   static async load(source: string | URL | Uint8Array | THREE.Object3D, options: AvatarOptions & FetchOptions = {}): Promise<Avatar> {
-    // Finding the roles runs in the core: it must be ready (it loads in parallel with the file).
+    // Finding the roles runs in the core: it loads in parallel with the file and its parse.
     const core = initWasm(undefined, options);
     core.catch(() => undefined); // awaited below; not an unhandled rejection if the file fails first
     if (source instanceof THREE.Object3D) return (await core, new Avatar(source, options.name ?? source.name ?? 'avatar', undefined, options.roles));
     const name = options.name ?? (source instanceof Uint8Array ? 'avatar' : String(source));
     const bytes = source instanceof Uint8Array ? source : await fetchBytes(source, { stage: 'avatar', ...options });
-    await core;
     const loader = new GLTFLoader();
     // The shipped avatar is meshopt-compressed with WebP textures (scripts/compress-avatar.mjs);
     // the decoder runs on this thread (no worker: CSP-safe, 'wasm-unsafe-eval' only). Any other
@@ -189,6 +188,8 @@ export class Avatar {
     // (rigid-meshes.ts: one skeleton upload a frame per avatar, not one per mesh). Not for a VRM,
     // whose extras (look-at, first-person layers) address its meshes.
     if (!vrm) attachRigidMeshes(gltf.scene);
+    // The parse (meshopt, images) went on while the core compiled; only finding the roles needs it.
+    await core;
     const avatar = new Avatar(vrm?.scene ?? gltf.scene, name, vrm, options.roles);
     cullHiddenBackFaces(avatar.object); // a loaded file's materials are ours to set (closed-mesh.ts)
     mark('mm:avatar-ready');
