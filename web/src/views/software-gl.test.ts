@@ -6,7 +6,7 @@ const context = (name: string) =>
   ({
     RENDERER: 0x1f01,
     getExtension: (e: string) => (e === 'WEBGL_debug_renderer_info' ? { UNMASKED_RENDERER_WEBGL: 0x9246 } : null),
-    getParameter: (p: number) => (p === 0x9246 ? name : 'WebKit WebGL'),
+    getParameter: (p: number) => (p === 0x9246 ? name || null : 'WebKit WebGL'),
   }) as unknown as WebGL2RenderingContext;
 
 const items = new Map<string, string>();
@@ -22,6 +22,9 @@ describe('softwareWebGL', () => {
     expect(softwareWebGL()).toBe(false);
     expect(items.get('mm-avatar:software-webgl')).toBe('0');
     rememberRenderer(context('ANGLE (Google, Vulkan 1.3.0 (SwiftShader Device (Subzero)), SwiftShader driver)'));
+    expect(softwareWebGL()).toBe(true);
+    expect(items.get('mm-avatar:software-webgl')).toBe('1');
+    rememberRenderer(context('')); // a lost context says nothing: the answer stands
     expect(softwareWebGL()).toBe(true);
     expect(items.get('mm-avatar:software-webgl')).toBe('1');
   });

@@ -27,9 +27,11 @@ function stored(): boolean | undefined {
   }
 }
 
-function rendererIsSoftware(gl: WebGLRenderingContext | WebGL2RenderingContext): boolean {
+/** What `gl` says; undefined when it says nothing (a lost context answers null). */
+function rendererIsSoftware(gl: WebGLRenderingContext | WebGL2RenderingContext): boolean | undefined {
   const info = gl.getExtension('WEBGL_debug_renderer_info');
-  return SOFTWARE.test(String(gl.getParameter(info ? info.UNMASKED_RENDERER_WEBGL : gl.RENDERER) ?? ''));
+  const name = gl.getParameter(info ? info.UNMASKED_RENDERER_WEBGL : gl.RENDERER);
+  return typeof name === 'string' && name !== '' ? SOFTWARE.test(name) : undefined;
 }
 
 export function softwareWebGL(): boolean {
@@ -40,7 +42,7 @@ export function softwareWebGL(): boolean {
   if (typeof document === 'undefined') return software;
   const gl = document.createElement('canvas').getContext('webgl2') ?? document.createElement('canvas').getContext('webgl');
   if (!gl) return software;
-  software = rendererIsSoftware(gl);
+  software = rendererIsSoftware(gl) ?? false;
   gl.getExtension('WEBGL_lose_context')?.loseContext();
   rememberRenderer(null);
   return software;
