@@ -34,6 +34,16 @@ function rendererIsSoftware(gl: WebGLRenderingContext | WebGL2RenderingContext):
   return typeof name === 'string' && name !== '' ? SOFTWARE.test(name) : undefined;
 }
 
+/** Remembers `truth` for this page's later renderers and the next page. */
+function remember(truth: boolean): void {
+  software = truth;
+  try {
+    if (stored() !== truth) globalThis.localStorage?.setItem(KEY, truth ? '1' : '0');
+  } catch {
+    /* storage refused: the next page probes again */
+  }
+}
+
 export function softwareWebGL(): boolean {
   if (software !== undefined) return software;
   software = stored();
@@ -42,23 +52,13 @@ export function softwareWebGL(): boolean {
   if (typeof document === 'undefined') return software;
   const gl = document.createElement('canvas').getContext('webgl2') ?? document.createElement('canvas').getContext('webgl');
   if (!gl) return software;
-  software = rendererIsSoftware(gl) ?? false;
+  remember(rendererIsSoftware(gl) ?? false);
   gl.getExtension('WEBGL_lose_context')?.loseContext();
-  rememberRenderer(null);
   return software;
 }
 
-/**
- * Records what `gl` (a renderer's own context; null: the probe's answer) says, for this page's
- * later renderers and the next page.
- */
-export function rememberRenderer(gl: WebGLRenderingContext | WebGL2RenderingContext | null): void {
-  const truth = gl ? rendererIsSoftware(gl) : software;
-  if (truth === undefined) return;
-  software = truth;
-  try {
-    if (stored() !== truth) globalThis.localStorage?.setItem(KEY, truth ? '1' : '0');
-  } catch {
-    /* storage refused: the next page probes again */
-  }
+/** Checks the answer against a renderer's own context (one that names no renderer changes nothing). */
+export function rememberRenderer(gl: WebGLRenderingContext | WebGL2RenderingContext): void {
+  const truth = rendererIsSoftware(gl);
+  if (truth !== undefined) remember(truth);
 }
