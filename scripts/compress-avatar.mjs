@@ -1,13 +1,20 @@
 #!/usr/bin/env node
 // Compresses a shipped avatar for the web (run by scripts/setup.mjs' avatars step):
-//   node scripts/compress-avatar.mjs <in.glb> <out.glb> [--texture-size 1024] [--json]
+//   node scripts/compress-avatar.mjs <in.glb> <out.glb> [--texture-size 512] [--data-texture-size 256] [--json]
 //
 // With @gltf-transform (a maintained glTF toolkit): duplicate data merged, unused data pruned,
 // geometry quantized and meshopt-compressed (EXT_meshopt_compression + KHR_mesh_quantization:
 // the library decodes it with three.js' MeshoptDecoder, on the main thread, no worker, CSP-safe
-// under 'wasm-unsafe-eval'), textures resized to at most --texture-size px and re-encoded as
-// WebP (EXT_texture_webp, decoded by the browser as an image from a blob: URL). The skeleton's
-// joints, names and rest pose are untouched: retargeting reads those, not the vertex data.
+// under 'wasm-unsafe-eval'), textures resized and re-encoded as WebP (EXT_texture_webp, decoded
+// by the browser as an image from a blob: URL). The skeleton's joints, names and rest pose are
+// untouched: retargeting reads those, not the vertex data.
+//
+// Texture sizes: colour and normal maps at most --texture-size px (512: a character on a page is
+// a few hundred pixels tall, its face a tenth of its colour map), the maps of surface data
+// (metallic-roughness, occlusion: slow variations of shininess) at most --data-texture-size
+// (256). Why not more: every pixel is decoded and uploaded before the first frame — the shipped
+// avatar's three 1024² maps took 37-58 ms each to decode, and a returning visitor's first frame
+// came ~50 ms sooner at 512/256 (348 → 245 kB on the wire).
 // Prints one line (or a JSON object with --json) with the sizes before and after.
 import fs from 'node:fs';
 import path from 'node:path';
@@ -18,13 +25,15 @@ import { MeshoptEncoder } from 'meshoptimizer';
 import sharp from 'sharp';
 
 const args = process.argv.slice(2);
-const [input, output] = args.filter((a, i) => !a.startsWith('--') && !args[i - 1]?.startsWith('--texture'));
+const [input, output] = args.filter((a, i) => !a.startsWith('--') && !/^--(data-)?texture-size$/.test(args[i - 1] ?? ''));
 if (!input || !output) {
-  console.error('usage: node scripts/compress-avatar.mjs <in.glb> <out.glb> [--texture-size 1024] [--json]');
+  console.error('usage: node scripts/compress-avatar.mjs <in.glb> <out.glb> [--texture-size 512] [--data-texture-size 256] [--json]');
   process.exit(2);
 }
-const sizeArg = args.indexOf('--texture-size');
-const textureSize = sizeArg >= 0 ? Number(args[sizeArg + 1]) : 1024;
+const sizeOf = (flag, fallback) => (args.includes(flag) ? Number(args[args.indexOf(flag) + 1]) : fallback);
+const textureSize = sizeOf('--texture-size', 512);
+const dataTextureSize = sizeOf('--data-texture-size', 256);
+const DATA_SLOTS = /^(metallicRoughness|occlusion)Texture$/;
 
 await MeshoptEncoder.ready;
 const io = new NodeIO().registerExtensions(ALL_EXTENSIONS).registerDependencies({ 'meshopt.encoder': MeshoptEncoder });
@@ -36,7 +45,8 @@ await document.transform(
   // Keep vertex attributes a material could read (COLOR_0 tints in three.js): only unused nodes,
   // accessors, textures… go.
   prune({ keepAttributes: true, keepLeaves: true }),
-  textureCompress({ encoder: sharp, targetFormat: 'webp', resize: [textureSize, textureSize], quality: 85 }),
+  textureCompress({ encoder: sharp, targetFormat: 'webp', resize: [dataTextureSize, dataTextureSize], quality: 85, slots: DATA_SLOTS }),
+  textureCompress({ encoder: sharp, targetFormat: 'webp', resize: [textureSize, textureSize], quality: 85, slots: /^(?!(metallicRoughness|occlusion)Texture$)/ }),
   meshopt({ encoder: MeshoptEncoder, level: 'medium' }),
 );
 const bytes = await io.writeBinary(document);
@@ -47,6 +57,6 @@ fs.mkdirSync(path.dirname(output), { recursive: true });
 fs.writeFileSync(tmp, bytes);
 fs.renameSync(tmp, output);
 const before = fs.statSync(input).size;
-const result = { input, output, before, after: bytes.length, textureSize, ms: Math.round(performance.now() - t0) };
+const result = { input, output, before, after: bytes.length, textureSize, dataTextureSize, ms: Math.round(performance.now() - t0) };
 if (args.includes('--json')) console.log(JSON.stringify(result));
-else console.log(`${path.basename(output)}: ${(before / 1e6).toFixed(2)} MB → ${(bytes.length / 1e6).toFixed(2)} MB (meshopt geometry, WebP ≤ ${textureSize} px textures) in ${(result.ms / 1000).toFixed(1)} s`);
+else console.log(`${path.basename(output)}: ${(before / 1e6).toFixed(2)} MB → ${(bytes.length / 1e6).toFixed(2)} MB (meshopt geometry, WebP textures ≤ ${textureSize} px, data maps ≤ ${dataTextureSize} px) in ${(result.ms / 1000).toFixed(1)} s`);

@@ -357,7 +357,7 @@ async function stepAvatars() {
     const outDir = path.join(ROOT, 'public', 'avatars');
     fs.mkdirSync(outDir, { recursive: true });
     // The shipped avatar goes out compressed (scripts/compress-avatar.mjs, @gltf-transform:
-    // meshopt geometry, WebP textures ≤ 1024 px); redone when the source or the script is newer.
+    // meshopt geometry, WebP textures ≤ 512 px, data maps ≤ 256); redone when the source or the script is newer.
     const script = path.join(ROOT, 'scripts', 'compress-avatar.mjs');
     let written = 0;
     for (const f of glbs) {
