@@ -23,24 +23,19 @@ export function isClosedMesh(geometry: THREE.BufferGeometry): boolean {
   if (count < 12 || count % 3 !== 0) return false;
   const [welded, xyz] = weld(position);
   const corners = index ? index.array : null;
-  // Directed edges a → b in an open-addressed table: a closed, consistently wound surface runs
-  // each edge once each way.
-  const mask = tableSize(count) - 1;
-  const from = new Int32Array(mask + 1).fill(-1);
-  const to = new Int32Array(mask + 1);
-  const find = (a: number, b: number) => {
-    let h = (Math.imul(a, 0x9e3779b1) ^ Math.imul(b, 0x85ebca77)) & mask;
-    while (from[h] !== -1 && (from[h] !== a || to[h] !== b)) h = (h + 1) & mask;
-    return h;
-  };
-  /** Records edge a → b; false if it was there already (the same edge run the same way twice). */
-  const add = (a: number, b: number) => {
-    const h = find(a, b);
-    if (from[h] !== -1) return false;
-    from[h] = a;
-    to[h] = b;
-    return true;
-  };
+  // Edges in an open-addressed table, keyed by their two ends (low, high), with the directions
+  // they were run in: a closed, consistently wound surface runs each edge once each way, so every
+  // key ends with both directions and none is run twice the same way. Counting keys and keys
+  // with both directions answers without a pass over the table. Fibonacci hashing (the product's
+  // high bits): the low bits of a product of small ids cluster under linear probing (4× slower).
+  const size = tableSize(count); // > the most keys there can be (one per corner): never full
+  const mask = size - 1;
+  const shift = 32 - Math.log2(size);
+  const low = new Int32Array(size).fill(-1);
+  const high = new Int32Array(size);
+  const runs = new Uint8Array(size);
+  let keys = 0;
+  let paired = 0;
   let volume = 0;
   for (let t = 0; t < count; t += 3) {
     const i0 = corners ? corners[t] : t;
@@ -50,7 +45,25 @@ export function isClosedMesh(geometry: THREE.BufferGeometry): boolean {
     const b = welded[i1];
     const c = welded[i2];
     if (a === b || b === c || c === a) continue; // degenerate: no area, never seen
-    if (!add(a, b) || !add(b, c) || !add(c, a)) return false;
+    for (let e = 0; e < 3; e++) {
+      const p = e === 0 ? a : e === 1 ? b : c;
+      const q = e === 0 ? b : e === 1 ? c : a;
+      const lo = p < q ? p : q;
+      const hi = p < q ? q : p;
+      const run = p < q ? 1 : 2;
+      let h = Math.imul(Math.imul(lo, 0x9e3779b1) ^ hi, 0x85ebca77) >>> shift;
+      while (low[h] !== -1 && (low[h] !== lo || high[h] !== hi)) h = (h + 1) & mask;
+      if (low[h] === -1) {
+        low[h] = lo;
+        high[h] = hi;
+        runs[h] = run;
+        keys++;
+      } else if (runs[h] & run) return false; // the same edge run the same way twice
+      else {
+        runs[h] |= run;
+        paired++;
+      }
+    }
     // 6 × the signed volume of the tetrahedron (origin, p0, p1, p2): p0 · (p1 × p2).
     const x1 = xyz[3 * i1];
     const y1 = xyz[3 * i1 + 1];
@@ -60,7 +73,7 @@ export function isClosedMesh(geometry: THREE.BufferGeometry): boolean {
     const z2 = xyz[3 * i2 + 2];
     volume += xyz[3 * i0] * (y1 * z2 - z1 * y2) + xyz[3 * i0 + 1] * (z1 * x2 - x1 * z2) + xyz[3 * i0 + 2] * (x1 * y2 - y1 * x2);
   }
-  for (let h = 0; h <= mask; h++) if (from[h] !== -1 && from[find(to[h], from[h])] === -1) return false;
+  if (paired !== keys) return false; // an edge run one way only: a hole or a flipped triangle
   return volume > 0; // also false with no triangle at all
 }
 
@@ -90,6 +103,7 @@ function weld(position: THREE.BufferAttribute | THREE.InterleavedBufferAttribute
   }
   const bits = new Int32Array(xyz.buffer);
   const mask = tableSize(n) - 1;
+  const shift = 32 - Math.log2(mask + 1);
   const first = new Int32Array(mask + 1).fill(-1);
   const id = new Int32Array(n);
   let ids = 0;
@@ -97,7 +111,7 @@ function weld(position: THREE.BufferAttribute | THREE.InterleavedBufferAttribute
     const x = bits[3 * i];
     const y = bits[3 * i + 1];
     const z = bits[3 * i + 2];
-    let h = (Math.imul(x, 0x9e3779b1) ^ Math.imul(y, 0x85ebca77) ^ Math.imul(z, 0xc2b2ae3d)) & mask;
+    let h = Math.imul(Math.imul(Math.imul(x, 0x9e3779b1) ^ y, 0x85ebca77) ^ z, 0xc2b2ae3d) >>> shift;
     for (; first[h] !== -1; h = (h + 1) & mask) {
       const j = first[h];
       if (bits[3 * j] === x && bits[3 * j + 1] === y && bits[3 * j + 2] === z) break;
