@@ -221,6 +221,16 @@ test.describe('production server (dist/)', () => {
     again.on('console', (m) => m.type() === 'warning' && warnings.push(m.text()));
     await again.goto(`${server.url}/`);
     await again.waitForFunction(() => window.__mm?.ready, null, { timeout: 60_000 });
+    // The worker's static routes: the browser read the scripts, styles and versioned assets from
+    // Cache Storage without running the fetch handler (web/sw/sw.js).
+    const sources = await again.evaluate(() =>
+      performance
+        .getEntriesByType('resource')
+        .filter((e) => e.name.startsWith(location.origin) && (/\/assets\/[^?]+\.(js|css)$/.test(e.name) || /\?v=/.test(e.name)))
+        .map((e) => `${e.name.replace(location.origin, '')}: ${(e as PerformanceResourceTiming & { workerFinalSourceType?: string }).workerFinalSourceType}`),
+    );
+    expect(sources.length).toBeGreaterThan(5);
+    expect(sources.filter((s) => !s.endsWith(': cache'))).toEqual([]);
     const loadEnd = await again.evaluate(() => (performance.getEntriesByType('navigation')[0] as PerformanceNavigationTiming).loadEventEnd);
     await again.waitForFunction((end) => performance.now() > end + 6000, loadEnd, { timeout: 30_000 });
     await again.close();
