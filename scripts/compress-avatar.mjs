@@ -33,6 +33,7 @@ if (!input || !output) {
 const sizeOf = (flag, fallback) => (args.includes(flag) ? Number(args[args.indexOf(flag) + 1]) : fallback);
 const textureSize = sizeOf('--texture-size', 512);
 const dataTextureSize = sizeOf('--data-texture-size', 256);
+// (A map a material uses both as colour and as data — rare — is taken by the data pass: 256.)
 const DATA_SLOTS = /^(metallicRoughness|occlusion)Texture$/;
 
 await MeshoptEncoder.ready;
