@@ -39,11 +39,14 @@ async function drop(page: Page, files: { name: string; text?: string; base64?: s
   }, files);
 }
 
-/** Holds `keys` for `frames` runtime updates (fixed dt: 60 updates = 1 s). */
+/** Waits until the runtime has run `n` updates in all (fixed dt: 60 updates = 1 s). */
+const untilUpdate = (page: Page, n: number) => page.waitForFunction((n) => window.__mm.updates >= n, n, { timeout: 60_000, polling: 50 });
+
+/** Holds `keys` for `frames` runtime updates. */
 async function hold(page: Page, keys: string[], frames: number): Promise<void> {
   const start = (await hook(page)).updates;
   for (const k of keys) await page.keyboard.down(k);
-  await page.waitForFunction((n) => window.__mm.updates >= n, start + frames, { timeout: 60_000, polling: 50 });
+  await untilUpdate(page, start + frames);
   for (const k of keys) await page.keyboard.up(k);
 }
 
@@ -61,13 +64,13 @@ test('the character walks, turns and strafes under the keyboard', async ({ page 
   const a = await hook(page);
   // Toe heights are measured while walking, after the first half second (starting from idle).
   await page.keyboard.down('KeyW');
-  await page.waitForFunction((n) => window.__mm.updates >= n, a.updates + 30, { timeout: 60_000, polling: 50 });
+  await untilUpdate(page, a.updates + 30);
   await page.evaluate(() => (window.__mm.toeErrors.length = 0));
-  await page.waitForFunction((n) => window.__mm.updates >= n, a.updates + 120, { timeout: 60_000, polling: 50 });
+  await untilUpdate(page, a.updates + 120);
   const b = await hook(page);
   // Half a second more for the toe heights: starting from standing (the first view is idle), 2 s
   // gave 59 planted foot-frames, one short of the sample this check wants.
-  await page.waitForFunction((n) => window.__mm.updates >= n, a.updates + 150, { timeout: 60_000, polling: 50 });
+  await untilUpdate(page, a.updates + 150);
   await page.keyboard.up('KeyW');
   const forward = [Math.sin(b.yaw), Math.cos(b.yaw)];
   const along = (b.root[0] - a.root[0]) * forward[0] + (b.root[2] - a.root[2]) * forward[1];
@@ -266,9 +269,9 @@ test('dropping BVH files builds a database the character walks on; a broken one 
   // from 1.1 to 3.7 cm between runs (how long the character had stood depends on the load's wall time).
   const start = (await hook(page)).updates;
   await page.keyboard.down('KeyW');
-  await page.waitForFunction((n) => window.__mm.updates >= n, start + 30, { timeout: 60_000, polling: 50 });
+  await untilUpdate(page, start + 30);
   await page.evaluate(() => (window.__mm.toeErrors.length = 0));
-  await page.waitForFunction((n) => window.__mm.updates >= n, start + 120, { timeout: 60_000, polling: 50 });
+  await untilUpdate(page, start + 120);
   await page.keyboard.up('KeyW');
   const vrmToes = await page.evaluate(() => window.__mm.toeErrors.map(Math.abs).sort((x, y) => x - y));
   const cm = (q: number) => (vrmToes[Math.floor(vrmToes.length * q)] * 100).toFixed(1);

@@ -100,10 +100,8 @@ export class Avatar {
         // three.js skins every vertex on the CPU in the first frame to find them (12-18 ms for
         // the shipped avatar) only to sort by them — culling is off, and the bounds would be
         // stale as soon as the character moves anyway.
-        if (!mesh.boundingSphere && mesh.geometry) {
-          if (!mesh.geometry.boundingSphere) mesh.geometry.computeBoundingSphere();
-          if (mesh.geometry.boundingSphere) mesh.boundingSphere = mesh.geometry.boundingSphere.clone();
-        }
+        if (!mesh.geometry.boundingSphere) mesh.geometry.computeBoundingSphere();
+        mesh.boundingSphere ??= mesh.geometry.boundingSphere!.clone();
       }
       // Skinned bounds stay at the rest pose's origin; the character walks away from it.
       o.frustumCulled = false;
