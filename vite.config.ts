@@ -3,7 +3,7 @@ import fs from 'node:fs';
 import path from 'node:path';
 import { fileURLToPath } from 'node:url';
 import basicSsl from '@vitejs/plugin-basic-ssl';
-import type { Plugin } from 'vite';
+import { type Plugin, transformWithEsbuild } from 'vite';
 import { defineConfig } from 'vitest/config';
 import { roomsPlugin } from './server/vite-plugin.ts';
 
@@ -12,8 +12,9 @@ const root = fileURLToPath(new URL('.', import.meta.url));
 /**
  * One config, three builds (`npm run build` runs them all, scripts/setup.mjs):
  * - `vite build` (mode `production`): the site — every page — into `dist/`, assets beside it;
- * - `vite build --mode element`: `dist/mm-avatar.js`, the standalone element with three.js
- *   bundled, finding its assets (WASM, default database and avatar) beside itself;
+ * - `vite build --mode element`: `dist/mm-avatar.js` (and its parts in `dist/assets/`), the
+ *   standalone element with three.js bundled, finding its assets (WASM, default database and
+ *   avatar) beside `mm-avatar.js`;
  * - `vite build --mode lib`: `dist/lib/`, the module for bundlers, `three` left to the app.
  * `__MM_ASSET_BASE__` is where the library's default assets are, relative to the built module
  * (web/src/assets.ts); in development they are at the site root.
@@ -79,6 +80,45 @@ function preloadFirstAssets(versions: Record<string, { v: string }>): Plugin {
   };
 }
 
+// The app's three.js (not a copy some dependency carries, as the XR emulator's UI does).
+const THREE_CORE = path.join(root, 'node_modules/three/build/three.core.js');
+const THREE_MODULE = path.join(root, 'node_modules/three/build/three.module.js');
+
+/**
+ * The element's script in parts the browser compiles side by side: `mm-avatar.js` only imports
+ * (register.ts); three.js' two halves (`assets/mm-avatar-three-*.js`, the renderer, and
+ * `…-three-core-*.js`) and the library with its loaders (`…-element-*.js`),
+ * 0.25-0.4 MB each, are compiled on the cores there are as they arrive (one 1 MB script was one
+ * ~90 ms compile on one core before the page could start). What is imported only on demand
+ * (three-vrm, for a VRM avatar) stays a chunk of its own, fetched when used.
+ */
+function elementChunk(id: string, meta: { getModuleInfo(id: string): { dynamicImporters: readonly string[]; importers: readonly string[] } | null }): string | undefined {
+  if (id === THREE_MODULE) return 'three';
+  if (id === THREE_CORE) return 'three-core';
+  const info = meta.getModuleInfo(id);
+  if (!info || (info.importers.length === 0 && info.dynamicImporters.length > 0)) return undefined; // lazy
+  if (id.includes('@pixiv/three-vrm') || id.endsWith('/element/register.ts')) return undefined;
+  return 'element';
+}
+
+/**
+ * The element build is one standalone script, not a module for bundlers: Vite's library mode
+ * keeps an ES build's whitespace (for the pure annotations an app's bundler shakes by), but nothing
+ * shakes this file again, so it is minified whole — 1.45 → ~0.9 MB to fetch and compile.
+ */
+function minifyStandalone(): Plugin {
+  return {
+    name: 'mm-minify-standalone',
+    // After every renderChunk (Vite's own would print the whitespace back).
+    async generateBundle(_options, bundle) {
+      for (const chunk of Object.values(bundle)) {
+        if (chunk.type !== 'chunk') continue;
+        chunk.code = (await transformWithEsbuild(chunk.code, chunk.fileName, { minify: true, format: 'esm', target: 'es2022' })).code;
+      }
+    },
+  };
+}
+
 export default defineConfig(({ command, mode }) => {
   const build = command === 'build';
   const base = { root, publicDir: 'public' };
@@ -88,14 +128,16 @@ export default defineConfig(({ command, mode }) => {
     return {
       ...base,
       publicDir: false,
-      define: { __MM_ASSET_BASE__: JSON.stringify('./'), ...versions },
+      // The library's code lands in dist/assets/ (elementChunk): the assets are one folder up.
+      define: { __MM_ASSET_BASE__: JSON.stringify('../'), ...versions },
       build: {
         outDir: 'dist',
         emptyOutDir: false,
         target: 'es2022',
         lib: { entry: 'web/src/element/register.ts', formats: ['es'], fileName: () => 'mm-avatar.js' },
-        rollupOptions: { output: { inlineDynamicImports: true } },
+        rollupOptions: { output: { chunkFileNames: 'assets/mm-avatar-[name]-[hash].js', manualChunks: elementChunk, hoistTransitiveImports: true } },
       },
+      plugins: [minifyStandalone()],
     };
   }
   if (build && mode === 'lib') {
@@ -135,7 +177,13 @@ export default defineConfig(({ command, mode }) => {
       outDir: 'dist',
       emptyOutDir: false,
       target: 'es2022',
-      rollupOptions: { input: { index: 'index.html', viewer: 'viewer.html', vr: 'vr.html', crowd: 'crowd.html', bench: 'bench.html' } },
+      rollupOptions: {
+        input: { index: 'index.html', viewer: 'viewer.html', vr: 'vr.html', crowd: 'crowd.html', bench: 'bench.html' },
+        // three.js' core half in a chunk of its own: a page's scripts then come in parts of at most
+        // ~0.4 MB that compile side by side (its renderer half and the core were one 0.6 MB
+        // chunk, the longest compile before a page could start; see elementChunk).
+        output: { manualChunks: (id) => (id === THREE_CORE ? 'three-core' : undefined) },
+      },
     },
     // onnxruntime-web ships its own wasm loader that pre-bundling breaks.
     // iwer and its devui are imported lazily (vr.html?emulate=1); pre-bundling them up front keeps

@@ -9,7 +9,7 @@ import * as THREE from 'three';
 import { type GLTF, GLTFLoader } from 'three/addons/loaders/GLTFLoader.js';
 import { MeshoptDecoder } from 'three/addons/libs/meshopt_decoder.module.js';
 import { clone as cloneSkinned } from 'three/addons/utils/SkeletonUtils.js';
-import { type VRM, VRMLoaderPlugin, VRMUtils } from '@pixiv/three-vrm';
+import type { VRM } from '@pixiv/three-vrm';
 import type { CharacterRuntime } from '../core/character.ts';
 import type { Database } from '../core/database.ts';
 import { Retargeter } from '../core/retarget.ts';
@@ -18,6 +18,7 @@ import { findRoles, ROLE_NAMES, type RoleName, type RoleOverrides, vrmBoneNames 
 import { type FetchOptions, fetchBytes, mark } from '../fetch.ts';
 import { cullHiddenBackFaces } from './closed-mesh.ts';
 import { attachRigidMeshes } from './rigid-meshes.ts';
+import { declaresVrm } from './vrm-file.ts';
 import { Grounding } from './grounding.ts';
 
 export interface AvatarOptions {
@@ -179,7 +180,9 @@ export class Avatar {
     // the decoder runs on this thread (no worker: CSP-safe, 'wasm-unsafe-eval' only). Any other
     // GLB/VRM loads as it is.
     loader.setMeshoptDecoder(MeshoptDecoder);
-    loader.register((parser) => new VRMLoaderPlugin(parser));
+    // three-vrm is fetched only for a file that is a VRM (vrm-file.ts).
+    const vrmLib = declaresVrm(bytes) ? await import('@pixiv/three-vrm') : null;
+    if (vrmLib) loader.register((parser) => new vrmLib.VRMLoaderPlugin(parser));
     let gltf: GLTF;
     try {
       gltf = await loader.parseAsync(bytes.slice().buffer, '');
@@ -190,7 +193,7 @@ export class Avatar {
     if (vrm) {
       // VRM 0.x faces −Z; and we pose the raw bones ourselves, so the normalized rig must not
       // overwrite them.
-      VRMUtils.rotateVRM0(vrm);
+      vrmLib?.VRMUtils.rotateVRM0(vrm);
       vrm.humanoid.autoUpdateHumanBones = false;
     }
     // A loaded file's meshes are ours to reshape: a mesh following one bone rigidly rides it

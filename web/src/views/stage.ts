@@ -37,7 +37,7 @@ export class Stage {
   private readonly observer: ResizeObserver | null = null;
 
   /**
-   * A canvas appended to `container`, sized to it (and kept so). `antialias`: MSAA (default: on a
+   * A canvas for `container` (appended with the first frame), sized to it (and kept so). `antialias`: MSAA (default: on a
    * GPU, off where WebGL draws in software).
    */
   constructor(
@@ -56,7 +56,9 @@ export class Stage {
     // a compile (seconds on a software GPU) that a room's late joiner waited for.
     // (PCF: three.js r18x dropped PCFSoft, warning and using PCF in its place.)
     this.renderer.shadowMap.type = THREE.PCFShadowMap;
-    container.appendChild(this.renderer.domElement);
+    // The canvas joins the page with its first frame (`render`), not before: an empty canvas in
+    // the page is one more layer each frame the browser draws while the page loads (read back
+    // from the GPU, ~15 ms a frame, where compositing is done in software).
 
     this.scene.background = new THREE.Color(0x1d2126);
     this.scene.fog = new THREE.Fog(0x1d2126, 8, 20);
@@ -141,5 +143,6 @@ export class Stage {
 
   render(): void {
     this.renderer.render(this.scene, this.camera);
+    if (!this.renderer.domElement.parentNode) this.container.appendChild(this.renderer.domElement);
   }
 }

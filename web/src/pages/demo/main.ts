@@ -18,7 +18,7 @@ import {
   type DroppedFiles, PathEditor, UpdateTimer, addSettingsFolders, catchPageErrors, droppedDatabase, errorMessage,
   installDropTarget, setOptions, showError,
 } from '../kit.ts';
-import { RoomPanel } from '../../rooms/index.ts';
+import type { RoomPanel } from '../../rooms/index.ts';
 
 const hook = {
   ready: false,
@@ -193,21 +193,21 @@ el.addEventListener('load', async () => {
       fileError(errorMessage(e)); // names the file (and line)
     }
   };
-  // ---- the room, joined once the scene is built and drawn once (every shader compiled and linked)
+  // ---- the room (its ~85 kB of code fetched now), joined once the scene is drawn once (every shader linked)
   stage.render();
-  const room = new RoomPanel({
+  let room: RoomPanel | null = null;
+  void import('../../rooms/index.ts').then(({ RoomPanel }) => (room = new RoomPanel({
     character, scene: stage.scene, renderer: stage.renderer, mode: 'desktop', onNote: fileError,
     parent: document.getElementById('toolbar')!, trace: el.timeStep !== null,
     avatar: avatarParam && avatarParam !== 'none' ? { kind: 'url', url: avatarParam } : undefined,
-  });
-
+  })));
   // ---- per update: the hook and the HUD
   const hud = document.getElementById('hud')!;
   const timer = new UpdateTimer(64);
   const v = new THREE.Vector3();
   let previousContacts = 0;
   el.afterUpdate = (dt) => {
-    room.update(dt);
+    room?.update(dt);
     const [r, rt, contacts] = [character.root, character.runtime, character.contacts];
     hook.path.following = character.followingPath; // a move key takes the character back from a path
     const onsets = contacts & ~previousContacts;

@@ -23,7 +23,7 @@ import {
   type ReplayBenchResult, SpectatorView, THIRD_PERSON_LAYER, TrackedDrive, TrackerSample, benchReplay, deviceSetName,
   loadRecording, orientationModelUrl, sampleXRFrame, scriptedSample, setHeadsetView, vrDatabaseUrl,
 } from '../../vr/index.ts';
-import { RoomPanel } from '../../rooms/index.ts';
+import type { RoomPanel } from '../../rooms/index.ts';
 
 const $ = <T extends HTMLElement>(id: string) => document.getElementById(id) as T;
 const hook = {
@@ -84,10 +84,6 @@ async function main(): Promise<void> {
     spectatorWhole: !!pip && sees(pip.camera, THIRD_PERSON_LAYER),
     pageWhole: sees(stage.camera, THIRD_PERSON_LAYER) && !sees(stage.camera, FIRST_PERSON_LAYER),
   });
-  const room = (hook.room = new RoomPanel({
-    character, scene: stage.scene, parent: $('toolbar'), mode: 'vr', trackers: drive.trackers, onNote: showError,
-    trace: fixedDt > 0, renderer,
-  }));
   const hips = character.avatar?.bone('hips') ?? null;
 
   const alphaInput = $<HTMLInputElement>('alpha');
@@ -198,7 +194,7 @@ async function main(): Promise<void> {
     $('try-hint').hidden = hook.mode !== 'idle' || emulated;
     recorder.add(sample);
     drive.update(sample, fixedDt || undefined);
-    room.update(fixedDt || realDt);
+    hook.room?.update(fixedDt || realDt);
     timer.add(drive.lastUpdateMs);
     const tr = drive.trackers;
     markers.update(tr);
@@ -239,6 +235,10 @@ async function main(): Promise<void> {
     }
     if (!hook.ready) {
       performance.mark('mm:first-frame');
+      void import('../../rooms/index.ts').then(({ RoomPanel }) => { // its ~85 kB after the first frame
+        const options = { character, scene: stage.scene, parent: $('toolbar'), mode: 'vr' as const, renderer };
+        hook.room = new RoomPanel({ ...options, trackers: drive.trackers, onNote: showError, trace: fixedDt > 0 });
+      });
       // Then the whole, the network (the heuristic drives till then), the cache: one at a time.
       void character.whole().catch(() => undefined).then(() => yaw.load()).then(() => registerOfflineCache());
     }
