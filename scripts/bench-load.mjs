@@ -245,7 +245,16 @@ function printLoad({ rows, database, machine, visits }) {
       const limit = r.network === 'localhost' ? TARGETS.firstFrameLocalMs : TARGETS.firstFrameThrottledMs;
       check(`${r.page} first frame ≤ ${limit / 1000} s cold (${r.network})`, r.firstFrameMs <= limit, `${s(r.firstFrameMs)} s`);
     }
-    if (r.cache === 'warm') check(`${r.page} warm first frame ≤ 0.4 s (${r.network})`, r.firstFrameMs <= TARGETS.warmMs, `${s(r.firstFrameMs)} s`);
+    if (r.cache === 'warm') {
+      // A page the site's service worker answers (network first) arrives sooner than one emulated
+      // round trip: DevTools' emulation slows the page's requests, not the worker's own. On a real
+      // line that request pays the round trip too, so it is added back here.
+      const latency = NETWORKS[r.network]?.latency ?? 0;
+      const viaWorker = latency > 0 && r.htmlMs !== null && r.htmlMs < latency;
+      const ms = r.firstFrameMs + (viaWorker ? latency : 0);
+      const why = viaWorker ? ` with the round trip of its page, which came through the service worker unthrottled in ${r.htmlMs} ms` : '';
+      check(`${r.page} warm first frame ≤ 0.4 s (${r.network})`, ms <= TARGETS.warmMs, `${s(ms)} s${why}`);
+    }
     if (r.cache === 'cold' && r.page === 'vr') check(`VR page ≤ 10 MB before Enter VR (${r.network})`, (r.bytesBeforeEnterVr ?? Infinity) <= TARGETS.vrBytes, `${mb(r.bytesBeforeEnterVr)} MB`);
   }
 }
