@@ -97,14 +97,13 @@ function elementChunk(id: string, meta: { getModuleInfo(id: string): { dynamicIm
   if (id === THREE_CORE) return 'three-core';
   const info = meta.getModuleInfo(id);
   if (!info || (info.importers.length === 0 && info.dynamicImporters.length > 0)) return undefined; // lazy
-  if (id.includes('@pixiv/three-vrm') || id.endsWith('/element/register.ts')) return undefined;
-  return 'element';
+  return id.endsWith('/element/register.ts') ? undefined : 'element';
 }
 
 /**
  * The element build is one standalone script, not a module for bundlers: Vite's library mode
  * keeps an ES build's whitespace (for the pure annotations an app's bundler shakes by), but nothing
- * shakes this file again, so it is minified whole — 1.45 → ~0.9 MB to fetch and compile.
+ * shakes this file again, so it is minified whole — 1.45 → 0.91 MB (0.76 MB before a first frame).
  */
 function minifyStandalone(): Plugin {
   return {
