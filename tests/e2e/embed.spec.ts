@@ -30,6 +30,13 @@ test('embed.html from dist/ under a strict CSP: two avatars, keyboard only where
   await page.addInitScript(() => {
     (window as unknown as { __csp: string[] }).__csp = [];
     document.addEventListener('securitypolicyviolation', (e) => (window as unknown as { __csp: string[] }).__csp.push(`${e.violatedDirective} ${e.blockedURI}`));
+    // When each WebGL context is made (the lazy element's should follow the eager one's first frame).
+    const made: number[] = ((window as unknown as { __webgl: number[] }).__webgl = []);
+    const getContext = HTMLCanvasElement.prototype.getContext;
+    HTMLCanvasElement.prototype.getContext = function (this: HTMLCanvasElement, ...args: unknown[]) {
+      if (/webgl/.test(String(args[0]))) made.push(performance.now());
+      return (getContext as (...a: unknown[]) => unknown).apply(this, args);
+    } as typeof getContext;
   });
   await page.goto(`${server.url}/examples/embed.html`);
   // Both fire `load` (the lazy one is in view). Fixed time steps from then on: 1/60 s a frame.
@@ -37,6 +44,11 @@ test('embed.html from dist/ under a strict CSP: two avatars, keyboard only where
   await page.evaluate(() => {
     for (const el of document.querySelectorAll('mm-avatar')) (el as unknown as { timeStep: number }).timeStep = 1 / 60;
   });
+  // The lazy element, though in view, started once the eager one had drawn: the first character
+  // is not held back by the second's context, shaders and character (mm-avatar.ts, afterEager).
+  const [webgl, firstFrame] = await page.evaluate(() => [(window as unknown as { __webgl: number[] }).__webgl, performance.getEntriesByName('mm:first-frame')[0].startTime] as const);
+  console.log(`WebGL contexts made at ${webgl.map((t) => t.toFixed(0)).join(', ')} ms; first frame ${firstFrame.toFixed(0)} ms`);
+  expect(webgl.filter((t) => t >= firstFrame).length, 'the lazy element\'s context, made after the first frame').toBe(1);
   // One avatar file, one parse: the second element shows a clone of the first one's avatar
   // (avatar/shared.ts; each parse marks mm:avatar-ready — two before).
   const parses = () => page.evaluate(() => performance.getEntriesByName('mm:avatar-ready').length);

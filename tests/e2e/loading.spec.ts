@@ -231,6 +231,9 @@ test.describe('production server (dist/)', () => {
     );
     expect(sources.length).toBeGreaterThan(5);
     expect(sources.filter((s) => !s.endsWith(': cache'))).toEqual([]);
+    // The page itself too: from the worker's shell, no round trip to the network.
+    const pageSource = await again.evaluate(() => (performance.getEntriesByType('navigation')[0] as PerformanceNavigationTiming & { workerFinalSourceType?: string }).workerFinalSourceType);
+    expect(pageSource).toBe('cache');
     const loadEnd = await again.evaluate(() => (performance.getEntriesByType('navigation')[0] as PerformanceNavigationTiming).loadEventEnd);
     await again.waitForFunction((end) => performance.now() > end + 6000, loadEnd, { timeout: 30_000 });
     await again.close();
