@@ -43,6 +43,7 @@ beforeAll(async () => {
   fs.writeFileSync(path.join(dir, 'assets', 'main-AbCd12_-.js'), 'export {};');
   fs.writeFileSync(path.join(dir, 'core.wasm'), Buffer.from([0, 0x61, 0x73, 0x6d, 1, 0, 0, 0]));
   fs.writeFileSync(path.join(dir, 'mm-avatar.js'), "import './assets/main-AbCd12_-.js';");
+  fs.writeFileSync(path.join(dir, 'page.css'), 'body { margin: 0 }');
   fs.writeFileSync(path.join(dir, 'sw.js'), 'self.addEventListener("fetch", () => {});');
   fs.writeFileSync(path.join(dir, '.secret'), 'no');
   server = await startSiteServer({ root: dir, port: 0, host: '127.0.0.1' });
@@ -107,9 +108,10 @@ describe('the static server', () => {
     expect(wasm.headers['cache-control']).toBe('no-cache');
   });
 
-  it('a script at a stable name: from the cache at once, revalidated behind it; never the service worker', async () => {
+  it('a script or style at a stable name: from the cache at once, revalidated behind it; never the service worker', async () => {
     const entry = await request('/mm-avatar.js');
     expect(entry.headers['cache-control']).toBe('max-age=0, stale-while-revalidate=86400');
+    expect((await request('/page.css')).headers['cache-control']).toBe('max-age=0, stale-while-revalidate=86400');
     expect(entry.headers.etag).toBeTruthy();
     expect((await request('/sw.js')).headers['cache-control']).toBe('no-cache');
     expect((await request('/index.html')).headers['cache-control']).toBe('no-cache');

@@ -8,11 +8,12 @@
  * - Content types for everything the site serves, `application/wasm` included (needed for
  *   streaming compilation).
  * - Caching: vite's content-hashed files (`assets/name-HASH.ext`) and URLs versioned by content
- *   (`?v=HASH`, the library's default assets) are `immutable` for a year; scripts at a stable
- *   name (the element's `mm-avatar.js`, which only imports hashed parts; an example's script)
- *   are used from the cache at once and revalidated behind it for a day (a returning visitor's
- *   page waits for no round trip for them; a new build shows one visit later); everything else
- *   (pages, the service worker, data) is `no-cache` with a strong `ETag` (a 304 when unchanged).
+ *   (`?v=HASH`, the library's default assets) are `immutable` for a year; scripts and styles at
+ *   a stable name (the element's `mm-avatar.js`, which only imports hashed parts; an example
+ *   page's script and style) are used from the cache at once and revalidated behind it for a day
+ *   (a returning visitor's page waits for no round trip for them; a new build shows one visit
+ *   later); everything else (pages, the service worker, data) is `no-cache` with a strong `ETag`
+ *   (a 304 when unchanged).
  * - `HEAD`, single `Range: bytes=a-b` requests (on the identity body), 405 for other methods.
  * - A missing file is a plain-text 404 naming the path: never an HTML page in place of a
  *   database (the dev server's fallback the library must otherwise guess at).
@@ -50,7 +51,7 @@ export const CONTENT_TYPES: Readonly<Record<string, string>> = {
 const HASHED = /\/assets\/[^/]+-[A-Za-z0-9_-]{8}\.[a-z0-9]+$/;
 const IMMUTABLE = 'public, max-age=31536000, immutable';
 const REVALIDATE = 'no-cache';
-const STALE_SCRIPT = 'max-age=0, stale-while-revalidate=86400';
+const STALE_SUBRESOURCE = 'max-age=0, stale-while-revalidate=86400';
 
 export interface StaticOptions {
   /** Extra headers on every file response (a Content-Security-Policy, say). */
@@ -142,8 +143,8 @@ export function staticHandler(root: string, options: StaticOptions = {}) {
     }
     const type = CONTENT_TYPES[path.extname(file).toLowerCase()] ?? 'application/octet-stream';
     const versioned = HASHED.test(pathname) || url.searchParams.has('v');
-    const script = /\.m?js$/.test(file) && path.basename(file) !== 'sw.js';
-    const cacheControl = versioned ? IMMUTABLE : script ? STALE_SCRIPT : REVALIDATE;
+    const stableSubresource = /\.(m?js|css)$/.test(file) && path.basename(file) !== 'sw.js';
+    const cacheControl = versioned ? IMMUTABLE : stableSubresource ? STALE_SUBRESOURCE : REVALIDATE;
 
     // Precompressed siblings (only when at least as new as the file: never a stale body).
     const siblings: { name: string; file: string; stat: fs.Stats }[] = [];

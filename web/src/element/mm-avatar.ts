@@ -6,9 +6,9 @@
  *   skeleton), `database` (.mmdb URL; default the shipped locomotion database), `controls`
  *   (space-separated `keyboard gamepad path none`; default `keyboard gamepad`; the keyboard
  *   acts only while the element has focus), `camera` (`follow`: moves with the character;
- *   `fixed`: stays put and turns to keep it in view), `loading`
- *   (`eager` | `lazy`: wait until near the viewport and the eager ones drew), `motion-style` (one of the database's
- *   styles, e.g. `angry`; default `neutral`), `debug`, `alt`;
+ *   `fixed`: stays put and turns to keep it in view), `loading` (`eager` | `lazy`: wait until
+ *   near the viewport and the eager ones drew), `motion-style` (one of the database's styles,
+ *   e.g. `angry`; default `neutral`), `debug`, `alt`;
  * - properties and methods: `character`, `root` ({x, y, z, yaw}, m / rad, the element's floor
  *   frame), `walkTo(x, z, {run})`, `setMove(x, z, {run})`, `stop()`, `ready` (a promise), `room`
  *   (the shared room its character is in, or null: `room.list()` — docs/rooms.md), and

@@ -37,8 +37,8 @@ export class Stage {
   private readonly observer: ResizeObserver | null = null;
 
   /**
-   * A canvas for `container` (appended with the first frame), sized to it (and kept so). `antialias`: MSAA (default: on a
-   * GPU, off where WebGL draws in software).
+   * A canvas for `container` (appended with the first frame), sized to it (and kept so).
+   * `antialias`: MSAA (default: on a GPU, off where WebGL draws in software).
    */
   constructor(
     private readonly container: HTMLElement,
