@@ -5,7 +5,8 @@
  *
  * - install: the shell (every page, script and style of the build, a few MB before compression)
  *   goes into `mm-shell-<version>`; the version is a hash over the content of every built file,
- *   so any change installs a new worker, and activation deletes the old caches;
+ *   so any change installs a new worker, and activation deletes the caches of the builds before
+ *   the one it replaces;
  * - pages (navigations): from the shell — a page changes only with a build, and every build is a
  *   new worker with a new shell — so a returning visitor's page waits for no network round trip;
  *   a page the shell lacks (a query string, say): network first, a cached copy when it fails;
