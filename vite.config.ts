@@ -3,7 +3,7 @@ import fs from 'node:fs';
 import path from 'node:path';
 import { fileURLToPath } from 'node:url';
 import basicSsl from '@vitejs/plugin-basic-ssl';
-import { type Plugin, transformWithEsbuild } from 'vite';
+import { type Plugin, type Rollup, transformWithEsbuild } from 'vite';
 import { defineConfig } from 'vitest/config';
 import { roomsPlugin } from './server/vite-plugin.ts';
 
@@ -92,13 +92,13 @@ const THREE_MODULE = path.join(root, 'node_modules/three/build/three.module.js')
  * ~90 ms compile on one core before the page could start). What is imported only on demand
  * (three-vrm, for a VRM avatar) stays a chunk of its own, fetched when used.
  */
-function elementChunk(id: string, meta: { getModuleInfo(id: string): { dynamicImporters: readonly string[]; importers: readonly string[] } | null }): string | undefined {
+const elementChunk: Rollup.GetManualChunk = (id, meta) => {
   if (id === THREE_MODULE) return 'three';
   if (id === THREE_CORE) return 'three-core';
   const info = meta.getModuleInfo(id);
   if (!info || (info.importers.length === 0 && info.dynamicImporters.length > 0)) return undefined; // lazy
   return id.endsWith('/element/register.ts') ? undefined : 'element';
-}
+};
 
 /**
  * The element build is one standalone script, not a module for bundlers: Vite's library mode

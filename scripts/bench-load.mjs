@@ -232,7 +232,7 @@ function printLoad({ rows, database, machine, visits }) {
       .map(([k, v]) => `${k} ${v}`)
       .join(', ');
     console.log(
-      `${r.page.padEnd(6)} ${r.network.padEnd(10)} ${r.cache.padEnd(6)} ${`${mb(r.bytesBeforeFirstFrame)} (${r.requestsBeforeFirstFrame})`.padStart(30)}  ${s(r.firstFrameMs).padStart(11)}  ${s(r.wholeMs).padStart(10)}  ${(r.enterVrMs === null ? '—' : `${s(r.enterVrMs)} (${mb(r.bytesBeforeEnterVr)})`).padStart(15)}  ${mb(r.serverBytes).padStart(15)}  html ${r.htmlMs}${r.htmlSource ? ` (${r.htmlSource})` : ""}, ${where}; ${r.firstFrameAllMs.map(s).join(' ')}`,
+      `${r.page.padEnd(6)} ${r.network.padEnd(10)} ${r.cache.padEnd(6)} ${`${mb(r.bytesBeforeFirstFrame)} (${r.requestsBeforeFirstFrame})`.padStart(30)}  ${s(r.firstFrameMs).padStart(11)}  ${s(r.wholeMs).padStart(10)}  ${(r.enterVrMs === null ? '—' : `${s(r.enterVrMs)} (${mb(r.bytesBeforeEnterVr)})`).padStart(15)}  ${mb(r.serverBytes).padStart(15)}  html ${r.htmlMs}${r.htmlSource ? ` (${r.htmlSource})` : ''}, ${where}; ${r.firstFrameAllMs.map(s).join(' ')}`,
     );
   }
   console.log(`database on the wire: raw ${mb(database.raw)} MB, gzip ${mb(database.gzip)} MB, brotli ${mb(database.brotli)} MB (dist/databases/locomotion.mmdb and its precompressed siblings); its first part: raw ${mb(database.first.raw)} MB, brotli ${mb(database.first.brotli)} MB`);
