@@ -34,7 +34,7 @@ import torch
 from . import data
 from .features import FRAME_COLUMNS, HIPS_GAIN, PREV, frame_features, hips_target
 from .geometry import wrap_angle
-from .model import OrientationNet
+from .model import AveragedNet, OrientationNet
 from .motion_classes import CLASSES, with_crouching
 from .predictors import TorchModel, hmd_forward, run_network, sequence_features, yaw_error_deg
 from .simulate import EVAL_AUGMENT, simulate, without_look_around
@@ -131,9 +131,9 @@ def unpack_clips(path: Path) -> list:
 _CLIPS: list = []  # the clips, set before the workers fork
 
 
-def _simulate_one(job: tuple[int, int, int, object]):
-    i, seed, epoch, aug = job
-    rng = np.random.default_rng([seed, epoch, i])
+def _simulate_one(job: tuple[int, int, int, object, int]):
+    i, seed, epoch, aug, variant = job
+    rng = np.random.default_rng([seed, epoch, i] + ([variant] if variant else []))
     seq = simulate(_CLIPS[i], rng, aug)
     f, y = frame_features(seq.pos, seq.rot, seq.dt)
     return f.astype(np.float32), y, seq.body_yaw, hips_target(seq.pos[:, 0], y, seq.hips).astype(np.float32)
@@ -146,10 +146,11 @@ class SharedEpoch:
 
 
 def simulate_shared(clips, owners: np.ndarray, cfg: TrainConfig, epoch: int, pool) -> SharedEpoch:
-    jobs = [(i, cfg.seed, epoch, cfg.augment) for i in range(len(clips))]
+    variants = range(cfg.variants_per_clip)
+    jobs = [(i, cfg.seed, epoch, cfg.augment, v) for i in range(len(clips)) for v in variants]
     results = pool.map(_simulate_one, jobs, chunksize=4) if pool else list(map(_simulate_one, jobs))
     feats, hmd, body, hips, starts, owner, offset = [], [], [], [], [], [], 0
-    for (f, y, b, h), who in zip(results, owners):
+    for (f, y, b, h), who in zip(results, np.repeat(owners, len(variants))):
         n = len(f)
         if n >= cfg.r + 1:
             starts.append(offset + np.arange(1, n - cfg.r + 1))
@@ -281,6 +282,7 @@ def train_folds(
         shared = simulate_shared(clips, owners, cfg, 0, pool)
         views = [fold_view(shared, k) for k in folds]
         nets = StackedNets([OrientationNet(*normalization(v), hidden=cfg.hidden) for v in views]).to(device)
+        nets.history = []
         opt = torch.optim.AdamW(nets.parameters(), lr=cfg.lr, weight_decay=cfg.weight_decay)
         sched = torch.optim.lr_scheduler.ExponentialLR(opt, gamma=cfg.lr_decay)
         for epoch in range(cfg.epochs):
@@ -291,7 +293,7 @@ def train_folds(
             nb = min(len(o) for o in orders) // cfg.batch
             if cfg.max_batches_per_epoch:
                 nb = min(nb, cfg.max_batches_per_epoch)
-            losses = []
+            losses, errs = [], []
             for b in range(nb):
                 parts = [
                     batch_tensors(v, o[b * cfg.batch : (b + 1) * cfg.batch], cfg, rng) for v, o in zip(views, orders)
@@ -315,7 +317,21 @@ def train_folds(
                 loss.backward()
                 opt.step()
                 losses.append(loss.item() / len(folds))
+                with torch.no_grad():
+                    e = torch.atan2(-out[..., 2], out[..., 0]) - torch.atan2(-target[..., 2], target[..., 0])
+                    errs.append(float(np.degrees(np.abs(wrap_angle(e.cpu().numpy()))).mean()))
             sched.step()
+            nets.history.append(
+                {
+                    "epoch": epoch + 1,
+                    "loss": float(np.mean(losses)),
+                    "yaw_error_deg": float(np.mean(errs)),
+                    "first_loss": float(np.mean(losses[: max(1, nb // 10)])),
+                    "batches": nb,
+                    "lr": opt.param_groups[0]["lr"],
+                    "seconds": time.perf_counter() - t0,
+                }
+            )
             log(
                 f"  epoch {epoch + 1:3d}/{cfg.epochs}  mean loss {np.mean(losses):.5f}  "
                 f"({nb} batches × {len(folds)} folds, {time.perf_counter() - t0:.0f} s)"
@@ -406,7 +422,7 @@ DEVICE_VARIATIONS = {
 HOLDING_ROWS = [k for k in DEVICE_VARIATIONS if k.startswith(("grip", "headset"))]
 
 
-def device_variations(nets: "StackedNets", clips, folds: list[str], log=print) -> dict:
+def device_variations(nets: list, clips, folds: list[str], log=print) -> dict:
     """Mean error over people (each weighted equally) per row of `DEVICE_VARIATIONS`."""
     out = {}
     for row, change in DEVICE_VARIATIONS.items():
@@ -416,7 +432,7 @@ def device_variations(nets: "StackedNets", clips, folds: list[str], log=print) -
         means = []
         for k, person in enumerate(folds):
             held = originals(clips, person)
-            means.append(float(score_person(nets.member(k), held, aug, (fps,)).net.mean()))
+            means.append(float(score_person(nets[k], held, aug, (fps,)).net.mean()))
         out[row] = float(np.mean(means))
         log(f"  {row}: {out[row]:.1f}°")
     return out
@@ -582,21 +598,31 @@ def run(
     for c in clips:  # the scored clips' classes with crouching, once for every score below
         if not c.mirrored and c.subject in folds:
             c._classes = with_crouching(c)
-    members: list[int | None] = [names.index(f) for f in folds] + ([None] if weights else [])
+    # Each fold's network is `cfg.members` networks averaged (`model.AveragedNet`), trained side
+    # by side: member m of entry p of `base` is stacked member p + m·len(base).
+    base: list[int | None] = [names.index(f) for f in folds] + ([None] if weights else [])
+    members = base * cfg.members
     log(
         f"{len(names)} people, {len(clips)} clips ({sum(c.seconds for c in clips):.0f} s with mirrors); "
         f"{len(folds)} folds{' + one on everybody' if weights else ''}, {cfg.epochs} epochs ≤ "
-        f"{cfg.max_batches_per_epoch} batches of {cfg.batch}, seed {cfg.seed}"
+        f"{cfg.max_batches_per_epoch} batches of {cfg.batch}, seed {cfg.seed}, {cfg.members} network(s) averaged"
     )
     nets = train_folds(clips, owners, members, cfg, jobs, log, device, time_budget)
+
+    def fold_net(p: int):
+        if cfg.members == 1:
+            return nets.member(p)
+        return AveragedNet([nets.member(p + m * len(base)) for m in range(cfg.members)]).eval()
+
+    fold_nets = [fold_net(p) for p in range(len(base))]
     if weights:
         from .model import state_to_numpy
 
         states = {
             f"{k}/{n}": v
             for k, p in enumerate(folds + ["everyone"])
-            for n, v in state_to_numpy(nets.member(k)).items()
-            if k < len(members)
+            for n, v in state_to_numpy(fold_nets[k]).items()
+            if k < len(base)
         }
         np.savez(weights, folds=np.array(json.dumps(folds + ["everyone"])), **states)
     if onnx_dir:
@@ -606,7 +632,7 @@ def run(
 
         for k, person in enumerate(folds):
             meta = {"held_out_person": person, "trained_on": ",".join(n for n in names if n != person)}
-            export_onnx(nets.member(k), onnx_dir / f"{person}.onnx", meta)
+            export_onnx(fold_nets[k], onnx_dir / f"{person}.onnx", meta)
             log(f"wrote {onnx_dir / f'{person}.onnx'}")
     results = {}
     for look, cond in zip((True, False), CONDITIONS):
@@ -614,19 +640,20 @@ def run(
         scored = {}
         for k, person in enumerate(folds):
             held = originals(clips, person)
-            scored[person] = score_person(nets.member(k), held, aug)
+            scored[person] = score_person(fold_nets[k], held, aug)
         per = summarize(scored)
         results[cond] = {"people": per, "total": totals(per, weighted_p95(scored))}
         if not look:
             results["standing offset"] = standing_offsets(scored)
     if devices:
-        results["devices"] = device_variations(nets, clips, folds, log)
+        results["devices"] = device_variations(fold_nets, clips, folds, log)
     results["recipe"] = {
         "epochs": cfg.epochs,
         "epochs_done": getattr(nets, "epochs_done", 0),
         "batches": cfg.max_batches_per_epoch,
         "batch": cfg.batch,
         "hidden": list(cfg.hidden),
+        "members": cfg.members,
         "seed": cfg.seed,
         "people": names,
     }
