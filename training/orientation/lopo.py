@@ -47,9 +47,11 @@ from .train import (
     TrainConfig,
     add_override_arguments,
     batch_tensors,
+    epoch_record,
     loss_of,
     normalization,
     with_overrides,
+    batch_yaw_error_deg,
 )
 
 CONDITIONS = ("with look-around", "without look-around")
@@ -317,21 +319,9 @@ def train_folds(
                 loss.backward()
                 opt.step()
                 losses.append(loss.item() / len(folds))
-                with torch.no_grad():
-                    e = torch.atan2(-out[..., 2], out[..., 0]) - torch.atan2(-target[..., 2], target[..., 0])
-                    errs.append(float(np.degrees(np.abs(wrap_angle(e.cpu().numpy()))).mean()))
+                errs.append(batch_yaw_error_deg(out, target))
             sched.step()
-            nets.history.append(
-                {
-                    "epoch": epoch + 1,
-                    "loss": float(np.mean(losses)),
-                    "yaw_error_deg": float(np.mean(errs)),
-                    "first_loss": float(np.mean(losses[: max(1, nb // 10)])),
-                    "batches": nb,
-                    "lr": opt.param_groups[0]["lr"],
-                    "seconds": time.perf_counter() - t0,
-                }
-            )
+            nets.history.append(epoch_record(epoch, losses, errs, nb, opt, t0))
             log(
                 f"  epoch {epoch + 1:3d}/{cfg.epochs}  mean loss {np.mean(losses):.5f}  "
                 f"({nb} batches × {len(folds)} folds, {time.perf_counter() - t0:.0f} s)"

@@ -222,6 +222,26 @@ def loss_of(out: torch.Tensor, target: torch.Tensor, hips_weight: float, dims=No
     return yaw + hips_weight * ((out[..., 6:8] - target[..., 6:8]) ** 2).mean(dim=dims)
 
 
+def batch_yaw_error_deg(out: torch.Tensor, target: torch.Tensor) -> float:
+    """Mean |yaw error| of a batch's 6D outputs against their targets (last axis: 6D first), degrees."""
+    with torch.no_grad():
+        e = torch.atan2(-out[..., 2], out[..., 0]) - torch.atan2(-target[..., 2], target[..., 0])
+        return float(np.degrees(np.abs(wrap_angle(e.cpu().numpy()))).mean())
+
+
+def epoch_record(epoch: int, losses: list, errs: list, batches: int, opt, t0: float) -> dict:
+    """One epoch's line of the training history (`save` writes it beside the model)."""
+    return {
+        "epoch": epoch + 1,
+        "loss": float(np.mean(losses)),
+        "yaw_error_deg": float(np.mean(errs)),
+        "first_loss": float(np.mean(losses[: max(1, batches // 10)])),
+        "batches": batches,
+        "lr": opt.param_groups[0]["lr"],
+        "seconds": time.perf_counter() - t0,
+    }
+
+
 def load_training_clips(cfg: TrainConfig, log=print):
     """The clips a config trains on (with mirrors): its subjects, or everyone in the manifest."""
     if cfg.subjects is None:
@@ -272,19 +292,9 @@ def train(cfg: TrainConfig, clips=None, log=print, time_budget: float | None = N
             loss.backward()
             opt.step()
             losses.append(loss.item())
-            with torch.no_grad():
-                e = torch.atan2(-out[:, 2], out[:, 0]) - torch.atan2(-target[:, 2], target[:, 0])
-                errs.append(np.degrees(np.abs(wrap_angle(e.numpy()))).mean())
+            errs.append(batch_yaw_error_deg(out, target))
         sched.step()
-        h = {
-            "epoch": epoch + 1,
-            "loss": float(np.mean(losses)),
-            "yaw_error_deg": float(np.mean(errs)),
-            "first_loss": float(np.mean(losses[: max(1, nb // 10)])),
-            "batches": nb,
-            "lr": opt.param_groups[0]["lr"],
-            "seconds": time.perf_counter() - t0,
-        }
+        h = epoch_record(epoch, losses, errs, nb, opt, t0)
         history.append(h)
         log(
             f"  epoch {h['epoch']:3d}/{cfg.epochs}  loss {h['loss']:.5f}  last-step yaw error "
