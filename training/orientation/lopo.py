@@ -47,11 +47,11 @@ from .train import (
     TrainConfig,
     add_override_arguments,
     batch_tensors,
+    batch_yaw_error_deg,
     epoch_record,
     loss_of,
     normalization,
     with_overrides,
-    batch_yaw_error_deg,
 )
 
 CONDITIONS = ("with look-around", "without look-around")

@@ -32,6 +32,7 @@ from __future__ import annotations
 import argparse
 import json
 import logging
+import os
 import sys
 import time
 import warnings
@@ -261,7 +262,10 @@ def train(cfg: TrainConfig, clips=None, log=print, time_budget: float | None = N
             f"training {cfg.members} networks (averaged), r={cfg.r}, on {len(clips)} clips "
             f"({sum(c.seconds for c in clips):.0f} s of mocap incl. mirrored), {cfg.epochs} epochs, seed {cfg.seed}"
         )
-        nets = train_folds(clips, np.zeros(len(clips), dtype=int), [None] * cfg.members, cfg, 2, log)
+        jobs = max(1, min(2, os.cpu_count() or 1))  # simulation workers
+        nets = train_folds(
+            clips, np.zeros(len(clips), dtype=int), [None] * cfg.members, cfg, jobs, log, "cpu", time_budget
+        )
         return AveragedNet([nets.member(k) for k in range(cfg.members)]).eval(), nets.history
     torch.manual_seed(cfg.seed)
     torch.set_num_threads(1)  # tiny matrices: threads only add overhead (and nondeterminism)
