@@ -43,9 +43,10 @@ import numpy as np
 import torch
 
 from . import data
-from .features import FRAME_COLUMNS, PREV, frame_features, hips_target, yaw_slot
+from .features import FRAME_COLUMNS, PREV, frame_features, hips_target, relative_yaw_of_output, yaw_slot
 from .geometry import wrap_angle
 from .model import AveragedNet, OrientationNet, export_onnx, state_to_numpy
+from .predictors import yaw_error_deg
 from .simulate import TRAIN_AUGMENT, Augment, simulate, without_look_around
 
 PUBLIC_MODEL = data.PUBLIC_MODEL
@@ -224,10 +225,10 @@ def loss_of(out: torch.Tensor, target: torch.Tensor, hips_weight: float, dims=No
 
 
 def batch_yaw_error_deg(out: torch.Tensor, target: torch.Tensor) -> float:
-    """Mean |yaw error| of a batch's 6D outputs against their targets (last axis: 6D first), degrees."""
-    with torch.no_grad():
-        e = torch.atan2(-out[..., 2], out[..., 0]) - torch.atan2(-target[..., 2], target[..., 0])
-        return float(np.degrees(np.abs(wrap_angle(e.cpu().numpy()))).mean())
+    """Mean |yaw error| of a batch's 6D outputs against their targets (last axis: 6D first), degrees:
+    the yaw the runtime reads off each (`relative_yaw_of_output`), scored as the evaluation does."""
+    yaw = [relative_yaw_of_output(t[..., :6].detach().cpu().numpy())[0] for t in (out, target)]
+    return float(yaw_error_deg(*yaw).mean())
 
 
 def epoch_record(epoch: int, losses: list, errs: list, batches: int, opt, t0: float) -> dict:
