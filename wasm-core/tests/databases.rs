@@ -143,6 +143,45 @@ fn the_vr_database_searches_upright_frames_and_crouch_data_only_when_crouching()
     assert!(down_crouched * 10 >= down * 9, "{down_crouched} of {down}");
 }
 
+/// A tracked user crouching 0.5 m and standing up again as the VR e2e's script does (head down
+/// over 0.8 s, held, up over 0.6 s, eased): while the head rises the shown hips never sink
+/// below where the crouch left them (the crouch data's pose still fading out when the character
+/// leaves it is not lowered again by the whole IK drop: it dipped 26 cm, `Legs::crouch_weight`),
+/// and they are back within 8 cm of standing 0.1 s after the head is.
+#[test]
+fn standing_up_from_a_crouch_never_dips_the_hips() {
+    let db = &vr().0;
+    let index = &SearchIndex::new(db).unwrap();
+    let hips = (0..db.num_joints()).find(|&k| db.skeleton.parents[k] == 0).unwrap();
+    let ease = |x: f32| {
+        let x = x.clamp(0.0, 1.0);
+        x * x * (3.0 - 2.0 * x)
+    };
+    let mut c = Character::new(db, CharacterSettings::default());
+    let (mut standing, mut held, mut lowest_rising, mut up) = (0.0f32, f32::INFINITY, f32::INFINITY, 0.0f32);
+    for step in 0..(60 * 5) {
+        let t = step as f32 / 60.0;
+        let drop = 0.5 * (ease((t - 1.0) / 0.8) - ease((t - 3.0) / 0.6));
+        c.set_crouch(drop, 0.0);
+        c.update(db, index, &Input::default(), 1.0 / 60.0);
+        let y = c.world_positions()[hips].y;
+        assert!(y.is_finite(), "NaN at {t:.3} s");
+        if (0.8..1.0).contains(&t) {
+            standing = standing.max(y);
+        } else if (2.5..3.0).contains(&t) {
+            held = held.min(y);
+        } else if (3.0..3.6).contains(&t) {
+            lowest_rising = lowest_rising.min(y);
+        } else if (3.69..3.71).contains(&t) {
+            up = y;
+        }
+    }
+    println!("hips: standing {standing:.3} m, crouched {held:.3}, lowest while rising {lowest_rising:.3}, 0.1 s after {up:.3}");
+    assert!(held < standing - 0.3, "the crouch lowered the hips only to {held} from {standing}");
+    assert!(lowest_rising > held - 0.02, "standing up, the hips sank to {lowest_rising} from {held}");
+    assert!(up > standing - 0.08, "0.1 s after standing up the hips are at {up}, standing {standing}");
+}
+
 /// The quality harness on the desktop database (issue 14): the foot lock removes at least half
 /// of the strafing skate and 60% over all scripts.
 #[test]

@@ -78,6 +78,11 @@ pub struct Legs {
     /// The hips are dropped into a crouch ([`CROUCH_ENTER`]): crouched frames are searched, and
     /// the IK drop is only what the animation's own head does not already go down.
     pub crouched: bool,
+    /// How much of the IK drop still follows that crouched rule (0–1): 1 while crouched, then
+    /// fading with the inertialization's half-life once the character leaves the crouch, as the
+    /// shown pose comes up out of the crouch data. Switching to the whole drop at once lowered
+    /// hips the fading crouch still held down: a user standing up saw them dip 26 cm.
+    crouch_weight: f32,
     /// The hips' and the head's heights in the rest pose (standing, above its lowest joint), m;
     /// 0 without them.
     rest_hips_height: f32,
@@ -105,6 +110,7 @@ impl Persist for Legs {
         self.hips_drop.persist(v, "hips drop");
         self.applied_shift.persist(v, "applied hips shift");
         self.crouched.persist(v, "crouched");
+        self.crouch_weight.persist(v, "crouch weight");
         self.follow_weight.persist(v, "hips follow weight");
         self.follow_last.0.persist(v, "followed hips");
         self.follow_last.1.persist(v, "followed hips yaw");
@@ -170,6 +176,7 @@ impl Legs {
             hips_range: hips.map_or(0..0, |h| subtree_range(parents, h)),
             hips,
             crouched: false,
+            crouch_weight: 0.0,
             // Above the rest pose's lowest joint (its toes on the floor).
             rest_hips_height: hips.map_or(0.0, |h| rest[h].y - floor),
             rest_head_height: head.map_or(0.0, |h| rest[h].y - floor),
@@ -371,6 +378,16 @@ impl Legs {
             let target = self.locks[side].update(contact, toe, velocity, dt, radius, settings.foot_lock_halflife);
             targets[side] = Some((toe, target));
         }
+        self.crouch_weight = if self.crouched {
+            1.0
+        } else {
+            let w = self.crouch_weight * (-dt.max(0.0) / settings.inertialization_halflife.max(1e-3)).exp2();
+            if w > 1e-3 {
+                w
+            } else {
+                0.0
+            }
+        };
         let dropped = match self.hips {
             Some(h) if self.hips_drop > 0.0 => {
                 // The root is a pure yaw, so the hips' local y is world height above the root.
@@ -379,16 +396,18 @@ impl Legs {
                 // hips only the rest of the way to where the user's head is — measured at the
                 // head, since a crouching body leans and its head goes down further than its
                 // hips — or raises them by up to `MAX_CROUCH_RAISE` where the mocap crouches
-                // deeper than the user.
-                let drop = match (self.crouched, self.head) {
-                    (true, Some(hd)) => {
+                // deeper than the user. Upright, the whole drop; in between (the crouch fading
+                // out) a blend of the two by `crouch_weight`.
+                let crouched = |hd: Option<usize>| match hd {
+                    Some(hd) => {
                         let animated = self.rest_head_height - (pose.world_positions[hd].y - pose.positions[0].y);
                         (self.hips_drop - animated.max(0.0)).max(-MAX_CROUCH_RAISE)
                     }
-                    (true, None) => self.hips_drop - (self.rest_hips_height - y).max(0.0),
-                    (false, _) => self.hips_drop,
-                }
-                .min(0.6 * y);
+                    None => self.hips_drop - (self.rest_hips_height - y).max(0.0),
+                };
+                let w = self.crouch_weight;
+                let drop = if w > 0.0 { w * crouched(self.head) + (1.0 - w) * self.hips_drop } else { self.hips_drop };
+                let drop = drop.min(0.6 * y);
                 pose.positions[h].y -= drop;
                 self.applied_shift.y -= drop;
                 drop != 0.0
