@@ -173,6 +173,11 @@ test('VR under iwer: enter VR; scripted walk, side-step, 360° turn and crouch; 
   expect(Math.max(...crouched.toes)).toBeLessThan(0.08);
   expect(Math.min(...crouched.toes)).toBeGreaterThan(-0.03);
   expect(at(8.25).hips).toBeGreaterThan(standing.hips - 0.08); // standing up again
+  // Rising, the hips never sink below where the crouch held them (leaving the crouch data once
+  // dropped them 26 cm for a frame: the whole IK drop on a pose still coming up out of it).
+  const rising = Math.min(...log.filter((f) => f.t >= 7.6 && f.t <= 8.3).map((f) => f.hips));
+  console.log(`standing up: hips lowest ${rising.toFixed(3)} m (crouched ${crouched.hips.toFixed(3)})`);
+  expect(rising).toBeGreaterThan(crouched.hips - 0.02);
 
   // Hands within 1 cm of the controllers on every frame once the avatar faced the headset.
   const settled = log.filter((f) => f.t >= 0.6);
