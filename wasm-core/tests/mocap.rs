@@ -62,6 +62,14 @@ fn walking_contacts_are_plausible() {
     let sources: Vec<Source> = walks.iter().map(|w| source(w)).collect();
     let db = build(&config(r#"{"mirror": false}"#), &sources).unwrap().database;
     let summary = inspect::summary(&db, None);
+    // What a page reads at every load (`RawDatabase::header_json`) is the summary less its scans.
+    let header = inspect::header(&db, db.toe_height_in_contact());
+    for (k, v) in header.as_object().unwrap() {
+        assert_eq!(&summary[k], v, "{k}");
+    }
+    for k in ["feature_range", "contact_share", "num_valid_frames"] {
+        assert!(header.get(k).is_none(), "{k} in the header");
+    }
     let (left, right) = (summary["contact_share"][0].as_f64().unwrap(), summary["contact_share"][1].as_f64().unwrap());
     println!("walking contact share: left {left:.3}, right {right:.3}; both {:.3}", both_share(&db));
     for share in [left, right] {

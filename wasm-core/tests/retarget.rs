@@ -71,7 +71,7 @@ fn retargeter(db: &Database, c: &Copy, align: bool) -> Retargeter {
         roles: c.roles,
         root_parent_rotation: Quat::IDENTITY,
     };
-    Retargeter::new(db, &target, align).unwrap()
+    Retargeter::new(db, &target, align, db.toe_height_in_contact()).unwrap()
 }
 
 /// World positions of the avatar for local rotations and the hips translation (its FK, in parent-first order).

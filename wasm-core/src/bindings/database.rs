@@ -79,9 +79,16 @@ impl RawDatabase {
         super::character::database_is_whole(&self.shared, &whole.shared)
     }
 
-    /// The same JSON as `mmdb inspect --json`: joints, sites (roles), clips, tags, features.
+    /// The same JSON as `mmdb inspect --json`: joints, sites (roles), clips, tags, features,
+    /// and the scans of its arrays (feature ranges, contact shares).
     pub fn inspect_json(&self) -> String {
         inspect::summary(self.db(), None).to_string()
+    }
+
+    /// What a page needs of [`Self::inspect_json`] to run the database (no scan of its arrays:
+    /// read at every load, before the first frame).
+    pub fn header_json(&self) -> String {
+        inspect::header(self.db(), self.shared.toe_floor).to_string()
     }
 
     /// `F×J×3` f32 local positions.

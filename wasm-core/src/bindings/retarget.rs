@@ -69,7 +69,8 @@ impl RawRetargeter {
             roles: target_roles,
             root_parent_rotation: Quat::from_slice(root_parent_rotation),
         };
-        let retargeter = Retargeter::new(&database.shared.db, &target, align_bones).map_err(|e| JsError::new(&e))?;
+        let retargeter = Retargeter::new(&database.shared.db, &target, align_bones, database.shared.toe_floor)
+            .map_err(|e| JsError::new(&e))?;
         let source_joints = database.shared.db.num_joints();
         Ok(RawRetargeter {
             retargeter,

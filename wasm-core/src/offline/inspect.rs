@@ -4,8 +4,41 @@
 use crate::database::Database;
 use serde_json::{json, Value};
 
-/// Counts, ranges, clips, tags and features of a database as JSON. `size_bytes` is the file
-/// size when known.
+/// What a page needs to know of a database to run it, as JSON — the joints, sites, features,
+/// clips and tags, and the toe height in contact (`toe_floor`: computed once at load, an FK pass
+/// over a quarter of the frames) — without a scan of its arrays: the web `Database` reads this
+/// at every load, before the first frame.
+pub fn header(db: &Database, toe_floor: Option<f32>) -> Value {
+    json!({
+        "format_version": crate::format::VERSION,
+        "num_frames": db.num_frames,
+        "fps": db.fps,
+        "duration_s": db.duration(),
+        "num_joints": db.num_joints(),
+        "num_features": db.num_features(),
+        "joints": db.skeleton.names.iter().zip(&db.skeleton.parents).map(|(n, p)| json!({"name": n, "parent": p})).collect::<Vec<_>>(),
+        "sites": db.skeleton.sites.iter().map(|s| json!({"name": s.name, "joint": s.joint, "offset": s.offset.to_array()})).collect::<Vec<_>>(),
+        "features": db.groups.iter().map(|g| json!({
+            "name": g.name, "kind": g.kind, "trajectory": g.is_trajectory, "axes": g.axes,
+            "joint": db.skeleton.names[g.joint], "offsets": g.offsets, "weight": g.weight,
+            "dims": [g.first_dim, g.first_dim + g.num_dims],
+            "mean": &db.feature_mean[g.first_dim..g.first_dim + g.num_dims],
+            "scale": db.feature_scale[g.first_dim],
+        })).collect::<Vec<_>>(),
+        "clips": db.clips.iter().map(|c| json!({
+            "name": c.name, "source": c.source, "start": c.start, "end": c.end, "mirrored": c.mirrored,
+            "source_fps": c.source_fps, "source_start": c.source_start, "scale": c.scale, "root_scale": c.root_scale,
+        })).collect::<Vec<_>>(),
+        "tags": db.tags.iter().map(|t| json!({
+            "name": t.name, "ranges": t.ranges, "frames": t.ranges.iter().map(|(s, e)| e - s).sum::<u32>(),
+        })).collect::<Vec<_>>(),
+        "toe_height_in_contact": toe_floor,
+    })
+}
+
+/// [`header`] and what scanning the arrays adds — valid frames, each feature dimension's range,
+/// the share of frames each foot is in contact — as JSON (`mmdb inspect --json`). `size_bytes`
+/// is the file size when known.
 pub fn summary(db: &Database, size_bytes: Option<usize>) -> Value {
     let d = db.num_features();
     let mut lo = vec![f32::INFINITY; d];
@@ -19,35 +52,13 @@ pub fn summary(db: &Database, size_bytes: Option<usize>) -> Value {
     let share = |side: usize| {
         db.contacts.iter().skip(side).step_by(2).filter(|&&c| c != 0).count() as f64 / db.num_frames.max(1) as f64
     };
-    json!({
-        "format_version": crate::format::VERSION,
-        "num_frames": db.num_frames,
-        "fps": db.fps,
-        "duration_s": db.duration(),
-        "num_joints": db.num_joints(),
-        "num_features": d,
-        "num_valid_frames": db.valid.iter().filter(|&&v| v != 0).count(),
-        "size_bytes": size_bytes,
-        "joints": db.skeleton.names.iter().zip(&db.skeleton.parents).map(|(n, p)| json!({"name": n, "parent": p})).collect::<Vec<_>>(),
-        "sites": db.skeleton.sites.iter().map(|s| json!({"name": s.name, "joint": s.joint, "offset": s.offset.to_array()})).collect::<Vec<_>>(),
-        "features": db.groups.iter().map(|g| json!({
-            "name": g.name, "kind": g.kind, "trajectory": g.is_trajectory, "axes": g.axes,
-            "joint": db.skeleton.names[g.joint], "offsets": g.offsets, "weight": g.weight,
-            "dims": [g.first_dim, g.first_dim + g.num_dims],
-            "mean": &db.feature_mean[g.first_dim..g.first_dim + g.num_dims],
-            "scale": db.feature_scale[g.first_dim],
-        })).collect::<Vec<_>>(),
-        "feature_range": lo.iter().zip(&hi).map(|(l, h)| [l, h]).collect::<Vec<_>>(),
-        "clips": db.clips.iter().map(|c| json!({
-            "name": c.name, "source": c.source, "start": c.start, "end": c.end, "mirrored": c.mirrored,
-            "source_fps": c.source_fps, "source_start": c.source_start, "scale": c.scale, "root_scale": c.root_scale,
-        })).collect::<Vec<_>>(),
-        "tags": db.tags.iter().map(|t| json!({
-            "name": t.name, "ranges": t.ranges, "frames": t.ranges.iter().map(|(s, e)| e - s).sum::<u32>(),
-        })).collect::<Vec<_>>(),
-        "contact_share": [share(0), share(1)],
-        "toe_height_in_contact": db.toe_height_in_contact(),
-    })
+    let mut v = header(db, db.toe_height_in_contact());
+    let m = v.as_object_mut().expect("an object");
+    m.insert("num_valid_frames".into(), json!(db.valid.iter().filter(|&&v| v != 0).count()));
+    m.insert("size_bytes".into(), json!(size_bytes));
+    m.insert("feature_range".into(), json!(lo.iter().zip(&hi).map(|(l, h)| [l, h]).collect::<Vec<_>>()));
+    m.insert("contact_share".into(), json!([share(0), share(1)]));
+    v
 }
 
 /// Every array of the database as JSON (for cross-language tests). f32 values print as the

@@ -143,11 +143,18 @@ fn standing_heights(
 impl Retargeter {
     /// A retargeter from `db`'s skeleton (roles from its sites, rest pose: identity rotations)
     /// onto `target`. `align_bones`: direction-align limb bones (see the module docs).
+    /// `toe_floor`: `db`'s [`Database::toe_height_in_contact`], which a caller holding it passes
+    /// rather than have it computed again (an FK pass over a quarter of the frames).
     ///
     /// # Errors
     /// Mismatched array lengths, a bad hierarchy, no hips on either skeleton, or a skeleton
     /// with no height.
-    pub fn new(db: &Database, target: &TargetSkeleton, align_bones: bool) -> Result<Retargeter, String> {
+    pub fn new(
+        db: &Database,
+        target: &TargetSkeleton,
+        align_bones: bool,
+        toe_floor: Option<f32>,
+    ) -> Result<Retargeter, String> {
         let t_count = target.parents.len();
         if target.rest_local_rotations.len() != t_count || target.rest_local_positions.len() != t_count {
             return Err(format!(
@@ -264,7 +271,7 @@ impl Retargeter {
             if align_bones {
                 hips_scale = t / s;
             }
-            if let Some(h) = db.toe_height_in_contact() {
+            if let Some(h) = toe_floor {
                 source_floor = h;
                 target_floor = toe;
             }

@@ -100,7 +100,7 @@ export class Database {
     this.raw_ = raw;
     this.name = name;
     this.onFree = onFree;
-    const s = JSON.parse(raw.inspect_json()) as Summary;
+    const s = JSON.parse(raw.header_json()) as Summary;
     this.numFrames = s.num_frames;
     this.numJoints = s.joints.length;
     this.fps = s.fps;
