@@ -119,7 +119,9 @@ class Augment:
 # (100STYLE Akimbo) or directing traffic (CMU 14) then looked like nothing it knew: 60° and 35°
 # mean error (12-epoch runs: half the controllers wandering, 32° and 28°; all of them, most of
 # the time, 26° and 24°). So every training controller wanders, 80% of the time, through random
-# poses near the body (any orientation): the hands are one cue among others.
+# poses near the body (any orientation): the hands are one cue among others. (That was six
+# people; the shipped recipe, trained on eighteen with the hands' place an input, lets only a
+# quarter wander: `train.MODELS["main"]`.)
 # absent_prob 0.25: a quarter of the controllers absent (hanging, as the VR page shows them) from
 # some time on — npm run eval, one controller 29.8° → 26.4°, two 21.8° → 21.6°, headset only
 # 30.5° → 31.3° (≈ the heuristics, 30.2°; one seed: ±1–2° is noise).
