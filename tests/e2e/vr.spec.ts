@@ -167,8 +167,12 @@ test('VR under iwer: enter VR; scripted walk, side-step, 360° turn and crouch; 
   expect(worstGap).toBeLessThan(alpha + 0.005);
 
   // Crouch: the avatar's hips went down ~0.45 m (0.5 m minus the dead band), feet on the floor.
-  const standing = at(6.2), crouched = at(7.5);
-  console.log(`hips ${standing.hips.toFixed(3)} → ${crouched.hips.toFixed(3)} m; toes crouched ${crouched.toes.map((v) => v.toFixed(3))} m; eyes ${crouched.hmdY.toFixed(2)} m`);
+  // Standing: the hips' median over the turn in place (3.7–6.3 s, upright) — one frame of it is
+  // a pivot step whose mocap dips the hips up to 12 cm (0.77–0.90 m with every network tried).
+  const crouched = at(7.5);
+  const upright = log.filter((f) => f.t >= 3.7 && f.t <= 6.3).map((f) => f.hips).sort((a, b) => a - b);
+  const standing = { hips: upright[upright.length >> 1] };
+  console.log(`hips ${standing.hips.toFixed(3)} (standing, median) → ${crouched.hips.toFixed(3)} m; toes crouched ${crouched.toes.map((v) => v.toFixed(3))} m; eyes ${crouched.hmdY.toFixed(2)} m`);
   expect(standing.hips - crouched.hips).toBeGreaterThan(0.35);
   expect(Math.max(...crouched.toes)).toBeLessThan(0.08);
   expect(Math.min(...crouched.toes)).toBeGreaterThan(-0.03);
