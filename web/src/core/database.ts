@@ -41,7 +41,8 @@ export interface FeatureGroupInfo {
   scale: number;
 }
 
-interface Summary {
+/** What `RawDatabase.header_json` says (the part of `mmdb inspect --json` read here). */
+interface Header {
   num_frames: number;
   fps: number;
   joints: { name: string; parent: number }[];
@@ -100,7 +101,7 @@ export class Database {
     this.raw_ = raw;
     this.name = name;
     this.onFree = onFree;
-    const s = JSON.parse(raw.header_json()) as Summary;
+    const s = JSON.parse(raw.header_json()) as Header;
     this.numFrames = s.num_frames;
     this.numJoints = s.joints.length;
     this.fps = s.fps;
