@@ -45,7 +45,7 @@ fn a_character_allocates_nothing_from_its_first_update() {
     assert_eq!(bytes, 0, "updates after a new mask allocated {bytes} B");
     assert!(c.stats.searches >= 2);
     // A crowd's first update, every character searching.
-    let mut crowd = Crowd::new(&db, 50, &CharacterSettings::default()).unwrap();
+    let mut crowd = Crowd::new(&db, 50, &CharacterSettings::default(), db.toe_height_in_contact()).unwrap();
     crowd.inputs.iter_mut().for_each(|i| *i = walk);
     let ((), bytes) = alloc::measure(|| crowd.update(&db, &index, 1.0 / 60.0));
     assert_eq!(bytes, 0, "a crowd's first update allocated {bytes} B");
@@ -67,7 +67,7 @@ fn a_crowd_is_sized_by_its_first_update_and_its_memory() {
         most as u64 * per_search <= CROWD_SEARCH_BUDGET
             && most as u64 * character_bytes(&db) as u64 <= CROWD_MEMORY_BUDGET
     );
-    let e = Crowd::new(&db, 100_000, &CharacterSettings::default()).err().unwrap();
+    let e = Crowd::new(&db, 100_000, &CharacterSettings::default(), None).err().unwrap();
     assert!(
         e.starts_with(&format!(
             "crowd: 100000 characters asked for; at most {most} on this database ({} frames × {} feature dims",
@@ -76,7 +76,7 @@ fn a_crowd_is_sized_by_its_first_update_and_its_memory() {
         )),
         "{e}"
     );
-    assert!(Crowd::new(&db, most + 1, &CharacterSettings::default()).is_err());
+    assert!(Crowd::new(&db, most + 1, &CharacterSettings::default(), None).is_err());
     // The locomotion database's size (24,688 frames × 27 dims): 6,443 characters, ~1 s of search.
     assert_eq!(CROWD_SEARCH_BUDGET / (24_688 * 27), 6443);
     // The largest database the loader accepts (2²⁴ frames × 128 dims): 2 characters. However
@@ -90,7 +90,7 @@ fn a_crowd_is_sized_by_its_first_update_and_its_memory() {
     // The largest crowd builds and its first update searches for every character.
     let index = SearchIndex::new(&db).unwrap();
     let n = most.min(2_000);
-    let mut crowd = Crowd::new(&db, n, &CharacterSettings::default()).unwrap();
+    let mut crowd = Crowd::new(&db, n, &CharacterSettings::default(), db.toe_height_in_contact()).unwrap();
     crowd.update(&db, &index, 1.0 / 60.0);
     assert!(crowd.characters.iter().all(|c| c.stats.searches == 1));
 }

@@ -48,7 +48,7 @@ fn exercise(db: &Database) -> Option<String> {
         let index = SearchIndex::new(db).map_err(|e| format!("index: {e}"))?;
         let query = db.feature(db.num_frames / 2).to_vec();
         index.search(SearchMethod::Aabb, &query, &SearchOptions::default(), f32::INFINITY);
-        let mut crowd = mmcore::crowd::Crowd::new(db, 1, &CharacterSettings::default())?;
+        let mut crowd = mmcore::crowd::Crowd::new(db, 1, &CharacterSettings::default(), db.toe_height_in_contact())?;
         for step in 0..30 {
             crowd.inputs[0].direction = glam::Vec2::new((step as f32).sin(), 1.0);
             crowd.update(db, &index, 1.0 / 60.0);

@@ -516,7 +516,8 @@ fn bench_runtime(args: &[String]) -> CliResult {
             ..Default::default()
         }
     };
-    let mut crowd = mmcore::crowd::Crowd::new(&db, 1, &CharacterSettings::default()).map_err(mmcore::Error::config)?;
+    let mut crowd = mmcore::crowd::Crowd::new(&db, 1, &CharacterSettings::default(), db.toe_height_in_contact())
+        .map_err(mmcore::Error::config)?;
     let mut times = Vec::with_capacity(3600);
     for step in 0..3600 {
         crowd.inputs[0] = input(step);
@@ -527,7 +528,8 @@ fn bench_runtime(args: &[String]) -> CliResult {
     times.sort_by(f64::total_cmp);
     let (median, p95) = (times[times.len() / 2], times[times.len() * 95 / 100]);
     let n = mmcore::crowd::Crowd::max_characters(&db).min(256);
-    let mut crowd = mmcore::crowd::Crowd::new(&db, n, &CharacterSettings::default()).map_err(mmcore::Error::config)?;
+    let mut crowd = mmcore::crowd::Crowd::new(&db, n, &CharacterSettings::default(), db.toe_height_in_contact())
+        .map_err(mmcore::Error::config)?;
     let mut crowd_times = Vec::new();
     for step in 0..240 {
         for (i, inp) in crowd.inputs.iter_mut().enumerate() {

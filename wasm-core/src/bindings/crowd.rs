@@ -25,7 +25,8 @@ impl RawCrowd {
     #[wasm_bindgen(constructor)]
     pub fn new(database: &RawDatabase, count: usize) -> Result<RawCrowd, JsError> {
         let shared = Rc::clone(&database.shared);
-        let crowd = Crowd::new(&shared.db, count, &CharacterSettings::default()).map_err(|e| JsError::new(&e))?;
+        let crowd = Crowd::new(&shared.db, count, &CharacterSettings::default(), shared.toe_floor)
+            .map_err(|e| JsError::new(&e))?;
         Ok(RawCrowd { shared, crowd, _live: LiveToken::new(Kind::Crowd) })
     }
 

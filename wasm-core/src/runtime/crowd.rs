@@ -14,11 +14,18 @@ pub struct Crowd {
 }
 
 impl Crowd {
-    /// `count` characters on a grid 2 m apart, facing +Z.
+    /// `count` characters on a grid 2 m apart, facing +Z, their locked toes planted at
+    /// `toe_floor` (`db`'s [`Database::toe_height_in_contact`], which a caller holding it passes
+    /// rather than have it computed again).
     ///
     /// # Errors
     /// More characters than [`Crowd::max_characters`] allows on `db`.
-    pub fn new(db: &Database, count: usize, settings: &CharacterSettings) -> Result<Crowd, String> {
+    pub fn new(
+        db: &Database,
+        count: usize,
+        settings: &CharacterSettings,
+        toe_floor: Option<f32>,
+    ) -> Result<Crowd, String> {
         let most = Crowd::max_characters(db);
         if count > most {
             return Err(format!(
@@ -31,11 +38,10 @@ impl Crowd {
             ));
         }
         let side = (count as f32).sqrt().ceil().max(1.0) as usize;
-        let floor = db.toe_height_in_contact();
         let characters = (0..count)
             .map(|i| {
                 let mut c = Character::new(db, settings.clone());
-                c.set_toe_floor(floor);
+                c.set_toe_floor(toe_floor);
                 c.teleport(db, Vec3::new(2.0 * (i % side) as f32, 0.0, 2.0 * (i / side) as f32), Quat::IDENTITY);
                 c
             })

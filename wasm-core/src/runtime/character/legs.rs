@@ -378,16 +378,11 @@ impl Legs {
             let target = self.locks[side].update(contact, toe, velocity, dt, radius, settings.foot_lock_halflife);
             targets[side] = Some((toe, target));
         }
-        self.crouch_weight = if self.crouched {
-            1.0
-        } else {
-            let w = self.crouch_weight * (-dt.max(0.0) / settings.inertialization_halflife.max(1e-3)).exp2();
-            if w > 1e-3 {
-                w
-            } else {
-                0.0
-            }
-        };
+        let fade = (-dt.max(0.0) / settings.inertialization_halflife.max(1e-3)).exp2();
+        self.crouch_weight = if self.crouched { 1.0 } else { self.crouch_weight * fade };
+        if self.crouch_weight <= 1e-3 {
+            self.crouch_weight = 0.0;
+        }
         let dropped = match self.hips {
             Some(h) if self.hips_drop > 0.0 => {
                 // The root is a pure yaw, so the hips' local y is world height above the root.
@@ -398,16 +393,20 @@ impl Legs {
                 // hips — or raises them by up to `MAX_CROUCH_RAISE` where the mocap crouches
                 // deeper than the user. Upright, the whole drop; in between (the crouch fading
                 // out) a blend of the two by `crouch_weight`.
-                let crouched = |hd: Option<usize>| match hd {
-                    Some(hd) => {
-                        let animated = self.rest_head_height - (pose.world_positions[hd].y - pose.positions[0].y);
-                        (self.hips_drop - animated.max(0.0)).max(-MAX_CROUCH_RAISE)
-                    }
-                    None => self.hips_drop - (self.rest_hips_height - y).max(0.0),
-                };
                 let w = self.crouch_weight;
-                let drop = if w > 0.0 { w * crouched(self.head) + (1.0 - w) * self.hips_drop } else { self.hips_drop };
-                let drop = drop.min(0.6 * y);
+                let drop = if w > 0.0 {
+                    let crouched = match self.head {
+                        Some(hd) => {
+                            let animated = self.rest_head_height - (pose.world_positions[hd].y - pose.positions[0].y);
+                            (self.hips_drop - animated.max(0.0)).max(-MAX_CROUCH_RAISE)
+                        }
+                        None => self.hips_drop - (self.rest_hips_height - y).max(0.0),
+                    };
+                    w * crouched + (1.0 - w) * self.hips_drop
+                } else {
+                    self.hips_drop
+                }
+                .min(0.6 * y);
                 pose.positions[h].y -= drop;
                 self.applied_shift.y -= drop;
                 drop != 0.0
