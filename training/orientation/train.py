@@ -365,11 +365,12 @@ def add_override_arguments(ap) -> None:
     ap.add_argument("--seed", type=int)
     ap.add_argument("--max-batches", type=int, help="batches per epoch at most (a cheaper experiment)")
     ap.add_argument("--hips-weight", type=float, help="TrainConfig.hips_weight (an experiment)")
+    ap.add_argument("--members", type=int, help="TrainConfig.members: networks averaged (an experiment)")
 
 
 def with_overrides(cfg: TrainConfig, args) -> TrainConfig:
-    """`cfg` with the command line's --epochs, --hidden, --seed, --max-batches and --hips-weight
-    (here and in `lopo`)."""
+    """`cfg` with the command line's --epochs, --hidden, --seed, --max-batches, --hips-weight and
+    --members (here and in `lopo`)."""
     if args.epochs:
         cfg = replace(cfg, epochs=args.epochs)
     if args.hidden:
@@ -380,6 +381,8 @@ def with_overrides(cfg: TrainConfig, args) -> TrainConfig:
         cfg = replace(cfg, max_batches_per_epoch=args.max_batches)
     if getattr(args, "hips_weight", None) is not None:
         cfg = replace(cfg, hips_weight=args.hips_weight)
+    if getattr(args, "members", None):
+        cfg = replace(cfg, members=args.members)
     return cfg
 
 
