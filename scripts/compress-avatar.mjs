@@ -2,7 +2,8 @@
 // Compresses a shipped avatar for the web (run by scripts/setup.mjs' avatars step):
 //   node scripts/compress-avatar.mjs <in.glb> <out.glb> [--texture-size 512] [--data-texture-size 256] [--json]
 //
-// With @gltf-transform (a maintained glTF toolkit): duplicate data merged, unused data pruned,
+// With @gltf-transform (a maintained glTF toolkit): duplicate data merged, unused data pruned
+// (vertex attributes no material reads among them, and vertex colours that are all white),
 // geometry quantized and meshopt-compressed (EXT_meshopt_compression + KHR_mesh_quantization:
 // the library decodes it with three.js' MeshoptDecoder, on the main thread, no worker, CSP-safe
 // under 'wasm-unsafe-eval'), textures resized and re-encoded as WebP (EXT_texture_webp, decoded
@@ -43,14 +44,35 @@ const document = await io.read(input);
 document.setLogger(new Logger(Logger.Verbosity.WARN)); // not each pruned accessor
 await document.transform(
   dedup(),
-  // Keep vertex attributes a material could read (COLOR_0 tints in three.js): only unused nodes,
-  // accessors, textures… go.
-  prune({ keepAttributes: true, keepLeaves: true }),
+  // Vertex attributes no material reads go too (UV sets no texture names, COLOR_1 and up: exports
+  // carry them by the handful), then an all-white COLOR_0: every byte of them was downloaded,
+  // decoded and uploaded to the GPU before the first frame for nothing.
+  prune({ keepAttributes: false, keepLeaves: true }),
+  dropWhiteVertexColors(),
   textureCompress({ encoder: sharp, targetFormat: 'webp', resize: [dataTextureSize, dataTextureSize], quality: 85, slots: DATA_SLOTS }),
   textureCompress({ encoder: sharp, targetFormat: 'webp', resize: [textureSize, textureSize], quality: 85, slots: /^(?!(metallicRoughness|occlusion)Texture$)/ }),
   meshopt({ encoder: MeshoptEncoder, level: 'medium' }),
 );
 const bytes = await io.writeBinary(document);
+
+/**
+ * Removes COLOR_0 where every vertex is white. glTF multiplies a material's base colour by it
+ * (three.js compiles that into the shaders of any mesh that has it): all ones changes no pixel.
+ */
+function dropWhiteVertexColors() {
+  return (doc) => {
+    const element = [];
+    for (const mesh of doc.getRoot().listMeshes()) {
+      for (const primitive of mesh.listPrimitives()) {
+        const color = primitive.getAttribute('COLOR_0');
+        if (!color || primitive.listTargets().some((t) => t.getAttribute('COLOR_0'))) continue;
+        let white = true;
+        for (let i = 0; white && i < color.getCount(); i++) white = color.getElement(i, element).every((v) => v >= 1 - 1e-6);
+        if (white) primitive.setAttribute('COLOR_0', null);
+      }
+    }
+  };
+}
 // Write beside, then rename: a reader never sees half a file, and an interrupted run leaves
 // the old output (older than its source, so the next set-up redoes it).
 const tmp = `${output}.tmp-${process.pid}`;
