@@ -37,24 +37,6 @@ const dataTextureSize = sizeOf('--data-texture-size', 256);
 // (A map a material uses both as colour and as data — rare — is taken by the data pass: 256.)
 const DATA_SLOTS = /^(metallicRoughness|occlusion)Texture$/;
 
-await MeshoptEncoder.ready;
-const io = new NodeIO().registerExtensions(ALL_EXTENSIONS).registerDependencies({ 'meshopt.encoder': MeshoptEncoder });
-const t0 = performance.now();
-const document = await io.read(input);
-document.setLogger(new Logger(Logger.Verbosity.WARN)); // not each pruned accessor
-await document.transform(
-  dedup(),
-  // Vertex attributes no material reads go too (UV sets no texture names, COLOR_1 and up: exports
-  // carry them by the handful), then an all-white COLOR_0: every byte of them was downloaded,
-  // decoded and uploaded to the GPU before the first frame for nothing.
-  prune({ keepAttributes: false, keepLeaves: true }),
-  dropWhiteVertexColors(),
-  textureCompress({ encoder: sharp, targetFormat: 'webp', resize: [dataTextureSize, dataTextureSize], quality: 85, slots: DATA_SLOTS }),
-  textureCompress({ encoder: sharp, targetFormat: 'webp', resize: [textureSize, textureSize], quality: 85, slots: /^(?!(metallicRoughness|occlusion)Texture$)/ }),
-  meshopt({ encoder: MeshoptEncoder, level: 'medium' }),
-);
-const bytes = await io.writeBinary(document);
-
 /**
  * Removes COLOR_0 where every vertex is white. glTF multiplies a material's base colour by it
  * (three.js compiles that into the shaders of any mesh that has it): all ones changes no pixel.
@@ -73,6 +55,25 @@ function dropWhiteVertexColors() {
     }
   };
 }
+
+await MeshoptEncoder.ready;
+const io = new NodeIO().registerExtensions(ALL_EXTENSIONS).registerDependencies({ 'meshopt.encoder': MeshoptEncoder });
+const t0 = performance.now();
+const document = await io.read(input);
+document.setLogger(new Logger(Logger.Verbosity.WARN)); // not each pruned accessor
+await document.transform(
+  dedup(),
+  // Vertex attributes no material reads go too (UV sets no texture names, COLOR_1 and up: exports
+  // carry them by the handful), then an all-white COLOR_0: every byte of them was downloaded,
+  // decoded and uploaded to the GPU before the first frame for nothing.
+  prune({ keepAttributes: false, keepLeaves: true }),
+  dropWhiteVertexColors(),
+  textureCompress({ encoder: sharp, targetFormat: 'webp', resize: [dataTextureSize, dataTextureSize], quality: 85, slots: DATA_SLOTS }),
+  textureCompress({ encoder: sharp, targetFormat: 'webp', resize: [textureSize, textureSize], quality: 85, slots: /^(?!(metallicRoughness|occlusion)Texture$)/ }),
+  meshopt({ encoder: MeshoptEncoder, level: 'medium' }),
+);
+const bytes = await io.writeBinary(document);
+
 // Write beside, then rename: a reader never sees half a file, and an interrupted run leaves
 // the old output (older than its source, so the next set-up redoes it).
 const tmp = `${output}.tmp-${process.pid}`;
