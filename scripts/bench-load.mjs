@@ -117,7 +117,7 @@ async function visit(context, server, pageDef, network, log) {
   if (pageDef.path.includes('vr')) await markMade('mm:enter-vr-ready', 60_000);
   // A page that starts on a database's first part moves to the whole after its first frame.
   await markMade('mm:whole-database', 30_000);
-  // Read only now: the first `evaluate` brings Playwright's own script into the page.
+  // Read only now, in one go: the first `evaluate` brings Playwright's own script into the page.
   const marks = await page.evaluate(() => ({
     origin: performance.timeOrigin,
     // The first of each (the embed page has two elements: its first one counts).
@@ -128,25 +128,19 @@ async function visit(context, server, pageDef, network, log) {
       // workerFinalSourceType: 'cache' where the worker's static route read the page from Cache Storage.
       return n ? { end: n.responseEnd, transfer: n.transferSize, source: /** @type {{ workerFinalSourceType?: string }} */ (n).workerFinalSourceType ?? '' } : null;
     })(),
+    // The whole's request on the network (resource timing): sent, first byte, last byte.
+    wholeNet: (() => {
+      const r = performance.getEntriesByType('resource').find((e) => /\.mmdb(\?|$)/.test(e.name) && !/\.first\.mmdb/.test(e.name));
+      return r ? [r.startTime, r.responseStart, r.responseEnd] : null;
+    })(),
+    longTasks: /** @type {number[][]} */ (/** @type {{ __longTasks: number[][] }} */ (/** @type {unknown} */ (globalThis)).__longTasks),
   }));
   const vrMark = marks.entries['mm:enter-vr-ready'] ?? null;
   const wholeMark = marks.entries['mm:whole-database'] ?? null;
-  // The whole's own stage (its download), for where its time goes.
-  const wholeFetched = await page.evaluate(() => performance.getEntriesByName('mm:fetched:whole database')[0]?.startTime ?? null);
-  if (wholeFetched !== null) marks.entries['mm:fetched:whole database'] = wholeFetched;
-  // The whole's request on the network (resource timing): sent, first byte, last byte.
-  const wholeNet = await page.evaluate(() => {
-    const r = performance.getEntriesByType('resource').find((e) => /\.mmdb(\?|$)/.test(e.name) && !/\.first\.mmdb/.test(e.name));
-    return r ? [r.startTime, r.responseStart, r.responseEnd] : null;
-  });
-  if (wholeNet) [marks.entries['mm:whole sent'], marks.entries['mm:whole first byte'], marks.entries['mm:whole last byte']] = wholeNet;
+  if (marks.wholeNet) [marks.entries['mm:whole sent'], marks.entries['mm:whole first byte'], marks.entries['mm:whole last byte']] = marks.wholeNet;
   // Main-thread time in long tasks from the first frame until the whole is in use.
-  const busy = await page.evaluate(
-    ([from, to]) => globalThis.__longTasks.reduce((sum, [s, d]) => sum + Math.max(0, Math.min(s + d, to) - Math.max(s, from)), 0),
-    [marks.entries['mm:first-frame'], wholeMark ?? marks.entries['mm:first-frame'] + 4000],
-  );
-  marks.entries['mm:busy after first frame (long tasks)'] = busy;
-  if (wholeMark !== null) marks.entries['mm:whole-database'] = wholeMark;
+  const [from, to] = [marks.entries['mm:first-frame'], wholeMark ?? marks.entries['mm:first-frame'] + 4000];
+  marks.entries['mm:busy after first frame (long tasks)'] = marks.longTasks.reduce((sum, [s, d]) => sum + Math.max(0, Math.min(s + d, to) - Math.max(s, from)), 0);
   const firstFrame = marks.entries['mm:first-frame'];
   // CDP timestamps are monotonic seconds; the page's marks are ms after its time origin (epoch ms).
   const toMono = (pageMs) => (marks.origin + pageMs) / 1000 - (events.wallOffset ?? 0);
