@@ -571,8 +571,12 @@ def run(
     time_budget: float | None = None,
     devices: bool = False,
     onnx_dir: Path | None = None,
+    fit: bool = False,
 ) -> dict:
-    """Train the folds (and, with `weights`, the member that sees everybody) and score them. `clips`: already loaded (`unpack_clips`) instead of built from the manifest."""
+    """Train the folds (and, with `weights` or `fit`, the member that sees everybody) and score
+    them. `clips`: already loaded (`unpack_clips`) instead of built from the manifest. `fit`: also
+    score the member that saw everybody on each fold's person (`results["fit"]`, with look-around):
+    how well the recipe fits people it trained on, beside how it does on people it did not."""
     cfg = cfg or MODELS["main"]
     everyone = list(dict.fromkeys(c.subject for c in clips)) if clips is not None else list(data.people())
     names = names or everyone
@@ -590,11 +594,11 @@ def run(
             c._classes = with_crouching(c)
     # Each fold's network is `cfg.members` networks averaged (`model.AveragedNet`), trained side
     # by side: member m of entry p of `base` is stacked member p + m·len(base).
-    base: list[int | None] = [names.index(f) for f in folds] + ([None] if weights else [])
+    base: list[int | None] = [names.index(f) for f in folds] + ([None] if weights or fit else [])
     members = base * cfg.members
     log(
         f"{len(names)} people, {len(clips)} clips ({sum(c.seconds for c in clips):.0f} s with mirrors); "
-        f"{len(folds)} folds{' + one on everybody' if weights else ''}, {cfg.epochs} epochs ≤ "
+        f"{len(folds)} folds{' + one on everybody' if weights or fit else ''}, {cfg.epochs} epochs ≤ "
         f"{cfg.max_batches_per_epoch} batches of {cfg.batch}, seed {cfg.seed}, {cfg.members} network(s) averaged"
     )
     nets = train_folds(clips, owners, members, cfg, jobs, log, device, time_budget)
@@ -635,6 +639,10 @@ def run(
         results[cond] = {"people": per, "total": totals(per, weighted_p95(scored))}
         if not look:
             results["standing offset"] = standing_offsets(scored)
+    if fit:
+        results["fit"] = {
+            p: float(score_person(fold_nets[-1], originals(clips, p), EVAL_AUGMENT).net.mean()) for p in folds
+        }
     if devices:
         results["devices"] = device_variations(fold_nets, clips, folds, log)
     results["recipe"] = {
@@ -673,6 +681,11 @@ def main(argv=None) -> int:
     ap.add_argument("--device", default="cpu", help="train on this torch device (cuda: the folds' rollouts)")
     ap.add_argument("--weights", type=Path, help="also train on everybody; write every member's weights (.npz)")
     ap.add_argument(
+        "--fit",
+        action="store_true",
+        help="also train on everybody and score that network on each person (people it saw): fit against held out",
+    )
+    ap.add_argument(
         "--onnx", type=Path, help="write each fold's network to this folder as <person>.onnx (the VR bench's --lopo)"
     )
     args = ap.parse_args(argv)
@@ -708,6 +721,7 @@ def main(argv=None) -> int:
         time_budget=args.time_budget,
         devices=args.devices,
         onnx_dir=args.onnx,
+        fit=args.fit,
     )
     print()
     print(table(results))
@@ -728,6 +742,13 @@ def main(argv=None) -> int:
         print(
             f"standing still (without look-around), mean signed yaw error: largest {offsets[worst]:+.1f}° ({worst}), "
             f"mean |offset| over people {np.mean(np.abs(list(offsets.values()))):.1f}°"
+        )
+    if "fit" in results:
+        fit, held = results["fit"], results[CONDITIONS[0]]["people"]
+        print(
+            "fit (with look-around; the network trained on everybody, scored on each person it saw · held out): "
+            + ", ".join(f"{p} {fit[p]:.1f} · {held[p]['mean']:.1f}" for p in fit)
+            + f"; mean over people {np.mean(list(fit.values())):.1f}° · {np.mean([held[p]['mean'] for p in fit]):.1f}°"
         )
     worse = worse_than_hmd(results)
     print(f"worse than HMD forward without look-around: {'; '.join(worse) if worse else 'nowhere'}")

@@ -52,14 +52,17 @@ def test_people_come_from_the_manifest(mocap):
 def test_the_reduced_leave_one_person_out_run(tmp_path):
     """CI's form: four small people, two folds, a few batches. Every fold is scored on its own
     person only, in both conditions, and the table has a row per person and the mean; each
-    fold's network is written as the page loads one (`--onnx`, the VR bench's `--lopo`)."""
+    fold's network is written as the page loads one (`--onnx`, the VR bench's `--lopo`); with
+    `fit`, the network trained on everybody is scored on each fold's person too."""
     cfg = lopo.MODELS["main"]
     from dataclasses import replace
 
     cfg = replace(cfg, epochs=2, max_batches_per_epoch=30)
     names = ["cmu-05", "cmu-06", "cmu-10", "cmu-12"]
-    res = lopo.run(names, ["cmu-05", "cmu-12"], cfg, jobs=2, log=lambda *_: None, onnx_dir=tmp_path)
+    res = lopo.run(names, ["cmu-05", "cmu-12"], cfg, jobs=2, log=lambda *_: None, onnx_dir=tmp_path, fit=True)
     import onnx
+
+    assert list(res["fit"]) == ["cmu-05", "cmu-12"] and all(0 <= v < 90 for v in res["fit"].values()), res["fit"]
 
     for person in ("cmu-05", "cmu-12"):
         model = onnx.load(tmp_path / f"{person}.onnx")
