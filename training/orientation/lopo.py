@@ -2,6 +2,7 @@
 
     python -m orientation.lopo                      # every person of the manifest: ~15 min here
     python -m orientation.lopo --people cmu-05,cmu-06,cmu-10 --epochs 1 --max-batches 20  # CI's form
+    python -m orientation.lopo --fit                # and the network trained on everybody, on each person
 
 Every person of `../shared/mocap/manifest.json` (its `person` field; the manifest grows, so
 nothing here names one) is held out in turn: a network is trained on everybody else with the
