@@ -595,11 +595,12 @@ def run(
             c._classes = with_crouching(c)
     # Each fold's network is `cfg.members` networks averaged (`model.AveragedNet`), trained side
     # by side: member m of entry p of `base` is stacked member p + m·len(base).
-    base: list[int | None] = [names.index(f) for f in folds] + ([None] if weights or fit else [])
+    everybody = weights is not None or fit  # one more network, trained on everybody, last in `base`
+    base: list[int | None] = [names.index(f) for f in folds] + ([None] if everybody else [])
     members = base * cfg.members
     log(
         f"{len(names)} people, {len(clips)} clips ({sum(c.seconds for c in clips):.0f} s with mirrors); "
-        f"{len(folds)} folds{' + one on everybody' if weights or fit else ''}, {cfg.epochs} epochs ≤ "
+        f"{len(folds)} folds{' + one on everybody' if everybody else ''}, {cfg.epochs} epochs ≤ "
         f"{cfg.max_batches_per_epoch} batches of {cfg.batch}, seed {cfg.seed}, {cfg.members} network(s) averaged"
     )
     nets = train_folds(clips, owners, members, cfg, jobs, log, device, time_budget)
@@ -642,7 +643,7 @@ def run(
             results["standing offset"] = standing_offsets(scored)
     if fit:
         results["fit"] = {
-            p: float(score_person(fold_nets[-1], originals(clips, p), EVAL_AUGMENT).net.mean()) for p in folds
+            p: float(score_person(fold_nets[len(folds)], originals(clips, p), EVAL_AUGMENT).net.mean()) for p in folds
         }
     if devices:
         results["devices"] = device_variations(fold_nets, clips, folds, log)
