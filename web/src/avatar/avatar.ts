@@ -7,6 +7,7 @@
  */
 import * as THREE from 'three';
 import { type GLTF, GLTFLoader } from 'three/addons/loaders/GLTFLoader.js';
+import { embeddedImages } from './embedded-images.ts';
 import { MeshoptDecoder } from 'three/addons/libs/meshopt_decoder.module.js';
 import { clone as cloneSkinned } from 'three/addons/utils/SkeletonUtils.js';
 import type { VRM } from '@pixiv/three-vrm';
@@ -180,6 +181,7 @@ export class Avatar {
     // the decoder runs on this thread (no worker: CSP-safe, 'wasm-unsafe-eval' only). Any other
     // GLB/VRM loads as it is.
     loader.setMeshoptDecoder(MeshoptDecoder);
+    loader.register(embeddedImages);
     // three-vrm is fetched only for a file that is a VRM (vrm-file.ts).
     const vrmLib = declaresVrm(bytes) ? await import('@pixiv/three-vrm') : null;
     if (vrmLib) loader.register((parser) => new vrmLib.VRMLoaderPlugin(parser));
