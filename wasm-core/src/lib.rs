@@ -20,8 +20,8 @@ pub mod rng;
 pub use harness::{naturalness, quality, vr_replay};
 pub use offline::{builder, bvh, config, first_part, frame_cuts, gltf, inspect, parallel, smoothing};
 pub use runtime::{
-    aabb, character, controller, crowd, database, ik, inertialize, kinematics, lanes, mirror, persist, pose_features,
-    recording, retarget, roles, search, skating, skinning, spring, tag_query,
+    aabb, character, closed_mesh, controller, crowd, database, ik, inertialize, kinematics, lanes, mirror, persist,
+    pose_features, recording, retarget, roles, search, skating, skinning, spring, tag_query,
 };
 
 #[cfg(target_arch = "wasm32")]

@@ -8,6 +8,7 @@
 
 pub mod builder;
 pub mod character;
+pub mod closed_mesh;
 pub mod crowd;
 pub mod database;
 pub mod ik;

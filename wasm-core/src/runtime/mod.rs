@@ -4,6 +4,7 @@
 
 pub mod aabb;
 pub mod character;
+pub mod closed_mesh;
 pub mod controller;
 pub mod crowd;
 pub mod database;

@@ -1,6 +1,13 @@
+import fs from 'node:fs';
 import * as THREE from 'three';
-import { describe, expect, it } from 'vitest';
-import { cullHiddenBackFaces, isClosedMesh } from './closed-mesh.ts';
+import { beforeAll, describe, expect, it } from 'vitest';
+import { isClosedMesh } from '../core/closed-mesh.ts';
+import { initWasmSync } from '../core/wasm.ts';
+import { cullHiddenBackFaces } from './closed-mesh.ts';
+
+beforeAll(() => {
+  initWasmSync(fs.readFileSync(new URL('../core/pkg/mmcore_bg.wasm', import.meta.url)));
+});
 
 const doubleSided = (geometry: THREE.BufferGeometry, options: THREE.MeshStandardMaterialParameters = {}) => new THREE.Mesh(geometry, new THREE.MeshStandardMaterial({ side: THREE.DoubleSide, ...options }));
 

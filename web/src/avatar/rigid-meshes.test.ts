@@ -84,6 +84,27 @@ describe('attachRigidMeshes', () => {
     expect(r.body.parent).toBe(r.root); // the body stays skinned
   });
 
+  it('bakes normals too, a quantized attribute read through its normalization', () => {
+    const r = rig(() => [1, 0, 0, 0], [1, 0, 0, 0]);
+    // Normals stored as normalized bytes, as a quantized file does (KHR_mesh_quantization).
+    const normal = r.extra.geometry.getAttribute('normal');
+    const bytes = new Int8Array(normal.count * 3).map((_, i) => Math.round(normal.array[i] * 127));
+    r.extra.geometry.setAttribute('normal', new THREE.BufferAttribute(bytes, 3, true));
+    // A bind matrix that turns and stretches unevenly: normals need its inverse transpose.
+    r.extra.bindMatrix.makeScale(1, 1.5, 0.8).multiply(new THREE.Matrix4().makeRotationY(0.7)).setPosition(0.1, 0, 0);
+    r.extra.bindMatrixInverse.copy(r.extra.bindMatrix).invert();
+    const bake = new THREE.Matrix4().multiplyMatrices(r.extra.skeleton.boneInverses[1], r.extra.bindMatrix);
+    // three.js' own bake of the same values as floats (its bake of the bytes would round them).
+    const floats = r.extra.geometry.clone();
+    floats.setAttribute('normal', new THREE.BufferAttribute(Float32Array.from(bytes, (b) => Math.max(b / 127, -1)), 3));
+    const want = floats.applyMatrix4(bake).getAttribute('normal');
+    expect(attachRigidMeshes(r.root)).toBe(1);
+    const plain = r.head.children.find((c) => (c as THREE.Mesh).isMesh) as THREE.Mesh;
+    const got = plain.geometry.getAttribute('normal');
+    expect(got.array).toBeInstanceOf(Float32Array);
+    for (let i = 0; i < got.count; i++) for (let k = 0; k < 3; k++) expect(got.getComponent(i, k)).toBeCloseTo(want.getComponent(i, k), 5);
+  });
+
   it('leaves a mesh with two influences, quantized weights below whole, or a bone nothing else poses', () => {
     expect(attachRigidMeshes(rig(() => [0.7, 0.3, 0, 0], [1, 0, 0, 0]).root)).toBe(0);
     expect(attachRigidMeshes(rig(() => [0.99, 0.01, 0, 0], [1, 0, 0, 0]).root)).toBe(0);

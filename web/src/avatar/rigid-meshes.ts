@@ -32,12 +32,73 @@ function rigidBone(mesh: THREE.SkinnedMesh): number {
   return bone;
 }
 
-/** A float copy of `attribute` (a quantized one is read through its normalization). */
-function floatCopy(attribute: THREE.BufferAttribute | THREE.InterleavedBufferAttribute): THREE.BufferAttribute {
+/** What a normalized attribute's stored integers are multiplied by (signed ones clamp at −1). */
+function unit(array: ArrayLike<number>): number {
+  if (array instanceof Int8Array) return 1 / 127;
+  if (array instanceof Uint8Array) return 1 / 255;
+  if (array instanceof Int16Array) return 1 / 32767;
+  if (array instanceof Uint16Array) return 1 / 65535;
+  return 1;
+}
+
+/**
+ * `attribute` as floats (a quantized one read through its normalization), each item moved by
+ * `m`: as a point, or as a direction (no translation, renormalized; a tangent's w kept). One
+ * loop over the plain arrays: `BufferGeometry.applyMatrix4` made some ten calls a vertex, ~15 ms
+ * for the shipped avatar's eyes and eyebrows while a page loads (its code not yet optimized).
+ */
+function baked(attribute: THREE.BufferAttribute | THREE.InterleavedBufferAttribute, m: THREE.Matrix4, point: boolean): THREE.BufferAttribute {
   const n = attribute.itemSize;
-  const out = new Float32Array(attribute.count * n);
-  for (let i = 0; i < attribute.count; i++) for (let k = 0; k < n; k++) out[i * n + k] = attribute.getComponent(i, k);
+  const count = attribute.count;
+  const raw = (attribute as THREE.InterleavedBufferAttribute).isInterleavedBufferAttribute ? null : attribute.array;
+  let out: Float32Array;
+  if (raw && raw.length === count * n) {
+    out = Float32Array.from(raw);
+    const s = attribute.normalized ? unit(raw) : 1;
+    if (s !== 1) for (let i = 0; i < out.length; i++) out[i] = Math.max(out[i] * s, -1);
+  } else {
+    out = new Float32Array(count * n);
+    for (let i = 0; i < count; i++) for (let k = 0; k < n; k++) out[i * n + k] = attribute.getComponent(i, k);
+  }
+  const e = m.elements;
+  const t = point ? 1 : 0;
+  for (let i = 0; i < count * n; i += n) {
+    const x = out[i];
+    const y = out[i + 1];
+    const z = out[i + 2];
+    let a = e[0] * x + e[4] * y + e[8] * z + t * e[12];
+    let b = e[1] * x + e[5] * y + e[9] * z + t * e[13];
+    let c = e[2] * x + e[6] * y + e[10] * z + t * e[14];
+    if (!point) {
+      const l = Math.hypot(a, b, c) || 1;
+      a /= l;
+      b /= l;
+      c /= l;
+    }
+    out[i] = a;
+    out[i + 1] = b;
+    out[i + 2] = c;
+  }
   return new THREE.BufferAttribute(out, n);
+}
+
+/** `source` without its skin, its geometry baked by `bake` into the bone's frame. */
+function bakedGeometry(source: THREE.BufferGeometry, bake: THREE.Matrix4): THREE.BufferGeometry {
+  // Normals turn by the inverse transpose (a bind matrix may scale unevenly); tangents as edges.
+  const normals = new THREE.Matrix4().setFromMatrix3(new THREE.Matrix3().getNormalMatrix(bake));
+  const geometry = new THREE.BufferGeometry();
+  geometry.name = source.name;
+  if (source.index) geometry.setIndex(source.index.clone());
+  for (const [name, a] of Object.entries(source.attributes)) {
+    if (name === 'skinIndex' || name === 'skinWeight') continue;
+    const point = name === 'position';
+    const direction = name === 'normal' || name === 'tangent';
+    geometry.setAttribute(name, point || direction ? baked(a, name === 'normal' ? normals : bake, point) : a.clone());
+  }
+  for (const g of source.groups) geometry.addGroup(g.start, g.count, g.materialIndex);
+  geometry.setDrawRange(source.drawRange.start, source.drawRange.count);
+  geometry.userData = source.userData;
+  return geometry;
 }
 
 /**
@@ -56,14 +117,7 @@ export function attachRigidMeshes(root: THREE.Object3D): number {
     const posed = (m: THREE.SkinnedMesh) => m !== mesh && m.parent !== null && m.skeleton.bones.includes(bone);
     if (!bone || !skinned.some(posed)) continue;
     const bake = new THREE.Matrix4().multiplyMatrices(mesh.skeleton.boneInverses[b], mesh.bindMatrix);
-    const geometry = mesh.geometry.clone();
-    for (const name of ['position', 'normal', 'tangent']) {
-      const a = geometry.getAttribute(name);
-      if (a) geometry.setAttribute(name, floatCopy(a));
-    }
-    geometry.deleteAttribute('skinIndex');
-    geometry.deleteAttribute('skinWeight');
-    geometry.applyMatrix4(bake);
+    const geometry = bakedGeometry(mesh.geometry, bake);
     const plain = new THREE.Mesh(geometry, mesh.material);
     plain.name = mesh.name;
     plain.castShadow = mesh.castShadow;

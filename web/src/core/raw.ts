@@ -9,6 +9,7 @@ export {
   bvh_info,
   find_roles_json,
   find_roles_rest_json,
+  is_closed_mesh,
   live_objects,
   role_names_json,
   validate_recording,
