@@ -19,6 +19,12 @@ describe('closed meshes', () => {
     const f32 = quantized.getAttribute('position').array;
     quantized.setAttribute('position', new THREE.BufferAttribute(Int16Array.from(f32, (v) => Math.round(v * 32767)), 3, true));
     expect(isClosedMesh(quantized)).toBe(true);
+    // Interleaved, four values a vertex: a quantized file pads its positions so.
+    const padded = new THREE.BoxGeometry(1, 1, 1, 2, 2, 2);
+    const xyz = padded.getAttribute('position').array;
+    const xyzw = Int16Array.from({ length: (xyz.length / 3) * 4 }, (_, i) => (i % 4 === 3 ? 7 : Math.round(xyz[(i >> 2) * 3 + (i % 4)] * 32767)));
+    padded.setAttribute('position', new THREE.InterleavedBufferAttribute(new THREE.InterleavedBuffer(xyzw, 4), 3, 0, true));
+    expect(isClosedMesh(padded)).toBe(true);
     expect(isClosedMesh(new THREE.PlaneGeometry(1, 1, 4, 4))).toBe(false); // a card
     const inside = new THREE.BoxGeometry(1, 1, 1);
     const idx = inside.getIndex()!;

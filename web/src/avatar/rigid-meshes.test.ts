@@ -15,7 +15,7 @@ function rig(weights: (v: number) => [number, number, number, number], indices: 
   root.position.set(0.3, 0, -0.2);
   root.updateMatrixWorld(true);
   const skinned = (w: (v: number) => [number, number, number, number], idx: [number, number, number, number], bones: THREE.Bone[]) => {
-    const g = new THREE.BoxGeometry(0.2, 0.2, 0.2, 1, 1, 1).translate(0, 1.1, 0.05);
+    const g = new THREE.BoxGeometry(0.2, 0.2, 0.2, 1, 1, 1).translate(-1.5, 1.1, 0.05); // values past ±1 too
     const n = g.getAttribute('position').count;
     g.setAttribute('skinIndex', new THREE.Uint16BufferAttribute(Array.from({ length: n }, () => idx).flat(), 4));
     g.setAttribute('skinWeight', new THREE.Float32BufferAttribute(Array.from({ length: n }, (_, v) => w(v)).flat(), 4));
@@ -86,10 +86,12 @@ describe('attachRigidMeshes', () => {
 
   it('bakes normals too, a quantized attribute read through its normalization', () => {
     const r = rig(() => [1, 0, 0, 0], [1, 0, 0, 0]);
-    // Normals stored as normalized bytes, as a quantized file does (KHR_mesh_quantization).
+    // Normals stored as normalized bytes padded to four a vertex, as a quantized file does
+    // (KHR_mesh_quantization): an interleaved attribute.
     const normal = r.extra.geometry.getAttribute('normal');
     const bytes = new Int8Array(normal.count * 3).map((_, i) => Math.round(normal.array[i] * 127));
-    r.extra.geometry.setAttribute('normal', new THREE.BufferAttribute(bytes, 3, true));
+    const padded = Int8Array.from({ length: normal.count * 4 }, (_, i) => (i % 4 === 3 ? 99 : bytes[(i >> 2) * 3 + (i % 4)]));
+    r.extra.geometry.setAttribute('normal', new THREE.InterleavedBufferAttribute(new THREE.InterleavedBuffer(padded, 4), 3, 0, true));
     // A bind matrix that turns and stretches unevenly: normals need its inverse transpose.
     r.extra.bindMatrix.makeScale(1, 1.5, 0.8).multiply(new THREE.Matrix4().makeRotationY(0.7)).setPosition(0.1, 0, 0);
     r.extra.bindMatrixInverse.copy(r.extra.bindMatrix).invert();

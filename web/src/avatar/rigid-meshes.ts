@@ -32,7 +32,7 @@ function rigidBone(mesh: THREE.SkinnedMesh): number {
   return bone;
 }
 
-/** What a normalized attribute's stored integers are multiplied by (signed ones clamp at −1). */
+/** What a normalized attribute's stored integers are multiplied by (then clamped at −1). */
 function unit(array: ArrayLike<number>): number {
   if (array instanceof Int8Array) return 1 / 127;
   if (array instanceof Uint8Array) return 1 / 255;
@@ -50,15 +50,18 @@ function unit(array: ArrayLike<number>): number {
 function baked(attribute: THREE.BufferAttribute | THREE.InterleavedBufferAttribute, m: THREE.Matrix4, point: boolean): THREE.BufferAttribute {
   const n = attribute.itemSize;
   const count = attribute.count;
-  const raw = (attribute as THREE.InterleavedBufferAttribute).isInterleavedBufferAttribute ? null : attribute.array;
-  let out: Float32Array;
-  if (raw && raw.length === count * n) {
-    out = Float32Array.from(raw);
-    const s = attribute.normalized ? unit(raw) : 1;
-    if (s !== 1) for (let i = 0; i < out.length; i++) out[i] = Math.max(out[i] * s, -1);
-  } else {
-    out = new Float32Array(count * n);
-    for (let i = 0; i < count; i++) for (let k = 0; k < n; k++) out[i * n + k] = attribute.getComponent(i, k);
+  // An interleaved attribute (a quantized file pads positions and normals to four values) is read
+  // from its buffer with the buffer's stride.
+  const interleaved = attribute as THREE.InterleavedBufferAttribute;
+  const [array, stride, offset] = interleaved.isInterleavedBufferAttribute ? [interleaved.data.array, interleaved.data.stride, interleaved.offset] : [attribute.array, n, 0];
+  const values = array instanceof Float32Array ? array : Float32Array.from(array);
+  const s = attribute.normalized ? unit(array) : 1;
+  const out = new Float32Array(count * n);
+  for (let i = 0; i < count; i++) {
+    for (let k = 0; k < n; k++) {
+      const v = values[offset + i * stride + k];
+      out[i * n + k] = attribute.normalized ? Math.max(v * s, -1) : v;
+    }
   }
   const e = m.elements;
   const t = point ? 1 : 0;

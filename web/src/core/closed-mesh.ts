@@ -14,18 +14,19 @@ export function isClosedMesh(geometry: THREE.BufferGeometry): boolean {
   if (!position || position.count < 4) return false;
   const index = geometry.getIndex();
   const corners = index ? (index.array instanceof Uint32Array ? index.array : Uint32Array.from(index.array)) : NO_INDEX;
-  return is_closed_mesh(floatPositions(position), corners);
+  const [values, stride] = storedPositions(position);
+  return is_closed_mesh(values, stride, corners);
 }
 
 /**
- * The positions as stored, as floats: a quantized attribute's integers differ from its positions
- * by a positive factor, which changes neither which are equal nor the volume's sign (copied by
- * the typed array's own conversion, not a loop of script).
+ * The positions as stored, as floats, and the stride between vertices: an interleaved
+ * attribute's buffer as it is (a quantized file pads its positions to four values), a quantized
+ * attribute's integers as they are — they differ from its positions by a positive factor, which
+ * changes neither which are equal nor the volume's sign. Copied by the typed arrays' own
+ * conversion, not a loop of script.
  */
-function floatPositions(position: THREE.BufferAttribute | THREE.InterleavedBufferAttribute): Float32Array {
-  const raw = (position as THREE.InterleavedBufferAttribute).isInterleavedBufferAttribute ? null : position.array;
-  if (raw && position.itemSize === 3) return raw instanceof Float32Array ? raw : Float32Array.from(raw);
-  const out = new Float32Array(position.count * 3);
-  for (let i = 0; i < position.count; i++) out.set([position.getX(i), position.getY(i), position.getZ(i)], 3 * i);
-  return out;
+function storedPositions(position: THREE.BufferAttribute | THREE.InterleavedBufferAttribute): [Float32Array, number] {
+  const interleaved = position as THREE.InterleavedBufferAttribute;
+  const [array, stride, offset] = interleaved.isInterleavedBufferAttribute ? [interleaved.data.array, interleaved.data.stride, interleaved.offset] : [position.array, position.itemSize, 0];
+  return [(array instanceof Float32Array ? array : Float32Array.from(array)).subarray(offset), stride];
 }
