@@ -2,9 +2,12 @@
 
 use wasm_bindgen::prelude::*;
 
+use crate::runtime::closed_mesh::Positions;
+
 /// Whether the triangles `index` (three vertex indices each; empty: the vertices in threes) over
-/// `positions` (x, y, z per vertex, any positive scale) are a closed surface wound outward.
+/// `positions` (vertex `i`'s x, y, z at `i * stride`, any positive scale) are a closed surface
+/// wound outward.
 #[wasm_bindgen]
-pub fn is_closed_mesh(positions: &[f32], index: &[u32]) -> bool {
-    crate::runtime::closed_mesh::is_closed_mesh(positions, index)
+pub fn is_closed_mesh(positions: &[f32], stride: u32, index: &[u32]) -> bool {
+    crate::runtime::closed_mesh::is_closed_mesh(Positions { values: positions, stride: stride as usize }, index)
 }

@@ -8,17 +8,41 @@
 //! exactly two triangles running it in opposite directions. Outward: the signed volume
 //! (Σ p0 · (p1 × p2) over the triangles, 6 × the volume enclosed) is positive.
 
-/// Whether the triangles over `positions` (x, y, z per vertex, in any positive scale: a
-/// quantized mesh's integers as they are) are a closed, consistently wound surface whose front
+/// The positions of a mesh's vertices: vertex `i` at `values[i * stride..][..3]` (x, y, z, in
+/// any positive scale: a quantized mesh's integers as they are), `stride` ≥ 3 (an interleaved
+/// attribute's buffer as it is).
+#[derive(Clone, Copy)]
+pub struct Positions<'a> {
+    pub values: &'a [f32],
+    pub stride: usize,
+}
+
+impl Positions<'_> {
+    /// How many vertices the values hold.
+    fn len(&self) -> usize {
+        if self.stride < 3 || self.values.len() < 3 {
+            return 0;
+        }
+        (self.values.len() - 3) / self.stride + 1
+    }
+
+    fn get(&self, i: usize) -> [f32; 3] {
+        let p = &self.values[i * self.stride..i * self.stride + 3];
+        [p[0], p[1], p[2]]
+    }
+}
+
+/// Whether the triangles over `positions` are a closed, consistently wound surface whose front
 /// faces point out. `index`: three vertex indices per triangle; empty, the vertices taken in
-/// threes. Anything malformed (too few triangles, an index past the vertices) is not closed.
-pub fn is_closed_mesh(positions: &[f32], index: &[u32]) -> bool {
-    let n = positions.len() / 3;
+/// threes. Anything malformed (too few triangles, an index past the vertices, a stride under 3)
+/// is not closed.
+pub fn is_closed_mesh(positions: Positions, index: &[u32]) -> bool {
+    let n = positions.len();
     let count = if index.is_empty() { n } else { index.len() };
     if n < 4 || count < 12 || count % 3 != 0 || index.iter().any(|&i| i as usize >= n) {
         return false;
     }
-    let welded = weld(&positions[..3 * n]);
+    let welded = weld(positions, n);
     let corner = |k: usize| if index.is_empty() { k } else { index[k] as usize };
     // Edges in an open-addressed table keyed by their two ends (low, high), with the directions
     // they were run in: a closed, consistently wound surface runs each edge once each way, so
@@ -55,7 +79,7 @@ pub fn is_closed_mesh(positions: &[f32], index: &[u32]) -> bool {
                 paired += 1;
             }
         }
-        let p = |i: usize| [positions[3 * i] as f64, positions[3 * i + 1] as f64, positions[3 * i + 2] as f64];
+        let p = |i: usize| positions.get(i).map(f64::from);
         let ([x0, y0, z0], [x1, y1, z1], [x2, y2, z2]) = (p(i0), p(i1), p(i2));
         volume += x0 * (y1 * z2 - z1 * y2) + y0 * (z1 * x2 - x1 * z2) + z0 * (x1 * y2 - y1 * x2);
     }
@@ -67,11 +91,11 @@ fn table_size(n: usize) -> usize {
     (2 * n).next_power_of_two().max(16)
 }
 
-/// An id per vertex, equal for vertices at the same position (a UV or normal seam splits one):
-/// the first vertex with its bits. `+ 0.0` turns −0 into +0 (equal positions, equal bits).
-fn weld(positions: &[f32]) -> Vec<u32> {
-    let n = positions.len() / 3;
-    let bits = |i: usize| [0, 1, 2].map(|k| (positions[3 * i + k] + 0.0).to_bits());
+/// An id per vertex of the first `n`, equal for vertices at the same position (a UV or normal
+/// seam splits one): the first vertex with its bits. `+ 0.0` turns −0 into +0 (equal positions,
+/// equal bits).
+fn weld(positions: Positions, n: usize) -> Vec<u32> {
+    let bits = |i: usize| positions.get(i).map(|v| (v + 0.0).to_bits());
     let size = table_size(n);
     let (mask, shift) = (size - 1, 32 - size.trailing_zeros());
     let mut first = vec![u32::MAX; size];
@@ -126,33 +150,44 @@ mod tests {
         (positions, index)
     }
 
+    fn xyz(values: &[f32]) -> Positions<'_> {
+        Positions { values, stride: 3 }
+    }
+
     #[test]
     fn a_cube_is_closed_and_outward() {
         let (p, i) = cube();
-        assert!(is_closed_mesh(&p, &i));
+        assert!(is_closed_mesh(xyz(&p), &i));
         // Unindexed: the same triangles, their corners copied.
         let flat: Vec<f32> = i.iter().flat_map(|&k| p[3 * k as usize..3 * k as usize + 3].to_vec()).collect();
-        assert!(is_closed_mesh(&flat, &[]));
+        assert!(is_closed_mesh(xyz(&flat), &[]));
         // In a quantized file's integers (any positive scale) and moved off the origin.
         let q: Vec<f32> = p.iter().map(|v| (v * 32767.0 + 5.0).round()).collect();
-        assert!(is_closed_mesh(&q, &i));
+        assert!(is_closed_mesh(xyz(&q), &i));
+        // Interleaved, four values a vertex (a quantized file pads its positions so), the last
+        // vertex without its padding.
+        let mut padded: Vec<f32> = p.chunks(3).flat_map(|v| [v[0], v[1], v[2], 9.0]).collect();
+        padded.pop();
+        assert!(is_closed_mesh(Positions { values: &padded, stride: 4 }, &i));
     }
 
     #[test]
     fn open_inside_out_flipped_and_malformed_are_not() {
         let (p, i) = cube();
-        assert!(!is_closed_mesh(&p, &i[6..])); // a face missing
+        assert!(!is_closed_mesh(xyz(&p), &i[6..])); // a face missing
         let inward: Vec<u32> = i.chunks(3).flat_map(|t| [t[0], t[2], t[1]]).collect();
-        assert!(!is_closed_mesh(&p, &inward)); // wound inward
+        assert!(!is_closed_mesh(xyz(&p), &inward)); // wound inward
         let mut flipped = i.clone();
         flipped.swap(1, 2); // one triangle against its neighbours
-        assert!(!is_closed_mesh(&p, &flipped));
+        assert!(!is_closed_mesh(xyz(&p), &flipped));
         let mut past = i.clone();
         past[4] = 1000; // an index past the vertices: no panic, not closed
-        assert!(!is_closed_mesh(&p, &past));
-        assert!(!is_closed_mesh(&p, &i[..9])); // too few triangles
-        assert!(!is_closed_mesh(&p[..6], &[])); // too few vertices
+        assert!(!is_closed_mesh(xyz(&p), &past));
+        assert!(!is_closed_mesh(xyz(&p), &i[..9])); // too few triangles
+        assert!(!is_closed_mesh(xyz(&p[..6]), &[])); // too few vertices
+        assert!(!is_closed_mesh(Positions { values: &p, stride: 2 }, &i)); // not a stride
+        assert!(!is_closed_mesh(Positions { values: &p, stride: 0 }, &i));
         let nan: Vec<f32> = p.iter().map(|_| f32::NAN).collect();
-        assert!(!is_closed_mesh(&nan, &i)); // no volume
+        assert!(!is_closed_mesh(xyz(&nan), &i)); // no volume
     }
 }
