@@ -107,17 +107,7 @@ const elementChunk: Rollup.GetManualChunk = (id, meta) => {
  * The element build is one standalone script, not a module for bundlers: Vite's library mode
  * keeps an ES build's whitespace (for the pure annotations an app's bundler shakes by), but nothing
  * shakes this file again, so it is minified whole — 1.45 → 0.91 MB (0.76 MB before a first frame).
- *
- * The parts a first frame runs (not the lazy ones: three-vrm) start with V8's explicit compile
- * hint, `//# allFunctionsCalledOnLoad`: V8 compiles every function in them while the script
- * streams in, on a background thread, instead of each on the main thread the first time it is
- * called. Most of what they hold runs before the first frame (three.js' renderer, the loaders, the
- * library), and a first visit and the next one — before the browser keeps a code cache, from the
- * third — compiled 75-110 ms of functions lazily on the main thread (traced, the embed page's
- * warm visit), all of it in the way of the first frame. Browsers without the hint read a comment.
  */
-const COMPILE_HINT = '//# allFunctionsCalledOnLoad\n';
-
 function minifyStandalone(): Plugin {
   return {
     name: 'mm-minify-standalone',
@@ -125,9 +115,47 @@ function minifyStandalone(): Plugin {
     async generateBundle(_options, bundle) {
       for (const chunk of Object.values(bundle)) {
         if (chunk.type !== 'chunk') continue;
-        const code = (await transformWithEsbuild(chunk.code, chunk.fileName, { minify: true, format: 'esm', target: 'es2022' })).code;
-        chunk.code = chunk.isDynamicEntry ? code : COMPILE_HINT + code;
+        chunk.code = (await transformWithEsbuild(chunk.code, chunk.fileName, { minify: true, format: 'esm', target: 'es2022' })).code;
       }
+    },
+  };
+}
+
+/**
+ * The scripts a page runs before its first frame (its entries and what they import, not the
+ * parts imported on demand: rooms, the VR emulator, onnxruntime, three-vrm) start with V8's
+ * explicit compile hint, `//# allFunctionsCalledOnLoad`: V8 compiles every function in them
+ * while the script streams in, on a background thread, instead of each on the main thread the
+ * first time it is called. Most of what they hold runs before the first frame (three.js'
+ * renderer, the loaders, the library), and a first visit and the next one — before the browser
+ * keeps a code cache, from the third — compiled 75-110 ms of functions lazily on the main thread
+ * (traced: the embed page's warm visit), all of it in the way of the first frame. Browsers
+ * without the hint read a comment. After minification (a comment it would drop). The element
+ * build only: the site's pages come from their service worker's cache on a repeat visit, whose
+ * scripts the browser compiled with a code cache when the worker stored them, and the hint
+ * measured nothing there (the demo and the VR page throttled, 6 interleaved pairs each).
+ */
+const COMPILE_HINT = '//# allFunctionsCalledOnLoad\n';
+
+function compileHints(): Plugin {
+  return {
+    name: 'mm-compile-hints',
+    // After every other plugin's (Vite's preload helper puts its map of a chunk's on-demand
+    // imports before its code): the hint must be the file's first line.
+    generateBundle: {
+      order: 'post',
+      handler(_options, bundle) {
+      const chunks = new Map<string, Rollup.OutputChunk>();
+      for (const c of Object.values(bundle)) if (c.type === 'chunk') chunks.set(c.fileName, c);
+      const initial = new Set<Rollup.OutputChunk>();
+      const reach = (c: Rollup.OutputChunk | undefined): void => {
+        if (!c || initial.has(c)) return;
+        initial.add(c);
+        for (const f of c.imports) reach(chunks.get(f));
+      };
+      for (const c of chunks.values()) if (c.isEntry) reach(c);
+      for (const c of initial) c.code = COMPILE_HINT + c.code;
+      },
     },
   };
 }
@@ -150,7 +178,7 @@ export default defineConfig(({ command, mode }) => {
         lib: { entry: 'web/src/element/register.ts', formats: ['es'], fileName: () => 'mm-avatar.js' },
         rollupOptions: { output: { chunkFileNames: 'assets/mm-avatar-[name]-[hash].js', manualChunks: elementChunk, hoistTransitiveImports: true } },
       },
-      plugins: [minifyStandalone()],
+      plugins: [minifyStandalone(), compileHints()],
     };
   }
   if (build && mode === 'lib') {
