@@ -9,7 +9,9 @@ import { type StaticServer, serveStatic } from './static-server.ts';
 
 const ROOT = path.resolve(import.meta.dirname, '../..');
 const DIST = path.join(ROOT, 'dist');
-const CSP = "default-src 'self'; script-src 'self' 'wasm-unsafe-eval'; style-src 'self' 'unsafe-inline'; img-src 'self' blob: data:; connect-src 'self' blob: data:";
+// No blob: anywhere: the avatar's textures decode from its bytes (embedded-images.ts), not
+// fetched back from blob: URLs (connect-src). data: for the page's own empty favicon.
+const CSP = "default-src 'self'; script-src 'self' 'wasm-unsafe-eval'; style-src 'self' 'unsafe-inline'; img-src 'self' data:";
 
 let server: StaticServer;
 test.beforeAll(async () => {
