@@ -1,7 +1,7 @@
 import fs from 'node:fs';
 import * as THREE from 'three';
 import { beforeAll, describe, expect, it } from 'vitest';
-import { isClosedMesh } from '../core/closed-mesh.ts';
+import { isClosedMesh } from '../core/closed_mesh.ts';
 import { initWasmSync } from '../core/wasm.ts';
 import { cullHiddenBackFaces } from './closed-mesh.ts';
 

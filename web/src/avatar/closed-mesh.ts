@@ -10,11 +10,11 @@
  * no alpha test, no alpha map) whose every mesh is closed — after welding vertices at equal
  * positions (seams split them), each edge is shared by exactly two triangles running it in
  * opposite directions — and wound outward (positive signed volume, so its front faces are the
- * outside; the test runs in the core: `core/closed-mesh.ts`). Anything else (cards, hair, open
+ * outside; the test runs in the core: `core/closed_mesh.ts`). Anything else (cards, hair, open
  * clothing, a flipped or broken mesh) stays as it was. Needs the core initialized.
  */
 import * as THREE from 'three';
-import { isClosedMesh } from '../core/closed-mesh.ts';
+import { isClosedMesh } from '../core/closed_mesh.ts';
 
 /** Sets `FrontSide` on the double-sided opaque materials whose meshes under `root` are all closed; returns how many. */
 export function cullHiddenBackFaces(root: THREE.Object3D): number {

@@ -7,10 +7,11 @@
  * with the bytes, decoding on the browser's image threads from the start.
  *
  * How: GLTFLoader passes a bufferView image's bytes to its texture loader's `parse` when that
- * loader says it is a KTX2 loader (three.js r18x); this loader says so, decodes any image format
- * the browser does (the bytes name their format), and loads images by URL through three.js'
- * `ImageBitmapLoader` as before. A three.js without that branch uses its blob URLs with the same
- * `ImageBitmapLoader`: the same textures, only not sooner. Where the browser has no
+ * loader says it is a KTX2 loader (three.js r187, this package's); this loader says so, decodes
+ * any image format the browser does (the bytes name their format), and loads images by URL
+ * through three.js' `ImageBitmapLoader` as before. A three.js without that path uses its blob URLs
+ * with the same `ImageBitmapLoader`: the same textures, only not sooner (and a page's CSP must
+ * then allow `connect-src blob:`; the embed e2e's does not). Where the browser has no
  * `createImageBitmap` (older Safari, Node) GLTFLoader's own `TextureLoader` stays.
  */
 import * as THREE from 'three';
