@@ -30,6 +30,14 @@ function storage(): CacheStorage | null {
   }
 }
 
+/** Whether the page preloads `href` (a `<link rel="preload">`): it is then fetched, not read from here. */
+export function preloaded(href: string): boolean {
+  if (typeof document === 'undefined') return false;
+  const absolute = new URL(href, location.href).href;
+  for (const link of document.querySelectorAll<HTMLLinkElement>('link[rel="preload"]')) if (link.href === absolute) return true;
+  return false;
+}
+
 /** Reads begun before anyone asked (`readEarly`), by URL: the first `cachedBytes` of it takes one. */
 const early = new Map<string, Promise<Uint8Array | null>>();
 
@@ -41,7 +49,7 @@ const EARLY_KEPT_MS = 10_000;
  * them (element/early.ts: while the page's scripts still evaluate).
  */
 export function readEarly(url: string): void {
-  if (early.has(url)) return;
+  if (early.has(url) || preloaded(url)) return; // a preloaded URL is fetched (fetch.ts)
   early.set(url, read(url));
   setTimeout(() => early.delete(url), EARLY_KEPT_MS); // asked for at another URL, or never
 }

@@ -6,7 +6,7 @@
  * (cache.ts).
  */
 import { assetBytes } from './assets.ts';
-import { cachedBytes, storeBytes } from './cache.ts';
+import { cachedBytes, preloaded, storeBytes } from './cache.ts';
 
 /** Progress of one download: `loaded` of `total` bytes (`total` 0 when the server did not say). */
 export interface FetchProgress {
@@ -151,12 +151,6 @@ export async function fetchBytes(url: string | URL, options: FetchOptions = {}):
 }
 
 /** Whether the page has a `<link rel="preload">` for `href`. */
-function preloaded(href: string): boolean {
-  if (typeof document === 'undefined') return false;
-  const absolute = new URL(href, location.href).href;
-  for (const link of document.querySelectorAll<HTMLLinkElement>('link[rel="preload"]')) if (link.href === absolute) return true;
-  return false;
-}
 
 function whenIdle(fn: () => void): void {
   if (typeof requestIdleCallback === 'function') requestIdleCallback(fn, { timeout: 3000 });

@@ -156,11 +156,13 @@ export class Stage {
    * waited for the draw before it; drawn here, after every program has answered its queries, the
    * GPU process builds them while this thread goes on (the embed page's warm visit: the first
    * frame's ~50-80 ms of waits for the GPU gone from its main thread). Its textures upload here too.
-   * Only for a scene without shadows: see `compileNow`.
+   * Once the canvas is in the page (after the first `render`), or for an object in a scene of its
+   * own, it only compiles. Only for a scene without shadows: see `compileNow`.
    */
   warmUp(object: THREE.Object3D): void {
     compileNow(this.renderer, object, this.camera, this.scene);
-    if (object.parent) return; // someone else's: not ours to move into the scene
+    // A drawn canvas would show the unposed object for a frame; someone else's object is not ours to move.
+    if (object.parent || this.renderer.domElement.parentNode) return;
     this.scene.add(object);
     this.renderer.render(this.scene, this.camera);
     this.scene.remove(object);
