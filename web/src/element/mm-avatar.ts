@@ -183,11 +183,21 @@ export class MMAvatarElement extends ElementBase {
     }
   }
 
-  /** This eager element drew its first frame, failed or left: lazy ones may start (afterEager). */
+  /**
+   * This eager element drew its first frame, failed or left: lazy ones may start (afterEager) —
+   * a frame later, once this one's first frame is on screen. Started in the same task, a lazy
+   * element's context, programs and first draw went ahead of it on the main thread and in the
+   * GPU process (traced: the first frame shown ~500 ms after it was drawn, on a software GPU).
+   */
   private releaseEager(): void {
     if (!this.eagerCounted) return;
     this.eagerCounted = false;
-    if (--eagerGate.pending === 0) for (const start of eagerGate.waiters.splice(0)) start();
+    if (--eagerGate.pending > 0) return;
+    const release = () => {
+      if (eagerGate.pending === 0) for (const start of eagerGate.waiters.splice(0)) start();
+    };
+    if (typeof requestAnimationFrame === 'function') requestAnimationFrame(() => setTimeout(release, 0));
+    else setTimeout(release, 0);
   }
 
   disconnectedCallback(): void {
@@ -322,8 +332,11 @@ export class MMAvatarElement extends ElementBase {
     // downloads (the first frame then only draws).
     let stage: Stage | null = null;
     const precompile = (a: Avatar) => {
-      // Its programs linked and its pipelines built by the GPU while the rest loads (Stage.warmUp).
-      if (stage && generation === this.generation) stage.warmUp(a.object);
+      // `compile`, not `compileAsync`: the same work, without three.js' console warning where
+      // the browser lacks KHR_parallel_shader_compile (nothing here awaits the programs). Not
+      // drawn ahead unseen (tried at stop 57): the first frame's mark came ~50 ms sooner, but a
+      // software GPU then rasterized that draw too before the first frame could be shown.
+      if (stage && generation === this.generation) stage.renderer.compile(a.object, stage.camera, stage.scene);
       return a;
     };
     const avatarLoad = avatarUrl ? loadSharedAvatar(avatarUrl, { onProgress: progress, signal }).then(precompile, (e: unknown) => e as Error) : Promise.resolve(null);
