@@ -332,11 +332,8 @@ export class MMAvatarElement extends ElementBase {
     // downloads (the first frame then only draws).
     let stage: Stage | null = null;
     const precompile = (a: Avatar) => {
-      // `compile`, not `compileAsync`: the same work, without three.js' console warning where
-      // the browser lacks KHR_parallel_shader_compile (nothing here awaits the programs). Not
-      // drawn ahead unseen (tried at stop 57): the first frame's mark came ~50 ms sooner, but a
-      // software GPU then rasterized that draw too before the first frame could be shown.
-      if (stage && generation === this.generation) stage.renderer.compile(a.object, stage.camera, stage.scene);
+      // Its programs linked and its pipelines built by the GPU while the rest loads (Stage.warmUp).
+      if (stage && generation === this.generation) stage.warmUp(a.object);
       return a;
     };
     const avatarLoad = avatarUrl ? loadSharedAvatar(avatarUrl, { onProgress: progress, signal }).then(precompile, (e: unknown) => e as Error) : Promise.resolve(null);

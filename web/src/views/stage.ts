@@ -17,13 +17,20 @@ import { rememberRenderer, softwareWebGL } from './software-gl.ts';
  * draw) — draw a frame (`Stage.render`) instead.
  */
 export function compileNow(renderer: THREE.WebGLRenderer, object: THREE.Object3D, camera: THREE.Camera, scene: THREE.Scene | null = null): void {
-  for (const material of renderer.compile(object, camera, scene)) {
-    const program = (renderer.properties.get(material) as { currentProgram?: { getUniforms(): unknown } }).currentProgram;
+  resolvePrograms(renderer, renderer.compile(object, camera, scene));
+}
+
+/** Asks for each program's uniforms and attributes now (three.js asks at its first draw). */
+function resolvePrograms(renderer: THREE.WebGLRenderer, materials: Iterable<THREE.Material>): void {
+  for (const material of materials) {
+    const program = (renderer.properties.get(material) as { currentProgram?: { getUniforms(): unknown; getAttributes(): unknown } }).currentProgram;
     program?.getUniforms();
+    program?.getAttributes();
   }
 }
 
 const _size = new THREE.Vector2();
+const _scissor = new THREE.Vector4();
 
 export class Stage {
   readonly renderer: THREE.WebGLRenderer;
@@ -139,6 +146,38 @@ export class Stage {
     this.renderer.setSize(w, h);
     this.camera.aspect = w / h;
     this.camera.updateProjectionMatrix();
+  }
+
+  /**
+   * Gets `object` (not yet in the scene) ready to draw: its programs compiled and linked
+   * (`compileNow`), then drawn once in this scene, unseen — the canvas joins the page with the
+   * first real frame, which draws over it. Why the draw: a GPU builds a program's pipeline for the
+   * state it is drawn in only at its first draw, and on a software GPU (ANGLE on SwiftShader) that
+   * is a compile of its own, 20-60 ms per program. Inside a frame each next program's first query
+   * waited for the draw before it; drawn here, after every program has answered its queries, the
+   * GPU process builds them while this thread goes on (the embed page's warm visit: the first
+   * frame's ~50-80 ms of waits for the GPU gone from its main thread). Its textures upload here too.
+   * Judged by when the first frame is shown, not only drawn: README "Loading fast", stop 57.
+   * Once the canvas is in the page (after the first `render`), or for an object in a scene of its
+   * own, it only compiles. Only for a scene without shadows: see `compileNow`.
+   */
+  warmUp(object: THREE.Object3D): void {
+    const renderer = this.renderer;
+    compileNow(renderer, object, this.camera, this.scene);
+    // A drawn canvas would show the unposed object for a frame; someone else's object is not ours to move.
+    if (object.parent || renderer.domElement.parentNode) return;
+    // Into one pixel: the pipelines are the same (viewport and scissor are not part of them) and a
+    // software GPU rasterizes next to nothing before the first real frame can be read back.
+    const scissor = renderer.getScissor(_scissor);
+    const scissorTest = renderer.getScissorTest();
+    renderer.setScissor(0, 0, 1, 1);
+    renderer.setScissorTest(true);
+    this.scene.add(object);
+    renderer.render(this.scene, this.camera);
+    this.scene.remove(object);
+    renderer.setScissorTest(scissorTest);
+    renderer.setScissor(scissor);
+    renderer.getContext().flush();
   }
 
   render(): void {
