@@ -32,7 +32,10 @@ function rigidBone(mesh: THREE.SkinnedMesh): number {
   return bone;
 }
 
-/** What a normalized attribute's stored integers are multiplied by (then clamped at −1). */
+/**
+ * What a normalized attribute's stored integers are multiplied by (then clamped at −1): three.js'
+ * `MathUtils.denormalize`, once per array instead of a call per value.
+ */
 function unit(array: ArrayLike<number>): number {
   if (array instanceof Int8Array) return 1 / 127;
   if (array instanceof Uint8Array) return 1 / 255;
@@ -55,12 +58,13 @@ function baked(attribute: THREE.BufferAttribute | THREE.InterleavedBufferAttribu
   const interleaved = attribute as THREE.InterleavedBufferAttribute;
   const [array, stride, offset] = interleaved.isInterleavedBufferAttribute ? [interleaved.data.array, interleaved.data.stride, interleaved.offset] : [attribute.array, n, 0];
   const values = array instanceof Float32Array ? array : Float32Array.from(array);
-  const s = attribute.normalized ? unit(array) : 1;
+  const normalized = attribute.normalized;
+  const s = normalized ? unit(array) : 1;
   const out = new Float32Array(count * n);
   for (let i = 0; i < count; i++) {
     for (let k = 0; k < n; k++) {
       const v = values[offset + i * stride + k];
-      out[i * n + k] = attribute.normalized ? Math.max(v * s, -1) : v;
+      out[i * n + k] = normalized ? Math.max(v * s, -1) : v;
     }
   }
   const e = m.elements;

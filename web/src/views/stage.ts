@@ -17,12 +17,8 @@ import { rememberRenderer, softwareWebGL } from './software-gl.ts';
  * draw) — draw a frame (`Stage.render`) instead.
  */
 export function compileNow(renderer: THREE.WebGLRenderer, object: THREE.Object3D, camera: THREE.Camera, scene: THREE.Scene | null = null): void {
-  resolvePrograms(renderer, renderer.compile(object, camera, scene));
-}
-
-/** Asks for each program's uniforms and attributes now (three.js asks at its first draw). */
-function resolvePrograms(renderer: THREE.WebGLRenderer, materials: Iterable<THREE.Material>): void {
-  for (const material of materials) {
+  // Its uniforms and attributes asked for now (three.js asks at its first draw).
+  for (const material of renderer.compile(object, camera, scene)) {
     const program = (renderer.properties.get(material) as { currentProgram?: { getUniforms(): unknown; getAttributes(): unknown } }).currentProgram;
     program?.getUniforms();
     program?.getAttributes();
