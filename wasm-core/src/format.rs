@@ -513,8 +513,9 @@ pub fn from_bytes(bytes: &[u8]) -> Result<Database> {
         let dims = if stored_features { 0 } else { num_dims };
         check_decoded_size(bytes.len(), (num_frames, stored_frames, longest_clip(&clips)), num_joints, dims)?;
     }
-    // Version 1 stores the pose arrays as plain f32 with velocities; versions 2 and 3 encode
-    // them (codec.rs) and velocities are derived below.
+    // Version 1 stores the pose arrays as plain f32 with velocities (checked, then left: a
+    // database derives a frame's velocities from its poses when it plays it); versions 2 and 3
+    // encode them (codec.rs) and store no velocities.
     let (local_positions, local_rotations, animated, velocities) = if version == 1 {
         let local_positions = section(b"LPOS")?.vec3s(fj)?;
         let mut local_rotations: Vec<Quat> = section(b"LROT")?.pods(fj)?;
@@ -661,8 +662,6 @@ pub fn from_bytes(bytes: &[u8]) -> Result<Database> {
         None => None,
     };
 
-    let derive = velocities.is_none();
-    let (local_velocities, local_angular_velocities) = velocities.unwrap_or_default();
     let mut db = Database {
         skeleton,
         fps,
@@ -671,8 +670,6 @@ pub fn from_bytes(bytes: &[u8]) -> Result<Database> {
         tags,
         local_positions,
         local_rotations,
-        local_velocities,
-        local_angular_velocities,
         contacts,
         groups,
         feature_mean,
@@ -680,10 +677,8 @@ pub fn from_bytes(bytes: &[u8]) -> Result<Database> {
         features,
         valid,
         part,
+        velocities: Default::default(),
     };
-    if derive {
-        db.compute_velocities();
-    }
     if !stored_features && version >= 3 {
         db.compute_features();
         check_floats(features_tag, &db.features)?;
@@ -784,10 +779,8 @@ fn check_decoded_size(
 ) -> Result<()> {
     let (frames, stored, longest, joints, dims) =
         (frames as u128, stored as u128, longest as u128, joints as u128, dims as u128);
-    let need = frames * joints * (12 + 16 + 24)
-        + stored * joints * (12 + 16)
-        + frames * (dims * 4 + 3)
-        + longest * joints * 56;
+    let need =
+        frames * joints * (12 + 16) + stored * joints * (12 + 16) + frames * (dims * 4 + 3) + longest * joints * 56;
     let bound = (crate::limits::MMDB_ALLOCATION_FACTOR * file) as u128;
     if need > bound {
         return Err(Error::format(format!(
@@ -839,9 +832,9 @@ fn read_part(r: &mut Reader, num_frames: usize, clips: &[Clip]) -> Result<Part> 
 
 /// Checks that `loaded` is what writing `original` and reading it back may give: everything
 /// equal except the rotations, each within [`codec::MAX_ROTATION_ERROR`] of the original
-/// (quantized to 16 bits a component), and what is derived from the poses: the velocities must
-/// be the ones the original's poses give ([`crate::database::pose_velocities`]; linear ones
-/// within 1e-4 m/s, angular ones within `2 · MAX_ROTATION_ERROR · fps`), and the features, where
+/// (quantized to 16 bits a component), and what is derived from the poses: the velocities the
+/// loaded poses give must be the ones the original's give ([`crate::database::pose_velocities`];
+/// linear ones within 1e-4 m/s, angular ones within `2 · MAX_ROTATION_ERROR · fps`), and the features, where
 /// the original's are the ones its own poses derive (a built or version-3 database) and its
 /// rotations came back unchanged, the same bits. Written and read once more, `loaded` comes back bit for bit (a fixed point: the
 /// writer's quantization is stable, [`codec::quantize_rotation`]).
@@ -889,18 +882,15 @@ pub fn check_round_trip(original: &Database, loaded: &Database) -> std::result::
             return Err(format!("rotation {i} moved {:e} rad", codec::angle(*a, *b)));
         }
     }
-    // Against the velocities the original's own poses give: a version-1 file may store any.
-    let (velocities, angular_velocities) = crate::database::pose_velocities(
-        original.num_joints(),
-        original.fps,
-        &original.clips,
-        &original.local_positions,
-        &original.local_rotations,
-    );
+    let velocities = |db: &Database| {
+        crate::database::pose_velocities(db.num_joints(), db.fps, &db.clips, &db.local_positions, &db.local_rotations)
+    };
+    let ((velocities, angular_velocities), (loaded_velocities, loaded_angular)) =
+        (velocities(original), velocities(loaded));
     let angular = (2.0 * codec::MAX_ROTATION_ERROR * original.fps as f64) as f32 * 1.01;
     let pairs = [
-        (&velocities, &loaded.local_velocities, 1e-4, "velocity"),
-        (&angular_velocities, &loaded.local_angular_velocities, angular, "angular velocity"),
+        (&velocities, &loaded_velocities, 1e-4, "velocity"),
+        (&angular_velocities, &loaded_angular, angular, "angular velocity"),
     ];
     for (a, b, bound, what) in pairs {
         if a.len() != b.len() {
@@ -1202,8 +1192,6 @@ mod tests {
             tags: vec![Tag { name: "walk".into(), ranges: vec![(0, 2)] }],
             local_positions: (0..6).map(|i| Vec3::splat(i as f32)).collect(),
             local_rotations: vec![Quat::IDENTITY; 6],
-            local_velocities: vec![Vec3::X; 6],
-            local_angular_velocities: vec![Vec3::Z; 6],
             contacts: vec![1, 0, 0, 1, 1, 1],
             groups: vec![FeatureGroup {
                 name: "p".into(),
@@ -1222,8 +1210,8 @@ mod tests {
             features: Vec::new(),
             valid: vec![1, 1, 0],
             part: None,
+            velocities: Default::default(),
         };
-        db.compute_velocities();
         db.compute_features();
         db
     }
@@ -1270,7 +1258,6 @@ mod tests {
         db.feature_mean = vec![0.0; 2 * offsets];
         db.feature_scale = vec![1.0; 2 * offsets];
         db.valid = vec![1; 2 * n];
-        db.compute_velocities();
         db.compute_features();
         db
     }
@@ -1520,9 +1507,7 @@ mod tests {
         db.num_frames = 0;
         db.clips.clear();
         db.tags.clear();
-        for v in [&mut db.local_positions, &mut db.local_velocities, &mut db.local_angular_velocities] {
-            v.clear();
-        }
+        db.local_positions.clear();
         db.local_rotations.clear();
         db.contacts.clear();
         db.features.clear();
@@ -1586,12 +1571,26 @@ mod tests {
         for (a, b) in old.local_rotations.iter().zip(&new.local_rotations) {
             assert!(codec::angle(*a, *b) <= codec::MAX_ROTATION_ERROR);
         }
-        // Stored (f64 builder) and derived (from the stored f32 poses) velocities agree.
-        for (a, b) in old.local_velocities.iter().zip(&new.local_velocities) {
-            assert!((*a - *b).length() < 1e-4, "{a} vs {b}");
-        }
-        for (a, b) in old.local_angular_velocities.iter().zip(&new.local_angular_velocities) {
-            assert!((*a - *b).length() < 0.01, "{a} vs {b}");
+        // The velocities version 1 stored (the f64 builder's) and the ones the converted file's
+        // poses give, as a character plays them, agree.
+        let stored = |tag: &[u8; 4]| -> Vec<Vec3> {
+            let count = le_u32(&v1[12..16]) as usize;
+            let e =
+                (0..count).map(|i| &v1[HEADER_LEN + i * ENTRY_LEN..][..ENTRY_LEN]).find(|e| &e[..4] == tag).unwrap();
+            let at = |r: std::ops::Range<usize>| u64::from_le_bytes(e[r].try_into().unwrap()) as usize;
+            let (offset, length) = (at(8..16), at(16..24));
+            bytemuck::pod_collect_to_vec(&v1[offset..offset + length])
+        };
+        let (velocities, angular) = (stored(b"LVEL"), stored(b"LAVL"));
+        let j = new.num_joints();
+        let (mut v, mut w) = (vec![Vec3::ZERO; j], vec![Vec3::ZERO; j]);
+        for f in 0..new.num_frames {
+            new.frame_velocities(f, &mut v, &mut w);
+            for k in 0..j {
+                let (a, b) = ((velocities[f * j + k], v[k]), (angular[f * j + k], w[k]));
+                assert!((a.0 - a.1).length() < 1e-4, "{} vs {}", a.0, a.1);
+                assert!((b.0 - b.1).length() < 0.01, "{} vs {}", b.0, b.1);
+            }
         }
     }
 }

@@ -226,8 +226,8 @@ pub fn check_database_size(frames: usize, joints: usize, dims: usize) -> std::re
 pub const MAX_BUILD_BYTES: u64 = 3 << 30;
 
 /// What a build will hold at its peak, counted before it allocates anything: the parsed
-/// sources, the database's arrays, the f64 working copies of the largest take, the velocities
-/// derived at the end and the `.mmdb` bytes written. [`BuildFootprint::bytes`] is an upper bound
+/// sources, the database's arrays, the f64 working copies of the largest take and the `.mmdb`
+/// bytes written. [`BuildFootprint::bytes`] is an upper bound
 /// of the heap a single-threaded build (WASM) holds, measured against a counting allocator by
 /// `tests/build_limits.rs`; a native build runs takes on several threads, each with its own
 /// working copies.
@@ -255,10 +255,9 @@ impl BuildFootprint {
         let m = |a: u64, b: u64| a.saturating_mul(b);
         let (n, j, d) = (self.frames, self.joints, self.dims);
         // The database's arrays while the takes are built (positions 12 B and rotations 16 B
-        // per joint, 4 B per feature, 2 contact bytes), and once whole (+ velocities 24 B per
-        // joint, + 1 validity byte).
+        // per joint, 4 B per feature, 2 contact bytes), and once whole (+ 1 validity byte).
         let rows = m(n, m(j, 28) + m(d, 4) + 2);
-        let whole = m(n, m(j, 52) + m(d, 4) + 3);
+        let whole = m(n, m(j, 28) + m(d, 4) + 3);
         // One take's f64 working copies: the resampled local transforms (56 B per joint), one
         // per mirrored/reversed variant, world transforms, the rows with the virtual root, the
         // root itself and its smoothing inputs, contacts.

@@ -43,16 +43,14 @@ impl Pose {
     }
 }
 
-/// The database's slices for one frame: (positions, velocities, rotations, angular velocities).
-fn frame(db: &Database, f: usize) -> (&[Vec3], &[Vec3], &[Quat], &[Vec3]) {
+/// One frame of the database: (positions, velocities, rotations, angular velocities), the
+/// velocities derived as a character plays the frame.
+fn frame(db: &Database, f: usize) -> (&[Vec3], Vec<Vec3>, &[Quat], Vec<Vec3>) {
     let j = db.num_joints();
     let r = f * j..(f + 1) * j;
-    (
-        &db.local_positions[r.clone()],
-        &db.local_velocities[r.clone()],
-        &db.local_rotations[r.clone()],
-        &db.local_angular_velocities[r],
-    )
+    let (mut v, mut w) = (vec![Vec3::ZERO; j], vec![Vec3::ZERO; j]);
+    db.frame_velocities(f, &mut v, &mut w);
+    (&db.local_positions[r.clone()], v, &db.local_rotations[r], w)
 }
 
 /// World forward kinematics of local buffers whose joint 0 holds the world root.
@@ -67,6 +65,38 @@ fn next(state: &mut u64) -> u64 {
     z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
     z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
     z ^ (z >> 31)
+}
+
+/// A frame's velocities, derived a block at a time when first asked for, are the ones every
+/// frame's at once gives (`pose_velocities`, the recipe the offline tools and checks use) bit for
+/// bit, whatever order the frames are asked in: clip ends one-sided, a block across a clip
+/// boundary included. Asked again (from the kept block), the same; a clone starts over, the same.
+#[test]
+fn velocities_derived_when_played_are_every_frames_velocities() {
+    let db = walk_database();
+    let j = db.num_joints();
+    let (all_v, all_w) =
+        mmcore::database::pose_velocities(j, db.fps, &db.clips, &db.local_positions, &db.local_rotations);
+    let (mut v, mut w) = (vec![Vec3::ZERO; j], vec![Vec3::ZERO; j]);
+    let mut state = 58;
+    let mut frames: Vec<usize> = (0..db.num_frames).collect();
+    for i in (1..frames.len()).rev() {
+        frames.swap(i, (next(&mut state) % (i as u64 + 1)) as usize);
+    }
+    let copy = db.clone();
+    for (round, db) in [&db, &db, &copy].into_iter().enumerate() {
+        for &f in &frames {
+            db.frame_velocities(f, &mut v, &mut w);
+            assert_eq!(
+                (&v[..], &w[..]),
+                (&all_v[f * j..(f + 1) * j], &all_w[f * j..(f + 1) * j]),
+                "round {round} frame {f}"
+            );
+            let k = f % j;
+            assert_eq!(db.joint_velocity(f, k), (all_v[f * j + k], all_w[f * j + k]));
+        }
+    }
+    assert!(db.clips.len() >= 3 && db.clips.iter().any(|c| c.start % 32 != 0), "a block spans a clip boundary");
 }
 
 #[test]
@@ -96,14 +126,14 @@ fn inertialized_playback_is_continuous_across_random_jumps() {
                 // Source: the raw frame that was playing; target: the new frame.
                 let (sp, sv, sr, sw) = frame(&db, current);
                 let (dp, dv, dr, dw) = frame(&db, dst);
-                inert.transition(sp, sv, sr, sw, dp, dv, dr, dw);
+                inert.transition(sp, &sv, sr, &sw, dp, &dv, dr, &dw);
                 root.transition(&db, dst, true);
                 // Key invariant on real data: at the transition the output does not move.
                 inert.update(
                     dp,
-                    dv,
+                    &dv,
                     dr,
-                    dw,
+                    &dw,
                     halflife,
                     0.0,
                     &mut check.pos,
@@ -126,7 +156,7 @@ fn inertialized_playback_is_continuous_across_random_jumps() {
             current += 1;
         }
         let (ip, iv, ir, iw) = frame(&db, current);
-        inert.update(ip, iv, ir, iw, halflife, dt, &mut out.pos, &mut out.vel, &mut out.rot, &mut out.angvel);
+        inert.update(ip, &iv, ir, &iw, halflife, dt, &mut out.pos, &mut out.vel, &mut out.rot, &mut out.angvel);
         (out.pos[0], out.rot[0]) = (root.position, root.rotation);
         fk(parents, &out.pos, &out.rot, &mut gp, &mut gr);
         if step > 0 {

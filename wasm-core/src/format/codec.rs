@@ -12,8 +12,9 @@
 //! - `FSHF` (version 2, and version 3 where deriving would cost too much): the feature matrix,
 //!   exact f32, byte-planar (plane b = byte b of every value, values dimension-major): the
 //!   sign/exponent plane of a slowly varying feature is nearly constant.
-//! - Velocities and (version 3) features are not stored: [`crate::database::Database::compute_velocities`]
-//!   and [`crate::database::Database::compute_features`] derive them.
+//! - Velocities and (version 3) features are not stored: a played frame's velocities come from
+//!   [`crate::database::Database::frame_velocities`], the features from
+//!   [`crate::database::Database::compute_features`].
 
 use glam::{Quat, Vec3};
 

@@ -176,10 +176,11 @@ fn simulate(db: &Database, settings: &CharacterSettings, script: &Script, second
 /// reaches (after the builder's spike repair), the yardstick of the pop detector. Joint 0 is 0.
 pub fn joint_max_angular_speeds(db: &Database) -> Vec<f32> {
     let j = db.num_joints();
-    let mut max = vec![0.0f32; j];
+    let (mut max, mut v, mut w) = (vec![0.0f32; j], vec![Vec3::ZERO; j], vec![Vec3::ZERO; j]);
     for f in 0..db.num_frames {
+        db.frame_velocities(f, &mut v, &mut w);
         for k in 1..j {
-            max[k] = max[k].max(db.local_angular_velocities[f * j + k].length());
+            max[k] = max[k].max(w[k].length());
         }
     }
     max

@@ -169,8 +169,6 @@ pub fn cut(whole: &Database, clips: &[usize], whole_name: &str, whole_checksum: 
         tags: whole.tags.iter().map(|t| Tag { name: t.name.clone(), ranges: Vec::new() }).collect(),
         local_positions: Vec::new(),
         local_rotations: Vec::new(),
-        local_velocities: Vec::new(),
-        local_angular_velocities: Vec::new(),
         contacts: Vec::new(),
         groups: whole.groups.clone(),
         feature_mean: whole.feature_mean.clone(),
@@ -178,6 +176,7 @@ pub fn cut(whole: &Database, clips: &[usize], whole_name: &str, whole_checksum: 
         features: Vec::new(),
         valid: Vec::new(),
         part: None,
+        velocities: Default::default(),
     };
     let mut ranges = Vec::with_capacity(clips.len());
     for &i in clips {
@@ -187,8 +186,6 @@ pub fn cut(whole: &Database, clips: &[usize], whole_name: &str, whole_checksum: 
         let shift = |f: u32| f - c.start + at;
         db.local_positions.extend_from_slice(&whole.local_positions[s * j..e * j]);
         db.local_rotations.extend_from_slice(&whole.local_rotations[s * j..e * j]);
-        db.local_velocities.extend_from_slice(&whole.local_velocities[s * j..e * j]);
-        db.local_angular_velocities.extend_from_slice(&whole.local_angular_velocities[s * j..e * j]);
         db.contacts.extend_from_slice(&whole.contacts[2 * s..2 * e]);
         db.features.extend_from_slice(&whole.features[s * d..e * d]);
         db.valid.extend_from_slice(&whole.valid[s..e]);

@@ -66,6 +66,9 @@ pub fn summary(db: &Database, size_bytes: Option<usize>) -> Value {
 pub fn dump(db: &Database) -> Value {
     let flat3 = |v: &[glam::Vec3]| v.iter().flat_map(|x| x.to_array()).collect::<Vec<f32>>();
     let summary = summary(db, None);
+    // The velocities a frame plays with (derived, not stored), every frame's at once.
+    let (velocities, angular) =
+        crate::database::pose_velocities(db.num_joints(), db.fps, &db.clips, &db.local_positions, &db.local_rotations);
     json!({
         "num_frames": db.num_frames,
         "num_joints": db.num_joints(),
@@ -76,8 +79,8 @@ pub fn dump(db: &Database) -> Value {
         "offsets": flat3(&db.skeleton.offsets),
         "local_positions": flat3(&db.local_positions),
         "local_rotations": db.local_rotations.iter().flat_map(|q| q.to_array()).collect::<Vec<f32>>(),
-        "local_velocities": flat3(&db.local_velocities),
-        "local_angular_velocities": flat3(&db.local_angular_velocities),
+        "local_velocities": flat3(&velocities),
+        "local_angular_velocities": flat3(&angular),
         "contacts": db.contacts,
         "features": db.features,
         "feature_mean": db.feature_mean,

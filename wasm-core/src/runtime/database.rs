@@ -4,6 +4,7 @@
 
 use crate::kinematics::local_to_model;
 use glam::{DQuat, DVec3, Quat, Vec3};
+use std::sync::OnceLock;
 
 /// The joint hierarchy. Joint 0 is the virtual root; parents precede children.
 #[derive(Clone, Debug, PartialEq)]
@@ -144,10 +145,6 @@ pub struct Database {
     pub local_positions: Vec<Vec3>,
     /// `F×J` local rotations (joint 0: world yaw of the virtual root).
     pub local_rotations: Vec<Quat>,
-    /// `F×J` local linear and angular velocities, derived from the poses by
-    /// [`Database::compute_velocities`] (not stored in `.mmdb` version 2).
-    pub local_velocities: Vec<Vec3>,
-    pub local_angular_velocities: Vec<Vec3>,
     /// `F×2` foot contacts (left, right), 0 or 1.
     pub contacts: Vec<u8>,
     pub groups: Vec<FeatureGroup>,
@@ -161,6 +158,65 @@ pub struct Database {
     pub valid: Vec<u8>,
     /// Set when this database is the first part of a larger one (its `PART` section).
     pub part: Option<Part>,
+    /// The velocities derived so far ([`Database::frame_velocities`]); `Velocities::default()`.
+    pub velocities: Velocities,
+}
+
+/// Frames per block of [`Velocities`]: 32 frames of 32 joints are 24 kB, derived in ~0.1 ms the
+/// first time a character plays or jumps into one.
+const VELOCITY_BLOCK: usize = 32;
+
+/// The velocities of a database's frames, derived a block at a time when first asked for and kept
+/// (each block's linear velocities, then its angular ones, frame-major). Derived from the poses,
+/// so it is no part of a database's value: a clone starts empty and any two compare equal. The
+/// poses must not change once a velocity was asked for (a builder or test that edits them does
+/// so before, or on a clone).
+#[derive(Default)]
+pub struct Velocities {
+    blocks: OnceLock<Box<[Block]>>,
+}
+
+/// One block of [`Velocities`], derived once.
+type Block = OnceLock<Box<[Vec3]>>;
+
+impl Velocities {
+    /// The block holding `frame` and the frame's index in it, derived now if it was not; `None`
+    /// for a frame past the count the blocks were laid out for.
+    fn block<'a>(&'a self, db: &Database, frame: usize) -> Option<(&'a [Vec3], usize)> {
+        let blocks =
+            self.blocks.get_or_init(|| (0..db.num_frames.div_ceil(VELOCITY_BLOCK)).map(|_| OnceLock::new()).collect());
+        let b = frame / VELOCITY_BLOCK;
+        let block = blocks.get(b)?.get_or_init(|| {
+            let (j, start) = (db.num_joints(), b * VELOCITY_BLOCK);
+            let n = VELOCITY_BLOCK.min(db.num_frames - start);
+            let mut out = vec![Vec3::ZERO; 2 * n * j].into_boxed_slice();
+            let (velocities, angular) = out.split_at_mut(n * j);
+            for i in 0..n {
+                db.velocities_from_poses(start + i, &mut velocities[i * j..], &mut angular[i * j..]);
+            }
+            out
+        });
+        Some((block, frame - b * VELOCITY_BLOCK))
+    }
+}
+
+impl Clone for Velocities {
+    fn clone(&self) -> Velocities {
+        Velocities::default()
+    }
+}
+
+impl PartialEq for Velocities {
+    fn eq(&self, _: &Velocities) -> bool {
+        true
+    }
+}
+
+impl std::fmt::Debug for Velocities {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let derived = self.blocks.get().map_or(0, |b| b.iter().filter(|b| b.get().is_some()).count());
+        write!(f, "Velocities {{ derived blocks: {derived} }}")
+    }
 }
 
 /// A database that is the first part of a larger one, the *whole*: its frames are the whole's
@@ -239,15 +295,77 @@ impl Database {
         Some(mask)
     }
 
-    /// Fills the local velocities from the local poses: central differences within each clip,
-    /// one-sided at its first and last frame (docs/method.md §3), in f64 from the stored f32
-    /// values: `v[f] = (p[b] − p[a]) · fps / (b − a)`, `ω[f] = axis·angle(q[b] · q[a]⁻¹) · fps /
-    /// (b − a)` with `a = max(f − 1, start)`, `b = min(f + 1, end − 1)`. One function for the
-    /// builder and the `.mmdb` reader, so a stored and a derived velocity cannot disagree.
-    /// A one-frame clip has zero velocities.
-    pub fn compute_velocities(&mut self) {
-        (self.local_velocities, self.local_angular_velocities) =
-            pose_velocities(self.num_joints(), self.fps, &self.clips, &self.local_positions, &self.local_rotations);
+    /// Local linear and angular velocities of every joint at `frame` (docs/method.md §3): central
+    /// differences within the frame's clip, one-sided at its first and last frame, in f64 from
+    /// the stored f32 values: `v[f] = (p[b] − p[a]) · fps / (b − a)`, `ω[f] = axis·angle(q[b] ·
+    /// q[a]⁻¹) · fps / (b − a)` with `a = max(f − 1, start)`, `b = min(f + 1, end − 1)`; zero in a
+    /// one-frame clip. Derived a block of frames at a time the first time one of them is asked
+    /// for, and kept ([`Velocities`]): not on load, where every frame's took a third of it (22 ms
+    /// natively for the shipped whole) and 24 bytes a joint a frame (19 MB) before any character
+    /// played one. Written into the caller's buffers.
+    ///
+    /// # Panics
+    /// If the buffers are shorter than the joint count or `frame` is out of range.
+    pub fn frame_velocities(&self, frame: usize, velocities: &mut [Vec3], angular: &mut [Vec3]) {
+        let j = self.num_joints();
+        let (velocities, angular) = (&mut velocities[..j], &mut angular[..j]);
+        match self.velocities.block(self, frame) {
+            Some((block, i)) => {
+                let n = block.len() / (2 * j);
+                velocities.copy_from_slice(&block[i * j..(i + 1) * j]);
+                angular.copy_from_slice(&block[(n + i) * j..(n + i + 1) * j]);
+            }
+            None => self.velocities_from_poses(frame, velocities, angular),
+        }
+    }
+
+    /// Joint `joint`'s local velocity and angular velocity at `frame` ([`Database::frame_velocities`]).
+    pub fn joint_velocity(&self, frame: usize, joint: usize) -> (Vec3, Vec3) {
+        let j = self.num_joints();
+        match self.velocities.block(self, frame) {
+            Some((block, i)) => {
+                let n = block.len() / (2 * j);
+                (block[i * j + joint], block[(n + i) * j + joint])
+            }
+            None => {
+                let Some((a, b, inv_h)) = self.difference_frames(frame) else { return (Vec3::ZERO, Vec3::ZERO) };
+                let (ia, ib) = (a * j + joint, b * j + joint);
+                let (p, q) = (&self.local_positions, &self.local_rotations);
+                joint_velocity(p[ia], p[ib], q[ia], q[ib], inv_h)
+            }
+        }
+    }
+
+    /// Derives every frame's velocities now (each block [`Database::frame_velocities`] would
+    /// derive when first asked): for whoever counts a character's own allocations apart from
+    /// the database's derived data, or wants no first-touch work later.
+    pub fn derive_velocities(&self) {
+        for frame in (0..self.num_frames).step_by(VELOCITY_BLOCK) {
+            self.velocities.block(self, frame);
+        }
+    }
+
+    /// [`Database::frame_velocities`] from the poses, every joint.
+    fn velocities_from_poses(&self, frame: usize, velocities: &mut [Vec3], angular: &mut [Vec3]) {
+        let j = self.num_joints();
+        let Some((a, b, inv_h)) = self.difference_frames(frame) else {
+            velocities[..j].fill(Vec3::ZERO);
+            angular[..j].fill(Vec3::ZERO);
+            return;
+        };
+        let (pa, pb) = (&self.local_positions[a * j..(a + 1) * j], &self.local_positions[b * j..(b + 1) * j]);
+        let (qa, qb) = (&self.local_rotations[a * j..(a + 1) * j], &self.local_rotations[b * j..(b + 1) * j]);
+        for k in 0..j {
+            (velocities[k], angular[k]) = joint_velocity(pa[k], pb[k], qa[k], qb[k], inv_h);
+        }
+    }
+
+    /// The frames `a < b` whose difference is `frame`'s velocity, and `fps / (b − a)`; `None`
+    /// in a one-frame clip.
+    fn difference_frames(&self, frame: usize) -> Option<(usize, usize, f64)> {
+        let clip = self.clips.get(self.clip_at(frame))?;
+        let (start, end) = (clip.start as usize, (clip.end as usize).min(self.num_frames));
+        difference_frames(frame, start, end, self.fps)
     }
 
     /// Derives the normalized feature matrix from the poses with the stored normalization
@@ -341,7 +459,8 @@ impl Database {
     }
 }
 
-/// The velocities [`Database::compute_velocities`] describes, of `F×J` poses cut into `clips`.
+/// Every frame's velocities ([`Database::frame_velocities`]) of `F×J` poses cut into `clips`:
+/// for the offline tools and checks, which look at all of them at once.
 pub fn pose_velocities(
     joints: usize,
     fps: f32,
@@ -351,24 +470,32 @@ pub fn pose_velocities(
 ) -> (Vec<Vec3>, Vec<Vec3>) {
     let n = positions.len().min(rotations.len());
     let (mut velocities, mut angular) = (vec![Vec3::ZERO; n], vec![Vec3::ZERO; n]);
-    let fps = fps as f64;
     for clip in clips {
         let (start, end) = (clip.start as usize, (clip.end as usize).min(n / joints.max(1)));
         for f in start..end {
-            let (a, b) = (f.saturating_sub(1).max(start), (f + 1).min(end - 1));
-            if a >= b {
-                continue;
-            }
-            let inv_h = fps / (b - a) as f64;
+            let Some((a, b, inv_h)) = difference_frames(f, start, end, fps) else { continue };
             for k in 0..joints {
-                let (pa, pb) = (positions[a * joints + k].as_dvec3(), positions[b * joints + k].as_dvec3());
-                let (qa, qb) = (rotations[a * joints + k].as_dquat(), rotations[b * joints + k].as_dquat());
-                velocities[f * joints + k] = ((pb - pa) * inv_h).as_vec3();
-                angular[f * joints + k] = (scaled_axis(qb * qa.conjugate()) * inv_h).as_vec3();
+                let (ia, ib) = (a * joints + k, b * joints + k);
+                (velocities[f * joints + k], angular[f * joints + k]) =
+                    joint_velocity(positions[ia], positions[ib], rotations[ia], rotations[ib], inv_h);
             }
         }
     }
     (velocities, angular)
+}
+
+/// The neighbours whose difference is `frame`'s velocity in the clip `[start, end)`.
+fn difference_frames(frame: usize, start: usize, end: usize, fps: f32) -> Option<(usize, usize, f64)> {
+    let (a, b) = (frame.saturating_sub(1).max(start), (frame + 1).min(end.checked_sub(1)?));
+    (a < b).then(|| (a, b, fps as f64 / (b - a) as f64))
+}
+
+/// One joint's finite-difference velocity and angular velocity, in f64.
+#[inline]
+fn joint_velocity(pa: Vec3, pb: Vec3, qa: Quat, qb: Quat, inv_h: f64) -> (Vec3, Vec3) {
+    let v = (pb.as_dvec3() - pa.as_dvec3()) * inv_h;
+    let w = scaled_axis(qb.as_dquat() * qa.as_dquat().conjugate()) * inv_h;
+    (v.as_vec3(), w.as_vec3())
 }
 
 /// Rotation vector (axis × angle) of a unit quaternion, taking the short way. Same value as

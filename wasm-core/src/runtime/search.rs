@@ -684,8 +684,6 @@ mod tests {
             tags,
             local_positions: vec![],
             local_rotations: vec![],
-            local_velocities: vec![],
-            local_angular_velocities: vec![],
             contacts: vec![],
             groups: vec![group("pose", false, 0, 3), group("trajectory", true, 3, 2)],
             feature_mean: vec![0.0; d],
@@ -693,6 +691,7 @@ mod tests {
             features: (0..num_frames * d).map(|_| (rng.below(5) as f32 - 2.0) * 0.5).collect(),
             valid: (0..num_frames).map(|_| (rng.below(4) != 0) as u8).collect(),
             part: None,
+            velocities: Default::default(),
         }
     }
 

@@ -390,8 +390,6 @@ pub fn tiny_database() -> Database {
         tags: vec![Tag { name: "walk".into(), ranges: vec![(0, 1), (2, 4)] }],
         local_positions: (0..8).map(|i| glam::Vec3::splat(i as f32 * 0.1)).collect(),
         local_rotations: (0..8).map(|i| glam::Quat::from_rotation_y(i as f32 * 0.2)).collect(),
-        local_velocities: vec![glam::Vec3::X; 8],
-        local_angular_velocities: vec![glam::Vec3::Z; 8],
         contacts: vec![1, 0, 0, 1, 1, 1, 0, 0],
         groups: vec![
             FeatureGroup {
@@ -424,6 +422,7 @@ pub fn tiny_database() -> Database {
         features: (0..20).map(|i| i as f32 * 0.1 - 1.0).collect(),
         valid: vec![1, 0, 1, 0],
         part: None,
+        velocities: Default::default(),
     }
 }
 

@@ -135,8 +135,8 @@ impl ClipBuilder<'_> {
                 }
             }
         }
-        // (Velocities are derived from these rows once the database is whole:
-        // `Database::compute_velocities`, the same function the `.mmdb` reader uses.)
+        // (Velocities are derived from these rows, a frame at a time, as a character plays
+        // it: `Database::frame_velocities`, the same for a built and a loaded database.)
         let geometry = Geometry { world, root, dt: 1.0 / self.fps };
         for (i, (p, q)) in lp.iter().zip(lr.iter()).enumerate() {
             out.positions[i] = p.as_vec3();

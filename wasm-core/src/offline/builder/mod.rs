@@ -9,8 +9,8 @@
 //! 5. [`clip`]: world transforms, the virtual root ([`root`]), local rows, [`contacts`]; a
 //!    mirrored copy is its original's rows mirrored (`crate::mirror`);
 //! 6. clips and tags assembled here; rotations quantized as `.mmdb` stores them, then what a
-//!    loader derives from the rows — velocities (`Database::compute_velocities`) and features
-//!    (`crate::pose_features`) — and [`features`]: normalization and validity.
+//!    loader derives from the rows — features (`crate::pose_features`); velocities are derived
+//!    when a frame is played (`Database::frame_velocities`) — and [`features`]: normalization and validity.
 //!
 //! All arithmetic is f64 until the arrays are stored as f32, so the database's forward
 //! kinematics reproduces the source within ~1e-6 m.
@@ -454,8 +454,6 @@ pub fn build(config: &BuildConfig, sources: &[Source]) -> Result<BuildOutput> {
         tags,
         local_positions: out.positions,
         local_rotations,
-        local_velocities: Vec::new(),
-        local_angular_velocities: Vec::new(),
         contacts: out.contacts,
         groups,
         feature_mean,
@@ -463,10 +461,8 @@ pub fn build(config: &BuildConfig, sources: &[Source]) -> Result<BuildOutput> {
         features,
         valid,
         part: None,
+        velocities: Default::default(),
     };
-    // Velocities are derived per clip from positions and rotations (as on load), reversed and
-    // mirrored copies included.
-    database.compute_velocities();
     if let Some(ratio) = config.min_head_height {
         let (excluded, searchable, crouched) = exclude_low_heads(&mut database, ratio as f32);
         if searchable == 0 {

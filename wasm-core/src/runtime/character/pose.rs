@@ -25,18 +25,17 @@ pub struct Pose {
     pub world_rotations: Vec<Quat>,
     /// Foot contacts of the frame playing (left, right).
     pub contacts: [u8; 2],
+    /// Scratch, not state: the velocities of the frame playing or jumped to, derived when it is
+    /// ([`Database::frame_velocities`]).
+    frame_velocities: Vec<Vec3>,
+    frame_angular_velocities: Vec<Vec3>,
 }
 
-/// Local positions, rotations, velocities and angular velocities of one frame.
-fn frame_slices(db: &Database, frame: usize) -> (&[Vec3], &[Quat], &[Vec3], &[Vec3]) {
+/// Local positions and rotations of one frame.
+fn frame_pose(db: &Database, frame: usize) -> (&[Vec3], &[Quat]) {
     let j = db.num_joints();
     let r = frame * j..(frame + 1) * j;
-    (
-        &db.local_positions[r.clone()],
-        &db.local_rotations[r.clone()],
-        &db.local_velocities[r.clone()],
-        &db.local_angular_velocities[r],
-    )
+    (&db.local_positions[r.clone()], &db.local_rotations[r])
 }
 
 /// The world transforms are not stored: the reader recomputes them from the rest by the one FK
@@ -66,6 +65,8 @@ impl Pose {
             world_positions: vec![Vec3::ZERO; j],
             world_rotations: vec![Quat::IDENTITY; j],
             contacts: [0; 2],
+            frame_velocities: vec![Vec3::ZERO; j],
+            frame_angular_velocities: vec![Vec3::ZERO; j],
         }
     }
 
@@ -79,7 +80,9 @@ impl Pose {
     pub fn transition(&mut self, db: &Database, frame: usize, inertialize: bool) {
         if inertialize {
             let j = db.num_joints();
-            let (lp, lr, lv, lw) = frame_slices(db, frame);
+            let (lp, lr) = frame_pose(db, frame);
+            db.frame_velocities(frame, &mut self.frame_velocities, &mut self.frame_angular_velocities);
+            let (lv, lw) = (&self.frame_velocities, &self.frame_angular_velocities);
             self.inertializer.transition_from_output(
                 &self.positions[1..],
                 &self.velocities[1..],
@@ -98,7 +101,9 @@ impl Pose {
     /// Writes `frame`'s pose, inertialized over `dt`, with the root at `(root_position,
     /// root_rotation)`.
     pub fn play(&mut self, db: &Database, frame: usize, inertialize: bool, halflife: f32, dt: f32) {
-        let (lp, lr, lv, lw) = frame_slices(db, frame);
+        let (lp, lr) = frame_pose(db, frame);
+        db.frame_velocities(frame, &mut self.frame_velocities, &mut self.frame_angular_velocities);
+        let (lv, lw) = (&self.frame_velocities, &self.frame_angular_velocities);
         if inertialize {
             self.inertializer.update(
                 &lp[1..],

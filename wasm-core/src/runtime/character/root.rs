@@ -63,9 +63,9 @@ impl RootMotion {
     /// World velocity and angular velocity of the database root at `frame`, carried into the
     /// character's frame.
     fn motion_at(&self, db: &Database, frame: usize) -> (Vec3, Vec3) {
-        let j = db.num_joints();
-        let to_world = self.rotation * db.local_rotations[frame * j].inverse();
-        (to_world * db.local_velocities[frame * j], to_world * db.local_angular_velocities[frame * j])
+        let to_world = self.rotation * db.local_rotations[frame * db.num_joints()].inverse();
+        let (velocity, angular) = db.joint_velocity(frame, 0);
+        (to_world * velocity, to_world * angular)
     }
 
     /// Starts playing `frame` with no offsets, moving as it moves (a placed copy, not a jump).
