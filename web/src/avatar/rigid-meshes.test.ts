@@ -84,6 +84,26 @@ describe('attachRigidMeshes', () => {
     expect(r.body.parent).toBe(r.root); // the body stays skinned
   });
 
+  it('moves the bounds with the geometry: they hold every baked vertex, so three.js need not measure them', () => {
+    const r = rig(() => [1, 0, 0, 0], [1, 0, 0, 0]);
+    r.extra.geometry.computeBoundingBox(); // as a glTF's accessors give them
+    r.extra.geometry.computeBoundingSphere();
+    attachRigidMeshes(r.root);
+    const g = (r.head.children.find((c) => (c as THREE.Mesh).isMesh) as THREE.Mesh).geometry;
+    const box = g.boundingBox;
+    const sphere = g.boundingSphere;
+    expect(box && sphere).toBeTruthy();
+    const p = g.getAttribute('position');
+    const v = new THREE.Vector3();
+    for (let i = 0; i < p.count; i++) {
+      v.fromBufferAttribute(p, i);
+      expect(box!.distanceToPoint(v)).toBeLessThan(1e-6);
+      expect(v.distanceTo(sphere!.center)).toBeLessThanOrEqual(sphere!.radius + 1e-6);
+    }
+    // Tight as the source's: the same radius (the bake is a rigid motion here).
+    expect(sphere!.radius).toBeCloseTo(r.extra.geometry.boundingSphere!.radius, 6);
+  });
+
   it('bakes normals too, a quantized attribute read through its normalization', () => {
     const r = rig(() => [1, 0, 0, 0], [1, 0, 0, 0]);
     // Normals stored as normalized bytes padded to four a vertex, as a quantized file does
