@@ -49,7 +49,9 @@ export class Stage {
   ) {
     // MSAA and high-DPI pixels on a GPU; neither where WebGL draws in software (software-gl.ts).
     const software = softwareWebGL();
-    this.renderer = new THREE.WebGLRenderer({ antialias: options.antialias ?? !software, preserveDrawingBuffer: true });
+    // The drawing buffer is not kept (WebGL's default): a kept one is copied for the compositor
+    // every frame (a resolve and a copy on a tiled mobile GPU). Nothing reads the canvas back.
+    this.renderer = new THREE.WebGLRenderer({ antialias: options.antialias ?? !software });
     rememberRenderer(this.renderer.getContext());
     this.renderer.setPixelRatio(software ? 1 : Math.min(window.devicePixelRatio, 2));
     this.renderer.outputColorSpace = THREE.SRGBColorSpace;
