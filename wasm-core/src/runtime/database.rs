@@ -183,12 +183,15 @@ impl Velocities {
     /// The block holding `frame` and the frame's index in it, derived now if it was not; `None`
     /// for a frame past the count the blocks were laid out for.
     fn block<'a>(&'a self, db: &Database, frame: usize) -> Option<(&'a [Vec3], usize)> {
+        if frame >= db.num_frames {
+            return None;
+        }
         let blocks =
             self.blocks.get_or_init(|| (0..db.num_frames.div_ceil(VELOCITY_BLOCK)).map(|_| OnceLock::new()).collect());
         let b = frame / VELOCITY_BLOCK;
         let block = blocks.get(b)?.get_or_init(|| {
             let (j, start) = (db.num_joints(), b * VELOCITY_BLOCK);
-            let n = VELOCITY_BLOCK.min(db.num_frames - start);
+            let n = VELOCITY_BLOCK.min(db.num_frames - start); // start ≤ frame < num_frames
             let mut out = vec![Vec3::ZERO; 2 * n * j].into_boxed_slice();
             let (velocities, angular) = out.split_at_mut(n * j);
             for i in 0..n {
@@ -331,7 +334,7 @@ impl Database {
                 let Some((a, b, inv_h)) = self.difference_frames(frame) else { return (Vec3::ZERO, Vec3::ZERO) };
                 let (ia, ib) = (a * j + joint, b * j + joint);
                 let (p, q) = (&self.local_positions, &self.local_rotations);
-                joint_velocity(p[ia], p[ib], q[ia], q[ib], inv_h)
+                difference_velocity(p[ia], p[ib], q[ia], q[ib], inv_h)
             }
         }
     }
@@ -356,7 +359,7 @@ impl Database {
         let (pa, pb) = (&self.local_positions[a * j..(a + 1) * j], &self.local_positions[b * j..(b + 1) * j]);
         let (qa, qb) = (&self.local_rotations[a * j..(a + 1) * j], &self.local_rotations[b * j..(b + 1) * j]);
         for k in 0..j {
-            (velocities[k], angular[k]) = joint_velocity(pa[k], pb[k], qa[k], qb[k], inv_h);
+            (velocities[k], angular[k]) = difference_velocity(pa[k], pb[k], qa[k], qb[k], inv_h);
         }
     }
 
@@ -477,7 +480,7 @@ pub fn pose_velocities(
             for k in 0..joints {
                 let (ia, ib) = (a * joints + k, b * joints + k);
                 (velocities[f * joints + k], angular[f * joints + k]) =
-                    joint_velocity(positions[ia], positions[ib], rotations[ia], rotations[ib], inv_h);
+                    difference_velocity(positions[ia], positions[ib], rotations[ia], rotations[ib], inv_h);
             }
         }
     }
@@ -492,7 +495,7 @@ fn difference_frames(frame: usize, start: usize, end: usize, fps: f32) -> Option
 
 /// One joint's finite-difference velocity and angular velocity, in f64.
 #[inline]
-fn joint_velocity(pa: Vec3, pb: Vec3, qa: Quat, qb: Quat, inv_h: f64) -> (Vec3, Vec3) {
+fn difference_velocity(pa: Vec3, pb: Vec3, qa: Quat, qb: Quat, inv_h: f64) -> (Vec3, Vec3) {
     let v = (pb.as_dvec3() - pa.as_dvec3()) * inv_h;
     let w = scaled_axis(qb.as_dquat() * qa.as_dquat().conjugate()) * inv_h;
     (v.as_vec3(), w.as_vec3())
