@@ -150,8 +150,6 @@ export async function fetchBytes(url: string | URL, options: FetchOptions = {}):
   }
 }
 
-/** Whether the page has a `<link rel="preload">` for `href`. */
-
 function whenIdle(fn: () => void): void {
   if (typeof requestIdleCallback === 'function') requestIdleCallback(fn, { timeout: 3000 });
   else setTimeout(fn, 500);
