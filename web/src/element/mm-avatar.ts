@@ -331,14 +331,21 @@ export class MMAvatarElement extends ElementBase {
     // and the avatar's shaders as soon as the avatar is here, get ready while the database still
     // downloads (the first frame then only draws).
     let stage: Stage | null = null;
+    let databaseHere = false;
     const precompile = (a: Avatar) => {
-      // Its programs linked and its pipelines built by the GPU while the rest loads (Stage.warmUp).
-      if (stage && generation === this.generation) stage.warmUp(a.object);
+      // Its programs linked, and its pipelines built by the GPU while the rest loads (Stage.warmUp:
+      // drawn unseen) — drawn only while there is a rest: with the database already here (a
+      // repeat visit, from the cache) the first frame follows at once and builds them itself.
+      if (stage && generation === this.generation) stage.warmUp(a.object, !databaseHere);
       return a;
     };
     const avatarLoad = avatarUrl ? loadSharedAvatar(avatarUrl, { onProgress: progress, signal }).then(precompile, (e: unknown) => e as Error) : Promise.resolve(null);
     const ownDatabase = databaseUrl !== assetUrl(DEFAULT_FIRST_PART).href;
     const databaseLoad = ownDatabase ? loadDatabase(databaseUrl, { onProgress: progress, signal }) : loadDefaultDatabase({ onProgress: progress, signal });
+    databaseLoad.then(
+      () => (databaseHere = true),
+      () => undefined, // awaited below
+    );
     try {
       stage = this.stage = new Stage(this.view);
       stage.scene.fog = null;

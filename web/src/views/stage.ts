@@ -54,7 +54,11 @@ export class Stage {
     this.renderer = new THREE.WebGLRenderer({ antialias: options.antialias ?? !software });
     rememberRenderer(this.renderer.getContext());
     this.renderer.setPixelRatio(software ? 1 : Math.min(window.devicePixelRatio, 2));
-    this.renderer.outputColorSpace = THREE.SRGBColorSpace;
+    // Output in sRGB: three.js' default, not set again — its setter writes the context's colour
+    // spaces, a wait for the GPU process (~5 ms traced) that changes nothing.
+    // Asked for now, with three.js' own extensions, while the GPU process is idle: three.js asks
+    // at the first texture's upload, where the answer waited behind the avatar's programs (~10 ms).
+    this.renderer.extensions.has('EXT_texture_filter_anisotropic');
     // Set once, before anything is drawn: the shadow type is part of every lit material's program
     // key, and three.js does not recompile a material already drawn when it changes — so a type
     // set later (by enableShadows) gave every avatar loaded after it a second set of programs, each
@@ -156,14 +160,18 @@ export class Stage {
    * GPU process builds them while this thread goes on (the embed page's warm visit: the first
    * frame's ~50-80 ms of waits for the GPU gone from its main thread). Its textures upload here too.
    * Judged by when the first frame is shown, not only drawn: README "Loading fast", stop 57.
-   * Once the canvas is in the page (after the first `render`), or for an object in a scene of its
-   * own, it only compiles. Only for a scene without shadows: see `compileNow`.
+   * Once the canvas is in the page (after the first `render`), for an object in a scene of its
+   * own, or with `draw` false, it only compiles. `draw` false: the first frame comes next (what
+   * it waits for is already here) — drawn unseen just before it, the pipelines were built for
+   * the unseen draw and the first frame was shown later (stop 59: the embed page's warm visit,
+   * mark 495 → 472 ms, shown 898 → 820 without the draw). Only for a scene without shadows: see
+   * `compileNow`.
    */
-  warmUp(object: THREE.Object3D): void {
+  warmUp(object: THREE.Object3D, draw = true): void {
     const renderer = this.renderer;
     compileNow(renderer, object, this.camera, this.scene);
     // A drawn canvas would show the unposed object for a frame; someone else's object is not ours to move.
-    if (object.parent || renderer.domElement.parentNode) return;
+    if (!draw || object.parent || renderer.domElement.parentNode) return;
     // Into one pixel: the pipelines are the same (viewport and scissor are not part of them) and a
     // software GPU rasterizes next to nothing before the first real frame can be read back.
     const scissor = renderer.getScissor(_scissor);
