@@ -160,11 +160,11 @@ export class Stage {
    * GPU process builds them while this thread goes on (the embed page's warm visit: the first
    * frame's ~50-80 ms of waits for the GPU gone from its main thread). Its textures upload here too.
    * Judged by when the first frame is shown, not only drawn: README "Loading fast", stop 57.
-   * Once the canvas is in the page (after the first `render`), for an object in a scene of its
-   * own, or with `draw` false, it only compiles. `draw` false: the first frame comes next (what
-   * it waits for is already here) — drawn unseen just before it, the pipelines were built for
-   * the unseen draw and the first frame was shown later (stop 59: the embed page's warm visit,
-   * mark 495 → 472 ms, shown 898 → 820 without the draw). Only for a scene without shadows: see
+   * Once the canvas is in the page (after the first `render`), or for an object in a scene of its
+   * own, it only compiles. `draw` false: only compiles — the first frame comes next (what it
+   * waits for is already here): drawn unseen just before it, the pipelines were built for the
+   * unseen draw and the first frame was shown later (stop 59: the embed page's warm visit,
+   * throttled, mark 495 → 472 ms, shown 898 → 820). Only for a scene without shadows: see
    * `compileNow`.
    */
   warmUp(object: THREE.Object3D, draw = true): void {
@@ -187,6 +187,15 @@ export class Stage {
   }
 
   render(): void {
+    // The first frame links every program it draws before its first draw: linked among its draws,
+    // each link's queries waited for the GPU process to build the pipelines of the draws before
+    // it (the demo's warm visit, traced: 110 ms of the first frame, a software GPU). Not with
+    // shadows on: see `compileNow`.
+    if (!this.renderer.domElement.parentNode && !this.renderer.shadowMap.enabled) {
+      this.scene.traverseVisible((o) => {
+        if ((o as THREE.Mesh).isMesh || (o as THREE.Line).isLine || (o as THREE.Points).isPoints) compileNow(this.renderer, o, this.camera, this.scene);
+      });
+    }
     this.renderer.render(this.scene, this.camera);
     if (!this.renderer.domElement.parentNode) this.container.appendChild(this.renderer.domElement);
   }
