@@ -191,9 +191,14 @@ export class Stage {
     // each link's queries waited for the GPU process to build the pipelines of the draws before
     // it (the demo's warm visit, traced: 110 ms of the first frame, a software GPU). Not with
     // shadows on: see `compileNow`.
+    // One object per material (a crowd's characters share theirs; compiling each walks the scene).
     if (!this.renderer.domElement.parentNode && !this.renderer.shadowMap.enabled) {
+      const seen = new Set<THREE.Material | THREE.Material[]>();
       this.scene.traverseVisible((o) => {
-        if ((o as THREE.Mesh).isMesh || (o as THREE.Line).isLine || (o as THREE.Points).isPoints) compileNow(this.renderer, o, this.camera, this.scene);
+        const drawn = o as THREE.Mesh;
+        if (!(drawn.isMesh || (o as THREE.Line).isLine || (o as THREE.Points).isPoints) || seen.has(drawn.material)) return;
+        seen.add(drawn.material);
+        compileNow(this.renderer, o, this.camera, this.scene);
       });
     }
     this.renderer.render(this.scene, this.camera);
