@@ -333,10 +333,10 @@ export class MMAvatarElement extends ElementBase {
     let stage: Stage | null = null;
     let databaseHere = false;
     const precompile = (a: Avatar) => {
-      // Its programs linked, and its pipelines built by the GPU while the rest loads (Stage.warmUp:
-      // drawn unseen) — drawn only while there is a rest: with the database already here (a
-      // repeat visit, from the cache) the first frame follows at once and builds them itself.
-      if (stage && generation === this.generation) stage.warmUp(a.object, !databaseHere);
+      // Its programs linked and its pipelines built by the GPU while the rest loads (Stage.warmUp)
+      // — only while there is a rest: with the database already here (a repeat visit, from the
+      // cache) the first frame follows at once, links them itself and builds its pipelines once.
+      if (stage && !databaseHere && generation === this.generation) stage.warmUp(a.object);
       return a;
     };
     const avatarLoad = avatarUrl ? loadSharedAvatar(avatarUrl, { onProgress: progress, signal }).then(precompile, (e: unknown) => e as Error) : Promise.resolve(null);

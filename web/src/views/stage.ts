@@ -161,17 +161,16 @@ export class Stage {
    * frame's ~50-80 ms of waits for the GPU gone from its main thread). Its textures upload here too.
    * Judged by when the first frame is shown, not only drawn: README "Loading fast", stop 57.
    * Once the canvas is in the page (after the first `render`), or for an object in a scene of its
-   * own, it only compiles. `draw` false: only compiles — the first frame comes next (what it
-   * waits for is already here): drawn unseen just before it, the pipelines were built for the
-   * unseen draw and the first frame was shown later (stop 59: the embed page's warm visit,
-   * throttled, mark 495 → 472 ms, shown 898 → 820). Only for a scene without shadows: see
-   * `compileNow`.
+   * own, it only compiles. Worth it only while something else is still loading: a first frame
+   * that follows at once links its programs itself (`render`), and drawn unseen just before it
+   * the pipelines were built for the unseen draw and the first frame was shown later (stop 59).
+   * Only for a scene without shadows: see `compileNow`.
    */
-  warmUp(object: THREE.Object3D, draw = true): void {
+  warmUp(object: THREE.Object3D): void {
     const renderer = this.renderer;
     compileNow(renderer, object, this.camera, this.scene);
     // A drawn canvas would show the unposed object for a frame; someone else's object is not ours to move.
-    if (!draw || object.parent || renderer.domElement.parentNode) return;
+    if (object.parent || renderer.domElement.parentNode) return;
     // Into one pixel: the pipelines are the same (viewport and scissor are not part of them) and a
     // software GPU rasterizes next to nothing before the first real frame can be read back.
     const scissor = renderer.getScissor(_scissor);
@@ -192,7 +191,8 @@ export class Stage {
     // it (the demo's warm visit, traced: 110 ms of the first frame, a software GPU). Not with
     // shadows on: see `compileNow`.
     // One object per material (a crowd's characters share theirs; compiling each walks the scene).
-    if (!this.renderer.domElement.parentNode && !this.renderer.shadowMap.enabled) {
+    const first = !this.renderer.domElement.parentNode;
+    if (first && !this.renderer.shadowMap.enabled) {
       const seen = new Set<THREE.Material | THREE.Material[]>();
       this.scene.traverseVisible((o) => {
         const drawn = o as THREE.Mesh;
@@ -202,6 +202,6 @@ export class Stage {
       });
     }
     this.renderer.render(this.scene, this.camera);
-    if (!this.renderer.domElement.parentNode) this.container.appendChild(this.renderer.domElement);
+    if (first) this.container.appendChild(this.renderer.domElement);
   }
 }
