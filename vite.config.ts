@@ -95,9 +95,6 @@ const THREE_MODULE = path.join(root, 'node_modules/three/build/three.module.js')
 const elementChunk: Rollup.GetManualChunk = (id, meta) => {
   if (id === THREE_MODULE) return 'three';
   if (id === THREE_CORE) return 'three-core';
-  // The early reads (element/early.ts) and what they share with the library, in a part of
-  // their own that runs before three.js' parts evaluate.
-  if (/\/web\/src\/(element\/early|cache|assets)\.ts$/.test(id)) return 'early';
   const info = meta.getModuleInfo(id);
   if (!info || (info.importers.length === 0 && info.dynamicImporters.length > 0)) return undefined; // lazy
   return id.endsWith('/element/register.ts') ? undefined : 'element';

@@ -38,30 +38,8 @@ export function preloaded(href: string): boolean {
   return false;
 }
 
-/** Reads begun before anyone asked (`readEarly`), by URL: the first `cachedBytes` of it takes one. */
-const early = new Map<string, Promise<Uint8Array | null>>();
-
-/** How long a read nobody asked for keeps its bytes, ms. */
-const EARLY_KEPT_MS = 10_000;
-
-/**
- * Begins reading a versioned URL's cached bytes now, for the `cachedBytes` that will ask for
- * them (element/early.ts: while the page's scripts still evaluate).
- */
-export function readEarly(url: string): void {
-  if (early.has(url) || preloaded(url)) return; // a preloaded URL is fetched (fetch.ts)
-  early.set(url, read(url));
-  setTimeout(() => early.delete(url), EARLY_KEPT_MS); // asked for at another URL, or never
-}
-
 /** The cached bytes of a versioned URL, or null. */
-export function cachedBytes(url: string): Promise<Uint8Array | null> {
-  const begun = early.get(url);
-  early.delete(url);
-  return begun ?? read(url);
-}
-
-async function read(url: string): Promise<Uint8Array | null> {
+export async function cachedBytes(url: string): Promise<Uint8Array | null> {
   const cs = storage();
   if (!cs || !isVersioned(url)) return null;
   try {

@@ -5,7 +5,6 @@
  * `import 'mm-avatar/element'`. Outside a browser (server-side rendering, Node tests) importing it
  * registers nothing and touches no DOM global.
  */
-import './early.ts'; // first: the shipped assets' cache reads begin before the rest evaluates
 import { defineMMAvatar } from './mm-avatar.ts';
 
 defineMMAvatar();
