@@ -141,6 +141,19 @@ describe('runtime and offline apart (wasm-core/src/runtime, offline, harness)', 
   });
 });
 
+describe('what the builds keep', () => {
+  it("no source imports one of the library's modules for its side effects alone", () => {
+    // package.json's `sideEffects` names only the built entries, so a bundler (ours, and an
+    // app's) drops a module imported for its side effects alone: element/early.ts' cache reads
+    // were in no build for three stops (README "Loading fast", stop 60). Stylesheets are kept.
+    const ts = files(WEB, /\.ts$/).filter(source);
+    expect(ts.length).toBeGreaterThan(100);
+    const bare = /(?:^|\n)\s*import\s+['"](\.{1,2}\/[^'"]+)['"]/g;
+    const found = ts.flatMap((f) => [...fs.readFileSync(f, 'utf8').matchAll(bare)].map((m) => m[1]).filter((s) => !s.endsWith('.css')).map((s) => `${rel(f)}: ${s}`));
+    expect(found).toEqual([]);
+  });
+});
+
 describe('the repository stands alone', () => {
   it('no source, test or doc points outside the repository', () => {
     const all = [
