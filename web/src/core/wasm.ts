@@ -8,7 +8,7 @@
  */
 import { initWasmModule, initWasmModuleSync, live_objects } from './raw.ts';
 import { PACKAGE, assetUrl } from '../assets.ts';
-import { type FetchOptions, type FetchProgress, fetchBytes } from '../fetch.ts';
+import { type FetchOptions, type FetchProgress, fetchBytes, mark } from '../fetch.ts';
 
 /** What the module's initializer returns: its exports, including `memory`. */
 export interface WasmExports {
@@ -55,6 +55,7 @@ export function initWasm(url?: string | URL, options: Pick<FetchOptions, 'onProg
     try {
       const bytes = await fetchBytes(where, { stage: 'core', stallMs: options.stallMs, onProgress: (p) => _listeners.forEach((l) => l(p)) });
       _exports = (await initWasmModule({ module_or_path: bytes })) as unknown as WasmExports;
+      mark('mm:core-ready'); // compiled and instantiated (load benchmarks: scripts/bench-load.mjs)
     } catch (e) {
       _pending = null;
       const message = e instanceof Error ? e.message : String(e);

@@ -31,7 +31,7 @@ import { loadSharedAvatar } from '../avatar/shared.ts';
 import { Character, type MoveOptions, type PathOptions, type Root } from '../character/character.ts';
 import { type Database, loadDatabase, loadDefaultDatabase } from '../core/database.ts';
 import { checkStepsPerFrame, checkTimeStep, parseChoice, parseControls, parseUrl, quote } from './attributes.ts';
-import { type FetchProgress, errorMessage } from '../fetch.ts';
+import { type FetchProgress, errorMessage, mark } from '../fetch.ts';
 import { MoveControls } from '../input/move-controls.ts';
 import { roomOf } from '../rooms/room-of.ts';
 import type { RoomSession } from '../rooms/room-session.ts';
@@ -377,6 +377,7 @@ export class MMAvatarElement extends ElementBase {
     }
     try {
       const character = new Character(database, avatar, { debug: this.hasAttribute('debug') });
+      mark('mm:character-ready');
       database.release(); // the character holds its own reference
       this.character = character;
       this.applyStyle();

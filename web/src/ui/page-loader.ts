@@ -8,7 +8,7 @@ import { Avatar } from '../avatar/avatar.ts';
 import { loadSharedAvatar } from '../avatar/shared.ts';
 import { Character } from '../character/character.ts';
 import { type Database, loadDatabase } from '../core/database.ts';
-import { errorMessage } from '../fetch.ts';
+import { errorMessage, mark } from '../fetch.ts';
 import type { LoadingStatus } from './loading-status.ts';
 
 export interface PageCharacterOptions {
@@ -45,7 +45,9 @@ export async function loadPageCharacter(options: PageCharacterOptions): Promise<
   const avatar = a instanceof Avatar ? a : null;
   const avatarNote = a && !(a instanceof Avatar) ? `Avatar unavailable, showing the skeleton: ${errorMessage(a)}` : null;
   try {
-    return { character: new Character(database, avatar), avatarNote };
+    const character = new Character(database, avatar);
+    mark('mm:character-ready'); // load benchmarks print each step (scripts/bench-load.mjs)
+    return { character, avatarNote };
   } finally {
     database.release(); // the character holds its own reference
   }

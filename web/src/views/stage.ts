@@ -3,6 +3,7 @@
  * floor shadows, resize handling (the element, the demo, the viewer and the VR page use it).
  */
 import * as THREE from 'three';
+import { mark } from '../fetch.ts';
 import { FloorGrid } from './floor-grid.ts';
 import { rememberRenderer, softwareWebGL } from './software-gl.ts';
 
@@ -89,6 +90,7 @@ export class Stage {
       this.observer = new ResizeObserver(() => this.resize());
       this.observer.observe(container);
     }
+    mark('mm:stage-ready'); // its WebGL context made: a step load benchmarks print (scripts/bench-load.mjs)
   }
 
   /** Frees the renderer and every geometry, material and texture in the scene. */
