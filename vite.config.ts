@@ -135,7 +135,7 @@ function minifyStandalone(): Plugin {
  * Not on three.js' core classes (`…-three-core-*.js`): of their functions' code only 29 % runs
  * before the first frame (V8's precise coverage, the embed page's warm visit: 51 of 216 kB; the
  * renderer's part 56 %, the library's 66 %), and compiling the rest on a background thread took a
- * core from everything else the visit does on this 2-core machine (README "Loading fast", stop 59).
+ * core from everything else the visit does on this 2-core machine (docs/history.md "Loading", stop 59).
  */
 const COMPILE_HINT = '//# allFunctionsCalledOnLoad\n';
 /** Initial chunks left to V8's lazy compile: little of them runs before the first frame. */

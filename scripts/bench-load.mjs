@@ -282,7 +282,14 @@ function printLoad({ rows, database, machine, visits }) {
       const latency = NETWORKS[r.network]?.latency ?? 0;
       const viaWorker = latency > 0 && r.htmlMs !== null && r.htmlMs < latency && r.htmlSource !== 'cache';
       const ms = r.firstFrameMs + (viaWorker ? latency : 0);
-      const why = viaWorker ? ` with the round trip of its page, which came through the service worker unthrottled in ${r.htmlMs} ms` : '';
+      // A page that revalidated its HTML over the line (a plain page: no worker, no cache hit) waited
+      // one round trip before any script could run: what the element itself took is printed beside.
+      const revalidated = latency > 0 && r.htmlMs !== null && r.htmlMs >= latency && r.htmlSource !== 'cache';
+      const why = viaWorker
+        ? ` with the round trip of its page, which came through the service worker unthrottled in ${r.htmlMs} ms`
+        : revalidated
+          ? `: its HTML revalidated first (${r.htmlMs} ms), ${s(r.firstFrameMs - r.htmlMs)} s after it`
+          : '';
       check(`${r.page} warm first frame ≤ 0.4 s (${r.network})`, ms <= TARGETS.warmMs, `${s(ms)} s${why}`);
     }
     if (r.cache === 'cold' && r.page === 'vr') check(`VR page ≤ 10 MB before Enter VR (${r.network})`, (r.bytesBeforeEnterVr ?? Infinity) <= TARGETS.vrBytes, `${mb(r.bytesBeforeEnterVr)} MB`);

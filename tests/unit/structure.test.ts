@@ -145,7 +145,7 @@ describe('what the builds keep', () => {
   it("no source imports one of the library's modules for its side effects alone", () => {
     // package.json's `sideEffects` names only the built entries, so a bundler (ours, and an
     // app's) drops a module imported for its side effects alone: element/early.ts' cache reads
-    // were in no build for three stops (README "Loading fast", stop 60). Stylesheets are kept.
+    // were in no build for three stops (docs/history.md "Loading", stop 60). Stylesheets are kept.
     const ts = files(WEB, /\.ts$/).filter(source);
     expect(ts.length).toBeGreaterThan(100);
     const bare = /(?:^|\n)\s*import\s+['"](\.{1,2}\/[^'"]+)['"]/g;

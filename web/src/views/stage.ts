@@ -161,7 +161,7 @@ export class Stage {
    * waited for the draw before it; drawn here, after every program has answered its queries, the
    * GPU process builds them while this thread goes on (the embed page's warm visit: the first
    * frame's ~50-80 ms of waits for the GPU gone from its main thread). Its textures upload here too.
-   * Judged by when the first frame is shown, not only drawn: README "Loading fast", stop 57.
+   * Judged by when the first frame is shown, not only drawn: docs/history.md "Loading", stop 57.
    * Once the canvas is in the page (after the first `render`), or for an object in a scene of its
    * own, it only compiles. Worth it only while something else is still loading: a first frame
    * that follows at once links its programs itself (`render`), and drawn unseen just before it
