@@ -244,38 +244,27 @@ impl Inertializer {
     }
 
     /// Decays the offsets over `dt` seconds (critically damped, docs/method.md §4) and writes the
-    /// inertialized pose: `out_p = in_p + d_p`, `out_v = in_v + d_v`, `out_r = d_r · in_r`,
-    /// `out_ω = d_ω + d_r · in_ω`. `in_*` is the raw pose playing now (usually a database frame).
+    /// inertialized pose: `out_p = in_p + d_p`, `out_r = d_r · in_r`. `in_*` is the raw pose
+    /// playing now (usually a database frame). The output's velocities are not written: only a
+    /// transition reads them, so [`Inertializer::velocities`] derives them then.
     ///
     /// Preconditions: `dt ≥ 0`, `halflife ≥ 0` (the method's default 0.1 s), unit input rotations.
     ///
     /// # Panics
     /// If any slice's length differs from [`Inertializer::num_joints`].
-    #[allow(clippy::too_many_arguments)]
     pub fn update(
         &mut self,
         in_pos: &[Vec3],
-        in_vel: &[Vec3],
         in_rot: &[Quat],
-        in_angvel: &[Vec3],
         halflife: f32,
         dt: f32,
         out_pos: &mut [Vec3],
-        out_vel: &mut [Vec3],
         out_rot: &mut [Quat],
-        out_angvel: &mut [Vec3],
     ) {
         let n = self.num_joints();
-        for (name, len) in [
-            ("in_pos", in_pos.len()),
-            ("in_vel", in_vel.len()),
-            ("in_rot", in_rot.len()),
-            ("in_angvel", in_angvel.len()),
-            ("out_pos", out_pos.len()),
-            ("out_vel", out_vel.len()),
-            ("out_rot", out_rot.len()),
-            ("out_angvel", out_angvel.len()),
-        ] {
+        for (name, len) in
+            [("in_pos", in_pos.len()), ("in_rot", in_rot.len()), ("out_pos", out_pos.len()), ("out_rot", out_rot.len())]
+        {
             assert_eq!(len, n, "Inertializer::update: {name} has {len} joints, expected {n}");
         }
         let decay = DecayStep::new(halflife, dt);
@@ -285,23 +274,50 @@ impl Inertializer {
             // every transition (`(0 + s) − t` with `s = t`), and their velocities too.
             if both_zero(self.offset_positions[i], self.offset_velocities[i]) {
                 out_pos[i] = in_pos[i];
-                out_vel[i] = in_vel[i];
             } else {
                 decay.apply(&mut self.offset_positions[i], &mut self.offset_velocities[i]);
                 out_pos[i] = in_pos[i] + self.offset_positions[i];
-                out_vel[i] = in_vel[i] + self.offset_velocities[i];
             }
             if both_zero(self.offset_rotation_vectors[i], self.offset_angular_velocities[i]) {
                 out_rot[i] = in_rot[i];
-                out_angvel[i] = in_angvel[i];
             } else {
                 // The rotation offset decays as a vector and only its exponential is taken
                 // (docs/method.md §4).
                 decay.apply(&mut self.offset_rotation_vectors[i], &mut self.offset_angular_velocities[i]);
-                let d = quat_from_rotation_vector(self.offset_rotation_vectors[i]);
-                out_rot[i] = d * in_rot[i];
-                out_angvel[i] = self.offset_angular_velocities[i] + d * in_angvel[i];
+                out_rot[i] = quat_from_rotation_vector(self.offset_rotation_vectors[i]) * in_rot[i];
             }
+        }
+    }
+
+    /// The velocities of the pose [`Inertializer::update`] wrote last, for input velocities
+    /// `in_*` (those of the pose it was given): `out_v = in_v + d_v`, `out_ω = d_ω + d_r · in_ω`,
+    /// with the offsets as that update left them — the same operations it would have done, so
+    /// the same bits. Only a transition's source needs them (one update in ten or so): writing
+    /// them every update was 7 % of a crowd's instructions (cachegrind, `mmdb bench-runtime`).
+    ///
+    /// # Panics
+    /// If any slice's length differs from [`Inertializer::num_joints`].
+    pub fn velocities(&self, in_vel: &[Vec3], in_angvel: &[Vec3], out_vel: &mut [Vec3], out_angvel: &mut [Vec3]) {
+        let n = self.num_joints();
+        for (name, len) in [
+            ("in_vel", in_vel.len()),
+            ("in_angvel", in_angvel.len()),
+            ("out_vel", out_vel.len()),
+            ("out_angvel", out_angvel.len()),
+        ] {
+            assert_eq!(len, n, "Inertializer::velocities: {name} has {len} joints, expected {n}");
+        }
+        for i in 0..n {
+            out_vel[i] = if both_zero(self.offset_positions[i], self.offset_velocities[i]) {
+                in_vel[i]
+            } else {
+                in_vel[i] + self.offset_velocities[i]
+            };
+            out_angvel[i] = if both_zero(self.offset_rotation_vectors[i], self.offset_angular_velocities[i]) {
+                in_angvel[i]
+            } else {
+                self.offset_angular_velocities[i] + self.offset_rotation(i) * in_angvel[i]
+            };
         }
     }
 }
@@ -344,18 +360,8 @@ mod tests {
     }
 
     fn update(inert: &mut Inertializer, input: &Pose, halflife: f32, dt: f32, out: &mut Pose) {
-        inert.update(
-            &input.pos,
-            &input.vel,
-            &input.rot,
-            &input.angvel,
-            halflife,
-            dt,
-            &mut out.pos,
-            &mut out.vel,
-            &mut out.rot,
-            &mut out.angvel,
-        );
+        inert.update(&input.pos, &input.rot, halflife, dt, &mut out.pos, &mut out.rot);
+        inert.velocities(&input.vel, &input.angvel, &mut out.vel, &mut out.angvel);
     }
 
     fn transition(inert: &mut Inertializer, src: &Pose, dst: &Pose) {

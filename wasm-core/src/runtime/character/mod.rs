@@ -306,6 +306,8 @@ impl Character {
     /// `from` must be the database the character was playing; with another one the pose part of
     /// the next query is left as it was.
     pub fn switch_database(&mut self, from: &Database) {
+        // The transition's source is the pose playing in `from`.
+        self.pose.hold_velocities(from, self.frame);
         if self.frame < from.num_frames && from.num_features() == self.query.values.len() {
             self.query.set_pose(from.feature(self.frame));
         }
@@ -591,7 +593,7 @@ impl Character {
     fn transition(&mut self, db: &Database, frame: usize) {
         self.stats.transitions += 1;
         let inertialize = self.settings.inertialize;
-        self.pose.transition(db, frame, inertialize);
+        self.pose.transition(db, self.frame, frame, inertialize);
         self.root.transition(db, frame, inertialize);
         self.frame = frame;
     }

@@ -16,8 +16,15 @@ pub struct Pose {
     /// touch-ups would be folded into the offsets and decay away).
     pub positions: Vec<Vec3>,
     pub rotations: Vec<Quat>,
-    pub velocities: Vec<Vec3>,
-    pub angular_velocities: Vec<Vec3>,
+    /// The inertialized pose's velocities, held for the next transition's source
+    /// ([`Pose::hold_velocities`]): derived when a transition or a saved state needs them, not
+    /// every update (only those read them).
+    velocities: Vec<Vec3>,
+    angular_velocities: Vec<Vec3>,
+    /// Whether `velocities` are the current pose's (until the next `play`), and whether that
+    /// `play` applied the inertialization's offsets.
+    held: bool,
+    inertialized: bool,
     /// What is shown: the inertialized rotations with the leg IK applied.
     pub output_rotations: Vec<Quat>,
     /// World transforms of the shown pose.
@@ -49,6 +56,10 @@ impl Persist for Pose {
         self.angular_velocities.persist(v, "joint angular velocities");
         self.output_rotations.persist(v, "shown joint rotations");
         self.contacts.persist(v, "contacts");
+        // A writer holds them first (`Character::save_state`); read, they are the sender's.
+        if v.reading() {
+            self.held = true;
+        }
     }
 }
 
@@ -61,6 +72,8 @@ impl Pose {
             rotations: vec![Quat::IDENTITY; j],
             velocities: vec![Vec3::ZERO; j],
             angular_velocities: vec![Vec3::ZERO; j],
+            held: false,
+            inertialized: false,
             output_rotations: vec![Quat::IDENTITY; j],
             world_positions: vec![Vec3::ZERO; j],
             world_rotations: vec![Quat::IDENTITY; j],
@@ -75,10 +88,35 @@ impl Pose {
         self.inertializer.reset();
     }
 
-    /// A jump to `frame`: the offsets take what is output now (joint 0, the root, is the root
-    /// motion's business); without `inertialize`, a hard cut.
-    pub fn transition(&mut self, db: &Database, frame: usize, inertialize: bool) {
+    /// Derives the velocities of the pose the last `play` wrote — `frame`'s, inertialized as
+    /// it was — and holds them until the next `play` (a second call keeps the first's: after a
+    /// switch of databases they are the old database's). A frame beyond `db` holds zeros.
+    pub fn hold_velocities(&mut self, db: &Database, frame: usize) {
+        if self.held {
+            return;
+        }
+        self.held = true;
+        if frame >= db.num_frames {
+            self.velocities.fill(Vec3::ZERO);
+            self.angular_velocities.fill(Vec3::ZERO);
+            return;
+        }
+        db.frame_velocities(frame, &mut self.frame_velocities, &mut self.frame_angular_velocities);
+        let (lv, lw) = (&self.frame_velocities[1..], &self.frame_angular_velocities[1..]);
+        if self.inertialized {
+            self.inertializer.velocities(lv, lw, &mut self.velocities[1..], &mut self.angular_velocities[1..]);
+        } else {
+            self.velocities[1..].copy_from_slice(lv);
+            self.angular_velocities[1..].copy_from_slice(lw);
+        }
+    }
+
+    /// A jump from `from` (the frame the last `play` wrote) to `frame`: the offsets take what is
+    /// output now (joint 0, the root, is the root motion's business); without `inertialize`, a
+    /// hard cut.
+    pub fn transition(&mut self, db: &Database, from: usize, frame: usize, inertialize: bool) {
         if inertialize {
+            self.hold_velocities(db, from);
             let j = db.num_joints();
             let (lp, lr) = frame_pose(db, frame);
             db.frame_velocities(frame, &mut self.frame_velocities, &mut self.frame_angular_velocities);
@@ -98,31 +136,24 @@ impl Pose {
         }
     }
 
-    /// Writes `frame`'s pose, inertialized over `dt`, with the root at `(root_position,
-    /// root_rotation)`.
+    /// Writes `frame`'s pose, inertialized over `dt` (its velocities only when asked for:
+    /// [`Pose::hold_velocities`]).
     pub fn play(&mut self, db: &Database, frame: usize, inertialize: bool, halflife: f32, dt: f32) {
         let (lp, lr) = frame_pose(db, frame);
-        db.frame_velocities(frame, &mut self.frame_velocities, &mut self.frame_angular_velocities);
-        let (lv, lw) = (&self.frame_velocities, &self.frame_angular_velocities);
         if inertialize {
             self.inertializer.update(
                 &lp[1..],
-                &lv[1..],
                 &lr[1..],
-                &lw[1..],
                 halflife,
                 dt,
                 &mut self.positions[1..],
-                &mut self.velocities[1..],
                 &mut self.rotations[1..],
-                &mut self.angular_velocities[1..],
             );
         } else {
             self.positions[1..].copy_from_slice(&lp[1..]);
             self.rotations[1..].copy_from_slice(&lr[1..]);
-            self.velocities[1..].copy_from_slice(&lv[1..]);
-            self.angular_velocities[1..].copy_from_slice(&lw[1..]);
         }
+        (self.held, self.inertialized) = (false, inertialize);
         self.contacts = [db.contacts[2 * frame], db.contacts[2 * frame + 1]];
     }
 
@@ -150,5 +181,78 @@ impl Pose {
             &mut self.world_positions,
             &mut self.world_rotations,
         );
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::database::{Clip, Skeleton};
+
+    /// One clip of 10 frames at 60 fps, two joints; the child's local position at frame `f` is
+    /// `child(f)`.
+    fn database(child: impl Fn(usize) -> Vec3) -> Database {
+        let n = 10;
+        Database {
+            skeleton: Skeleton {
+                names: vec!["root".into(), "child".into()],
+                parents: vec![-1, 0],
+                offsets: vec![Vec3::ZERO, Vec3::X],
+                sites: vec![],
+                mirror: vec![],
+            },
+            fps: 60.0,
+            num_frames: n,
+            clips: vec![Clip {
+                name: "c".into(),
+                source: "c".into(),
+                start: 0,
+                end: n as u32,
+                mirrored: false,
+                source_fps: 60.0,
+                source_start: 0,
+                scale: 1.0,
+                root_scale: 1.0,
+            }],
+            tags: vec![],
+            local_positions: (0..n).flat_map(|f| [Vec3::ZERO, child(f)]).collect(),
+            local_rotations: vec![Quat::IDENTITY; 2 * n],
+            contacts: vec![0; 2 * n],
+            groups: vec![],
+            feature_mean: vec![],
+            feature_scale: vec![],
+            features: vec![],
+            valid: vec![1; n],
+            part: None,
+            velocities: Default::default(),
+        }
+    }
+
+    /// A switch of databases: the transition's source moves as the old database's frame did,
+    /// not as the same frame of the new one.
+    #[test]
+    fn held_velocities_are_the_database_played() {
+        let moving = database(|f| Vec3::new(1.0 + f as f32 / 60.0, 0.0, 0.0)); // 1 m/s
+        let still = database(|_| Vec3::new(2.0, 0.0, 0.0));
+        let mut pose = Pose::new(2);
+        pose.play(&moving, 4, true, 0.1, 1.0 / 60.0);
+        let mut switched = pose.clone();
+        switched.hold_velocities(&moving, 4);
+        switched.hold_velocities(&still, 4); // kept: the first call's
+        assert!((switched.velocities[1] - Vec3::X).length() < 1e-4, "{}", switched.velocities[1]);
+        switched.transition(&still, 4, 4, true);
+        // Source 1 m/s, target still: the offset carries the whole velocity, and the position.
+        let offset = switched.inertializer.offset_velocities()[0];
+        assert!((offset - Vec3::X).length() < 1e-4, "{offset}");
+        assert!(
+            (switched.inertializer.offset_positions()[0] - Vec3::new(-(2.0 - 1.0 - 4.0 / 60.0), 0.0, 0.0)).length()
+                < 1e-5
+        );
+        // Without the switch the source is the frame's own velocity in the database given.
+        pose.transition(&still, 4, 4, true);
+        assert!(pose.inertializer.offset_velocities()[0].length() < 1e-6);
+        // A play releases what was held.
+        switched.play(&still, 5, true, 0.1, 1.0 / 60.0);
+        assert!(!switched.held);
     }
 }

@@ -51,7 +51,9 @@ impl Character {
         {
             x.persist(&mut w, "");
         }
-        self.clone().persist(&mut w, "");
+        let mut state = self.clone();
+        state.pose.hold_velocities(db, state.frame);
+        state.persist(&mut w, "");
         w.bytes
     }
 
