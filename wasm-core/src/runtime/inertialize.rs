@@ -152,7 +152,7 @@ impl Inertializer {
     fn set_live(&mut self, i: usize) {
         let position = !both_zero(self.offset_positions[i], self.offset_velocities[i]);
         let rotation = !both_zero(self.offset_rotation_vectors[i], self.offset_angular_velocities[i]);
-        self.live[i] = u8::from(position) * LIVE_POSITION | u8::from(rotation) * LIVE_ROTATION;
+        self.live[i] = (u8::from(position) * LIVE_POSITION) | (u8::from(rotation) * LIVE_ROTATION);
     }
 
     pub fn num_joints(&self) -> usize {
