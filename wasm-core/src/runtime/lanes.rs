@@ -1,4 +1,5 @@
-//! A 4-wide f32 vector on WASM SIMD128 / x86 SSE, scalar elsewhere, for the search kernels.
+//! A 4-wide f32 vector on WASM SIMD128 / x86 SSE, scalar elsewhere, for the search kernels and
+//! the inertializer's rotation offsets ([`Vec3x4`]: four 3-vectors, component-planar).
 //!
 //! The backend is chosen at compile time: `core::arch::wasm32` v128 when the WASM build
 //! enables `simd128` (scripts/setup.mjs passes `-C target-feature=+simd128`), SSE on x86_64
@@ -259,6 +260,99 @@ impl core::fmt::Debug for F32x4 {
 impl From<[f32; 4]> for F32x4 {
     fn from(a: [f32; 4]) -> Self {
         Self::from_array(a)
+    }
+}
+
+/// Four 3-vectors stored component-planar (`x` holds the four x's): four joints' vectors
+/// moved by one set of lane operations.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Vec3x4 {
+    pub x: F32x4,
+    pub y: F32x4,
+    pub z: F32x4,
+}
+
+impl Vec3x4 {
+    pub const ZERO: Vec3x4 = Vec3x4 { x: F32x4::ZERO, y: F32x4::ZERO, z: F32x4::ZERO };
+
+    /// Vector `lane` (0..4).
+    #[inline(always)]
+    pub fn lane(&self, lane: usize) -> glam::Vec3 {
+        glam::Vec3::new(self.x.to_array()[lane], self.y.to_array()[lane], self.z.to_array()[lane])
+    }
+
+    /// The four vectors.
+    #[inline(always)]
+    pub fn to_vec3s(self) -> [glam::Vec3; 4] {
+        let (x, y, z) = (self.x.to_array(), self.y.to_array(), self.z.to_array());
+        std::array::from_fn(|l| glam::Vec3::new(x[l], y[l], z[l]))
+    }
+
+    /// Four vectors into lanes 0..4.
+    #[inline(always)]
+    pub fn from_vec3s(v: [glam::Vec3; 4]) -> Vec3x4 {
+        Vec3x4 {
+            x: F32x4::from_array(v.map(|v| v.x)),
+            y: F32x4::from_array(v.map(|v| v.y)),
+            z: F32x4::from_array(v.map(|v| v.z)),
+        }
+    }
+
+    /// Sets vector `lane` (0..4); the others are kept.
+    pub fn set_lane(&mut self, lane: usize, v: glam::Vec3) {
+        for (c, value) in [(&mut self.x, v.x), (&mut self.y, v.y), (&mut self.z, v.z)] {
+            let mut a = c.to_array();
+            a[lane] = value;
+            *c = F32x4::from_array(a);
+        }
+    }
+
+    /// `x² + y² + z²` per lane, summed left to right.
+    #[inline(always)]
+    pub fn length_squared(self) -> F32x4 {
+        self.x * self.x + self.y * self.y + self.z * self.z
+    }
+}
+
+impl Add for Vec3x4 {
+    type Output = Vec3x4;
+    #[inline(always)]
+    fn add(self, r: Vec3x4) -> Vec3x4 {
+        Vec3x4 { x: self.x + r.x, y: self.y + r.y, z: self.z + r.z }
+    }
+}
+
+impl Sub for Vec3x4 {
+    type Output = Vec3x4;
+    #[inline(always)]
+    fn sub(self, r: Vec3x4) -> Vec3x4 {
+        Vec3x4 { x: self.x - r.x, y: self.y - r.y, z: self.z - r.z }
+    }
+}
+
+impl Mul<F32x4> for Vec3x4 {
+    type Output = Vec3x4;
+    #[inline(always)]
+    fn mul(self, k: F32x4) -> Vec3x4 {
+        Vec3x4 { x: self.x * k, y: self.y * k, z: self.z * k }
+    }
+}
+
+/// Every lane times one scalar: a [`crate::spring::SpringValue`], so the springs move four
+/// vectors with the operations they use on one.
+impl Mul<f32> for Vec3x4 {
+    type Output = Vec3x4;
+    #[inline(always)]
+    fn mul(self, k: f32) -> Vec3x4 {
+        self * F32x4::splat(k)
+    }
+}
+
+/// Every lane `v` (as [`F32x4::splat`]), for code written once for lanes and scalars.
+impl From<f32> for F32x4 {
+    #[inline(always)]
+    fn from(v: f32) -> Self {
+        Self::splat(v)
     }
 }
 
