@@ -223,6 +223,20 @@ lane_op!(Add, add, f32x4_add, _mm_add_ps, +);
 lane_op!(Sub, sub, f32x4_sub, _mm_sub_ps, -);
 lane_op!(Mul, mul, f32x4_mul, _mm_mul_ps, *);
 
+/// Whether every value is finite, without a branch per value: `x · 0` is 0 for a finite `x`
+/// and NaN for ±∞ or NaN, so the sum of those products is 0 exactly when all are finite (and
+/// cannot overflow). Four at a time: a character checks its whole world pose every update,
+/// where testing its 224 floats one by one was 4 % of the update's instructions in V8.
+pub fn all_finite(values: &[f32]) -> bool {
+    let (zero, mut acc) = (F32x4::ZERO, F32x4::ZERO);
+    let mut chunks = values.chunks_exact(4);
+    for c in chunks.by_ref() {
+        acc += F32x4::from_slice(c) * zero;
+    }
+    let rest = chunks.remainder().iter().fold(0.0, |a, &x| a + x * 0.0);
+    acc.element_sum() + rest == 0.0
+}
+
 /// Views lane vectors as their floats, lane by lane: element `4·i + l` is lane `l` of `v[i]`.
 #[inline(always)]
 pub fn as_f32_slice(v: &[F32x4]) -> &[f32] {
@@ -365,6 +379,19 @@ impl From<F32x4> for [f32; 4] {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn all_finite_finds_any_infinity_or_nan_anywhere() {
+        let values: Vec<f32> = (0..23).map(|i| (i as f32 - 11.0) * 1e37).collect();
+        assert!(all_finite(&values) && all_finite(&[]) && all_finite(&[f32::MAX, f32::MAX, -0.0]));
+        for bad in [f32::NAN, f32::INFINITY, f32::NEG_INFINITY] {
+            for at in 0..values.len() {
+                let mut v = values.clone();
+                v[at] = bad;
+                assert!(!all_finite(&v), "{bad} at {at}");
+            }
+        }
+    }
 
     const A: [f32; 4] = [1.5, -2.0, 3.25, f32::INFINITY];
     const B: [f32; 4] = [0.5, 4.0, -1.0, 2.0];

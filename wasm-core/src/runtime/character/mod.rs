@@ -500,8 +500,8 @@ impl Character {
             && sim.acceleration.is_finite()
             && sim.rotation.is_finite()
             && sim.angular_velocity.is_finite()
-            && self.pose.world_positions.iter().all(|p| p.is_finite())
-            && self.pose.world_rotations.iter().all(|q| q.is_finite())
+            && crate::lanes::all_finite(bytemuck::cast_slice(&self.pose.world_positions))
+            && crate::lanes::all_finite(bytemuck::cast_slice(&self.pose.world_rotations))
     }
 
     /// Back to the last good state, this update: root and simulated character where they last
