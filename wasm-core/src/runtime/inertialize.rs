@@ -122,6 +122,9 @@ pub struct Inertializer {
     /// underflow, after ~100 half-lives, where the update then adds zeros). Testing the
     /// offsets' bits in every update instead was 4 % of a crowd's instructions.
     live: Vec<u8>,
+    /// The joints whose position channel is live, in order (allocated once, `num_joints` long
+    /// at most): the update copies the positions and touches only these.
+    moving: Vec<u32>,
 }
 
 /// [`Inertializer`]'s `live` bits.
@@ -200,6 +203,7 @@ impl Persist for Inertializer {
             for i in 0..self.num_joints() {
                 self.set_live(i);
             }
+            self.list_moving();
         }
     }
 }
@@ -213,6 +217,7 @@ impl Inertializer {
             offset_rotation_vectors: vec![Vec3x4::ZERO; num_joints.div_ceil(4)],
             offset_angular_velocities: vec![Vec3x4::ZERO; num_joints.div_ceil(4)],
             live: vec![0; num_joints],
+            moving: Vec::with_capacity(num_joints),
         }
     }
 
@@ -220,6 +225,13 @@ impl Inertializer {
     fn set_live(&mut self, i: usize) {
         let (p, v) = (self.offset_positions[i], self.offset_velocities[i]);
         self.live[i] = live_bits(p, v, self.offset_rotation_vector(i), self.offset_angular_velocity(i));
+    }
+
+    /// [`Self::moving`] from the `live` bits.
+    fn list_moving(&mut self) {
+        self.moving.clear();
+        let live = self.live.iter().enumerate().filter(|(_, &b)| b & LIVE_POSITION != 0);
+        self.moving.extend(live.map(|(i, _)| i as u32));
     }
 
     pub fn num_joints(&self) -> usize {
@@ -233,6 +245,7 @@ impl Inertializer {
         self.offset_rotation_vectors.fill(Vec3x4::ZERO);
         self.offset_angular_velocities.fill(Vec3x4::ZERO);
         self.live.fill(0);
+        self.moving.clear();
     }
 
     /// Current position offsets `d_p` (local space of each joint's parent).
@@ -310,6 +323,7 @@ impl Inertializer {
             }
             (*r4, *w4) = (Vec3x4::from_vec3s(r), Vec3x4::from_vec3s(w));
         }
+        self.list_moving();
     }
 
     /// The same transition as [`Inertializer::transition`], computed from the current **output**
@@ -361,15 +375,14 @@ impl Inertializer {
             assert_eq!(len, n, "Inertializer::update: {name} has {len} joints, expected {n}");
         }
         let decay = DecayStep::new(halflife, dt);
-        let live = &self.live[..n];
-        for i in 0..n {
-            if live[i] & LIVE_POSITION == 0 {
-                out_pos[i] = in_pos[i];
-            } else {
-                decay.apply(&mut self.offset_positions[i], &mut self.offset_velocities[i]);
-                out_pos[i] = in_pos[i] + self.offset_positions[i];
-            }
+        // Positions: a copy, then the few joints with an offset (the hips, usually).
+        out_pos.copy_from_slice(in_pos);
+        for &i in &self.moving {
+            let i = i as usize;
+            decay.apply(&mut self.offset_positions[i], &mut self.offset_velocities[i]);
+            out_pos[i] = in_pos[i] + self.offset_positions[i];
         }
+        let live = &self.live[..n];
         // Rotations four joints at a time: the offsets decay as vectors and only their
         // exponentials are taken (docs/method.md §4). A lane that is not live holds zeros and
         // stays zero.
@@ -387,6 +400,14 @@ impl Inertializer {
             let (k, cos) = half_angle(h2);
             let (x, y, z, cos) = ((r.x * k).to_array(), (r.y * k).to_array(), (r.z * k).to_array(), cos.to_array());
             let within = h2.cmple(series_max).bitmask();
+            if live & within == 0b1111 {
+                // The usual case, with no branch per joint.
+                for l in 0..4 {
+                    let i = 4 * g + l;
+                    out_rot[i] = Quat::from_xyzw(x[l], y[l], z[l], cos[l]) * in_rot[i];
+                }
+                continue;
+            }
             for i in joints {
                 let l = i - 4 * g;
                 out_rot[i] = if live & (1 << l) == 0 {
