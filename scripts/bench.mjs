@@ -1,5 +1,5 @@
 #!/usr/bin/env node
-// `npm run bench [-- --json] [-- --seconds S] [-- --queries N] [-- --search-only] [-- --vr] [-- --compare REV] [-- --load] [-- --crowd]`
+// `npm run bench [-- --json] [-- --seconds S] [-- --queries N] [-- --search-only] [-- --vr] [-- --compare REV [--rounds N]] [-- --load] [-- --crowd]`
 // (--vr [--recordings a,b] [--alpha A]: only the VR replay benchmark, see vrBenchmark; --vr-shots: screenshots of the replays; --load: bytes and time to the first
 // animated frame of the pages, cold and warm, localhost and throttled: scripts/bench-load.mjs):
 // Every database here is a pinned recipe of databases/bench/ (scripts/bench-recipes.mjs): the
@@ -412,11 +412,13 @@ async function vrShots(log) {
 // ---------------------------------------------------------------- before / after (--compare REV)
 
 /**
- * `npm run bench -- --compare REV`: the character update and the crowd of 256 of this checkout
- * against git revision REV, in one Node process, interleaved (A B A B …, 5 rounds each) so the
- * machine's load hits both alike; medians of the rounds. REV's WASM is built once into
+ * `npm run bench -- --compare REV [--rounds N]`: the character update and the crowd of 256 of
+ * this checkout against git revision REV, in one Node process, interleaved (A B A B …, N rounds
+ * each, 5 by default) so the machine's load hits both alike; medians of the rounds. REV's WASM is built once into
  * wasm-core/target/compare-REV (a git worktree; nothing is committed).
  */
+const compareRounds = args.includes('--rounds') ? Math.max(1, Number(args[args.indexOf('--rounds') + 1]) || 5) : 5;
+
 async function compareRevision(rev, log) {
   const sha = execFileSync('git', ['rev-parse', '--short', rev], { cwd: ROOT, encoding: 'utf8' }).trim();
   const dir = path.join(ROOT, 'wasm-core', 'target', `compare-${sha}`);
@@ -469,7 +471,7 @@ async function compareRevision(rev, log) {
     return { update_ms: median(times), characters_in_4ms: Math.floor(4 / (median(crowdTimes) / 256)) };
   };
   const rounds = { before: [], after: [] };
-  for (let round = 0; round < 5; round++) {
+  for (let round = 0; round < compareRounds; round++) {
     rounds.before.push(measure(old));
     rounds.after.push(measure(wasm));
   }
