@@ -20,6 +20,7 @@ import { fileURLToPath } from 'node:url';
 import { PARSE_RECIPE, recipeDatabase, recipes, RUNTIME_RECIPE } from './bench-recipes.mjs';
 import { launchBenchChromium, startBenchServer } from './bench-server.mjs';
 import { CHROMIUM } from './chromium.mjs';
+import { crowdInput } from './crowd-input.mjs';
 
 const ROOT = path.resolve(path.dirname(fileURLToPath(import.meta.url)), '..');
 const args = process.argv.slice(2);
@@ -435,12 +436,6 @@ async function compareRevision(rev, log) {
   const old = await import(path.join(oldPkg, 'mmcore.js'));
   old.initSync({ module: fs.readFileSync(path.join(oldPkg, 'mmcore_bg.wasm')) });
   const bytes = new Uint8Array(fs.readFileSync(recipeDatabase(recipe(RUNTIME_RECIPE), mmdb, log)));
-  // The same input script as runtime-bench.ts: zig-zag, back-run, stop, 2 s each at 60 Hz.
-  const input = (step) => {
-    const phase = Math.floor(step / 120) % 4;
-    const dir = [[0.7, 0.7], [-0.7, 0.7], [0, -1], [0, 0]][phase];
-    return [dir[0], dir[1], phase === 2];
-  };
   const median = (v) => [...v].sort((a, b) => a - b)[v.length >> 1];
   // Either API: before the redesign a crowd took the .mmdb bytes, now a shared database.
   const crowdOf = (mod, n) => (mod.RawCharacter ? new mod.RawCrowd(new mod.RawDatabase(bytes), n) : new mod.RawCrowd(bytes, n));
@@ -448,7 +443,7 @@ async function compareRevision(rev, log) {
     const one = crowdOf(mod, 1);
     const times = [];
     for (let step = 0; step < 3600; step++) {
-      const [x, z, run] = input(step);
+      const [x, z, run] = crowdInput(step);
       one.set_input(0, x, z, 0, 1, run, false);
       const t = performance.now();
       one.update(1 / 60);
@@ -460,7 +455,7 @@ async function compareRevision(rev, log) {
     // Timed after 120 steps, as runtime-bench.ts does (first-played velocity blocks derived then).
     for (let step = 0; step < 120 + 240; step++) {
       for (let i = 0; i < 256; i++) {
-        const [x, z, run] = input(step + 37 * i);
+        const [x, z, run] = crowdInput(step + 37 * i);
         crowd.set_input(i, x, z, 0, 1, run, false);
       }
       const t = performance.now();

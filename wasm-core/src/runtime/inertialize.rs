@@ -390,8 +390,8 @@ impl Inertializer {
         for (g, (r, w)) in self.offset_rotation_vectors.iter_mut().zip(&mut self.offset_angular_velocities).enumerate()
         {
             let joints = 4 * g..(4 * g + 4).min(n);
-            let live = joints.clone().fold(0u32, |m, i| m | (u32::from(live[i] & LIVE_ROTATION != 0) << (i - 4 * g)));
-            if live == 0 {
+            let lanes = joints.clone().fold(0u32, |m, i| m | (u32::from(live[i] & LIVE_ROTATION != 0) << (i - 4 * g)));
+            if lanes == 0 {
                 out_rot[joints.clone()].copy_from_slice(&in_rot[joints]);
                 continue;
             }
@@ -400,7 +400,7 @@ impl Inertializer {
             let (k, cos) = half_angle(h2);
             let (x, y, z, cos) = ((r.x * k).to_array(), (r.y * k).to_array(), (r.z * k).to_array(), cos.to_array());
             let within = h2.cmple(series_max).bitmask();
-            if live & within == 0b1111 {
+            if lanes & within == 0b1111 {
                 // The usual case, with no branch per joint.
                 for l in 0..4 {
                     let i = 4 * g + l;
@@ -410,7 +410,7 @@ impl Inertializer {
             }
             for i in joints {
                 let l = i - 4 * g;
-                out_rot[i] = if live & (1 << l) == 0 {
+                out_rot[i] = if lanes & (1 << l) == 0 {
                     in_rot[i]
                 } else if within & (1 << l) != 0 {
                     Quat::from_xyzw(x[l], y[l], z[l], cos[l]) * in_rot[i]
